@@ -1,0 +1,45 @@
+#pragma once
+// Progress reporting for long stages: a single status line on stderr with count,
+// percentage, rate and ETA, redrawn at most ~5 times a second. When stderr is not a
+// terminal (CI, logs) it stays quiet until finish(), which always prints one summary
+// line. advance() is thread-safe and cheap (one atomic add) so worker threads call it.
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <mutex>
+#include <string>
+
+namespace prt {
+
+class Progress {
+public:
+    Progress(std::string label, uint64_t total, std::string unit = "items");
+    ~Progress();  // calls finish() if not yet finished
+
+    void advance(uint64_t n = 1);
+    // Prints "<label>: <total> <unit> in <t> s (<rate> <unit>/s)" and returns seconds.
+    double finish();
+    double elapsedSeconds() const;
+
+    // Overrides terminal detection (tests, --quiet).
+    static void setEnabled(bool enabled);
+
+private:
+    void redraw(uint64_t done);
+
+    std::string label_;
+    std::string unit_;
+    uint64_t total_;
+    std::atomic<uint64_t> done_{0};
+    std::atomic<int64_t> lastDrawNs_{0};
+    std::chrono::steady_clock::time_point start_;
+    std::mutex drawMutex_;
+    bool interactive_;
+    bool finished_ = false;
+};
+
+// "1.2 s", "3 min 4 s", "1 h 2 min"
+std::string formatDuration(double seconds);
+
+}  // namespace prt
