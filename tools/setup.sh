@@ -12,7 +12,7 @@ packages=(
   libopenmesh-dev
   libeigen3-dev
   libtbb-dev
-  libcli11-dev
+  libcli11-dev nlohmann-json3-dev
   zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   xvfb xauth libgl1-mesa-dri

@@ -1,0 +1,79 @@
+#pragma once
+// Pass 1 of the multiple-scattering precomputation (Wang et al. 2005, Eq. 8):
+// the irradiance transport of each surface sample x_i,
+//
+//     E(x_i, w_j) = F_t(eta, w_j) V(x_i, w_j) max(0, n_i . w_j) dOmega_j,
+//
+// over the texels j of a 6 x N x N cubemap (docs/conventions.md), with the texel's
+// solid angle folded in so that relighting is a plain dot product with radiance.
+// Each texel is integrated with s x s stratified sub-directions (the centres of an
+// s x s grid of sub-texels, each weighted by its exact sub-solid-angle), so E_j is
+// the integral of F_t V cos over the texel, not a point sample. Visibility V comes
+// from Embree occlusion rays traced in packets from one offset origin per sample.
+// The dense cubemap is then Haar-transformed per face and non-linearly
+// approximated by its largest coefficients.
+//
+// Units: positions in mm (only ratios matter here); E is dimensionless (sr).
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "common/haar.h"
+#include "common/raytrace.h"
+#include "common/sampling.h"
+
+namespace prt {
+
+class Progress;
+
+// The sub-directions of every texel of a 6 x N x N cubemap, s x s per texel,
+// stored texel by texel in flat texel order (SoA), with their exact solid angles.
+struct TexelDirections {
+    int size = 0;         // N
+    int supersample = 0;  // s
+    std::vector<float> x, y, z;      // unit sub-directions, 6 N^2 s^2 of them
+    std::vector<float> solidAngle;   // exact solid angle of each sub-texel (sums to 4 pi)
+
+    size_t subPerTexel() const { return size_t(supersample) * supersample; }
+    size_t count() const { return x.size(); }
+};
+TexelDirections makeTexelDirections(int cubemapSize, int supersample);
+
+struct IrradianceOptions {
+    int cubemapSize = 32;           // N; a power of two
+    int supersample = 2;            // s: s x s sub-directions per texel
+    size_t keepCoefficients = 128;  // largest Haar coefficients kept per sample
+    double eta = 1.3;               // relative index of refraction for F_t
+    bool visibility = true;         // false: V = 1 everywhere (tests, ablations)
+};
+
+// Per-thread scratch so the hot loop never allocates.
+struct IrradianceScratch {
+    std::vector<float> dirX, dirY, dirZ, weight;  // rays that face the sample's normal
+    std::vector<uint32_t> texel;                  // their texel
+    std::vector<uint8_t> occluded;
+    std::vector<float> dense;                     // 6 N^2
+};
+
+// Dense E of one sample (Eq. 8) into `out` (6 N^2 floats, texel order). Returns the
+// number of occlusion rays traced (only sub-directions with n_i . w > 0 are traced).
+uint64_t irradianceTransport(const RayScene* scene, const SurfaceSample& sample,
+                             const TexelDirections& dirs, double eta, float* out,
+                             IrradianceScratch& scratch);
+
+struct IrradianceResult {
+    std::vector<SparseVector> vectors;  // one per sample, channels = 1, Haar basis
+    uint64_t raysTraced = 0;
+    double retainedEnergyFraction = 1.0;  // mean over samples of kept / total energy
+    double seconds = 0.0;
+    double traceSeconds = 0.0;  // summed over threads: time inside occlusion queries
+};
+
+// Pass 1 over all samples, in parallel (TBB). Deterministic: the result does not
+// depend on the thread count. scene may be null only when options.visibility is false.
+IrradianceResult computeIrradianceTransport(const RayScene* scene, const SampleSet& samples,
+                                            const IrradianceOptions& options,
+                                            Progress* progress = nullptr);
+
+}  // namespace prt

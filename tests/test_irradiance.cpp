@@ -1,0 +1,206 @@
+#include "common/irradiance.h"
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+
+#include "common/bssrdf.h"
+#include "common/cubemap.h"
+#include "common/error.h"
+#include "common/shapes.h"
+
+using namespace prt;
+
+namespace {
+
+// Cosine-weighted Fresnel transmittance over the hemisphere:
+// int F_t(eta, mu) mu dOmega = 2 pi int_0^1 F_t(eta, mu) mu dmu.
+double hemisphericalFresnelCosine(double eta) {
+    const int m = 200000;
+    double sum = 0;
+    for (int k = 0; k < m; ++k) {
+        double mu = (k + 0.5) / m;
+        sum += fresnelTransmittance(eta, mu) * mu;
+    }
+    return 2 * M_PI * sum / m;
+}
+
+SurfaceSample sampleAt(glm::vec3 p, glm::vec3 n) {
+    SurfaceSample s;
+    s.position = p;
+    s.normal = n;
+    s.geometricNormal = n;
+    return s;
+}
+
+TriangleMesh merge(TriangleMesh a, const TriangleMesh& b, glm::vec3 offsetB) {
+    const uint32_t base = uint32_t(a.positions.size());
+    for (size_t v = 0; v < b.positions.size(); ++v) {
+        a.positions.push_back(b.positions[v] + offsetB);
+        a.normals.push_back(b.normals[v]);
+    }
+    for (glm::uvec3 t : b.triangles) a.triangles.push_back(t + glm::uvec3(base));
+    return a;
+}
+
+double sum(const std::vector<float>& v) {
+    double s = 0;
+    for (float x : v) s += x;
+    return s;
+}
+
+// Slab method: does the ray o + t d (t > 0) hit the axis-aligned box [lo, hi]?
+bool rayHitsBox(glm::dvec3 o, glm::dvec3 d, glm::dvec3 lo, glm::dvec3 hi) {
+    double t0 = 0, t1 = 1e30;
+    for (int a = 0; a < 3; ++a) {
+        double inv = 1.0 / d[a];
+        double ta = (lo[a] - o[a]) * inv, tb = (hi[a] - o[a]) * inv;
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
+    }
+    return t0 <= t1;
+}
+
+}  // namespace
+
+TEST(TexelDirections, SubSolidAnglesSumToFourPiAndDirectionsStayInTheirTexel) {
+    for (int s : {1, 2, 3}) {
+        TexelDirections d = makeTexelDirections(8, s);
+        ASSERT_EQ(d.count(), size_t(6 * 64 * s * s));
+        EXPECT_NEAR(sum(d.solidAngle), 4 * M_PI, 1e-4);
+        for (size_t k = 0; k < d.count(); ++k) {
+            TexelCoord t = directionToTexel(8, glm::dvec3(d.x[k], d.y[k], d.z[k]));
+            ASSERT_EQ(size_t(t.face * 64 + t.j * 8 + t.i), k / d.subPerTexel());
+        }
+    }
+    EXPECT_THROW(makeTexelDirections(24, 2), Error);
+    EXPECT_THROW(makeTexelDirections(32, 0), Error);
+}
+
+TEST(IrradianceTransport, UnoccludedEqualsAnalyticFresnelCosine) {
+    // With no geometry the transport is F_t cos dOmega over the upper hemisphere.
+    const double eta = 1.3;
+    TexelDirections dirs = makeTexelDirections(32, 2);
+    IrradianceScratch scratch;
+    std::vector<float> e(6 * 32 * 32);
+    for (glm::vec3 n : {glm::vec3(0, 1, 0), glm::normalize(glm::vec3(0.3f, -0.5f, 0.8f))}) {
+        irradianceTransport(nullptr, sampleAt({0, 0, 0}, n), dirs, eta, e.data(), scratch);
+        // Total: the hemispherical integral (horizon texels are split by the
+        // sub-direction grid, which limits agreement to ~1e-3).
+        EXPECT_NEAR(sum(e), hemisphericalFresnelCosine(eta), 2e-3 * hemisphericalFresnelCosine(eta));
+        // Per texel far from the horizon: F_t(w_j) cos_j dOmega_j to second order.
+        for (int f = 0; f < 6; ++f)
+            for (int j = 0; j < 32; ++j)
+                for (int i = 0; i < 32; ++i) {
+                    glm::dvec3 w = texelDirection(32, f, i, j);
+                    double c = glm::dot(w, glm::dvec3(n));
+                    size_t k = size_t(f * 1024 + j * 32 + i);
+                    if (c < 0.1) {
+                        if (c < -0.05) {
+                            ASSERT_EQ(e[k], 0.0f);
+                        }
+                        continue;
+                    }
+                    double expected = fresnelTransmittance(eta, c) * c * texelSolidAngle(32, i, j);
+                    ASSERT_NEAR(e[k], expected, 2e-3 * expected) << f << " " << i << " " << j;
+                }
+    }
+}
+
+TEST(IrradianceTransport, ConvexMeshLosesNoVisibility) {
+    // At the centre of a box face (shading normal = geometric normal) nothing of the
+    // box can block the outer hemisphere: the transport equals the unoccluded one.
+    TriangleMesh box = makeBox({4, 4, 4});
+    RayScene scene(box);
+    TexelDirections dirs = makeTexelDirections(16, 2);
+    IrradianceScratch scratch;
+    std::vector<float> vis(6 * 256), free(6 * 256);
+    const glm::vec3 points[] = {{0, 2, 0}, {2, 0.3f, -0.7f}, {0.5f, -1.1f, -2}};
+    const glm::vec3 normals[] = {{0, 1, 0}, {1, 0, 0}, {0, 0, -1}};
+    for (int p = 0; p < 3; ++p) {
+        SurfaceSample s = sampleAt(points[p], normals[p]);
+        uint64_t rays = irradianceTransport(&scene, s, dirs, 1.3, vis.data(), scratch);
+        irradianceTransport(nullptr, s, dirs, 1.3, free.data(), scratch);
+        EXPECT_GT(rays, dirs.count() / 2 - 64);  // about half the sub-directions face the normal
+        for (size_t k = 0; k < vis.size(); ++k) ASSERT_EQ(vis[k], free[k]) << "texel " << k;
+    }
+}
+
+TEST(IrradianceTransport, ConcaveSceneBlocksExactlyTheGeometricDirections) {
+    // A sample on top of a wide slab under a floating box: a sub-direction is blocked
+    // iff its ray hits the box (analytic slab test). The fast path must agree.
+    TriangleMesh slab = makeBox({40, 1, 40});                     // top face at y = 0.5
+    TriangleMesh scene = merge(slab, makeBox({3, 1, 2}), {1.0f, 3.0f, -0.5f});
+    RayScene rayScene(scene);
+    const int n = 16, s = 2;
+    TexelDirections dirs = makeTexelDirections(n, s);
+    IrradianceScratch scratch;
+    std::vector<float> e(6 * n * n), expected(6 * n * n, 0.0f);
+    const glm::vec3 p(0.2f, 0.5f, 0.1f), up(0, 1, 0);
+    irradianceTransport(&rayScene, sampleAt(p, up), dirs, 1.3, e.data(), scratch);
+
+    const glm::dvec3 lo(1 - 1.5, 3 - 0.5, -0.5 - 1), hi(1 + 1.5, 3 + 0.5, -0.5 + 1);
+    int blocked = 0;
+    for (size_t k = 0; k < dirs.count(); ++k) {
+        glm::dvec3 w(dirs.x[k], dirs.y[k], dirs.z[k]);
+        if (w.y <= 0) continue;
+        // Grazing the slab's own top (the far edge at 20 units) is not blocked for
+        // w.y > 0, since the slab top is the plane of the sample.
+        if (rayHitsBox(glm::dvec3(p), w, lo, hi)) {
+            ++blocked;
+            continue;
+        }
+        expected[k / dirs.subPerTexel()] +=
+            float(fresnelTransmittance(1.3, w.y) * w.y * dirs.solidAngle[k]);
+    }
+    ASSERT_GT(blocked, 50);
+    int mismatches = 0;
+    for (size_t t = 0; t < e.size(); ++t)
+        if (std::abs(e[t] - expected[t]) > 1e-6f) ++mismatches;
+    // A sub-direction grazing a box edge may go either way in float arithmetic.
+    EXPECT_LE(mismatches, 2);
+    // The visible energy is the unoccluded one minus what the box hides.
+    const double visibleEnergy = sum(expected);
+    EXPECT_NEAR(sum(e), visibleEnergy, 1e-3 * visibleEnergy);
+    EXPECT_LT(visibleEnergy, 0.95 * hemisphericalFresnelCosine(1.3));
+}
+
+TEST(IrradianceTransport, PassOneIsDeterministicAndKeepsTheLargestCoefficients) {
+    TriangleMesh torus = makeTorus(3, 1, 48, 24);
+    RayScene scene(torus);
+    SampleSet samples = poissonDiskSamples(torus, 40, 5);
+    IrradianceOptions opt;
+    opt.cubemapSize = 16;
+    opt.keepCoefficients = 6 * 16 * 16;  // everything: reconstruction must be exact
+    IrradianceResult all = computeIrradianceTransport(&scene, samples, opt);
+    EXPECT_NEAR(all.retainedEnergyFraction, 1.0, 1e-6);
+    EXPECT_GT(all.raysTraced, 40u * 6 * 256 * 4 / 3);
+
+    // Reconstruct sample 7 and compare with the dense transport.
+    TexelDirections dirs = makeTexelDirections(16, 2);
+    IrradianceScratch scratch;
+    std::vector<float> dense(6 * 256), coeffs(6 * 256, 0.0f);
+    irradianceTransport(&scene, samples.samples[7], dirs, 1.3, dense.data(), scratch);
+    addTo(all.vectors[7], 1.0f, coeffs.data());
+    for (int f = 0; f < 6; ++f) haarInverseFace(coeffs.data() + f * 256, 16);
+    for (size_t k = 0; k < dense.size(); ++k) ASSERT_NEAR(coeffs[k], dense[k], 1e-6);
+
+    // Truncated: exactly K kept, and the same result on one thread as on many.
+    opt.keepCoefficients = 32;
+    IrradianceResult many = computeIrradianceTransport(&scene, samples, opt);
+    IrradianceResult one;
+    {
+        tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
+        one = computeIrradianceTransport(&scene, samples, opt);
+    }
+    EXPECT_LT(many.retainedEnergyFraction, 1.0);
+    EXPECT_GT(many.retainedEnergyFraction, 0.9);
+    for (size_t i = 0; i < samples.samples.size(); ++i) {
+        ASSERT_EQ(many.vectors[i].size(), 32u);
+        ASSERT_EQ(many.vectors[i].index, one.vectors[i].index);
+        ASSERT_EQ(many.vectors[i].value, one.vectors[i].value);
+    }
+    EXPECT_EQ(many.raysTraced, one.raysTraced);
+}
