@@ -1,1 +1,618 @@
-// placeholder
+#include "common/envmap.h"
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/error.h"
+
+namespace prt {
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+
+// cos(a) - cos(b) without cancellation for nearby a, b.
+double cosDifference(double a, double b) {
+    return 2.0 * std::sin(0.5 * (a + b)) * std::sin(0.5 * (b - a));
+}
+
+// Runs body(index) for index in [0, count) on all hardware threads. Each index is
+// handled by exactly one call; results must be written to per-index storage so they
+// do not depend on the schedule.
+template <class Body>
+void parallelFor(int count, Body&& body) {
+    const int threads =
+        std::clamp(int(std::thread::hardware_concurrency()), 1, std::max(1, count));
+    std::atomic<int> next{0};
+    auto worker = [&] {
+        for (int k = next.fetch_add(1); k < count; k = next.fetch_add(1)) body(k);
+    };
+    if (threads == 1) {
+        worker();
+        return;
+    }
+    std::vector<std::thread> pool;
+    pool.reserve(size_t(threads - 1));
+    for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+    worker();
+    for (auto& th : pool) th.join();
+}
+
+void requireLatLongWidth(int width, const char* what) {
+    if (width < 2 || width % 2 != 0)
+        throw Error(what, "lat-long width must be even and >= 2, got " + std::to_string(width));
+}
+
+void requireUsable(const Image& image, const std::string& subject) {
+    if (!image.consistent())
+        throw Error(subject, "inconsistent image: " + std::to_string(image.pixels.size()) +
+                                 " values for " + std::to_string(image.width) + " x " +
+                                 std::to_string(image.height) + " x " +
+                                 std::to_string(image.channels));
+    if (image.empty()) throw Error(subject, "empty image");
+}
+
+// sin and cos of an angle in degrees, exact at multiples of 90 degrees.
+void sinCosDegrees(double degrees, double& s, double& c) {
+    const double turns = degrees / 90.0;
+    if (turns == std::floor(turns) && std::abs(turns) < 1e15) {
+        static constexpr double sinQ[4] = {0, 1, 0, -1};
+        static constexpr double cosQ[4] = {1, 0, -1, 0};
+        const long q = ((long(turns) % 4) + 4) % 4;
+        s = sinQ[q];
+        c = cosQ[q];
+        return;
+    }
+    const double r = degrees * (kPi / 180.0);
+    s = std::sin(r);
+    c = std::cos(r);
+}
+
+const char* channelName(int c, int channels) {
+    static const char* rgba[4] = {"R", "G", "B", "A"};
+    return (channels >= 3 && c < 4) ? rgba[c] : nullptr;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- lat-long mapping
+
+glm::dvec3 latLongToDirection(double u, double v) {
+    const double phi = kTwoPi * (u - 0.5);
+    const double theta = kPi * v;
+    const double st = std::sin(theta);
+    return {st * std::sin(phi), std::cos(theta), -st * std::cos(phi)};
+}
+
+glm::dvec2 directionToLatLong(const glm::dvec3& d) {
+    const double len = glm::length(d);
+    const double y = std::clamp(d.y / len, -1.0, 1.0);
+    double u = 0.5 + std::atan2(d.x, -d.z) / kTwoPi;
+    if (u >= 1.0) u -= 1.0;
+    if (u < 0.0) u += 1.0;
+    return {u, std::acos(y) / kPi};
+}
+
+glm::dvec3 latLongPixelDirection(int x, int y, int width, int height) {
+    return latLongToDirection((x + 0.5) / width, (y + 0.5) / height);
+}
+
+double latLongPixelSolidAngle(int y, int width, int height) {
+    return kTwoPi / width * cosDifference(kPi * y / height, kPi * (y + 1) / height);
+}
+
+double latLongIntegral(const Image& latlong, int c) {
+    requireUsable(latlong, "environment");
+    if (c < 0 || c >= latlong.channels)
+        throw Error("environment", "channel " + std::to_string(c) + " out of range");
+    double total = 0.0;
+    for (int y = 0; y < latlong.height; ++y) {
+        double row = 0.0;
+        for (int x = 0; x < latlong.width; ++x) row += latlong.at(x, y, c);
+        total += row * latLongPixelSolidAngle(y, latlong.width, latlong.height);
+    }
+    return total;
+}
+
+// ---------------------------------------------------------------- loading
+
+size_t checkEnvironmentValues(Image& image, const std::string& subject, NonFinitePolicy policy) {
+    const int nc = image.channels;
+    if (policy != NonFinitePolicy::Clamp) {
+        const bool allowNegative = policy == NonFinitePolicy::ClampNegative;
+        for (int y = 0; y < image.height; ++y)
+            for (int x = 0; x < image.width; ++x)
+                for (int c = 0; c < nc; ++c) {
+                    const float v = image.at(x, y, c);
+                    if (std::isfinite(v) && (v >= 0.0f || allowNegative)) continue;
+                    std::string what = std::isnan(v)   ? "NaN"
+                                       : std::isinf(v) ? (v > 0 ? "+Inf" : "-Inf")
+                                                       : "negative (" + std::to_string(v) + ")";
+                    const char* name = channelName(c, nc);
+                    throw Error(subject, "pixel (" + std::to_string(x) + ", " + std::to_string(y) +
+                                             ") is " + what + " in channel " +
+                                             (name ? name : std::to_string(c)) +
+                                             " (the clamp policy would repair it)");
+                }
+    }
+
+    std::vector<float> largest(size_t(nc), 0.0f);
+    const size_t count = size_t(image.width) * size_t(image.height);
+    for (size_t p = 0; p < count; ++p)
+        for (int c = 0; c < nc; ++c) {
+            const float v = image.pixels[p * size_t(nc) + size_t(c)];
+            if (std::isfinite(v)) largest[size_t(c)] = std::max(largest[size_t(c)], v);
+        }
+    size_t replaced = 0;
+    for (size_t p = 0; p < count; ++p)
+        for (int c = 0; c < nc; ++c) {
+            float& v = image.pixels[p * size_t(nc) + size_t(c)];
+            if (std::isfinite(v) && v >= 0.0f) continue;
+            v = (std::isinf(v) && v > 0) ? largest[size_t(c)] : 0.0f;
+            ++replaced;
+        }
+    if (replaced > 0)
+        warn(subject + ": replaced " + std::to_string(replaced) +
+             (policy == NonFinitePolicy::Clamp
+                  ? " NaN, infinite or negative values (NaN, -Inf and negatives by 0, +Inf by "
+                    "the channel's largest finite value)"
+                  : " negative values by 0"));
+    return replaced;
+}
+
+Image loadEnvironment(const std::string& path, NonFinitePolicy policy) {
+    const Image raw = readImage(path);
+    if (raw.width != 2 * raw.height)
+        throw Error(path, "a lat-long environment must be twice as wide as high, got " +
+                              std::to_string(raw.width) + " x " + std::to_string(raw.height));
+    Image rgb(raw.width, raw.height, 3);
+    const size_t count = size_t(raw.width) * size_t(raw.height);
+    const size_t nc = size_t(raw.channels);
+    for (size_t p = 0; p < count; ++p)
+        for (size_t c = 0; c < 3; ++c)
+            rgb.pixels[p * 3 + c] = raw.pixels[p * nc + (nc >= 3 ? c : 0)];
+    checkEnvironmentValues(rgb, path, policy);
+    return rgb;
+}
+
+// ---------------------------------------------------------------- rotations
+
+glm::dmat3 rotationAxisAngle(const glm::dvec3& axis, double degrees) {
+    const double len = glm::length(axis);
+    if (!(len > 0.0) || !std::isfinite(len))
+        throw Error("rotation", "axis must be finite and non-zero");
+    const glm::dvec3 k = axis / len;
+    double s, c;
+    sinCosDegrees(degrees, s, c);
+    const double t = 1.0 - c;
+    // Rodrigues: R = c I + s [k]x + (1 - c) k k^T. glm is column-major: m[column][row].
+    glm::dmat3 m;
+    m[0][0] = c + t * k.x * k.x;
+    m[1][0] = t * k.x * k.y - s * k.z;
+    m[2][0] = t * k.x * k.z + s * k.y;
+    m[0][1] = t * k.y * k.x + s * k.z;
+    m[1][1] = c + t * k.y * k.y;
+    m[2][1] = t * k.y * k.z - s * k.x;
+    m[0][2] = t * k.z * k.x - s * k.y;
+    m[1][2] = t * k.z * k.y + s * k.x;
+    m[2][2] = c + t * k.z * k.z;
+    return m;
+}
+
+glm::dmat3 rotationX(double degrees) { return rotationAxisAngle({1, 0, 0}, degrees); }
+glm::dmat3 rotationY(double degrees) { return rotationAxisAngle({0, 1, 0}, degrees); }
+glm::dmat3 rotationZ(double degrees) { return rotationAxisAngle({0, 0, 1}, degrees); }
+
+// ---------------------------------------------------------------- lat-long -> cubemap
+
+namespace {
+
+// A small convex spherical polygon: vertices are direction vectors (any positive
+// length); an edge between consecutive vertices is the great-circle arc between them.
+// Clipping against planes through the origin is then exact on the sphere.
+struct SphPoly {
+    static constexpr int kMax = 32;  // ample: <= 4 + 4 pyramid + 2 x 7 texel cuts
+    glm::dvec3 v[kMax];
+    int count = 0;
+    void push(const glm::dvec3& p) {
+        if (count < kMax) v[count++] = p;
+    }
+};
+
+// The part of `in` on the side dot(normal, d) >= 0 (Sutherland-Hodgman).
+SphPoly clipPlane(const SphPoly& in, const glm::dvec3& normal) {
+    SphPoly out;
+    for (int i = 0; i < in.count; ++i) {
+        const glm::dvec3& prev = in.v[(i + in.count - 1) % in.count];
+        const glm::dvec3& cur = in.v[i];
+        const double dp = glm::dot(normal, prev), dc = glm::dot(normal, cur);
+        if (dc >= 0.0) {
+            if (dp < 0.0) out.push(prev + (cur - prev) * (dp / (dp - dc)));
+            out.push(cur);
+        } else if (dp > 0.0) {
+            out.push(prev + (cur - prev) * (dp / (dp - dc)));
+        }
+    }
+    return out;
+}
+
+// Solid angle of a convex spherical polygon (fan of Van Oosterom-Strackee triangles).
+double sphericalArea(const SphPoly& p) {
+    if (p.count < 3) return 0.0;
+    const glm::dvec3 a = glm::normalize(p.v[0]);
+    double sum = 0.0;
+    glm::dvec3 b = glm::normalize(p.v[1]);
+    for (int i = 2; i < p.count; ++i) {
+        const glm::dvec3 c = glm::normalize(p.v[i]);
+        const double triple = glm::dot(a, glm::cross(b, c));
+        const double denom = 1.0 + glm::dot(a, b) + glm::dot(b, c) + glm::dot(c, a);
+        sum += 2.0 * std::atan2(triple, denom);
+        b = c;
+    }
+    return std::abs(sum);
+}
+
+// Face frames of the cubemap contract: d = F + sc S + tc T on face f.
+struct FaceFrame {
+    glm::dvec3 F, S, T;
+};
+
+std::array<FaceFrame, kCubeFaces> faceFrames() {
+    // Derived from faceUVToDirection so they always agree with the contract.
+    std::array<FaceFrame, kCubeFaces> frames;
+    for (int f = 0; f < kCubeFaces; ++f) {
+        const glm::dvec3 F = glm::round(faceUVToDirection(f, 0.5, 0.5));
+        const glm::dvec3 S = glm::round(faceUVToDirection(f, 1.0, 0.5) * std::sqrt(2.0) - F);
+        const glm::dvec3 T = glm::round(faceUVToDirection(f, 0.5, 1.0) * std::sqrt(2.0) - F);
+        frames[size_t(f)] = {F, S, T};
+    }
+    return frames;
+}
+
+struct Piece {
+    size_t texel;
+    double area;
+};
+
+// Splits a polygon lying inside face f's pyramid along the texel borders of that face
+// and appends (texel, solid angle) pieces.
+void splitInFace(const SphPoly& poly, const FaceFrame& fr, int n, const Cubemap& cube,
+                 std::vector<Piece>& pieces) {
+    // Continuous texel coordinate along S (or T) of a vertex: n (a / c + 1) / 2.
+    auto coordRange = [&](const SphPoly& p, const glm::dvec3& axis, double& lo, double& hi) {
+        lo = std::numeric_limits<double>::max();
+        hi = std::numeric_limits<double>::lowest();
+        for (int i = 0; i < p.count; ++i) {
+            const double c = glm::dot(p.v[i], fr.F);
+            const double x = 0.5 * n * (glm::dot(p.v[i], axis) / c + 1.0);
+            lo = std::min(lo, x);
+            hi = std::max(hi, x);
+        }
+    };
+    // Cuts `p` along the texel lines of `axis`; calls emit(part) for each strip.
+    auto cutAlong = [&](const SphPoly& p, const glm::dvec3& axis, auto&& emit) {
+        double lo, hi;
+        coordRange(p, axis, lo, hi);
+        SphPoly rest = p;
+        for (int k = int(std::floor(lo)) + 1; k < hi && k < n; ++k) {
+            if (k <= 0) continue;
+            // Plane of the line at texel coordinate k: a - sc c = 0, sc = 2k/n - 1.
+            const glm::dvec3 normal = axis - (2.0 * k / n - 1.0) * fr.F;
+            emit(clipPlane(rest, -normal));  // the lower side
+            rest = clipPlane(rest, normal);
+        }
+        emit(rest);
+    };
+    cutAlong(poly, fr.S, [&](const SphPoly& strip) {
+        if (strip.count < 3) return;
+        cutAlong(strip, fr.T, [&](const SphPoly& piece) {
+            const double area = sphericalArea(piece);
+            if (!(area > 0.0)) return;
+            glm::dvec3 centre(0.0);
+            for (int i = 0; i < piece.count; ++i) centre += glm::normalize(piece.v[i]);
+            const TexelCoord t = directionToTexel(n, centre);
+            pieces.push_back({cube.texelIndex(t.face, t.i, t.j), area});
+        });
+    });
+}
+
+}  // namespace
+
+Cubemap latLongToCubemap(const Image& latlong, int n, const glm::dmat3& rotation) {
+    requireUsable(latlong, "environment");
+    if (!isPowerOfTwo(n))
+        throw Error("environment", "cubemap size " + std::to_string(n) + " is not a power of two");
+    const int W = latlong.width, H = latlong.height, C = latlong.channels;
+    const size_t stride = size_t(C) + 1;  // radiance * area per channel, then area
+    Cubemap cube(n, C);
+    const size_t texels = cube.texelCount();
+    const std::array<FaceFrame, kCubeFaces> frames = faceFrames();
+
+    // Lat-long pixels larger than `cell` radians are split into sub-cells (same
+    // radiance) so that each is well approximated by the geodesic quad through its
+    // corners (the error is confined to how a straddling cell's area is shared, and is
+    // of relative order cell^2), and crosses at most ~6 texel lines per axis (the
+    // smallest texel extent is 2 / (3 n) radians), which bounds polygon sizes.
+    const double cell = std::min(1.0 / 128.0, 3.0 / n);
+    const int mv = std::max(1, int(std::ceil((kPi / H) / cell)));
+
+    // Per row: the texels it reached (in first-touch order) and their sums.
+    struct RowSums {
+        std::vector<std::uint32_t> index;
+        std::vector<double> sums;  // stride values per entry
+    };
+    std::vector<RowSums> rows(static_cast<size_t>(H));
+
+    struct Scratch {
+        std::vector<double> acc;
+        std::vector<char> touched;
+        std::vector<std::uint32_t> list;
+        std::vector<double> sinPhi, cosPhi;  // at the mu * W + 1 sub-column borders
+        int mu = 0;
+        std::vector<glm::dvec3> cornerDir[2];  // world directions of a sub-row's corners
+        std::vector<std::int64_t> cornerTexel[2];
+        std::vector<Piece> pieces;
+    };
+
+    auto processRow = [&](Scratch& s, int y) {
+        if (s.acc.empty()) {
+            s.acc.assign(texels * stride, 0.0);
+            s.touched.assign(texels, 0);
+        }
+        const double theta0 = kPi * y / H, theta1 = kPi * (y + 1) / H;
+        const double maxSin = (theta0 <= kPi / 2 && theta1 >= kPi / 2)
+                                  ? 1.0
+                                  : std::max(std::sin(theta0), std::sin(theta1));
+        const int mu = std::max(1, int(std::ceil(kTwoPi / W * maxSin / cell)));
+        const int columns = W * mu;
+        if (s.mu != mu) {
+            s.sinPhi.resize(size_t(columns) + 1);
+            s.cosPhi.resize(size_t(columns) + 1);
+            for (int k = 0; k <= columns; ++k) {
+                const double phi = kTwoPi * (double(k) / columns - 0.5);
+                s.sinPhi[size_t(k)] = std::sin(phi);
+                s.cosPhi[size_t(k)] = std::cos(phi);
+            }
+            s.mu = mu;
+        }
+        auto cornerRow = [&](double theta, int slot) {
+            const double st = std::sin(theta), ct = std::cos(theta);
+            auto& dirs = s.cornerDir[slot];
+            auto& ids = s.cornerTexel[slot];
+            dirs.resize(size_t(columns) + 1);
+            ids.resize(size_t(columns) + 1);
+            for (int k = 0; k <= columns; ++k) {
+                const glm::dvec3 local(st * s.sinPhi[size_t(k)], ct, -st * s.cosPhi[size_t(k)]);
+                const glm::dvec3 d = rotation * local;
+                const TexelCoord t = directionToTexel(n, d);
+                dirs[size_t(k)] = d;
+                ids[size_t(k)] = std::int64_t(cube.texelIndex(t.face, t.i, t.j));
+            }
+        };
+        auto deposit = [&](size_t t, const float* L, double area) {
+            if (!s.touched[t]) {
+                s.touched[t] = 1;
+                s.list.push_back(std::uint32_t(t));
+            }
+            double* a = &s.acc[t * stride];
+            for (int c = 0; c < C; ++c) a[c] += double(L[c]) * area;
+            a[C] += area;
+        };
+
+        const double dphi = kTwoPi / columns;
+        int top = 0;
+        cornerRow(theta0, top);
+        for (int b = 0; b < mv; ++b) {
+            const double ta = theta0 + (theta1 - theta0) * b / mv;
+            const double tb = theta0 + (theta1 - theta0) * (b + 1) / mv;
+            const int bottom = 1 - top;
+            cornerRow(tb, bottom);
+            // Exact solid angle of the sub-cell (two meridians, two parallels).
+            const double area = dphi * cosDifference(ta, tb);
+            const auto& dTop = s.cornerDir[top];
+            const auto& dBot = s.cornerDir[bottom];
+            const auto& iTop = s.cornerTexel[top];
+            const auto& iBot = s.cornerTexel[bottom];
+            for (int k = 0; k < columns; ++k) {
+                const float* L = latlong.pixel(k / mu, y);
+                const std::int64_t id = iTop[size_t(k)];
+                if (iTop[size_t(k) + 1] == id && iBot[size_t(k)] == id && iBot[size_t(k) + 1] == id) {
+                    // All corners in one texel: the (convex) texel contains the cell.
+                    deposit(size_t(id), L, area);
+                    continue;
+                }
+                // Straddles texel borders: split the cell exactly along them.
+                SphPoly poly;
+                poly.push(dTop[size_t(k)]);
+                poly.push(dTop[size_t(k) + 1]);
+                poly.push(dBot[size_t(k) + 1]);
+                poly.push(dBot[size_t(k)]);
+                s.pieces.clear();
+                const int f0 = int(size_t(id) / (size_t(n) * n));
+                bool oneFace = true;
+                for (std::int64_t other : {iTop[size_t(k) + 1], iBot[size_t(k)], iBot[size_t(k) + 1]})
+                    oneFace = oneFace && int(size_t(other) / (size_t(n) * n)) == f0;
+                if (oneFace) {
+                    splitInFace(poly, frames[size_t(f0)], n, cube, s.pieces);
+                } else {
+                    for (int f = 0; f < kCubeFaces; ++f) {
+                        const FaceFrame& fr = frames[size_t(f)];
+                        SphPoly part = clipPlane(poly, fr.F - fr.S);
+                        part = clipPlane(part, fr.F + fr.S);
+                        part = clipPlane(part, fr.F - fr.T);
+                        part = clipPlane(part, fr.F + fr.T);
+                        if (part.count >= 3) splitInFace(part, fr, n, cube, s.pieces);
+                    }
+                }
+                double total = 0.0;
+                for (const Piece& p : s.pieces) total += p.area;
+                if (total > 0.0) {
+                    for (const Piece& p : s.pieces) deposit(p.texel, L, area * (p.area / total));
+                } else {
+                    deposit(size_t(id), L, area);  // degenerate (e.g. a sliver at a pole)
+                }
+            }
+            top = bottom;
+        }
+
+        RowSums& out = rows[size_t(y)];
+        out.index = s.list;
+        out.sums.resize(s.list.size() * stride);
+        for (size_t e = 0; e < s.list.size(); ++e) {
+            double* a = &s.acc[size_t(s.list[e]) * stride];
+            std::copy(a, a + stride, &out.sums[e * stride]);
+            std::fill(a, a + stride, 0.0);
+            s.touched[s.list[e]] = 0;
+        }
+        s.list.clear();
+    };
+
+    // Rows are handed out dynamically; each worker owns one scratch slot.
+    const int used = std::clamp(int(std::thread::hardware_concurrency()), 1, H);
+    std::vector<Scratch> scratch(static_cast<size_t>(used));
+    std::atomic<int> nextRow{0};
+    auto worker = [&](int slot) {
+        Scratch& s = scratch[size_t(slot)];
+        for (int y = nextRow.fetch_add(1); y < H; y = nextRow.fetch_add(1)) processRow(s, y);
+    };
+    {
+        std::vector<std::thread> pool;
+        for (int t = 1; t < used; ++t) pool.emplace_back(worker, t);
+        worker(0);
+        for (auto& th : pool) th.join();
+    }
+
+    // Merge in row order: the sums do not depend on the thread schedule.
+    std::vector<double> total(texels * stride, 0.0);
+    for (const RowSums& r : rows)
+        for (size_t e = 0; e < r.index.size(); ++e) {
+            double* a = &total[size_t(r.index[e]) * stride];
+            const double* v = &r.sums[e * stride];
+            for (size_t c = 0; c < stride; ++c) a[c] += v[c];
+        }
+
+    const glm::dmat3 inverse = glm::transpose(rotation);
+    for (int f = 0; f < kCubeFaces; ++f)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                const size_t t = cube.texelIndex(f, i, j);
+                const double* a = &total[t * stride];
+                float* out = cube.texel(f, i, j);
+                if (a[C] > 0.0) {
+                    for (int c = 0; c < C; ++c) out[c] = float(a[c] / a[C]);
+                } else {
+                    // Not reached by any cell (should not happen): nearest lat-long pixel.
+                    const glm::dvec2 uv = directionToLatLong(inverse * texelDirection(n, f, i, j));
+                    const int x = std::min(int(uv.x * W), W - 1);
+                    const int y = std::min(int(uv.y * H), H - 1);
+                    for (int c = 0; c < C; ++c) out[c] = latlong.at(x, y, c);
+                }
+            }
+    return cube;
+}
+
+// ---------------------------------------------------------------- cubemap -> images
+
+Image cubemapToLatLong(const Cubemap& cube, int width) {
+    requireLatLongWidth(width, "cubemapToLatLong");
+    if (cube.size() <= 0) throw Error("cubemapToLatLong", "empty cubemap");
+    const int height = width / 2, C = cube.channels();
+    Image out(width, height, C);
+    parallelFor(height, [&](int y) {
+        for (int x = 0; x < width; ++x) {
+            const glm::dvec3 d = latLongPixelDirection(x, y, width, height);
+            for (int c = 0; c < C; ++c) out.at(x, y, c) = cube.sampleBilinear(d, c);
+        }
+    });
+    return out;
+}
+
+Image cubemapToCross(const Cubemap& cube) {
+    const int n = cube.size(), C = cube.channels();
+    if (n <= 0) throw Error("cubemapToCross", "empty cubemap");
+    // Each cell as seen from the centre: forward, right and up on the page.
+    struct Cell {
+        int col, row;
+        glm::dvec3 forward, right, up;
+    };
+    const Cell cells[6] = {
+        {0, 1, {-1, 0, 0}, {0, 0, -1}, {0, 1, 0}},  // -X
+        {1, 1, {0, 0, -1}, {1, 0, 0}, {0, 1, 0}},   // -Z (front)
+        {2, 1, {1, 0, 0}, {0, 0, 1}, {0, 1, 0}},    // +X
+        {3, 1, {0, 0, 1}, {-1, 0, 0}, {0, 1, 0}},   // +Z (back)
+        {1, 0, {0, 1, 0}, {1, 0, 0}, {0, 0, 1}},    // +Y
+        {1, 2, {0, -1, 0}, {1, 0, 0}, {0, 0, -1}},  // -Y
+    };
+    Image out(4 * n, 3 * n, C);
+    for (const Cell& cell : cells)
+        for (int b = 0; b < n; ++b)
+            for (int a = 0; a < n; ++a) {
+                const double x = 2.0 * (a + 0.5) / n - 1.0;  // right
+                const double y = 1.0 - 2.0 * (b + 0.5) / n;  // up
+                const glm::dvec3 d = cell.forward + x * cell.right + y * cell.up;
+                // Pixel centres of a cell are texel centres of its face, so this lookup
+                // is exact (no ties at texel borders).
+                const TexelCoord t = directionToTexel(n, d);
+                const float* v = cube.texel(t.face, t.i, t.j);
+                float* o = out.pixel(cell.col * n + a, cell.row * n + b);
+                std::copy(v, v + C, o);
+            }
+    return out;
+}
+
+// ---------------------------------------------------------------- generated maps
+
+Image constantEnvironment(int width, const glm::vec3& rgb) {
+    requireLatLongWidth(width, "constantEnvironment");
+    Image img(width, width / 2, 3);
+    for (size_t p = 0; p < img.pixels.size(); p += 3) {
+        img.pixels[p] = rgb.r;
+        img.pixels[p + 1] = rgb.g;
+        img.pixels[p + 2] = rgb.b;
+    }
+    return img;
+}
+
+Image sunEnvironment(int width, const glm::dvec3& direction, const glm::vec3& rgb) {
+    requireLatLongWidth(width, "sunEnvironment");
+    if (!(glm::length(direction) > 0.0))
+        throw Error("sunEnvironment", "sun direction must be non-zero");
+    const int height = width / 2;
+    Image img(width, height, 3);
+    const glm::dvec2 uv = directionToLatLong(direction);
+    const int x = std::min(int(uv.x * width), width - 1);
+    const int y = std::min(int(uv.y * height), height - 1);
+    img.at(x, y, 0) = rgb.r;
+    img.at(x, y, 1) = rgb.g;
+    img.at(x, y, 2) = rgb.b;
+    return img;
+}
+
+Image twoToneEnvironment(int width, const glm::vec3& upper, const glm::vec3& lower) {
+    requireLatLongWidth(width, "twoToneEnvironment");
+    const int height = width / 2;
+    Image img(width, height, 3);
+    for (int y = 0; y < height; ++y) {
+        glm::vec3 v;
+        if (2 * y + 1 < height) v = upper;            // row entirely above the horizon
+        else if (2 * y + 1 > height) v = lower;       // entirely below
+        else v = 0.5f * (upper + lower);              // odd height: middle row straddles
+        for (int x = 0; x < width; ++x) {
+            img.at(x, y, 0) = v.r;
+            img.at(x, y, 1) = v.g;
+            img.at(x, y, 2) = v.b;
+        }
+    }
+    return img;
+}
+
+}  // namespace prt

@@ -1,1 +1,172 @@
-// placeholder
+#include "common/image.h"
+
+#include <OpenImageIO/imageio.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <system_error>
+
+#include "common/error.h"
+
+namespace prt {
+
+namespace fs = std::filesystem;
+
+Image::Image(int w, int h, int c, float value) : width(w), height(h), channels(c) {
+    if (w < 0 || h < 0 || c < 0)
+        throw Error("image", "invalid size " + std::to_string(w) + " x " + std::to_string(h) +
+                                 " x " + std::to_string(c) + " channels");
+    pixels.assign(size_t(w) * size_t(h) * size_t(c), value);
+}
+
+bool Image::consistent() const {
+    return width >= 0 && height >= 0 && channels >= 0 &&
+           pixels.size() == size_t(width) * size_t(height) * size_t(channels);
+}
+
+float linearToSrgb(float linear) {
+    if (linear <= 0.0031308f) return 12.92f * linear;
+    return float(1.055 * std::pow(double(linear), 1.0 / 2.4) - 0.055);
+}
+
+float srgbToLinear(float encoded) {
+    if (encoded <= 0.04045f) return encoded / 12.92f;
+    return float(std::pow((double(encoded) + 0.055) / 1.055, 2.4));
+}
+
+namespace {
+
+// Trims OpenImageIO's (sometimes multi-line) error text to one line.
+std::string oneLine(std::string text) {
+    while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
+    std::replace(text.begin(), text.end(), '\n', ' ');
+    return text.empty() ? "unknown OpenImageIO error" : text;
+}
+
+void checkWritable(const std::string& path, const Image& image) {
+    if (path.empty()) throw Error("image", "empty output path");
+    if (!image.consistent())
+        throw Error(path, "image has " + std::to_string(image.pixels.size()) +
+                              " values, expected width * height * channels = " +
+                              std::to_string(image.width) + " * " + std::to_string(image.height) +
+                              " * " + std::to_string(image.channels));
+    if (image.empty())
+        throw Error(path, "cannot write an empty image (" + std::to_string(image.width) + " x " +
+                              std::to_string(image.height) + " x " +
+                              std::to_string(image.channels) + ")");
+}
+
+// Writes `data` (described by dataType, spec's layout) through OpenImageIO's
+// `formatName` writer to a temporary file next to `path`, then renames it over
+// `path`. Cleans up and throws prt::Error(path, ...) on any failure.
+void writeAtomically(const std::string& path, const char* formatName, const OIIO::ImageSpec& spec,
+                     OIIO::TypeDesc dataType, const void* data) {
+    const fs::path target(path);
+    fs::path dir = target.parent_path();
+    if (dir.empty()) dir = ".";
+    std::error_code ec;
+    if (!fs::is_directory(dir, ec))
+        throw Error(path, "directory '" + dir.string() + "' does not exist");
+    if (!target.has_filename()) throw Error(path, "not a file name");
+
+    static std::atomic<unsigned> counter{0};
+    const fs::path temp =
+        dir / (target.stem().string() + ".tmp" + std::to_string(long(::getpid())) + "-" +
+               std::to_string(counter.fetch_add(1)) + target.extension().string());
+
+    auto fail = [&](const std::string& reason) {
+        std::error_code ignored;
+        fs::remove(temp, ignored);
+        throw Error(path, reason);
+    };
+
+    {
+        auto out = OIIO::ImageOutput::create(formatName);
+        if (!out) throw Error(path, "no " + std::string(formatName) + " writer: " +
+                                        oneLine(OIIO::geterror()));
+        if (!out->open(temp.string(), spec)) fail("cannot create: " + oneLine(out->geterror()));
+        if (!out->write_image(dataType, data)) {
+            const std::string reason = oneLine(out->geterror());
+            out->close();
+            fail("write failed: " + reason);
+        }
+        if (!out->close()) fail("write failed: " + oneLine(out->geterror()));
+    }
+
+    fs::rename(temp, target, ec);
+    if (ec) fail("cannot replace with the new file: " + ec.message());
+}
+
+}  // namespace
+
+Image readImage(const std::string& path) {
+    std::error_code ec;
+    const fs::file_status status = fs::status(path, ec);
+    if (!fs::exists(status)) throw Error(path, "file does not exist");
+    if (fs::is_directory(status)) throw Error(path, "is a directory, not an image file");
+
+    OIIO::ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);
+    auto in = OIIO::ImageInput::open(path, &config);
+    if (!in) throw Error(path, "cannot read image: " + oneLine(OIIO::geterror()));
+
+    const OIIO::ImageSpec& spec = in->spec();
+    if (spec.deep) throw Error(path, "deep images are not supported");
+    if (spec.depth > 1) throw Error(path, "volume images are not supported");
+    if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
+        throw Error(path, "image has no pixels");
+
+    Image image(spec.width, spec.height, spec.nchannels);
+    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {
+        const std::string reason = oneLine(in->geterror());
+        in->close();
+        throw Error(path, "cannot read pixels: " + reason);
+    }
+    in->close();
+    return image;
+}
+
+void writeExr(const std::string& path, const Image& image, ExrPixelType pixelType) {
+    checkWritable(path, image);
+    OIIO::ImageSpec spec(image.width, image.height, image.channels,
+                         pixelType == ExrPixelType::Half ? OIIO::TypeDesc::HALF
+                                                         : OIIO::TypeDesc::FLOAT);
+    if (image.channels == 1) {
+        spec.channelnames = {"Y"};
+    } else if (image.channels == 2) {
+        spec.channelnames = {"Y", "A"};
+        spec.alpha_channel = 1;
+    }
+    spec.attribute("compression", "zip");
+    writeAtomically(path, "openexr", spec, OIIO::TypeDesc::FLOAT, image.pixels.data());
+}
+
+void writePng(const std::string& path, const Image& image, double exposureStops) {
+    checkWritable(path, image);
+    const double scale = std::exp2(exposureStops);
+    if (!std::isfinite(scale)) throw Error(path, "exposure must be finite");
+
+    const size_t count = size_t(image.width) * size_t(image.height);
+    std::vector<std::uint8_t> rgb(count * 3);
+    const int c = image.channels;
+    for (size_t p = 0; p < count; ++p) {
+        const float* src = &image.pixels[p * size_t(c)];
+        for (int k = 0; k < 3; ++k) {
+            double v = double(src[c >= 3 ? k : 0]) * scale;
+            if (!(v > 0.0)) v = 0.0;  // negatives and NaN
+            if (v > 1.0) v = 1.0;
+            const double encoded = linearToSrgb(float(v));
+            rgb[p * 3 + size_t(k)] = std::uint8_t(std::clamp(std::lround(encoded * 255.0), 0L, 255L));
+        }
+    }
+
+    OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
+    spec.attribute("oiio:ColorSpace", "sRGB");
+    writeAtomically(path, "png", spec, OIIO::TypeDesc::UINT8, rgb.data());
+}
+
+}  // namespace prt

@@ -1,1 +1,555 @@
+#include "common/envmap.h"
+
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <random>
+#include <string>
+
+#include "common/error.h"
+
+namespace fs = std::filesystem;
+using prt::Cubemap;
+using prt::Image;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+std::string str(const glm::dvec3& d) {
+    return "(" + std::to_string(d.x) + ", " + std::to_string(d.y) + ", " + std::to_string(d.z) + ")";
+}
+
+double angleBetween(const glm::dvec3& a, const glm::dvec3& b) {
+    return std::acos(std::clamp(glm::dot(glm::normalize(a), glm::normalize(b)), -1.0, 1.0));
+}
+
+glm::dvec3 randomDirection(std::mt19937& rng) {
+    std::normal_distribution<double> g;
+    glm::dvec3 d;
+    do d = {g(rng), g(rng), g(rng)};
+    while (glm::length(d) < 1e-6);
+    return glm::normalize(d);
+}
+
+void expectDirNear(const glm::dvec3& a, const glm::dvec3& b, double tol = 1e-12) {
+    EXPECT_NEAR(a.x, b.x, tol);
+    EXPECT_NEAR(a.y, b.y, tol);
+    EXPECT_NEAR(a.z, b.z, tol);
+}
+
+// Lat-long image sampled from a function of direction at pixel centres.
+template <class F>
+Image latLongFrom(int width, F&& f) {
+    Image img(width, width / 2, 3);
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) {
+            const glm::dvec3 v = f(prt::latLongPixelDirection(x, y, img.width, img.height));
+            for (int c = 0; c < 3; ++c) img.at(x, y, c) = float(v[c]);
+        }
+    return img;
+}
+
+// A hostile synthetic map: per-pixel log-uniform noise over six decades, a fine
+// checkerboard, thin bright lines and a few very bright single pixels (suns).
+Image highFrequencyMap(int width, unsigned seed) {
+    const int height = width / 2;
+    Image img(width, height, 3);
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> expo(-3.0f, 3.0f);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x)
+            for (int c = 0; c < 3; ++c) {
+                float v = std::pow(10.0f, expo(rng));
+                if (((x / 2) + (y / 2)) % 2 == 0) v *= 0.01f;
+                if (x % 97 == 0 || y % 61 == 0) v += 500.0f;
+                img.at(x, y, c) = v;
+            }
+    std::uniform_int_distribution<int> px(0, width - 1), py(0, height - 1);
+    for (int k = 0; k < 12; ++k) {
+        const int x = px(rng), y = py(rng);
+        for (int c = 0; c < 3; ++c) img.at(x, y, c) = 2.0e5f;
+    }
+    return img;
+}
+
+void expectIntegralPreserved(const Image& latlong, const Cubemap& cube, double relTol,
+                             const std::string& what) {
+    const std::vector<double> cubeSum = cube.integrate();
+    for (int c = 0; c < latlong.channels; ++c) {
+        const double ref = prt::latLongIntegral(latlong, c);
+        const double rel = std::abs(cubeSum[size_t(c)] - ref) / ref;
+        EXPECT_LT(rel, 0.005) << what;  // the specification's bound
+        EXPECT_LT(rel, relTol) << what << " channel " << c << ": lat-long " << ref << " cube "
+                               << cubeSum[size_t(c)];
+        std::printf("[ info ] %s channel %d: relative integral error %.2e\n", what.c_str(), c,
+                    rel);
+    }
+}
+
+class EnvFileTest : public ::testing::Test {
+protected:
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        dir_ = fs::temp_directory_path() /
+               ("prt_test_envmap_" + std::to_string(long(::getpid())) + "_" + info->name());
+        fs::remove_all(dir_);
+        fs::create_directories(dir_);
+    }
+    void TearDown() override {
+        std::error_code ec;
+        fs::remove_all(dir_, ec);
+    }
+    std::string file(const std::string& name) const { return (dir_ / name).string(); }
+    fs::path dir_;
+};
+
+template <class F>
+std::string errorMessage(F&& f) {
+    try {
+        f();
+    } catch (const prt::Error& e) {
+        return e.what();
+    }
+    return "";
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- conventions
+
+TEST(LatLong, ConventionDirections) {
+    expectDirNear(prt::latLongToDirection(0.5, 0.5), {0, 0, -1});  // image centre is -Z
+    expectDirNear(prt::latLongToDirection(0.75, 0.5), {1, 0, 0});  // u = 0.75 is +X
+    expectDirNear(prt::latLongToDirection(0.25, 0.5), {-1, 0, 0});
+    expectDirNear(prt::latLongToDirection(0.0, 0.5), {0, 0, 1});
+    expectDirNear(prt::latLongToDirection(1.0, 0.5), {0, 0, 1});
+    expectDirNear(prt::latLongToDirection(0.3, 0.0), {0, 1, 0});   // top row is +Y
+    expectDirNear(prt::latLongToDirection(0.3, 1.0), {0, -1, 0});
+
+    const glm::dvec2 px = prt::directionToLatLong({1, 0, 0});
+    EXPECT_NEAR(px.x, 0.75, 1e-15);
+    EXPECT_NEAR(px.y, 0.5, 1e-15);
+    const glm::dvec2 mz = prt::directionToLatLong({0, 0, -3});  // need not be normalised
+    EXPECT_NEAR(mz.x, 0.5, 1e-15);
+    EXPECT_NEAR(mz.y, 0.5, 1e-15);
+    EXPECT_NEAR(prt::directionToLatLong({0, 2, 0}).y, 0.0, 1e-15);
+    const glm::dvec2 pz = prt::directionToLatLong({0, 0, 1});
+    EXPECT_GE(pz.x, 0.0);
+    EXPECT_LT(pz.x, 1.0);
+
+    // Centre pixel of an even-width map sits just right of the centre line, at -Z.
+    const glm::dvec3 c = prt::latLongPixelDirection(512, 256, 1024, 512);
+    EXPECT_LT(angleBetween(c, {0, 0, -1}), 0.01);
+    EXPECT_GT(c.x, 0.0);  // to the right of -Z is +X
+    EXPECT_GT(c.y, -0.01);
+}
+
+TEST(LatLong, RoundTrip) {
+    std::mt19937 rng(1);
+    for (int k = 0; k < 10000; ++k) {
+        const glm::dvec3 d = randomDirection(rng);
+        const glm::dvec2 uv = prt::directionToLatLong(d);
+        ASSERT_GE(uv.x, 0.0);
+        ASSERT_LT(uv.x, 1.0);
+        ASSERT_GE(uv.y, 0.0);
+        ASSERT_LE(uv.y, 1.0);
+        expectDirNear(prt::latLongToDirection(uv.x, uv.y), d, 1e-12);
+    }
+    std::uniform_real_distribution<double> u01(0.0, 1.0);
+    for (int k = 0; k < 10000; ++k) {
+        const double u = u01(rng), v = 0.001 + 0.998 * u01(rng);
+        const glm::dvec2 uv = prt::directionToLatLong(prt::latLongToDirection(u, v));
+        EXPECT_NEAR(uv.x, u, 1e-12);
+        EXPECT_NEAR(uv.y, v, 1e-12);
+    }
+}
+
+TEST(LatLong, PixelSolidAnglesAreExact) {
+    for (int w : {2, 8, 64, 1024}) {
+        const int h = w / 2;
+        double sum = 0;
+        for (int y = 0; y < h; ++y) sum += w * prt::latLongPixelSolidAngle(y, w, h);
+        EXPECT_NEAR(sum, 4 * kPi, 1e-12);
+    }
+    EXPECT_NEAR(prt::latLongPixelSolidAngle(0, 2, 1), 2 * kPi, 1e-12);
+    // Row y: 2 pi / W (cos theta0 - cos theta1).
+    EXPECT_NEAR(prt::latLongPixelSolidAngle(3, 16, 8),
+                2 * kPi / 16 * (std::cos(kPi * 3 / 8) - std::cos(kPi * 4 / 8)), 1e-15);
+}
+
+// ---------------------------------------------------------------- generated maps
+
+TEST(Environment, ConstantGivesConstantCubemap) {
+    const glm::vec3 value(0.25f, 1.5f, 3.0f);
+    const Image env = prt::constantEnvironment(256, value);
+    ASSERT_EQ(env.width, 256);
+    ASSERT_EQ(env.height, 128);
+    ASSERT_EQ(env.channels, 3);
+    for (int c = 0; c < 3; ++c)
+        EXPECT_NEAR(prt::latLongIntegral(env, c), 4 * kPi * value[c], 1e-6 * 4 * kPi * value[c]);
+    for (int n : {1, 4, 32}) {
+        const Cubemap cube = prt::latLongToCubemap(env, n, prt::rotationAxisAngle({1, 2, 3}, 37));
+        ASSERT_EQ(cube.size(), n);
+        ASSERT_EQ(cube.channels(), 3);
+        for (size_t t = 0; t < cube.texelCount(); ++t)
+            for (int c = 0; c < 3; ++c)
+                ASSERT_NEAR(cube.data()[t * 3 + size_t(c)], value[c], 1e-6 * value[c]);
+        const std::vector<double> sum = cube.integrate();
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(sum[size_t(c)], 4 * kPi * value[c], 1e-6 * 4 * kPi * value[c]);
+    }
+}
+
+TEST(Environment, TwoToneHemispheresExact) {
+    const Image env = prt::twoToneEnvironment(512, {1, 0, 2}, {0, 3, 2});
+    // Channel 0 is the upper hemisphere only, channel 1 the lower only.
+    EXPECT_NEAR(prt::latLongIntegral(env, 0), 2 * kPi * 1, 1e-9);
+    EXPECT_NEAR(prt::latLongIntegral(env, 1), 2 * kPi * 3, 1e-9);
+    EXPECT_NEAR(prt::latLongIntegral(env, 2), 4 * kPi * 2, 1e-9);
+    // The horizon is a texel border of every side face (even n): the cube is exact too.
+    const Cubemap cube = prt::latLongToCubemap(env, 16);
+    const std::vector<double> sum = cube.integrate();
+    EXPECT_NEAR(sum[0], 2 * kPi * 1, 1e-6);
+    EXPECT_NEAR(sum[1], 2 * kPi * 3, 1e-6);
+    EXPECT_NEAR(sum[2], 4 * kPi * 2, 1e-6);
+    for (int f = 0; f < prt::kCubeFaces; ++f)
+        for (int j = 0; j < 16; ++j)
+            for (int i = 0; i < 16; ++i) {
+                const glm::dvec3 d = prt::texelDirection(16, f, i, j);
+                const float* v = cube.texel(f, i, j);
+                EXPECT_FLOAT_EQ(v[0], d.y > 0 ? 1.0f : 0.0f);
+                EXPECT_FLOAT_EQ(v[1], d.y > 0 ? 0.0f : 3.0f);
+            }
+
+    // Odd height: the middle row straddles the horizon and gets the mean.
+    const Image odd = prt::twoToneEnvironment(10, {1, 0, 0}, {0, 1, 0});
+    ASSERT_EQ(odd.height, 5);
+    EXPECT_FLOAT_EQ(odd.at(0, 2, 0), 0.5f);
+    EXPECT_NEAR(prt::latLongIntegral(odd, 0), 2 * kPi, 1e-12);
+    EXPECT_NEAR(prt::latLongIntegral(odd, 1), 2 * kPi, 1e-12);
+}
+
+TEST(Environment, SunEnergyPreservedAndLocalised) {
+    const int width = 1024, n = 32;
+    std::mt19937 rng(5);
+    std::vector<glm::dvec3> dirs = {{0, 0, -1}, {1, 0, 0}, {0, 1, 0}, {0, -1, 0},
+                                    {1, 1, 1},  {-1, 0.2, 1}};  // incl. a cube corner
+    for (int k = 0; k < 6; ++k) dirs.push_back(randomDirection(rng));
+    const double texelAngle = 2.0 / n;  // face-centre texel width (radians)
+    for (const glm::dvec3& dir : dirs) {
+        const Image env = prt::sunEnvironment(width, dir, {1000, 2000, 0});
+        const double energy = prt::latLongIntegral(env, 0);
+        int nonzero = 0;
+        for (size_t p = 0; p < env.pixels.size(); p += 3) nonzero += env.pixels[p] != 0;
+        ASSERT_EQ(nonzero, 1);
+
+        const Cubemap cube = prt::latLongToCubemap(env, n);
+        const std::vector<double> sum = cube.integrate();
+        EXPECT_NEAR(sum[0] / energy, 1.0, 1e-5) << str(dir);  // exact up to rounding
+        EXPECT_NEAR(sum[1] / sum[0], 2.0, 1e-5);
+        EXPECT_EQ(sum[2], 0.0);
+
+        // The brightest texel contains (or neighbours) the sun direction; all energy is
+        // within two texels of it.
+        const prt::TexelCoord sunTexel = prt::directionToTexel(n, dir);
+        float best = -1;
+        prt::TexelCoord bestTexel;
+        double near = 0, omegaSum = 0;
+        for (int f = 0; f < prt::kCubeFaces; ++f)
+            for (int j = 0; j < n; ++j)
+                for (int i = 0; i < n; ++i) {
+                    const float v = cube.texel(f, i, j)[0];
+                    if (v > best) best = v, bestTexel = {f, i, j};
+                    const double e = v * prt::texelSolidAngle(n, i, j);
+                    if (angleBetween(prt::texelDirection(n, f, i, j), dir) < 2.0 * texelAngle)
+                        near += e;
+                    omegaSum += e;
+                }
+        EXPECT_NEAR(near, omegaSum, 1e-9 * omegaSum) << str(dir);
+        EXPECT_LT(angleBetween(prt::texelDirection(n, bestTexel.face, bestTexel.i, bestTexel.j),
+                               prt::texelDirection(n, sunTexel.face, sunTexel.i, sunTexel.j)),
+                  1.5 * texelAngle)
+            << str(dir);
+    }
+}
+
+TEST(Environment, GeneratorsRejectBadWidths) {
+    EXPECT_THROW(prt::constantEnvironment(7, {1, 1, 1}), prt::Error);
+    EXPECT_THROW(prt::constantEnvironment(0, {1, 1, 1}), prt::Error);
+    EXPECT_THROW(prt::sunEnvironment(64, {0, 0, 0}, {1, 1, 1}), prt::Error);
+    EXPECT_THROW(prt::twoToneEnvironment(-2, {1, 1, 1}, {0, 0, 0}), prt::Error);
+}
+
+// ---------------------------------------------------------------- rotation
+
+TEST(Rotation, MatricesAndConvention) {
+    const glm::dmat3 r = prt::rotationY(90);
+    expectDirNear(r * glm::dvec3(0, 0, -1), {-1, 0, 0}, 0);  // exact at quarter turns
+    expectDirNear(r * glm::dvec3(1, 0, 0), {0, 0, -1}, 0);
+    expectDirNear(prt::rotationX(90) * glm::dvec3(0, 1, 0), {0, 0, 1}, 0);
+    expectDirNear(prt::rotationZ(90) * glm::dvec3(1, 0, 0), {0, 1, 0}, 0);
+
+    std::mt19937 rng(2);
+    for (int k = 0; k < 20; ++k) {
+        const glm::dvec3 axis = randomDirection(rng);
+        const double deg = 360.0 * k / 20 + 3.7;
+        const glm::dmat3 m = prt::rotationAxisAngle(axis * 2.5, deg);
+        const glm::dmat3 mtm = glm::transpose(m) * m;
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) EXPECT_NEAR(mtm[a][b], a == b ? 1.0 : 0.0, 1e-14);
+        EXPECT_NEAR(glm::determinant(m), 1.0, 1e-14);
+        expectDirNear(m * axis, axis, 1e-14);
+        // Right-handed: a vector perpendicular to the axis turns counter-clockwise
+        // when seen from the axis tip.
+        const glm::dvec3 p = glm::normalize(glm::cross(axis, glm::dvec3(0.3, 0.5, 0.7)));
+        const glm::dvec3 q = prt::rotationAxisAngle(axis, 90) * p;
+        expectDirNear(q, glm::cross(axis, p), 1e-14);
+    }
+    const glm::dmat3 y37 = prt::rotationY(37), a37 = prt::rotationAxisAngle({0, 5, 0}, 37);
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) EXPECT_NEAR(y37[a][b], a37[a][b], 1e-15);
+    EXPECT_THROW(prt::rotationAxisAngle({0, 0, 0}, 10), prt::Error);
+}
+
+TEST(Rotation, SunAtMinusZTurnsToMinusX) {
+    const int n = 16;
+    const Image env = prt::sunEnvironment(512, {0, 0, -1}, {1, 1, 1});
+    const Cubemap cube = prt::latLongToCubemap(env, n, prt::rotationY(90));
+    float best = -1;
+    glm::dvec3 bestDir;
+    for (int f = 0; f < prt::kCubeFaces; ++f)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i)
+                if (cube.texel(f, i, j)[0] > best) {
+                    best = cube.texel(f, i, j)[0];
+                    bestDir = prt::texelDirection(n, f, i, j);
+                }
+    EXPECT_LT(angleBetween(bestDir, {-1, 0, 0}), 2.0 / n);
+    EXPECT_EQ(prt::directionToTexel(n, bestDir).face, 1);  // the -X face
+}
+
+TEST(Rotation, RotatedCubemapSamplesRotatedEnvironment) {
+    // Smooth map L(d) = (2 + d.x, 2 + d.y, 2 + d.z): a texel's average is its value at
+    // the texel's centroid, close to the centre direction.
+    auto L = [](const glm::dvec3& d) { return glm::dvec3(2.0) + d; };
+    const Image env = latLongFrom(512, L);
+    const glm::dmat3 r = prt::rotationAxisAngle({0.2, -1, 0.4}, 71);
+    const int n = 16;
+    const Cubemap cube = prt::latLongToCubemap(env, n, r);
+    double worst = 0;
+    for (int f = 0; f < prt::kCubeFaces; ++f)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                const glm::dvec3 d = prt::texelDirection(n, f, i, j);
+                const glm::dvec3 expect = L(glm::transpose(r) * d);  // L'(d) = L(R^T d)
+                for (int c = 0; c < 3; ++c)
+                    worst = std::max(worst, std::abs(cube.texel(f, i, j)[c] - expect[c]));
+            }
+    EXPECT_LT(worst, 0.01);
+}
+
+// ---------------------------------------------------------------- filtering
+
+TEST(Filtering, IntegralPreservedOnHighFrequencyMap) {
+    const Image env = highFrequencyMap(1024, 3);
+    expectIntegralPreserved(env, prt::latLongToCubemap(env, 32), 1e-5, "synthetic N=32");
+    expectIntegralPreserved(env, prt::latLongToCubemap(env, 32, prt::rotationAxisAngle({1, 1, 0}, 33)),
+                            1e-5, "synthetic rotated N=32");
+    expectIntegralPreserved(env, prt::latLongToCubemap(env, 64), 1e-5, "synthetic N=64");
+    const Image small = highFrequencyMap(64, 4);  // cube finer than the lat-long
+    expectIntegralPreserved(small, prt::latLongToCubemap(small, 32), 1e-5, "64x32 map N=32");
+    const Image tiny = highFrequencyMap(8, 5);  // pixels of 45 degrees
+    expectIntegralPreserved(tiny, prt::latLongToCubemap(tiny, 16), 1e-4, "8x4 map N=16");
+    expectIntegralPreserved(env, prt::latLongToCubemap(env, 1), 1e-5, "synthetic N=1");
+    expectIntegralPreserved(env, prt::latLongToCubemap(env, 256), 1e-5, "synthetic N=256");
+}
+
+TEST(Filtering, IntegralPreservedOnForestIfPresent) {
+    const std::string path = std::string(PRT_SOURCE_DIR) + "/data/envmaps/forest.exr";
+    if (!fs::exists(path)) GTEST_SKIP() << path << " not present (run tools/fetch-data.sh)";
+    // Blender's maps hold small negative values (resampling ringing), no NaN or Inf.
+    const Image env = prt::loadEnvironment(path, prt::NonFinitePolicy::ClampNegative);
+    expectIntegralPreserved(env, prt::latLongToCubemap(env, 32), 1e-5, "forest N=32");
+    expectIntegralPreserved(env, prt::latLongToCubemap(env, 32, prt::rotationY(123)), 1e-5,
+                            "forest rotated N=32");
+}
+
+TEST(Filtering, DeterministicAndValidated) {
+    const Image env = highFrequencyMap(256, 8);
+    const Cubemap a = prt::latLongToCubemap(env, 16);
+    const Cubemap b = prt::latLongToCubemap(env, 16);
+    EXPECT_EQ(a.data(), b.data());
+    EXPECT_THROW(prt::latLongToCubemap(env, 12), prt::Error);
+    EXPECT_THROW(prt::latLongToCubemap(Image(), 16), prt::Error);
+    Image bad = env;
+    bad.pixels.pop_back();
+    EXPECT_THROW(prt::latLongToCubemap(bad, 16), prt::Error);
+}
+
+TEST(Filtering, CubemapToLatLongReproducesSmoothMap) {
+    auto L = [](const glm::dvec3& d) { return glm::dvec3(1.0 + 0.5 * d.x, 1.0 + d.y * d.y, 1.5 - 0.5 * d.z); };
+    const Image env = latLongFrom(256, L);
+    const Image back = prt::cubemapToLatLong(prt::latLongToCubemap(env, 32), 128);
+    ASSERT_EQ(back.width, 128);
+    ASSERT_EQ(back.height, 64);
+    double worst = 0;
+    for (int y = 0; y < back.height; ++y)
+        for (int x = 0; x < back.width; ++x) {
+            const glm::dvec3 v = L(prt::latLongPixelDirection(x, y, 128, 64));
+            for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(back.at(x, y, c) - v[c]));
+        }
+    EXPECT_LT(worst, 0.03);
+    EXPECT_THROW(prt::cubemapToLatLong(prt::latLongToCubemap(env, 4), 7), prt::Error);
+}
+
+// ---------------------------------------------------------------- cross layout
+
+TEST(Cross, LayoutOrientationAndSeams) {
+    const int n = 16;
+    // A cubemap storing each texel's own centre direction.
+    Cubemap dirs(n, 3);
+    for (int f = 0; f < prt::kCubeFaces; ++f)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                const glm::dvec3 d = prt::texelDirection(n, f, i, j);
+                for (int c = 0; c < 3; ++c) dirs.texel(f, i, j)[c] = float(d[c]);
+            }
+    const Image cross = prt::cubemapToCross(dirs);
+    ASSERT_EQ(cross.width, 4 * n);
+    ASSERT_EQ(cross.height, 3 * n);
+    ASSERT_EQ(cross.channels, 3);
+
+    auto used = [&](int cx, int cy) { return cy == 1 || cx == 1; };
+    auto dirAt = [&](int x, int y) {
+        return glm::dvec3(cross.at(x, y, 0), cross.at(x, y, 1), cross.at(x, y, 2));
+    };
+    // Unused cells are black.
+    for (int y = 0; y < cross.height; ++y)
+        for (int x = 0; x < cross.width; ++x)
+            if (!used(x / n, y / n)) {
+                for (int c = 0; c < 3; ++c) ASSERT_EQ(cross.at(x, y, c), 0.0f) << x << "," << y;
+            }
+
+    // Cell centres and orientation (up on the page, right on the page).
+    struct Expect {
+        int cx, cy;
+        glm::dvec3 forward, right, up;
+    };
+    const Expect cells[6] = {
+        {0, 1, {-1, 0, 0}, {0, 0, -1}, {0, 1, 0}}, {1, 1, {0, 0, -1}, {1, 0, 0}, {0, 1, 0}},
+        {2, 1, {1, 0, 0}, {0, 0, 1}, {0, 1, 0}},   {3, 1, {0, 0, 1}, {-1, 0, 0}, {0, 1, 0}},
+        {1, 0, {0, 1, 0}, {1, 0, 0}, {0, 0, 1}},   {1, 2, {0, -1, 0}, {1, 0, 0}, {0, 0, -1}},
+    };
+    for (const Expect& e : cells) {
+        const int x0 = e.cx * n, y0 = e.cy * n;
+        const glm::dvec3 centre = dirAt(x0 + n / 2, y0 + n / 2) + dirAt(x0 + n / 2 - 1, y0 + n / 2 - 1);
+        EXPECT_LT(angleBetween(centre, e.forward), 1e-6);
+        const glm::dvec3 toRight = dirAt(x0 + n - 1, y0 + n / 2) - dirAt(x0, y0 + n / 2);
+        const glm::dvec3 toUp = dirAt(x0 + n / 2, y0) - dirAt(x0 + n / 2, y0 + n - 1);
+        EXPECT_GT(glm::dot(glm::normalize(toRight), e.right), 0.99);
+        EXPECT_GT(glm::dot(glm::normalize(toUp), e.up), 0.99);
+    }
+    // The front cell reads like the lat-long map: its right is +X, as u = 0.75 is +X.
+    EXPECT_GT(dirAt(2 * n - 1, n + n / 2).x, 0.5);
+
+    // Seams: every pair of adjacent used pixels (including the horizontal wrap of the
+    // middle row) shows directions at most about one texel apart.
+    const double maxStep = 1.6 * 2.0 / n;
+    int seamPairs = 0;
+    for (int y = 0; y < cross.height; ++y)
+        for (int x = 0; x < cross.width; ++x) {
+            if (!used(x / n, y / n)) continue;
+            const int xr = (y / n == 1) ? (x + 1) % cross.width : x + 1;
+            if (xr < cross.width && used(xr / n, y / n)) {
+                EXPECT_LT(angleBetween(dirAt(x, y), dirAt(xr, y)), maxStep) << x << "," << y;
+                seamPairs += (xr / n != x / n);
+            }
+            if (y + 1 < cross.height && used(x / n, (y + 1) / n)) {
+                EXPECT_LT(angleBetween(dirAt(x, y), dirAt(x, y + 1)), maxStep) << x << "," << y;
+                seamPairs += ((y + 1) / n != y / n);
+            }
+        }
+    EXPECT_EQ(seamPairs, 6 * n);  // 4 vertical seams (one wrapping) + 2 horizontal
+}
+
+// ---------------------------------------------------------------- loading
+
+TEST_F(EnvFileTest, LoadsRgbGrayAndRgba) {
+    Image rgba(8, 4, 4, 0.5f);
+    rgba.at(3, 2, 0) = 7.0f;
+    rgba.at(3, 2, 3) = 0.0f;  // alpha must not matter
+    prt::writeExr(file("rgba.exr"), rgba);
+    const Image a = prt::loadEnvironment(file("rgba.exr"));
+    ASSERT_EQ(a.channels, 3);
+    EXPECT_EQ(a.at(3, 2, 0), 7.0f);
+    EXPECT_EQ(a.at(0, 0, 2), 0.5f);
+
+    Image gray(8, 4, 1);
+    for (size_t k = 0; k < gray.pixels.size(); ++k) gray.pixels[k] = float(k);
+    prt::writeExr(file("gray.exr"), gray);
+    const Image g = prt::loadEnvironment(file("gray.exr"));
+    ASSERT_EQ(g.channels, 3);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(g.at(5, 3, c), float(3 * 8 + 5));
+}
+
+TEST_F(EnvFileTest, WrongAspectRejected) {
+    prt::writeExr(file("square.exr"), Image(16, 16, 3, 1.0f));
+    const std::string msg = errorMessage([&] { prt::loadEnvironment(file("square.exr")); });
+    EXPECT_NE(msg.find(file("square.exr")), std::string::npos) << msg;
+    EXPECT_NE(msg.find("16 x 16"), std::string::npos) << msg;
+    const std::string missing = errorMessage([&] { prt::loadEnvironment(file("none.exr")); });
+    EXPECT_NE(missing.find(file("none.exr")), std::string::npos) << missing;
+}
+
+TEST_F(EnvFileTest, NonFiniteAndNegativeRejectedOrClamped) {
+    struct Case {
+        const char* name;
+        float value;
+        const char* word;
+    };
+    const Case cases[] = {{"nan", std::nanf(""), "NaN"},
+                          {"inf", INFINITY, "+Inf"},
+                          {"neginf", -INFINITY, "-Inf"},
+                          {"negative", -0.25f, "negative"}};
+    for (const Case& k : cases) {
+        Image img(8, 4, 3, 1.0f);
+        img.at(2, 1, 0) = 9.0f;  // the channel's largest finite value
+        img.at(5, 3, 0) = k.value;
+        const std::string path = file(std::string(k.name) + ".exr");
+        prt::writeExr(path, img);
+        const std::string msg = errorMessage([&] { prt::loadEnvironment(path); });
+        EXPECT_NE(msg.find(path), std::string::npos) << msg;
+        EXPECT_NE(msg.find("pixel (5, 3)"), std::string::npos) << msg;
+        EXPECT_NE(msg.find(k.word), std::string::npos) << msg;
+
+        const Image fixed = prt::loadEnvironment(path, prt::NonFinitePolicy::Clamp);
+        const float expect = std::string(k.name) == "inf" ? 9.0f : 0.0f;
+        EXPECT_EQ(fixed.at(5, 3, 0), expect) << k.name;
+        EXPECT_EQ(fixed.at(5, 3, 1), 1.0f);
+        for (float v : fixed.pixels) EXPECT_TRUE(std::isfinite(v) && v >= 0);
+    }
+    // ClampNegative repairs negatives but still refuses NaN and Inf.
+    {
+        Image img(8, 4, 3, 1.0f);
+        img.at(1, 1, 1) = -0.003f;
+        prt::writeExr(file("slightlyneg.exr"), img);
+        const Image fixed = prt::loadEnvironment(file("slightlyneg.exr"), prt::NonFinitePolicy::ClampNegative);
+        EXPECT_EQ(fixed.at(1, 1, 1), 0.0f);
+        img.at(2, 2, 2) = INFINITY;
+        prt::writeExr(file("neginf2.exr"), img);
+        const std::string msg = errorMessage(
+            [&] { prt::loadEnvironment(file("neginf2.exr"), prt::NonFinitePolicy::ClampNegative); });
+        EXPECT_NE(msg.find("pixel (2, 2) is +Inf in channel B"), std::string::npos) << msg;
+    }
+    // -0 is fine.
+    Image img(8, 4, 3, 1.0f);
+    img.at(0, 0, 0) = -0.0f;
+    EXPECT_EQ(prt::checkEnvironmentValues(img, "x", prt::NonFinitePolicy::Reject), 0u);
+    img.at(1, 0, 2) = std::nanf("");
+    img.at(2, 0, 2) = -1.0f;
+    EXPECT_EQ(prt::checkEnvironmentValues(img, "x", prt::NonFinitePolicy::Clamp), 2u);
+}
