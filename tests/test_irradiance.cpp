@@ -103,8 +103,19 @@ TEST(IrradianceTransport, UnoccludedEqualsAnalyticFresnelCosine) {
                         }
                         continue;
                     }
-                    double expected = fresnelTransmittance(eta, c) * c * texelSolidAngle(32, i, j);
-                    ASSERT_NEAR(e[k], expected, 2e-3 * expected) << f << " " << i << " " << j;
+                    // Reference: the texel integral of F_t cos on a fine 8 x 8 sub-grid.
+                    double expected = 0;
+                    for (int b = 0; b < 8; ++b)
+                        for (int a = 0; a < 8; ++a) {
+                            double s0 = (i + a / 8.0) / 32, t0 = (j + b / 8.0) / 32, h = 1.0 / 256;
+                            double cs = glm::dot(faceUVToDirection(f, s0 + h / 2, t0 + h / 2), glm::dvec3(n));
+                            expected += fresnelTransmittance(eta, cs) * cs *
+                                        faceRegionSolidAngle(s0, t0, s0 + h, t0 + h);
+                        }
+                    // 2 x 2 stratified against 8 x 8: the midpoint error of the 2 x 2
+                    // grid, largest near the horizon where F_t cos curves most.
+                    double tolerance = c > 0.3 ? 1e-3 : 5e-3;
+                    ASSERT_NEAR(e[k], expected, tolerance * expected) << f << " " << i << " " << j;
                 }
     }
 }
