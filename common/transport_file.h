@@ -1,0 +1,183 @@
+#pragma once
+// The transport file: what prt-precompute writes and the renderer, viewer and
+// reference tools read (SPEC sections 5-6, byte layout in docs/transport-format.md).
+//
+// In memory a transport file is a few components (multiple scattering, isotropic
+// single scattering, the K terms of the SVD-factored single-scattering phase), each
+// one sparse RGB vector per mesh vertex in Haar coefficient space (common/haar.h:
+// coefficient index face * N * N + j * N + i of a 6 x N x N cubemap), plus the h_k
+// view maps when K-term components exist, the parameters the file was made with and
+// a fingerprint of the mesh it belongs to.
+//
+// Relighting a vertex v of a component against a Haar light vector L (RGB):
+//     out_c = scales[3v + c] * sum_{n = offsets[v]}^{offsets[v+1]-1}
+//                                  values[3n + c] * L[indices[n]].c
+// so the kernel streams offsets / indices / values once and multiplies by the
+// per-vertex scale at the end.
+//
+// Every failure (missing, truncated, corrupt, foreign or mismatched file; invalid
+// data handed to saveTransportFile) is a prt::Error(path, one-line reason).
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace prt {
+
+// Identifies the mesh a transport file was computed for: its vertex count and a hash
+// of its vertex positions in file units (computed by the mesh module; this module
+// only stores and compares it).
+struct MeshFingerprint {
+    uint64_t vertexCount = 0;
+    uint64_t positionHash = 0;
+    bool operator==(const MeshFingerprint&) const = default;
+};
+
+enum class ComponentKind : uint32_t {
+    MultipleScattering = 1,
+    SingleScatteringIsotropic = 2,
+    SingleScatteringTerm = 3,  // k-th term of the SVD-factored phase; term index stored
+};
+
+// "multiple scattering", "single scattering (isotropic)", "single scattering term 2".
+std::string componentName(ComponentKind kind, uint32_t term = 0);
+
+// One sparse RGB vector per vertex, CSR layout, 16-bit quantized.
+//
+// QUANTIZATION. Each vertex has one scale per channel, scale = max_n |v_nc| / 32767
+// (stored as float); a value is stored as q = round(v / scale), an int16 in
+// [-32767, 32767], and reads back as q * scale. A channel that is zero for the whole
+// vertex has scale 0 (and q = 0). The worst-case error of a value is half a step,
+//     |v - q * scale| <= 0.5 * scale = max_n |v_nc| / 65534   (relative to the
+// vertex's per-channel maximum), plus float rounding of the scale and the product,
+// less than 2^-23 * max_n |v_nc|: kQuantizationMaxRelativeError below. (A channel
+// whose maximum is below 32767 * FLT_MIN ~ 3.9e-34 is stored as zero, scale 0.)
+struct SparseRgbVectors {
+    std::vector<uint32_t> offsets{0};  // V + 1; vertex v owns [offsets[v], offsets[v+1])
+    std::vector<uint16_t> indices;     // strictly increasing within a vertex, < 6 N^2
+    std::vector<int16_t> values;       // 3 per coefficient, RGB interleaved
+    std::vector<float> scales;         // 3 per vertex: value = q * scales[3v + c]
+
+    size_t vertexCount() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+    size_t coefficientCount() const { return indices.size(); }
+
+    // Appends the next vertex: coefficient indices idx (any order, no duplicates,
+    // each < 65536) and their RGB values rgb (3 per index, finite). Indices are
+    // sorted. Throws prt::Error on a size mismatch, duplicate index, non-finite value
+    // or more than 2^32 - 1 coefficients in total. Coefficients are never dropped,
+    // even when they quantize to zero.
+    void appendVertex(std::span<const uint32_t> idx, std::span<const float> rgb);
+
+    // Vertex v's indices and dequantized RGB values (3 per index), replacing the
+    // contents of idx and rgb. Throws std::out_of_range if v >= vertexCount().
+    void dequantizeVertex(size_t v, std::vector<uint32_t>& idx, std::vector<float>& rgb) const;
+
+    void reserve(size_t vertices, size_t coefficients);
+    void clear();  // back to zero vertices
+
+    // Bytes of the four arrays in memory (what a relight pass streams).
+    size_t byteSize() const;
+
+    bool operator==(const SparseRgbVectors&) const = default;
+};
+
+// Bound of |v - dequantized v| / max_n |v_nc| (see SparseRgbVectors).
+inline constexpr double kQuantizationMaxRelativeError = 0.5 / 32767.0 + 1.0 / 8388608.0;
+
+struct TransportComponent {
+    ComponentKind kind = ComponentKind::MultipleScattering;
+    uint32_t term = 0;  // 0 unless SingleScatteringTerm
+    SparseRgbVectors vectors;
+    bool operator==(const TransportComponent&) const = default;
+};
+
+// The h_k view maps of the K-term phase factorisation (scalar cubemaps).
+struct ViewMaps {
+    int size = 0;   // face size, e.g. 16
+    int terms = 0;  // K
+    // terms x 6 x size x size floats, index ((k * 6 + face) * size + j) * size + i
+    // (the Cubemap texel order of common/cubemap.h, one map after the other).
+    std::vector<float> data;
+
+    const float* term(int k) const { return data.data() + size_t(k) * 6 * size * size; }
+    bool operator==(const ViewMaps&) const = default;
+};
+
+struct TransportFile {
+    uint32_t cubemapSize = 0;  // N of the 6 x N x N lighting cubemap, power of two, 1..64
+    MeshFingerprint mesh;
+    double mmPerUnit = 1.0;  // scale that was applied to the mesh file's positions
+    // Every precompute parameter as text (material, sigma_a, sigma_s', eta, g, terms,
+    // epsilon, seed, sample count, tool version, ...), in the order given. Keys are
+    // non-empty and unique.
+    std::vector<std::pair<std::string, std::string>> parameters;
+    std::vector<TransportComponent> components;
+    std::optional<ViewMaps> viewMaps;  // present iff SingleScatteringTerm components exist
+
+    // The component of that kind (and term), or nullptr.
+    const TransportComponent* find(ComponentKind kind, uint32_t term = 0) const;
+    // The value of a parameter, or "" when absent.
+    std::string parameter(const std::string& key) const;
+    bool hasParameter(const std::string& key) const;
+
+    bool operator==(const TransportFile&) const = default;
+};
+
+// Writes `file` to `path` atomically: validates it (one vertex count everywhere,
+// equal to mesh.vertexCount; indices < 6 N^2 and increasing; view maps present iff
+// term components exist, one term component per view-map term; finite values), writes
+// "<path>.tmp.<pid>", fsyncs, renames over `path` and fsyncs the directory. On any
+// failure the temporary file is removed, an existing file at `path` is untouched and
+// prt::Error(path, reason) is thrown. Concurrent saves to the same path from one
+// process are not supported (they share the temporary name).
+void saveTransportFile(const std::string& path, const TransportFile& file);
+
+// Reads and verifies the whole file (every section's checksum, every count and
+// index). Throws prt::Error(path, reason) for a missing file, a file that is not a
+// transport file, an unsupported version or byte order, truncation (naming the
+// section and the bytes it needs), a checksum mismatch (naming the section) or
+// inconsistent contents. Allocations never exceed the file's size.
+TransportFile loadTransportFile(const std::string& path);
+// The same, but refuses (before reading the vectors) a file made for another mesh.
+TransportFile loadTransportFile(const std::string& path, const MeshFingerprint& expected);
+
+// What readTransportFileInfo returns: everything except the vectors and view maps.
+struct TransportFileInfo {
+    uint32_t version = 0;
+    uint32_t cubemapSize = 0;
+    MeshFingerprint mesh;
+    double mmPerUnit = 1.0;
+    std::vector<std::pair<std::string, std::string>> parameters;
+    struct Component {
+        ComponentKind kind = ComponentKind::MultipleScattering;
+        uint32_t term = 0;
+        uint64_t vertexCount = 0;
+        uint64_t coefficientCount = 0;
+        uint64_t payloadBytes = 0;  // bytes of the section's payload in the file
+    };
+    std::vector<Component> components;
+    int viewMapSize = 0;   // 0 when the file has no view maps
+    int viewMapTerms = 0;
+    uint64_t fileBytes = 0;
+
+    std::string parameter(const std::string& key) const;
+    bool hasParameter(const std::string& key) const;
+};
+
+// Cheap look at a file (a few small reads, no large allocation): the preamble and the
+// header and parameter sections (checksums verified), the fixed part of every
+// component and view-map section and the end marker. The section structure is
+// checked to span the file exactly, so a truncated file is refused; the large arrays
+// are neither read nor checksummed (loadTransportFile does that).
+TransportFileInfo readTransportFileInfo(const std::string& path);
+
+// Multi-line human-readable summary: N, mesh, parameters, components with vertex and
+// coefficient counts (mean / max per vertex) and bytes, view maps.
+std::string describe(const TransportFile& file);
+std::string describe(const TransportFileInfo& info);
+
+}  // namespace prt
