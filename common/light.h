@@ -1,0 +1,37 @@
+#pragma once
+// Light vectors (Ng et al. 2003; Wang et al. 2005, "Rendering"): an environment,
+// rotated, resampled onto the 6 x N x N cubemap with area-correct filtering and
+// Haar-transformed per face, optionally non-linearly approximated by its largest L
+// terms. Relighting is then a dot product of a transport vector with this vector.
+//
+// Units: the cubemap holds mean radiance per texel (the transport vectors already
+// fold in each texel's solid angle). Rotation convention: L'(d) = L(R^T d)
+// (docs/conventions.md).
+
+#include <glm/glm.hpp>
+
+#include <cstddef>
+#include <vector>
+
+#include "common/cubemap.h"
+#include "common/image.h"
+
+namespace prt {
+
+struct LightVector {
+    int size = 0;                 // N
+    std::vector<float> rgb;       // 6 N^2 Haar coefficients x 3, RGB interleaved
+    size_t keptTerms = 0;         // non-zero coefficients after approximation
+    double relativeL2Error = 0;   // of the approximation, ||L - L_approx|| / ||L|| (Parseval)
+
+    size_t coefficientCount() const { return rgb.size() / 3; }
+};
+
+// From a lat-long environment (see envmap.h). keepTerms = 0 keeps every coefficient;
+// otherwise the largest keepTerms by RGB magnitude (Euclidean norm over channels).
+LightVector makeLightVector(const Image& latlong, int n, const glm::dmat3& rotation = glm::dmat3(1.0),
+                            size_t keepTerms = 0);
+// From an RGB radiance cubemap (3 channels).
+LightVector makeLightVector(const Cubemap& radiance, size_t keepTerms = 0);
+
+}  // namespace prt
