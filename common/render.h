@@ -12,12 +12,16 @@
 
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "common/camera.h"
+#include "common/cubemap.h"
 #include "common/image.h"
 #include "common/mesh.h"
 #include "common/raytrace.h"
+#include "common/relight.h"
+#include "common/transport_file.h"
 
 namespace prt {
 
@@ -50,5 +54,78 @@ Image compose(const GBuffer& g, const Image& background, const glm::dmat3& envRo
 // Environment radiance along direction d of a lat-long map rotated by R (L(R^T d)),
 // bilinear.
 glm::vec3 environmentRadiance(const Image& latlong, const glm::dmat3& rotation, const glm::dvec3& d);
+
+// ---------------------------------------------------------------------------
+// Additions for prt-relight render (and the viewer / reference tools)
+// ---------------------------------------------------------------------------
+
+// The object as the relighting tools place it: the mesh file loaded, checked against
+// the transport file's fingerprint (a mismatch is a prt::Error naming the transport
+// file) and scaled by the file's mmPerUnit about the origin (as prt-precompute did),
+// so positions are in mm and vertex v is the transport file's vertex v.
+struct RelightObject {
+    TriangleMesh mesh;        // mm
+    TransportFile transport;
+    double eta = 1.3;         // transport.parameter("eta"); 1.3 when the file has none
+    Bounds box;               // of the scaled mesh
+    glm::dvec3 sphereCentre{0.0};  // bounding sphere: the box centre and the largest
+    double sphereRadius = 0.0;     // distance of a vertex from it
+};
+RelightObject loadRelightObject(const std::string& meshPath, const std::string& transportPath);
+
+// View-dependent shading of relit per-vertex radiance (relight.h) at a G-buffer
+// pixel (Wang et al. 2005, Eqs. 6 and 10):
+//   L = F_t(eta, n . w_o) * ( sum_i b_i diffuse[v_i]
+//                             + sum_k h_k(w_o') sum_i b_i terms[k][v_i] )
+// with b the pixel's barycentrics, v_i the hit triangle's vertices, n the
+// interpolated normal, w_o = toViewer and w_o' = refractDirection(w_o, n, eta) (unit,
+// pointing INTO the medium, bssrdf.h). h_k(w_o') is the view map of term k looked up
+// bilinearly (Cubemap::sampleBilinear) in the direction w_o' itself. A pixel whose
+// interpolated normal faces away from the viewer (n . w_o <= 0, possible at
+// silhouettes) gets F_t = F_t(eta, 0) = 0, i.e. black. Non-hit pixels give 0.
+class TranslucentShader {
+public:
+    // `mesh` (the one traced, in mm) must outlive the shader; viewMaps may be null
+    // (no K-term single scattering; terms in VertexRadiance are then ignored).
+    TranslucentShader(const TriangleMesh& mesh, double eta, const ViewMaps* viewMaps = nullptr);
+
+    glm::vec3 shade(const GBufferPixel& pixel, const VertexRadiance& radiance) const;
+
+    int viewTermCount() const { return viewTerms_; }
+    // h_k(wRefracted), bilinear; wRefracted need not be unit. 0 without view maps.
+    float viewTerm(int k, const glm::dvec3& wRefracted) const;
+
+private:
+    const TriangleMesh* mesh_;
+    double eta_;
+    int viewTerms_ = 0;
+    Cubemap viewMaps_;  // K channels, channel k = h_k
+};
+
+// Turntable: the object turned by `degrees` about the vertical (+Y) axis through
+// `pivot`, seen by `camera` in a fixed world with a fixed environment, is rendered
+// with the precomputed transport (which is tied to the object's own frame) by moving
+// the world instead: the camera orbits by -degrees about the same axis (returned
+// here) and the environment is rotated by rotationY(-degrees) (compose the
+// environment rotation as rotationY(-degrees) * envRotation for both lighting and
+// background). The image is identical to the one of the turned object, background
+// included: the background stays fixed in the world.
+Camera turntableCamera(const Camera& camera, const glm::dvec3& pivot, double degrees);
+
+// Optional specular layer (Wang et al. 2005, "Rendering": a Fresnel-weighted
+// reflection of a pre-filtered environment, no occlusion):
+//   L_s = F_r(eta, n . w_o) * L_pre(R^T reflect(-w_o, n))
+// with F_r = 1 - F_t the exact dielectric reflectance, n the interpolated normal and
+// L_pre the pre-filtered lat-long map rotated by R like the lighting (bilinear, as
+// environmentRadiance). 0 where n . w_o <= 0 or for non-hit pixels.
+glm::vec3 specularReflection(const GBufferPixel& pixel, double eta, const Image& prefiltered,
+                             const glm::dmat3& rotation);
+
+// The pre-filter: a lat-long map box-filtered down by `factor` in both directions
+// (factor must divide width and height; 1 returns the map), each output pixel the
+// solid-angle weighted mean of the factor x factor input pixels it covers, so the
+// integral over the sphere is preserved. Blurs reflections over about
+// factor * 360 / width degrees. Throws prt::Error for a bad factor.
+Image prefilterEnvironment(const Image& latlong, int factor);
 
 }  // namespace prt

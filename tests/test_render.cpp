@@ -1,1 +1,583 @@
+#include "common/render.h"
+
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <string>
+
+#include "common/bssrdf.h"
+#include "common/envmap.h"
+#include "common/error.h"
+#include "common/light.h"
+#include "common/relight.h"
+#include "common/shapes.h"
+
+using namespace prt;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// Radius in pixels of the image of a sphere of radius r whose centre lies on the
+// optical axis at distance d: the silhouette cone has half-angle asin(r / d), and the
+// image plane at unit distance spans tan(fovY / 2) over height / 2 pixels.
+double projectedRadiusPx(double r, double d, const Camera& c) {
+    return std::tan(std::asin(r / d)) / std::tan(glm::radians(c.fovY) * 0.5) * c.height * 0.5;
+}
+
+const GBufferPixel& at(const GBuffer& g, int x, int y) { return g.pixels[size_t(y) * g.width + x]; }
+
+std::string scratchDir(const std::string& name) {
+    const std::filesystem::path p = std::filesystem::current_path() / "test_render_scratch" / name;
+    std::filesystem::remove_all(p);
+    std::filesystem::create_directories(p);
+    return p.string();
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// G-buffer geometry
+// ---------------------------------------------------------------------------
+
+TEST(GBuffer, CoverageIsTheProjectedDiscExplicitCamera) {
+    const float r = 10.0f;
+    const double d = 60.0;
+    TriangleMesh sphere = makeIcosphere(5, r);
+    RayScene scene(sphere);
+    Camera c;
+    c.eye = {0, 0, d};
+    c.target = {0, 0, 0};
+    c.fovY = 30;
+    c.width = 400;
+    c.height = 300;
+    GBuffer g = traceGBuffer(scene, sphere, c);
+    ASSERT_EQ(g.width, 400);
+    ASSERT_EQ(g.height, 300);
+    ASSERT_EQ(g.pixels.size(), size_t(400 * 300));
+    const double rpx = projectedRadiusPx(r, d, c);
+    const double expected = kPi * rpx * rpx;
+    EXPECT_NEAR(double(g.objectPixels()) / expected, 1.0, 0.02) << "r_px = " << rpx;
+
+    // Silhouette: the image centre is hit, the corners are not; along the horizontal
+    // and vertical axes the edge is at r_px.
+    const double cx = c.width / 2.0, cy = c.height / 2.0;
+    EXPECT_TRUE(at(g, int(cx), int(cy)).hit);
+    EXPECT_FALSE(at(g, 0, 0).hit);
+    EXPECT_FALSE(at(g, c.width - 1, 0).hit);
+    EXPECT_FALSE(at(g, 0, c.height - 1).hit);
+    EXPECT_FALSE(at(g, c.width - 1, c.height - 1).hit);
+    EXPECT_TRUE(at(g, int(cx + 0.95 * rpx), int(cy)).hit);
+    EXPECT_FALSE(at(g, int(cx + 1.05 * rpx), int(cy)).hit);
+    EXPECT_TRUE(at(g, int(cx - 0.95 * rpx), int(cy)).hit);
+    EXPECT_FALSE(at(g, int(cx - 1.05 * rpx), int(cy)).hit);
+    EXPECT_TRUE(at(g, int(cx), int(cy - 0.95 * rpx)).hit);
+    EXPECT_FALSE(at(g, int(cx), int(cy - 1.05 * rpx)).hit);
+}
+
+TEST(GBuffer, CoverageIsTheProjectedDiscFrameSphere) {
+    const float r = 3.0f;
+    const glm::dvec3 centre(1.0, -2.0, 0.5);
+    TriangleMesh sphere = makeIcosphere(5, r);
+    for (glm::vec3& p : sphere.positions) p += glm::vec3(centre);
+    RayScene scene(sphere);
+    const double fill = 0.8;
+    for (double azimuth : {0.0, 70.0, 200.0}) {
+        Camera c = frameSphere(centre, r, azimuth, 20.0, 40.0, 256, 256, fill);
+        GBuffer g = traceGBuffer(scene, sphere, c);
+        // frameSphere puts the silhouette at fill x the half image height.
+        const double rpx = fill * c.height * 0.5;
+        EXPECT_NEAR(projectedRadiusPx(r, glm::length(c.eye - centre), c), rpx, 1e-9 * rpx);
+        EXPECT_NEAR(double(g.objectPixels()) / (kPi * rpx * rpx), 1.0, 0.02) << "azimuth " << azimuth;
+        EXPECT_TRUE(at(g, 128, 128).hit);
+        EXPECT_FALSE(at(g, 0, 0).hit);
+        EXPECT_FALSE(at(g, 255, 255).hit);
+    }
+}
+
+TEST(GBuffer, PixelAttributes) {
+    const float r = 10.0f;
+    TriangleMesh sphere = makeIcosphere(4, r);
+    RayScene scene(sphere);
+    Camera c;
+    c.eye = {0, 0, 50};
+    c.target = {0, 0, 0};
+    c.width = 101;  // odd: the centre pixel's ray is the optical axis
+    c.height = 101;
+    GBuffer g = traceGBuffer(scene, sphere, c);
+
+    // Centre pixel: on the axis, at z ~ r, normal facing the camera.
+    const GBufferPixel& centre = at(g, 50, 50);
+    ASSERT_TRUE(centre.hit);
+    EXPECT_NEAR(glm::length(centre.rayDirection - glm::vec3(0, 0, -1)), 0.0f, 1e-6f);
+    EXPECT_NEAR(glm::length(centre.toViewer - glm::vec3(0, 0, 1)), 0.0f, 1e-6f);
+    EXPECT_NEAR(centre.position.x, 0.0f, 1e-4f);
+    EXPECT_NEAR(centre.position.y, 0.0f, 1e-4f);
+    EXPECT_NEAR(centre.position.z, r, 0.02f * r);  // the inscribed polyhedron is a bit inside
+    EXPECT_GT(glm::dot(centre.normal, centre.toViewer), 0.999f);
+
+    size_t hits = 0;
+    for (int y = 0; y < g.height; ++y)
+        for (int x = 0; x < g.width; ++x) {
+            const GBufferPixel& p = at(g, x, y);
+            const glm::dvec3 expectedDir = cameraRayDirection(c, x + 0.5, y + 0.5);
+            ASSERT_NEAR(glm::length(glm::dvec3(p.rayDirection) - expectedDir), 0.0, 1e-6);
+            ASSERT_NEAR(glm::length(p.toViewer + p.rayDirection), 0.0f, 1e-7f);
+            if (!p.hit) {
+                EXPECT_EQ(p.triangle, kNoTriangle);
+                continue;
+            }
+            ++hits;
+            ASSERT_LT(p.triangle, sphere.triangleCount());
+            const glm::vec3 b = p.barycentric;
+            EXPECT_NEAR(b.x + b.y + b.z, 1.0f, 1e-6f);
+            EXPECT_GE(std::min({b.x, b.y, b.z}), -1e-5f);
+            // The hit point lies on the ray and on the sphere's polyhedron.
+            const glm::dvec3 toHit = glm::dvec3(p.position) - c.eye;
+            EXPECT_NEAR(glm::length(glm::cross(toHit, glm::dvec3(p.rayDirection))), 0.0, 1e-4);
+            EXPECT_LE(glm::length(p.position), r * 1.0001f);
+            EXPECT_GE(glm::length(p.position), r * 0.995f);
+            EXPECT_NEAR(glm::length(p.normal), 1.0f, 1e-5f);
+            // Interpolated normals of a sphere: close to the radial direction, front-facing here.
+            EXPECT_GT(glm::dot(p.normal, glm::normalize(p.position)), 0.999f);
+            // Visible points of a convex object face the viewer (geometrically).
+            EXPECT_GT(glm::dot(glm::normalize(p.position), p.toViewer), -1e-3f);
+        }
+    EXPECT_GT(hits, 100u);
+}
+
+TEST(GBuffer, RejectsBadCamera) {
+    TriangleMesh sphere = makeIcosphere(1, 1.0f);
+    RayScene scene(sphere);
+    Camera c;
+    c.target = c.eye;
+    EXPECT_THROW(traceGBuffer(scene, sphere, c), Error);
+    Camera d;
+    d.fovY = 180;
+    EXPECT_THROW(traceGBuffer(scene, sphere, d), Error);
+}
+
+// ---------------------------------------------------------------------------
+// Environment lookup
+// ---------------------------------------------------------------------------
+
+TEST(EnvironmentRadiance, ConstantIsConstant) {
+    const Image env = constantEnvironment(64, {0.5f, 1.25f, 3.0f});
+    for (const glm::dmat3& R : {glm::dmat3(1.0), rotationY(37.0), rotationX(-80.0)})
+        for (const glm::dvec3& d : {glm::dvec3(0, 1, 0), glm::dvec3(0, -1, 0), glm::dvec3(0, 0, 1),
+                                    glm::dvec3(1, 2, -3), glm::dvec3(-0.3, 0.1, 0.9)}) {
+            const glm::vec3 L = environmentRadiance(env, R, d);
+            EXPECT_FLOAT_EQ(L.x, 0.5f);
+            EXPECT_FLOAT_EQ(L.y, 1.25f);
+            EXPECT_FLOAT_EQ(L.z, 3.0f);
+        }
+    EXPECT_EQ(environmentRadiance(Image(), glm::dmat3(1.0), {0, 0, -1}), glm::vec3(0.0f));
+}
+
+TEST(EnvironmentRadiance, SunFollowsTheRotationConvention) {
+    const int W = 64, H = 32;
+    // A sun in the pixel next to the image centre (-Z), at its pixel centre.
+    const glm::dvec3 sun = latLongPixelDirection(W / 2, H / 2, W, H);
+    ASSERT_LT(sun.z, -0.99);
+    const Image env = sunEnvironment(W, sun, {2.0f, 3.0f, 4.0f});
+    // Unrotated: full value exactly at the pixel centre.
+    EXPECT_FLOAT_EQ(environmentRadiance(env, glm::dmat3(1.0), sun).y, 3.0f);
+    // rotationY(90) turns -Z into -X: the sun is now seen near -X, not near -Z.
+    const glm::dmat3 R = rotationY(90.0);
+    const glm::dvec3 turned = R * sun;
+    EXPECT_LT(turned.x, -0.99);
+    const glm::vec3 peak = environmentRadiance(env, R, turned);
+    EXPECT_FLOAT_EQ(peak.x, 2.0f);
+    EXPECT_FLOAT_EQ(peak.z, 4.0f);
+    EXPECT_EQ(environmentRadiance(env, R, sun), glm::vec3(0.0f));
+    EXPECT_EQ(environmentRadiance(env, R, {1, 0, 0}), glm::vec3(0.0f));
+    // Brightest of a dense set of directions is next to -X.
+    double best = -1;
+    glm::dvec3 bestDir(0.0);
+    for (int i = 0; i < 720; ++i)
+        for (int j = 1; j < 360; ++j) {
+            const glm::dvec3 d = latLongToDirection(i / 720.0, j / 360.0);
+            const double v = environmentRadiance(env, R, d).y;
+            if (v > best) best = v, bestDir = d;
+        }
+    EXPECT_GT(glm::dot(bestDir, glm::dvec3(-1, 0, 0)), 0.99);
+}
+
+TEST(EnvironmentRadiance, BilinearWrapsInUAndClampsInV) {
+    const int W = 8, H = 4;
+    Image env(W, H, 3, 0.0f);
+    for (int y = 0; y < H; ++y) {
+        env.at(0, y, 0) = 1.0f;       // left column red
+        env.at(W - 1, y, 1) = 1.0f;   // right column green
+    }
+    env.at(3, 0, 2) = 8.0f;  // blue in the top row
+    // u = 0 (the +Z seam) lies halfway between the two edge columns' centres.
+    const glm::vec3 seam = environmentRadiance(env, glm::dmat3(1.0), latLongToDirection(0.0, 0.5));
+    EXPECT_NEAR(seam.x, 0.5f, 1e-6f);
+    EXPECT_NEAR(seam.y, 0.5f, 1e-6f);
+    // Between two pixel centres of a row: the mean.
+    const glm::vec3 mid = environmentRadiance(env, glm::dmat3(1.0), latLongToDirection(1.0 / W, 0.5));
+    EXPECT_NEAR(mid.x, 0.5f, 1e-6f);
+    EXPECT_NEAR(mid.y, 0.0f, 1e-6f);
+    // Above the top row's centres: clamped to the top row (straight up is the row itself).
+    const glm::vec3 top = environmentRadiance(env, glm::dmat3(1.0), latLongToDirection(3.5 / W, 0.01));
+    EXPECT_NEAR(top.z, 8.0f, 1e-5f);
+    // A direction need not be unit length.
+    const glm::vec3 a = environmentRadiance(env, glm::dmat3(1.0), {0.3, 0.2, -0.5});
+    const glm::vec3 b = environmentRadiance(env, glm::dmat3(1.0), {3.0, 2.0, -5.0});
+    EXPECT_EQ(a, b);
+}
+
+// ---------------------------------------------------------------------------
+// Compositing
+// ---------------------------------------------------------------------------
+
+TEST(Compose, AlphaIsOneExactlyOnHitPixelsAndBackgroundIsTheEnvironment) {
+    TriangleMesh sphere = makeIcosphere(3, 5.0f);
+    RayScene scene(sphere);
+    Camera c;
+    c.eye = {0, 0, 30};
+    c.target = {0, 0, 0};
+    c.width = 64;
+    c.height = 48;
+    GBuffer g = traceGBuffer(scene, sphere, c);
+    const Image env = twoToneEnvironment(32, {1.0f, 2.0f, 3.0f}, {0.1f, 0.2f, 0.3f});
+    const glm::dmat3 R = rotationX(20.0);
+    const Image img = compose(g, env, R, [](const GBufferPixel& p) { return p.normal * 7.0f; });
+    ASSERT_EQ(img.width, 64);
+    ASSERT_EQ(img.height, 48);
+    ASSERT_EQ(img.channels, 4);
+    size_t hits = 0;
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) {
+            const GBufferPixel& p = at(g, x, y);
+            const float* o = img.pixel(x, y);
+            if (p.hit) {
+                ++hits;
+                EXPECT_EQ(o[3], 1.0f);
+                EXPECT_EQ(o[0], p.normal.x * 7.0f);
+                EXPECT_EQ(o[2], p.normal.z * 7.0f);
+            } else {
+                EXPECT_EQ(o[3], 0.0f);
+                const glm::vec3 L = environmentRadiance(env, R, glm::dvec3(p.rayDirection));
+                EXPECT_EQ(o[0], L.x);
+                EXPECT_EQ(o[1], L.y);
+                EXPECT_EQ(o[2], L.z);
+            }
+        }
+    EXPECT_EQ(hits, g.objectPixels());
+    // Without a background the background is black.
+    const Image black = compose(g, Image(), R, [](const GBufferPixel&) { return glm::vec3(1.0f); });
+    EXPECT_EQ(black.at(0, 0, 0), 0.0f);
+    EXPECT_EQ(black.at(0, 0, 3), 0.0f);
+}
+
+// ---------------------------------------------------------------------------
+// Shading
+// ---------------------------------------------------------------------------
+
+TEST(TranslucentShader, FresnelTimesInterpolatedDiffuse) {
+    const float r = 10.0f;
+    TriangleMesh sphere = makeIcosphere(3, r);
+    RayScene scene(sphere);
+    Camera c;
+    c.eye = {0, 0, 60};
+    c.target = {0, 0, 0};
+    c.width = 64;
+    c.height = 64;
+    GBuffer g = traceGBuffer(scene, sphere, c);
+    // Per-vertex radiance linear in position: its barycentric interpolation is the same
+    // linear function at the hit point.
+    VertexRadiance rad;
+    for (const glm::vec3& p : sphere.positions) rad.diffuse.push_back(glm::vec3(1.0f) + 0.05f * p);
+    const double eta = 1.3;
+    TranslucentShader shader(sphere, eta);
+    EXPECT_EQ(shader.viewTermCount(), 0);
+    size_t checked = 0;
+    for (const GBufferPixel& p : g.pixels) {
+        const glm::vec3 L = shader.shade(p, rad);
+        if (!p.hit) {
+            EXPECT_EQ(L, glm::vec3(0.0f));
+            continue;
+        }
+        const double cosO = glm::dot(glm::dvec3(p.normal), glm::dvec3(p.toViewer));
+        const double ft = cosO > 0 ? fresnelTransmittance(eta, cosO) : 0.0;
+        const glm::dvec3 expected = ft * (glm::dvec3(1.0) + 0.05 * glm::dvec3(p.position));
+        EXPECT_NEAR(L.x, expected.x, 1e-5);
+        EXPECT_NEAR(L.y, expected.y, 1e-5);
+        EXPECT_NEAR(L.z, expected.z, 1e-5);
+        ++checked;
+    }
+    EXPECT_GT(checked, 100u);
+    // Back-facing interpolated normal: black.
+    GBufferPixel back = g.pixels[size_t(32) * 64 + 32];
+    ASSERT_TRUE(back.hit);
+    back.normal = -back.normal;
+    EXPECT_EQ(shader.shade(back, rad), glm::vec3(0.0f));
+}
+
+TEST(TranslucentShader, ViewMapsAreLookedUpAtTheRefractedViewDirection) {
+    TriangleMesh sphere = makeIcosphere(3, 10.0f);
+    RayScene scene(sphere);
+    Camera c;
+    c.eye = {0, 0, 60};
+    c.target = {0, 0, 0};
+    c.width = 33;
+    c.height = 33;
+    GBuffer g = traceGBuffer(scene, sphere, c);
+    const GBufferPixel& centre = at(g, 16, 16);
+    ASSERT_TRUE(centre.hit);
+
+    // Two terms: h_0 = 1 on the -Z face (where w_o' points at the centre pixel: into
+    // the medium, opposite to the viewer on +Z), 0 elsewhere; h_1 = 0.5 everywhere.
+    ViewMaps maps;
+    maps.size = 4;
+    maps.terms = 2;
+    const size_t texels = size_t(6) * 16;
+    maps.data.assign(2 * texels, 0.0f);
+    for (size_t i = 0; i < 16; ++i) maps.data[5 * 16 + i] = 1.0f;
+    for (size_t i = 0; i < texels; ++i) maps.data[texels + i] = 0.5f;
+
+    const double eta = 1.4;
+    TranslucentShader shader(sphere, eta, &maps);
+    ASSERT_EQ(shader.viewTermCount(), 2);
+    EXPECT_FLOAT_EQ(shader.viewTerm(0, {0, 0, -1}), 1.0f);
+    EXPECT_FLOAT_EQ(shader.viewTerm(0, {0, 0, 1}), 0.0f);
+    EXPECT_FLOAT_EQ(shader.viewTerm(1, {0.3, -0.2, 0.5}), 0.5f);
+
+    VertexRadiance rad;
+    rad.diffuse.assign(sphere.vertexCount(), glm::vec3(0.25f));
+    rad.terms.assign(2, std::vector<glm::vec3>(sphere.vertexCount(), glm::vec3(1.0f, 2.0f, 3.0f)));
+    const glm::vec3 L = shader.shade(centre, rad);
+    const double ft = fresnelTransmittance(eta, glm::dot(centre.normal, centre.toViewer));
+    // 0.25 + h_0 * (1, 2, 3) + h_1 * (1, 2, 3) with h_0 = 1, h_1 = 0.5.
+    EXPECT_NEAR(L.x, ft * (0.25 + 1.5 * 1), 1e-5);
+    EXPECT_NEAR(L.y, ft * (0.25 + 1.5 * 2), 1e-5);
+    EXPECT_NEAR(L.z, ft * (0.25 + 1.5 * 3), 1e-5);
+    // Without view maps the terms are ignored.
+    TranslucentShader plain(sphere, eta);
+    EXPECT_NEAR(plain.shade(centre, rad).x, ft * 0.25, 1e-6);
+}
+
+TEST(Specular, FresnelReflectionOfThePrefilteredEnvironment) {
+    TriangleMesh sphere = makeIcosphere(3, 10.0f);
+    RayScene scene(sphere);
+    Camera c;
+    c.eye = {0, 0, 60};
+    c.target = {0, 0, 0};
+    c.width = 33;
+    c.height = 33;
+    GBuffer g = traceGBuffer(scene, sphere, c);
+    const Image cst = constantEnvironment(32, {2.0f, 3.0f, 4.0f});
+    size_t hits = 0;
+    for (const GBufferPixel& p : g.pixels) {
+        const glm::vec3 L = specularReflection(p, 1.3, cst, rotationY(40.0));
+        if (!p.hit) {
+            EXPECT_EQ(L, glm::vec3(0.0f));
+            continue;
+        }
+        ++hits;
+        const double cosO = glm::dot(p.normal, p.toViewer);
+        EXPECT_NEAR(L.y, 3.0 * fresnelReflectance(1.3, cosO), 1e-6);
+    }
+    EXPECT_GT(hits, 100u);
+    // The mirror direction: at the centre pixel (normal ~ toward the eye) the
+    // reflection looks back toward +Z; a sun there is seen, one at -Z is not.
+    const GBufferPixel& centre = at(g, 16, 16);
+    const Image sunBack = sunEnvironment(64, latLongPixelDirection(0, 16, 64, 32), {1, 1, 1});
+    const Image sunFront = sunEnvironment(64, latLongPixelDirection(32, 16, 64, 32), {1, 1, 1});
+    EXPECT_GT(specularReflection(centre, 1.3, sunBack, glm::dmat3(1.0)).x, 0.0f);
+    EXPECT_EQ(specularReflection(centre, 1.3, sunFront, glm::dmat3(1.0)).x, 0.0f);
+}
+
+TEST(Specular, PrefilterPreservesTheIntegral) {
+    const Image env = sunEnvironment(64, glm::normalize(glm::dvec3(0.3, 0.8, -0.5)), {5, 6, 7});
+    for (int factor : {1, 2, 4, 8}) {
+        const Image f = prefilterEnvironment(env, factor);
+        EXPECT_EQ(f.width, 64 / factor);
+        EXPECT_EQ(f.height, 32 / factor);
+        for (int ch = 0; ch < 3; ++ch)
+            EXPECT_NEAR(latLongIntegral(f, ch), latLongIntegral(env, ch), 1e-6 * latLongIntegral(env, ch));
+    }
+    const Image cst = prefilterEnvironment(constantEnvironment(64, {1, 2, 3}), 4);
+    for (int y = 0; y < cst.height; ++y)
+        for (int x = 0; x < cst.width; ++x)
+            for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(cst.at(x, y, ch), ch + 1.0f, 1e-6f);
+    EXPECT_THROW(prefilterEnvironment(env, 3), Error);
+    EXPECT_THROW(prefilterEnvironment(env, 0), Error);
+}
+
+// ---------------------------------------------------------------------------
+// Turntable: camera orbit + environment rotation == turned object in a fixed world
+// ---------------------------------------------------------------------------
+
+TEST(Turntable, CameraOrbitEqualsTurnedObject) {
+    // An asymmetric object away from the origin, so both the pivot and the direction
+    // of the turn matter.
+    TriangleMesh box = makeBox({6.0f, 2.0f, 1.0f});
+    for (glm::vec3& p : box.positions) p += glm::vec3(5.0f, 1.0f, -2.0f);
+    const glm::dvec3 pivot(bounds(box).centre());
+    RayScene scene(box);
+    Camera c;
+    c.eye = {5, 8, 30};
+    c.target = pivot;
+    c.fovY = 15;
+    c.width = 96;
+    c.height = 64;
+    const Image env = sunEnvironment(64, glm::normalize(glm::dvec3(1, 0.2, -1)), {1, 1, 1});
+    const Image sky = twoToneEnvironment(64, {1, 1, 1}, {0, 0, 0});
+    for (double degrees : {30.0, 90.0, 200.0}) {
+        // The object actually turned about the vertical axis through the pivot.
+        TriangleMesh turned = box;
+        const glm::dmat3 Ry = rotationY(degrees);
+        for (glm::vec3& p : turned.positions) p = glm::vec3(pivot + Ry * (glm::dvec3(p) - pivot));
+        for (glm::vec3& n : turned.normals) n = glm::vec3(Ry * glm::dvec3(n));
+        RayScene turnedScene(turned);
+        const GBuffer world = traceGBuffer(turnedScene, turned, c);
+        const Camera orbit = turntableCamera(c, pivot, degrees);
+        const GBuffer local = traceGBuffer(scene, box, orbit);
+        size_t differ = 0, hits = 0;
+        for (size_t i = 0; i < world.pixels.size(); ++i) {
+            const GBufferPixel &a = world.pixels[i], &b = local.pixels[i];
+            if (a.hit != b.hit) ++differ;
+            if (!a.hit || !b.hit) {
+                // Background: the environment rotated by Ry(-degrees) in the object's
+                // frame is the fixed world environment.
+                const glm::vec3 Lw = environmentRadiance(sky, glm::dmat3(1.0), glm::dvec3(a.rayDirection));
+                const glm::vec3 Ll =
+                    environmentRadiance(sky, rotationY(-degrees), glm::dvec3(b.rayDirection));
+                EXPECT_NEAR(Lw.x, Ll.x, 1e-4);
+                continue;
+            }
+            ++hits;
+            EXPECT_EQ(a.triangle, b.triangle);
+            // The same surface point, normal and view direction, up to the rotation.
+            EXPECT_NEAR(glm::length(glm::dvec3(a.position) - (pivot + Ry * (glm::dvec3(b.position) - pivot))),
+                        0.0, 1e-3);
+            EXPECT_NEAR(glm::length(glm::dvec3(a.normal) - Ry * glm::dvec3(b.normal)), 0.0, 1e-5);
+            EXPECT_NEAR(glm::length(glm::dvec3(a.toViewer) - Ry * glm::dvec3(b.toViewer)), 0.0, 1e-5);
+            // Lighting from direction w in the world is lighting from Ry^T w on the
+            // object: the rotated environment gives the same radiance.
+            const glm::dvec3 w = glm::normalize(glm::dvec3(0.3, 0.5, -0.8));
+            EXPECT_NEAR(environmentRadiance(env, glm::dmat3(1.0), w).x,
+                        environmentRadiance(env, rotationY(-degrees), glm::transpose(Ry) * w).x, 1e-5);
+        }
+        EXPECT_GT(hits, 100u) << degrees;
+        EXPECT_LE(differ, world.pixels.size() / 500) << degrees;  // edge pixels only
+    }
+}
+
+// ---------------------------------------------------------------------------
+// End to end: files on disk -> placed object -> light vector -> relight -> frame
+// ---------------------------------------------------------------------------
+
+namespace {
+
+// A transport file for `mesh` whose multiple-scattering vector at vertex v holds only
+// the six face scaling coefficients, with RGB values (1 + 0.1 x_v / R) * faceWeight[f]
+// * rgb (x_v in file units).
+TransportFile syntheticTransport(const TriangleMesh& mesh, int n, double mmPerUnit, float R) {
+    TransportFile file;
+    file.cubemapSize = uint32_t(n);
+    file.mesh = MeshFingerprint{mesh.vertexCount(), meshFingerprint(mesh)};
+    file.mmPerUnit = mmPerUnit;
+    file.parameters = {{"material", "synthetic"}, {"eta", "1.3"}};
+    TransportComponent ms;
+    ms.kind = ComponentKind::MultipleScattering;
+    const float faceWeight[6] = {1.0f, 2.0f, 3.0f, 4.0f, 5.0f, 6.0f};
+    const glm::vec3 rgb(0.01f, 0.02f, 0.03f);
+    for (const glm::vec3& p : mesh.positions) {
+        std::vector<uint32_t> idx;
+        std::vector<float> values;
+        const float s = 1.0f + 0.1f * p.x / R;
+        for (int f = 0; f < 6; ++f) {
+            idx.push_back(uint32_t(f * n * n));
+            for (int c = 0; c < 3; ++c) values.push_back(s * faceWeight[f] * rgb[c]);
+        }
+        ms.vectors.appendVertex(idx, values);
+    }
+    file.components.push_back(std::move(ms));
+    return file;
+}
+
+}  // namespace
+
+TEST(RenderEndToEnd, ConstantEnvironmentGivesFresnelTimesClosedFormDot) {
+    const std::string dir = scratchDir("end_to_end");
+    const float R = 2.0f;  // file units
+    const double mmPerUnit = 5.0;
+    const int n = 8;
+    saveMesh(makeIcosphere(4, R), dir + "/sphere.obj");
+    const TriangleMesh fileMesh = loadMesh(dir + "/sphere.obj");
+    saveTransportFile(dir + "/sphere.prt", syntheticTransport(fileMesh, n, mmPerUnit, R));
+
+    const RelightObject object = loadRelightObject(dir + "/sphere.obj", dir + "/sphere.prt");
+    EXPECT_DOUBLE_EQ(object.eta, 1.3);
+    ASSERT_EQ(object.mesh.vertexCount(), fileMesh.vertexCount());
+    EXPECT_NEAR(object.sphereRadius, R * mmPerUnit, 1e-4);
+    EXPECT_NEAR(glm::length(object.sphereCentre), 0.0, 1e-4);
+    EXPECT_NEAR(object.mesh.positions[7].x, fileMesh.positions[7].x * mmPerUnit, 1e-5);
+
+    // Constant environment c: each face's Haar scaling coefficient is N * c (N times
+    // the face mean), every other coefficient 0. So at vertex v
+    //   diffuse[v] = sum_f s_v w_f rgb N c = s_v N c rgb * 21.
+    const glm::vec3 cst(0.7f, 1.1f, 1.9f);
+    const Image env = constantEnvironment(64, cst);
+    const LightVector light = makeLightVector(env, n, rotationY(33.0));
+    VertexRadiance rad;
+    relightVertices(object.transport, light, ComponentSet{}, rad);
+    ASSERT_EQ(rad.diffuse.size(), object.mesh.vertexCount());
+
+    const RayScene scene(object.mesh);
+    const Camera camera = frameSphere(object.sphereCentre, object.sphereRadius, 0, 0, 30, 65, 65);
+    const GBuffer g = traceGBuffer(scene, object.mesh, camera);
+    const TranslucentShader shader(object.mesh, object.eta);
+    const Image img = compose(g, env, glm::dmat3(1.0), [&](const GBufferPixel& p) { return shader.shade(p, rad); });
+
+    const GBufferPixel& centre = at(g, 32, 32);
+    ASSERT_TRUE(centre.hit);
+    const double cosO = glm::dot(centre.normal, centre.toViewer);
+    EXPECT_GT(cosO, 0.999);
+    const glm::dvec3 rgb(0.01, 0.02, 0.03);
+    // s at the hit point (file units: position / mmPerUnit).
+    const double s = 1.0 + 0.1 * (centre.position.x / mmPerUnit) / R;
+    for (int ch = 0; ch < 3; ++ch) {
+        const double closedForm = s * 21.0 * rgb[ch] * n * cst[ch];
+        EXPECT_NEAR(img.at(32, 32, ch), fresnelTransmittance(1.3, cosO) * closedForm, 2e-4 * closedForm);
+        // ~ F_t(eta, 1) at normal incidence.
+        EXPECT_NEAR(img.at(32, 32, ch), fresnelTransmittance(1.3, 1.0) * closedForm, 2e-3 * closedForm);
+    }
+    EXPECT_EQ(img.at(32, 32, 3), 1.0f);
+    // Every object pixel: the same law with its own normal and position.
+    for (int y = 0; y < g.height; ++y)
+        for (int x = 0; x < g.width; ++x) {
+            const GBufferPixel& p = at(g, x, y);
+            if (!p.hit) {
+                EXPECT_FLOAT_EQ(img.at(x, y, 1), cst.y);
+                continue;
+            }
+            const double co = glm::dot(p.normal, p.toViewer);
+            const double ft = co > 0 ? fresnelTransmittance(1.3, co) : 0.0;
+            const double sp = 1.0 + 0.1 * (p.position.x / mmPerUnit) / R;
+            const double expected = ft * sp * 21.0 * rgb[1] * n * cst[1];
+            EXPECT_NEAR(img.at(x, y, 1), expected, 2e-4 * (1e-3 + expected));
+        }
+}
+
+TEST(RenderEndToEnd, MismatchedMeshIsRefused) {
+    const std::string dir = scratchDir("mismatch");
+    saveMesh(makeIcosphere(2, 1.0f), dir + "/a.obj");
+    saveMesh(makeIcosphere(2, 1.5f), dir + "/b.obj");
+    saveTransportFile(dir + "/a.prt", syntheticTransport(loadMesh(dir + "/a.obj"), 4, 1.0, 1.0f));
+    EXPECT_NO_THROW(loadRelightObject(dir + "/a.obj", dir + "/a.prt"));
+    try {
+        loadRelightObject(dir + "/b.obj", dir + "/a.prt");
+        FAIL() << "a transport file for another mesh was accepted";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("a.prt"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(loadRelightObject(dir + "/missing.obj", dir + "/a.prt"), Error);
+    EXPECT_THROW(loadRelightObject(dir + "/a.obj", dir + "/missing.prt"), Error);
+}
