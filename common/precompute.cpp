@@ -217,8 +217,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
     MultipleScatteringStats stats;
     const auto pass2Start = std::chrono::steady_clock::now();
     {
-        SampleTree tree(cloud, hierarchy);
-        cloud = SampleCloud();  // the tree holds what pass 2 needs
+        SampleTree tree(std::move(cloud), hierarchy);
         Progress p("pass 2 (multiple scattering)", mesh.vertexCount(), "vertices");
         transport = multipleScatteringTransport(tree, mesh.positions, settings.material, hierarchy,
                                                 coefficientCount, &stats, &p);

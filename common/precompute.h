@@ -31,7 +31,7 @@ struct PrecomputeSettings {
     size_t sampleCoefficients = 128;  // Haar terms kept per sample (pass 1)
     size_t nodeCoefficients = 256;    // per kd-tree node (pass 2)
     size_t vertexCoefficients = 128;  // per vertex in the file
-    double epsilon = 0.1;         // kd-tree solid-angle threshold A / r^2 (0: exact sum)
+    double epsilon = 0.05;        // kd-tree solid-angle threshold A / r^2 (0: exact sum)
     size_t sampleCount = 0;       // 0: from sampleSpacingMm
     double sampleSpacingMm = 0;   // 0: the material's smallest mean free path l_u
     size_t maxSamples = 300000;   // cap on the automatic count

@@ -50,18 +50,22 @@ TEST(Precompute, LargeSphereUnderConstantLightMatchesTheDipoleClosedForm) {
     // same irradiance transport total E_eff = int F_t cos dOmega. The relit radiance
     // F_t(w_o) * dot(T_d / pi, L) at every vertex is then
     //     F_t(w_o) / pi * E_eff * alpha'/2 (e^(-sigma_tr z_r) + e^(-sigma_tr z_v)).
-    // Tolerance 4%: curvature (R sigma_tr = 30 changes the R_d integral by ~1/30 of
-    // the share beyond the local plane, well under 1%), the discretised sum of A_i R_d
-    // over Poisson samples spaced ~z_r apart near the R_d peak (~1-2%), shading
-    // normals of the tessellation losing grazing directions (< 0.5%), Haar
-    // truncation and 16-bit quantization (< 0.1%).
+    // Tolerances. The mean over vertices within 3%: curvature (R sigma_tr = 30) and
+    // the hierarchy's bias (epsilon = 0.05 darkens by ~0.4%) stay under 1%, Haar
+    // truncation and 16-bit quantization under 0.1%. Per vertex: the sum
+    // of A_i R_d(r_i) over an irregular sample set is a cubature of a kernel whose
+    // main lobe is only ~z_r wide when sigma_tr z_r ~ 1 (strong absorption, as here);
+    // measured with this material: samples spaced z_r apart swing the sum over
+    // 0.68-1.23 from vertex to vertex, spaced z_r/2 over 0.91-1.09 (rms ~4%, worst ~15% over all vertices). Hence the
+    // explicit spacing of z_r/2, rms < 6% and worst < 20% per vertex (the default spacing l_u = z_r suits materials with
+    // sigma_tr z_r << 1, like Marble, whose R_d integral comes from far away).
     Progress::setEnabled(false);
     const Material m = customMaterial({1.0, 1.5, 2.0}, {1.0, 0.6, 0.3});
     const double sigmaTr = std::min({m.sigmaTr().x, m.sigmaTr().y, m.sigmaTr().z});
     const double radius = 30.0 / sigmaTr;
     const fs::path dir = tempDir();
     const std::string meshPath = (dir / "sphere.ply").string();
-    saveMesh(makeIcosphere(5, float(radius)), meshPath);
+    saveMesh(makeIcosphere(4, float(radius)), meshPath);
 
     PrecomputeSettings s;
     s.meshPath = meshPath;
@@ -69,6 +73,7 @@ TEST(Precompute, LargeSphereUnderConstantLightMatchesTheDipoleClosedForm) {
     s.scale.mmPerUnit = 1.0;
     s.material = m;
     s.cubemapSize = 8;
+    s.sampleSpacingMm = 0.5 * m.minMeanFreePath();
     s.sampleCoefficients = 64;
     s.nodeCoefficients = 64;
     s.vertexCoefficients = 64;
@@ -85,17 +90,22 @@ TEST(Precompute, LargeSphereUnderConstantLightMatchesTheDipoleClosedForm) {
     std::vector<float> rgb;
     for (int c = 0; c < 3; ++c) {
         const double expected = eEff * dipoleTotalDiffuseReflectance(makeDipoleChannel(m, c)) / M_PI;
-        double mean = 0, worst = 0;
+        double mean = 0, worst = 0, squares = 0;
         for (size_t v = 0; v < ms->vectors.vertexCount(); ++v) {
             ms->vectors.dequantizeVertex(v, idx, rgb);
             double radiance = 0;  // per unit F_t(w_o)
             for (size_t k = 0; k < idx.size(); ++k) radiance += rgb[3 * k + c] * light[idx[k]];
             mean += radiance;
+            squares += (radiance / expected - 1) * (radiance / expected - 1);
             worst = std::max(worst, std::abs(radiance / expected - 1));
         }
         mean /= double(ms->vectors.vertexCount());
-        EXPECT_NEAR(mean / expected, 1.0, 0.04) << "channel " << c;
-        EXPECT_LT(worst, 0.08) << "channel " << c;
+        EXPECT_NEAR(mean / expected, 1.0, 0.03) << "channel " << c;
+        const double rms = std::sqrt(squares / double(ms->vectors.vertexCount()));
+        std::printf("channel %d: mean/expected %.4f, rms deviation %.4f, worst %.4f\n", c,
+                    mean / expected, rms, worst);
+        EXPECT_LT(rms, 0.06) << "channel " << c;
+        EXPECT_LT(worst, 0.2) << "channel " << c;
     }
     fs::remove_all(dir);
 }
