@@ -1,1 +1,388 @@
-int main() { return 1; }
+// prt-reference: the brute-force reference renderer (docs/reference.md). Same mesh
+// placement, camera, environment and material as prt-relight render, but no
+// cubemap, no wavelets, no hierarchy, no truncation: per-sample irradiance by Monte
+// Carlo from the full-resolution lat-long map with Embree visibility, then the dipole
+// summed over all samples for every pixel (common/reference.h).
+//
+// The transport file is read only for its header and parameters (mesh fingerprint,
+// mm per unit, material, sample count and seed), never for its vectors.
+
+#include <CLI/CLI.hpp>
+#include <tbb/global_control.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "common/bssrdf.h"
+#include "common/camera.h"
+#include "common/envmap.h"
+#include "common/error.h"
+#include "common/image.h"
+#include "common/mesh.h"
+#include "common/progress.h"
+#include "common/raytrace.h"
+#include "common/reference.h"
+#include "common/render.h"
+#include "common/sampling.h"
+#include "common/transport_file.h"
+
+using namespace prt;
+
+namespace {
+
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Camera options: the same names, defaults and meaning as prt-relight render
+// (docs/relight.md, "Camera").
+struct CameraOptions {
+    std::vector<double> eye, target, up{0.0, 1.0, 0.0};
+    double fov = 30.0;
+    int width = 512, height = 512;
+    double azimuth = 0.0, elevation = 15.0, fill = 0.9;
+};
+
+void addCameraOptions(CLI::App& app, CameraOptions& o) {
+    app.add_option("--eye", o.eye, "Camera position x,y,z in mm (object space after scaling); "
+                                   "default: framed automatically from --azimuth/--elevation")
+        ->expected(3)->delimiter(',')->group("Camera");
+    app.add_option("--target", o.target, "Point looked at x,y,z in mm (default: bounding-sphere centre)")
+        ->expected(3)->delimiter(',')->group("Camera");
+    app.add_option("--up", o.up, "Up vector x,y,z (roll)")->expected(3)->delimiter(',')
+        ->capture_default_str()->group("Camera");
+    app.add_option("--fov", o.fov, "Vertical field of view in degrees")->capture_default_str()->group("Camera");
+    app.add_option("-W,--width", o.width, "Image width in pixels")->capture_default_str()->group("Camera");
+    app.add_option("-H,--height", o.height, "Image height in pixels")->capture_default_str()->group("Camera");
+    app.add_option("--azimuth", o.azimuth, "Automatic framing: degrees about +Y, 0 = camera on +Z looking down -Z")
+        ->capture_default_str()->group("Camera");
+    app.add_option("--elevation", o.elevation, "Automatic framing: degrees above the horizontal")
+        ->capture_default_str()->group("Camera");
+    app.add_option("--fill", o.fill, "Automatic framing: fraction of the smaller image side the bounding sphere fills")
+        ->capture_default_str()->group("Camera");
+}
+
+glm::dvec3 toVec(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
+
+// Bounding sphere exactly as prt-relight places it: the bounding-box centre and the
+// largest distance of a vertex from it.
+void boundingSphere(const TriangleMesh& mesh, glm::dvec3& centre, double& radius) {
+    centre = glm::dvec3(bounds(mesh).centre());
+    double r2 = 0;
+    for (const glm::vec3& p : mesh.positions) {
+        const glm::dvec3 d = glm::dvec3(p) - centre;
+        r2 = std::max(r2, glm::dot(d, d));
+    }
+    radius = std::sqrt(r2);
+}
+
+Camera makeCamera(const CameraOptions& o, const glm::dvec3& sphereCentre, double sphereRadius) {
+    if (!(o.fill > 0 && o.fill <= 1)) throw Error("--fill", "must be in (0, 1]");
+    if (!std::isfinite(o.azimuth) || !std::isfinite(o.elevation))
+        throw Error("camera", "azimuth and elevation must be finite");
+    const glm::dvec3 target = o.target.empty() ? sphereCentre : toVec(o.target);
+    Camera c;
+    if (o.eye.empty()) {
+        if (!(std::abs(o.elevation) < 90)) throw Error("--elevation", "must be in (-90, 90) degrees");
+        c = frameSphere(target, std::max(sphereRadius, 1e-6), o.azimuth, o.elevation, o.fov, o.width, o.height,
+                        o.fill);
+    } else {
+        c.eye = toVec(o.eye);
+        c.target = target;
+        c.fovY = o.fov;
+        c.width = o.width;
+        c.height = o.height;
+    }
+    c.up = toVec(o.up);
+    for (const glm::dvec3& v : {c.eye, c.target, c.up})
+        if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
+            throw Error("camera", "eye, target and up must be finite");
+    validateCamera(c);
+    return c;
+}
+
+// --- transport file parameters ---------------------------------------------------
+
+std::string requireParameter(const TransportFileInfo& info, const std::string& path, const std::string& key,
+                             const std::string& override) {
+    if (!info.hasParameter(key))
+        throw Error(path, "has no parameter '" + key + "'" +
+                              (override.empty() ? std::string() : "; give " + override + " explicitly"));
+    return info.parameter(key);
+}
+
+double parseNumber(const std::string& text, const std::string& path, const std::string& key) {
+    try {
+        size_t used = 0;
+        const double v = std::stod(text, &used);
+        if (used == text.size() && std::isfinite(v)) return v;
+    } catch (const std::exception&) {
+    }
+    throw Error(path, "parameter " + key + " is not a number: '" + text + "'");
+}
+
+uint64_t parseCount(const std::string& text, const std::string& path, const std::string& key) {
+    try {
+        size_t used = 0;
+        const unsigned long long v = std::stoull(text, &used);
+        if (used == text.size() && !text.empty() && text[0] != '-') return v;
+    } catch (const std::exception&) {
+    }
+    throw Error(path, "parameter " + key + " is not a non-negative integer: '" + text + "'");
+}
+
+glm::dvec3 parseRgb(const std::string& text, const std::string& path, const std::string& key) {
+    std::vector<double> v;
+    std::stringstream in(text);
+    std::string item;
+    while (std::getline(in, item, ',')) v.push_back(parseNumber(item, path, key));
+    if (v.size() != 3) throw Error(path, "parameter " + key + " is not three comma-separated numbers: '" + text + "'");
+    return {v[0], v[1], v[2]};
+}
+
+// The material the transport file was made with: its stored coefficients (the exact
+// values, whatever the name), eta and g.
+Material materialFromParameters(const TransportFileInfo& info, const std::string& path) {
+    const std::string hint = "--material";
+    Material m = customMaterial(parseRgb(requireParameter(info, path, "sigma_s_prime", hint), path, "sigma_s_prime"),
+                                parseRgb(requireParameter(info, path, "sigma_a", hint), path, "sigma_a"),
+                                parseNumber(requireParameter(info, path, "eta", hint), path, "eta"),
+                                info.hasParameter("g") ? parseNumber(info.parameter("g"), path, "g") : 0.0);
+    if (info.hasParameter("material") && !info.parameter("material").empty()) m.name = info.parameter("material");
+    return m;
+}
+
+std::string formatRgb(const glm::dvec3& v) {
+    char buf[128];
+    std::snprintf(buf, sizeof buf, "%.4g, %.4g, %.4g", v.x, v.y, v.z);
+    return buf;
+}
+
+// --- the run -------------------------------------------------------------------------
+
+struct Options {
+    std::string mesh, transport, environment, output;
+    CameraOptions camera;
+    double envRotation = 0.0, exposure = 0.0;
+    std::string material;
+    std::optional<size_t> samples;
+    std::optional<uint64_t> seed;
+    IrradianceEstimatorOptions irradiance;
+    bool perVertex = false;
+    std::string noiseImage;
+    int threads = 0;
+};
+
+int run(const Options& o) {
+    const auto start = std::chrono::steady_clock::now();
+    if (o.threads < 0) throw Error("--threads", "must be >= 0");
+    std::unique_ptr<tbb::global_control> limit;
+    if (o.threads > 0)
+        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(o.threads));
+    if (!std::isfinite(o.envRotation)) throw Error("--env-rotation", "must be finite");
+    if (!std::isfinite(o.exposure)) throw Error("--exposure", "must be finite");
+    if (o.output.empty()) throw Error("--output", "empty prefix");
+    if (o.irradiance.directions < 1) throw Error("--env-samples", "must be at least 1");
+    if (!(o.irradiance.environmentFraction >= 0 && o.irradiance.environmentFraction <= 1))
+        throw Error("--env-fraction", "must be in [0, 1]");
+
+    // Mesh and transport file header: the same placement as prt-relight render.
+    const TransportFileInfo info = readTransportFileInfo(o.transport);
+    TriangleMesh mesh = loadMesh(o.mesh);
+    const MeshFingerprint fingerprint{mesh.vertexCount(), meshFingerprint(mesh)};
+    if (!(fingerprint == info.mesh)) {
+        char buf[256];
+        std::snprintf(buf, sizeof buf,
+                      "was computed for another mesh (%llu vertices, hash %016llx), not %s (%llu vertices, hash %016llx)",
+                      (unsigned long long)info.mesh.vertexCount, (unsigned long long)info.mesh.positionHash,
+                      o.mesh.c_str(), (unsigned long long)fingerprint.vertexCount,
+                      (unsigned long long)fingerprint.positionHash);
+        throw Error(o.transport, buf);
+    }
+    scaleToPhysical(mesh, MeshScale{.sizeMm = std::nullopt, .mmPerUnit = info.mmPerUnit});
+
+    Material material;
+    if (o.material.empty()) {
+        material = materialFromParameters(info, o.transport);
+    } else {
+        material = materialByName(o.material);
+        warn("--material " + material.name + " overrides the transport file's material (" +
+             info.parameter("material") + "): the reference no longer matches the file");
+    }
+    const size_t sampleCount =
+        o.samples ? *o.samples : size_t(parseCount(requireParameter(info, o.transport, "samples", "--samples"),
+                                                   o.transport, "samples"));
+    const uint64_t seed =
+        o.seed ? *o.seed : parseCount(requireParameter(info, o.transport, "seed", "--seed"), o.transport, "seed");
+    if (sampleCount < 1) throw Error("--samples", "must be at least 1");
+
+    glm::dvec3 sphereCentre;
+    double sphereRadius;
+    boundingSphere(mesh, sphereCentre, sphereRadius);
+    const Camera camera = makeCamera(o.camera, sphereCentre, sphereRadius);
+    const Image environment = loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
+    const glm::dmat3 rotation = rotationY(o.envRotation);
+    const EnvironmentSampler sampler(environment, rotation);
+
+    const std::filesystem::path parent = std::filesystem::path(o.output).parent_path();
+    if (!parent.empty()) std::filesystem::create_directories(parent);
+
+    std::printf("mesh: %s, %zu vertices, %zu triangles, %.4g mm per unit, %.4g mm across\n", o.mesh.c_str(),
+                mesh.vertexCount(), mesh.triangleCount(), info.mmPerUnit, double(bounds(mesh).diagonal()));
+    std::printf("material: %s, sigma_s' %s /mm, sigma_a %s /mm, eta %.4g\n", material.name.c_str(),
+                formatRgb(material.sigmaSPrime).c_str(), formatRgb(material.sigmaA).c_str(), material.eta);
+    std::printf("camera: eye (%.4g, %.4g, %.4g) target (%.4g, %.4g, %.4g) fov %.4g, %dx%d\n", camera.eye.x,
+                camera.eye.y, camera.eye.z, camera.target.x, camera.target.y, camera.target.z, camera.fovY,
+                camera.width, camera.height);
+    std::fflush(stdout);
+
+    // Samples, exactly as prt-precompute placed them (same mesh, count and seed).
+    const RayScene scene(mesh);
+    SampleSet samples;
+    {
+        Progress p("samples", sampleCount, "samples");
+        samples = poissonDiskSamples(mesh, sampleCount, seed);
+        p.advance(sampleCount);
+    }
+
+    // Cross-check: with the file's count and seed the samples must be the file's.
+    if (!o.samples && !o.seed && info.hasParameter("sample_area_mm2")) {
+        const double fileArea = parseNumber(info.parameter("sample_area_mm2"), o.transport, "sample_area_mm2");
+        if (!(std::abs(fileArea - samples.areaPerSample) <= 1e-6 * fileArea))
+            warn("sample area " + std::to_string(samples.areaPerSample) + " mm^2 differs from the transport file's " +
+                 info.parameter("sample_area_mm2") + " mm^2: the samples are not the ones it was computed from");
+    }
+
+    // Irradiance per sample from the full-resolution map.
+    SampleIrradiance irradiance;
+    {
+        Progress p("irradiance (" + std::to_string(o.irradiance.directions) + " directions per sample)",
+                   samples.samples.size(), "samples");
+        irradiance = computeSampleIrradiance(sampler, &scene, samples, material.eta, o.irradiance, &p);
+    }
+    const uint64_t occlusionRays = irradiance.rays;
+    const double irradianceSeconds = irradiance.seconds;
+    const double sampleRelativeError = irradiance.medianRelativeStandardError;
+
+    std::vector<glm::vec3> positions;
+    positions.reserve(samples.samples.size());
+    for (const SurfaceSample& s : samples.samples) positions.push_back(s.position);
+    MultipleScatteringReference ms(material, std::move(positions), samples.areaPerSample, std::move(irradiance));
+
+    double vertexSeconds = 0;
+    if (o.perVertex) {
+        const auto t0 = std::chrono::steady_clock::now();
+        Progress p("multiple scattering at vertices", mesh.vertexCount(), "vertices");
+        ms.evaluateAtVertices(mesh, &p);
+        vertexSeconds = secondsSince(t0);
+    }
+
+    const auto raysStart = std::chrono::steady_clock::now();
+    const GBuffer gbuffer = traceGBuffer(scene, mesh, camera);
+    const double raysSeconds = secondsSince(raysStart);
+
+    ReferenceFrame frame;
+    {
+        Progress p(o.perVertex ? "shading (interpolated)" : "multiple scattering per pixel", gbuffer.objectPixels(),
+                   "pixels");
+        frame = renderReference(gbuffer, {&ms}, environment, rotation, &p);
+    }
+
+    writeExr(o.output + ".exr", frame.image);
+    writePng(o.output + ".png", frame.image, o.exposure);
+    if (!o.noiseImage.empty()) writeExr(o.noiseImage, frame.standardError);
+
+    // Summary.
+    const size_t nEnv = size_t(std::llround(o.irradiance.environmentFraction * double(o.irradiance.directions)));
+    std::printf("samples: %zu (seed %llu), A_i = %.4g mm^2 (total %.4g mm^2), min spacing %.4g mm\n",
+                samples.samples.size(), (unsigned long long)seed, samples.areaPerSample, samples.totalArea,
+                samples.minSpacing);
+    std::printf("irradiance: %zu directions per sample (%zu environment + %zu cosine, MIS balance heuristic, "
+                "Monte Carlo seed %llu), %llu occlusion rays in %.1f s (%.3g rays/s)\n",
+                o.irradiance.directions, nEnv, o.irradiance.directions - nEnv,
+                (unsigned long long)o.irradiance.seed, (unsigned long long)occlusionRays, irradianceSeconds,
+                irradianceSeconds > 0 ? occlusionRays / irradianceSeconds : 0.0);
+    std::printf("  median relative standard error of one sample's irradiance: %.3g%%\n", 100 * sampleRelativeError);
+    const double pairs = double(o.perVertex ? mesh.vertexCount() : frame.objectPixels) * double(samples.samples.size());
+    std::printf("multiple scattering: %s, %.3g point-sample pairs in %.1f s; %zu object pixels, %d x %d primary rays "
+                "in %.2f s\n",
+                o.perVertex ? "per vertex, interpolated" : "per pixel", pairs,
+                o.perVertex ? vertexSeconds : frame.seconds, frame.objectPixels, camera.width, camera.height,
+                raysSeconds);
+    std::printf("noise: expected relative RMSE from Monte Carlo noise %.3g%% (per pixel: median %.3g%%, max %.3g%% "
+                "relative standard error)\n",
+                100 * frame.expectedRelativeRmse, 100 * frame.medianRelativeStandardError,
+                100 * frame.maxRelativeStandardError);
+    std::printf("wrote %s.exr and %s.png%s%s; total %s\n", o.output.c_str(), o.output.c_str(),
+                o.noiseImage.empty() ? "" : " and ", o.noiseImage.c_str(),
+                formatDuration(secondsSince(start)).c_str());
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    return runMain("prt-reference", [&]() -> int {
+        CLI::App app{
+            "prt-reference: brute-force reference frames of a translucent object (multiple scattering):\n"
+            "per-sample irradiance from the full-resolution environment (Monte Carlo, Embree visibility),\n"
+            "dipole summed over all samples per pixel. Same placement, camera and outputs as\n"
+            "prt-relight render; compare the two with prt-compare.\n"
+            "Example:\n"
+            "  prt-reference bunny.off -t bunny.prt -e sunset.exr -o out/bunny_ref\n"
+            "Vector options take comma-separated values; write negative ones as --eye=-10,0,50."};
+        Options o;
+        app.add_option("mesh", o.mesh, "Mesh file the transport file was computed for (.obj .ply .off .stl, .gz)")
+            ->required();
+        app.add_option("-t,--transport", o.transport,
+                       "Transport file (only its header and parameters are read: fingerprint, scale, material, "
+                       "sample count and seed)")
+            ->required();
+        app.add_option("-e,--environment", o.environment, "Lat-long HDR environment (EXR, HDR, ...; width = 2 height)")
+            ->required();
+        app.add_option("-o,--output", o.output,
+                       "Output prefix: writes <prefix>.exr (linear RGBA float, A = 1 on the object) and "
+                       "<prefix>.png (sRGB)")
+            ->required();
+        addCameraOptions(app, o.camera);
+        app.add_option("--env-rotation", o.envRotation, "Rotate the environment by this many degrees about +Y")
+            ->capture_default_str()->group("Lighting");
+        app.add_option("--exposure", o.exposure, "Exposure in stops for the PNG (the EXR stays linear)")
+            ->capture_default_str()->group("Output");
+        app.add_option("--noise-image", o.noiseImage,
+                       "Also write the estimated standard error of every pixel (RGB EXR) to this file")
+            ->group("Output");
+        app.add_option("--material", o.material,
+                       "Use this measured material instead of the transport file's (experiments only)")
+            ->group("Reference");
+        app.add_option("--samples", o.samples, "Surface samples (default: the transport file's 'samples')")
+            ->group("Reference");
+        app.add_option("--seed", o.seed, "Seed of the sample placement (default: the transport file's 'seed')")
+            ->group("Reference");
+        app.add_option("--env-samples", o.irradiance.directions, "Monte Carlo directions per sample")
+            ->capture_default_str()->group("Reference");
+        app.add_option("--env-fraction", o.irradiance.environmentFraction,
+                       "Share of the directions drawn from the environment's luminance (the rest cosine-weighted)")
+            ->capture_default_str()->group("Reference");
+        app.add_option("--mc-seed", o.irradiance.seed, "Seed of the Monte Carlo directions")
+            ->capture_default_str()->group("Reference");
+        app.add_flag("--per-vertex", o.perVertex,
+                     "Sum at the mesh vertices and interpolate barycentrically (as the precomputed renderer "
+                     "does) instead of summing at every pixel's hit point")
+            ->group("Reference");
+        app.add_option("-j,--threads", o.threads, "Worker threads (default: all cores)");
+        try {
+            app.parse(argc, argv);
+        } catch (const CLI::ParseError& e) {
+            return app.exit(e) == 0 ? 0 : 1;
+        }
+        return run(o);
+    });
+}
