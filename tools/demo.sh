@@ -1,18 +1,51 @@
 #!/usr/bin/env bash
-# The main job: set up, build, fetch the real data, then (once the precompute and
-# renderer land) precompute the default scene and render frames into out/.
+# The main job on the built-in default scene: set up, build, fetch the real data,
+# precompute the Stanford bunny (30 mm, Marble, 6x32x32, 128 coefficients) and
+# render it under real environments into out/, next to the brute-force reference.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+out=${OUT_DIR:-$root/out}
+bin=$root/build
+mesh=$root/data/meshes/bunny.off
+envs=(forest city)
+t_start=$(date +%s)
 step() { echo; echo "== demo: $* =="; }
-timed() { local t0=$(date +%s); "$@"; echo "demo: '$1' took $(( $(date +%s) - t0 )) s"; }
+timed() {
+    local t0
+    t0=$(date +%s)
+    "$@"
+    echo "demo: took $(( $(date +%s) - t0 )) s"
+}
 
 step "installing packages";  timed "$root/tools/setup.sh"
 step "building";             timed "$root/tools/build.sh"
 step "fetching data";        timed "$root/tools/fetch-data.sh"
-step "environment check"
-mkdir -p "$root/out"
-timed "$root/build/tools/prt-envcheck" "$root/data/envmaps/forest.exr" \
-    --size 32 --terms 128 --out "$root/out/forest_cube"
+mkdir -p "$out"
+
+step "precomputing the bunny (30 mm, Marble, 6x32x32, 128 coefficients)"
+timed "$bin/precompute/prt-precompute" "$mesh" --size-mm 30 --material Marble \
+    --cubemap-size 32 --coefficients 128 -o "$out/bunny_marble.prt"
+
+for env in "${envs[@]}"; do
+    step "rendering under $env"
+    timed "$bin/relight/prt-relight" render "$mesh" -t "$out/bunny_marble.prt" \
+        -e "$root/data/envmaps/$env.exr" -o "$out/bunny_$env"
+    step "brute-force reference under $env"
+    timed "$bin/tools/prt-reference" "$mesh" -t "$out/bunny_marble.prt" \
+        -e "$root/data/envmaps/$env.exr" -o "$out/bunny_${env}_reference"
+    step "error of the precomputed render against the reference ($env)"
+    "$bin/tools/prt-compare" "$out/bunny_$env.exr" "$out/bunny_${env}_reference.exr" \
+        --heatmap "$out/bunny_${env}_error.png"
+done
+
+step "turntable under forest (12 frames)"
+mkdir -p "$out/turntable"
+timed "$bin/relight/prt-relight" render "$mesh" -t "$out/bunny_marble.prt" \
+    -e "$root/data/envmaps/forest.exr" --turntable 12 -o "$out/turntable/bunny"
+
 echo
-echo "demo: precomputation and rendering are not implemented yet;"
-echo "demo: the environment check wrote out/forest_cube.exr and out/forest_cube.png"
+echo "demo: done in $(( $(date +%s) - t_start )) s. Frames are in $out:"
+for env in "${envs[@]}"; do
+    echo "  $out/bunny_$env.png (precomputed), $out/bunny_${env}_reference.png (reference), $out/bunny_${env}_error.png (error)"
+done
+echo "  $out/turntable/bunny_0000.png ... bunny_0011.png"

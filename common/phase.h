@@ -1,0 +1,55 @@
+#pragma once
+// Separable approximation of the Henyey-Greenstein phase function (Wang et al. 2005,
+// Eq. 9, after Kautz and McCool 1999):  p(a, b) ~= sum_k g_k(a) h_k(b).
+//
+// DIRECTION CONVENTIONS (the whole pipeline relies on them):
+//   a = the light's propagation direction inside the medium after refraction at the
+//       entry point x_i: a = refractDirection(w_j, n_i, eta) for light arriving from
+//       direction w_j (w_j points from the surface toward the light), so a points INTO
+//       the medium. The light maps g_k are indexed by a.
+//   b = the refracted VIEW direction w_o' = refractDirection(w_o, n_o, eta), w_o
+//       pointing from x_o toward the eye, so b also points into the medium. The view
+//       maps h_k are indexed by b (this is what common/render.h looks up).
+//   The light leaves x_p toward the eye, i.e. propagates along -b, so
+//       p(a, b) = henyeyGreenstein(g, dot(a, -b))   (bssrdf.h: cos between
+//   propagation directions before and after scattering; g > 0 = forward).
+//   Forward scattering (g > 0) therefore favours a ~ -b: light travelling toward the
+//   viewer, i.e. backlit views.
+//
+// TABULATION: a and b both range over the texel-centre directions of a 6 x M x M
+// cubemap (M = 16 by default, so a 1536 x 1536 matrix P[a][b] = p(a, b)). With the
+// solid angles dOmega the matrix is weighted so that the SVD minimises the error in
+// the L2 norm over the sphere: Q[a][b] = sqrt(dOmega_a) P[a][b] sqrt(dOmega_b), Q =
+// U S V^T (Eigen), and g_k(a) = sqrt(s_k) U[a][k] / sqrt(dOmega_a), h_k(b) = sqrt(s_k)
+// V[b][k] / sqrt(dOmega_b). Both are stored as scalar 6 x M x M cubemaps (texel
+// order of cubemap.h) and looked up bilinearly (Cubemap::sampleBilinear).
+
+#include <glm/glm.hpp>
+
+#include <vector>
+
+#include "common/cubemap.h"
+
+namespace prt {
+
+struct PhaseFactorization {
+    double g = 0.0;                   // HG asymmetry
+    int mapSize = 16;                 // M
+    std::vector<double> singularValues;  // all of them, descending
+    std::vector<Cubemap> lightMaps;   // g_k, K of them, 1 channel each
+    std::vector<Cubemap> viewMaps;    // h_k, K of them, 1 channel each
+
+    int terms() const { return int(lightMaps.size()); }
+    // sum_k g_k(a) h_k(b) with bilinear lookups (a, b unit, both pointing into the medium).
+    double evaluate(const glm::dvec3& a, const glm::dvec3& b) const;
+};
+
+// Tabulates HG(g) on 6 x M x M directions, SVD, keeps K terms (1 <= K <= 6 M^2).
+// Throws prt::Error for |g| >= 1, M not a power of two, K out of range.
+PhaseFactorization factorPhaseFunction(double g, int terms, int mapSize = 16);
+
+// Relative RMS error of the K-term approximation over the tabulated directions,
+// solid-angle weighted: ||Q - Q_K||_F / ||Q||_F = sqrt(sum_{k>K} s_k^2 / sum s_k^2).
+double phaseApproximationError(const PhaseFactorization& f, int terms);
+
+}  // namespace prt
