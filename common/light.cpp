@@ -1,1 +1,65 @@
-// placeholder
+#include "common/light.h"
+
+#include <cmath>
+#include <string>
+
+#include "common/envmap.h"
+#include "common/error.h"
+#include "common/haar.h"
+
+namespace prt {
+
+LightVector makeLightVector(const Image& latlong, int n, const glm::dmat3& rotation,
+                            size_t keepTerms) {
+    if (latlong.channels != 3)
+        throw Error("light vector", "the environment has " + std::to_string(latlong.channels) +
+                                        " channels, expected RGB (3)");
+    return makeLightVector(latLongToCubemap(latlong, n, rotation), keepTerms);
+}
+
+LightVector makeLightVector(const Cubemap& radiance, size_t keepTerms) {
+    if (radiance.channels() != 3)
+        throw Error("light vector", "the cubemap has " + std::to_string(radiance.channels()) +
+                                        " channels, expected RGB (3)");
+    if (radiance.size() < 1 || radiance.data().size() != radiance.texelCount() * 3)
+        throw Error("light vector", "empty or inconsistent cubemap");
+
+    Cubemap coefficients = radiance;
+    haarForward(coefficients);
+
+    LightVector light;
+    light.size = radiance.size();
+    const size_t count = coefficients.texelCount();
+    std::vector<float>& full = coefficients.data();
+
+    if (keepTerms == 0 || keepTerms >= count) {
+        light.rgb = std::move(full);
+        light.relativeL2Error = 0.0;
+    } else {
+        const SparseVector kept = truncateLargest(full.data(), count, 3, keepTerms);
+        light.rgb.assign(full.size(), 0.0f);
+        for (size_t e = 0; e < kept.size(); ++e)
+            for (int c = 0; c < 3; ++c)
+                light.rgb[3 * size_t(kept.index[e]) + c] = kept.value[3 * e + c];
+        // Parseval: the Haar basis is orthonormal, so ||L - L_approx|| in texel space is
+        // the norm of the dropped coefficients. Summed directly (not total - kept) so a
+        // tiny error is not lost to cancellation.
+        double total = 0.0, dropped = 0.0;
+        for (size_t t = 0; t < full.size(); ++t) {
+            const double x = full[t];
+            total += x * x;
+            const double d = x - double(light.rgb[t]);
+            dropped += d * d;
+        }
+        light.relativeL2Error = total > 0.0 ? std::sqrt(dropped / total) : 0.0;
+    }
+
+    light.keptTerms = 0;
+    for (size_t k = 0; k < count; ++k) {
+        const float* v = &light.rgb[3 * k];
+        if (v[0] != 0.0f || v[1] != 0.0f || v[2] != 0.0f) ++light.keptTerms;
+    }
+    return light;
+}
+
+}  // namespace prt

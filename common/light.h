@@ -33,5 +33,11 @@ LightVector makeLightVector(const Image& latlong, int n, const glm::dmat3& rotat
                             size_t keepTerms = 0);
 // From an RGB radiance cubemap (3 channels).
 LightVector makeLightVector(const Cubemap& radiance, size_t keepTerms = 0);
+//
+// Both: keepTerms >= 6 N^2 is the same as 0. Zero coefficients are never "kept", so
+// keptTerms can be below keepTerms (a constant environment has 6 non-zero terms).
+// Ties in magnitude go to the lower index (truncateLargest). relativeL2Error is 0 for
+// an all-zero environment. Throws prt::Error("light vector", ...) for input that is
+// not RGB, and latLongToCubemap's errors (n not a power of two, bad image).
 
 }  // namespace prt

@@ -1,1 +1,623 @@
+#include "common/relight.h"
+
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <functional>
+#include <numeric>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "common/envmap.h"
+#include "common/error.h"
+#include "common/haar.h"
+#include "common/light.h"
+
+namespace {
+
+using prt::ComponentKind;
+using prt::ComponentSet;
+using prt::Cubemap;
+using prt::LightVector;
+using prt::TransportComponent;
+using prt::TransportFile;
+using prt::VertexRadiance;
+
+// Faces in cubemap order.
+constexpr int kPX = 0, kNX = 1, kPY = 2, kNY = 3, kPZ = 4, kNZ = 5;
+
+float coefficient(const LightVector& l, int face, int i, int j, int c) {
+    const size_t n = size_t(l.size);
+    return l.rgb[3 * ((size_t(face) * n + size_t(j)) * n + size_t(i)) + size_t(c)];
+}
+
+float maxAbs(const std::vector<float>& v) {
+    float m = 0.0f;
+    for (float x : v) m = std::max(m, std::abs(x));
+    return m;
+}
+
+// A lat-long map with structure at several scales: smooth lobes plus per-pixel noise.
+prt::Image randomEnvironment(int width, uint32_t seed) {
+    prt::Image env(width, width / 2, 3);
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::vector<glm::dvec3> lobes;
+    for (int k = 0; k < 5; ++k)
+        lobes.push_back(glm::normalize(glm::dvec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5)));
+    for (int y = 0; y < env.height; ++y)
+        for (int x = 0; x < env.width; ++x) {
+            const glm::dvec3 d = prt::latLongPixelDirection(x, y, env.width, env.height);
+            for (int c = 0; c < 3; ++c) {
+                double v = 0.2 * u(rng);
+                for (size_t k = 0; k < lobes.size(); ++k)
+                    v += double(k + c + 1) * std::pow(std::max(0.0, glm::dot(d, lobes[k])), 8.0);
+                env.at(x, y, c) = float(v);
+            }
+        }
+    return env;
+}
+
+Cubemap randomCubemap(int n, uint32_t seed) {
+    Cubemap map(n, 3);
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> dist(0.0f, 2.0f);
+    for (float& v : map.data()) v = dist(rng);
+    return map;
+}
+
+// ---------------------------------------------------------------------------------
+// Light vectors
+
+TEST(LightVector, ConstantEnvironmentHasOnlyFaceScalingCoefficients) {
+    const glm::vec3 value(1.0f, 2.0f, 3.0f);
+    for (int n : {1, 4, 16}) {
+        SCOPED_TRACE(n);
+        const LightVector l = prt::makeLightVector(prt::constantEnvironment(128, value), n);
+        ASSERT_EQ(l.size, n);
+        ASSERT_EQ(l.rgb.size(), size_t(3 * 6 * n * n));
+        EXPECT_EQ(l.relativeL2Error, 0.0);
+        for (int f = 0; f < 6; ++f)
+            for (int j = 0; j < n; ++j)
+                for (int i = 0; i < n; ++i)
+                    for (int c = 0; c < 3; ++c) {
+                        // Closed form: the scaling coefficient is sum of the face's
+                        // texels / N = N^2 value / N; every detail of a constant is 0.
+                        const double expected = (i == 0 && j == 0) ? double(value[c]) * n : 0.0;
+                        EXPECT_NEAR(coefficient(l, f, i, j, c), expected, 1e-6 * value[c] * n)
+                            << "face " << f << " (" << i << ", " << j << ") channel " << c;
+                    }
+        EXPECT_EQ(l.keptTerms, 6u);
+        // Keeping the 6 non-zero terms loses nothing.
+        const LightVector six = prt::makeLightVector(prt::constantEnvironment(128, value), n,
+                                                     glm::dmat3(1.0), 6);
+        EXPECT_EQ(six.keptTerms, 6u);
+        EXPECT_LT(six.relativeL2Error, 1e-6);
+    }
+}
+
+TEST(LightVector, CubemapOverloadMatchesLatLongOverload) {
+    const prt::Image env = randomEnvironment(64, 3);
+    const glm::dmat3 r = prt::rotationAxisAngle(glm::dvec3(1, 2, 3), 40.0);
+    const LightVector a = prt::makeLightVector(env, 8, r, 50);
+    const LightVector b = prt::makeLightVector(prt::latLongToCubemap(env, 8, r), 50);
+    EXPECT_EQ(a.rgb, b.rgb);
+    EXPECT_EQ(a.keptTerms, b.keptTerms);
+    EXPECT_EQ(a.relativeL2Error, b.relativeL2Error);
+}
+
+TEST(LightVector, RejectsNonRgbInput) {
+    EXPECT_THROW(prt::makeLightVector(prt::Image(8, 4, 1, 1.0f), 4), prt::Error);
+    EXPECT_THROW(prt::makeLightVector(Cubemap(4, 1)), prt::Error);
+}
+
+// Face energies (sum of squares of the coefficients, Parseval = of the texels).
+std::vector<double> faceEnergies(const LightVector& l) {
+    std::vector<double> e(6, 0.0);
+    const size_t perFace = size_t(l.size) * l.size * 3;
+    for (size_t t = 0; t < l.rgb.size(); ++t) e[t / perFace] += double(l.rgb[t]) * l.rgb[t];
+    return e;
+}
+
+TEST(LightVector, SunAtMinusZRotatedBy90AboutYLandsOnMinusX) {
+    const int n = 8;
+    const prt::Image sun = prt::sunEnvironment(256, glm::dvec3(0, 0, -1), glm::vec3(1000.0f));
+    const LightVector a = prt::makeLightVector(sun, n);
+    const LightVector b = prt::makeLightVector(sun, n, prt::rotationY(90.0));
+
+    const std::vector<double> ea = faceEnergies(a), eb = faceEnergies(b);
+    EXPECT_EQ(std::max_element(ea.begin(), ea.end()) - ea.begin(), kNZ);
+    EXPECT_EQ(std::max_element(eb.begin(), eb.end()) - eb.begin(), kNX);
+    for (int f = 0; f < 6; ++f) {
+        if (f != kNZ) {
+            EXPECT_EQ(ea[size_t(f)], 0.0) << "unrotated face " << f;
+        }
+        if (f != kNX) {
+            EXPECT_EQ(eb[size_t(f)], 0.0) << "rotated face " << f;
+        }
+    }
+    // The scaling coefficient carries the energy: sun energy / texel solid angle / N.
+    EXPECT_GT(coefficient(b, kNX, 0, 0, 0), 0.0f);
+    EXPECT_NEAR(coefficient(b, kNX, 0, 0, 0), coefficient(a, kNZ, 0, 0, 0),
+                1e-5 * coefficient(a, kNZ, 0, 0, 0));
+    // Texel (i, j) of -Z goes to texel (i, j) of -X, so the whole face carries over.
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+            for (int c = 0; c < 3; ++c)
+                EXPECT_NEAR(coefficient(b, kNX, i, j, c), coefficient(a, kNZ, i, j, c),
+                            1e-5 * maxAbs(a.rgb));
+}
+
+TEST(LightVector, RotationBy90AboutYPermutesFacesAsTheConventionsSay) {
+    // L'(d) = L(R^T d), R = rotationY(90): R^T maps (x, y, z) to (-z, y, x). The side
+    // faces' OpenGL coordinates map onto each other texel for texel:
+    //   -X <- -Z, -Z <- +X, +X <- +Z, +Z <- -X   (whole Haar faces carry over);
+    // +Y and -Y turn in place: +Y'(i, j) = +Y(N-1-j, i), -Y'(i, j) = -Y(j, N-1-i).
+    const int n = 8;
+    const prt::Image env = randomEnvironment(128, 11);
+    const LightVector a = prt::makeLightVector(env, n);
+    const LightVector b = prt::makeLightVector(env, n, prt::rotationY(90.0));
+    const double tol = 2e-5 * maxAbs(a.rgb);
+
+    const int from[6] = {kPZ, kNZ, -1, -1, kNX, kPX};  // rotated face f <- unrotated face
+    for (int f : {kPX, kNX, kPZ, kNZ})
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i)
+                for (int c = 0; c < 3; ++c)
+                    ASSERT_NEAR(coefficient(b, f, i, j, c), coefficient(a, from[f], i, j, c), tol)
+                        << "face " << f << " (" << i << ", " << j << ")";
+
+    // +-Y: compare in texel space (the Haar coefficients of a turned face are a signed
+    // permutation); the light vectors are orthonormal transforms of the cubemaps.
+    const auto toCubemap = [n](const LightVector& l) {
+        Cubemap m(n, 3);
+        m.data() = l.rgb;
+        prt::haarInverse(m);
+        return m;
+    };
+    const Cubemap ca = toCubemap(a), cb = toCubemap(b);
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+            for (int c = 0; c < 3; ++c) {
+                EXPECT_NEAR(cb.texel(kPY, i, j)[c], ca.texel(kPY, n - 1 - j, i)[c], tol);
+                EXPECT_NEAR(cb.texel(kNY, i, j)[c], ca.texel(kNY, j, n - 1 - i)[c], tol);
+            }
+    // A wrong turn direction would fail: the map is not symmetric under it.
+    double asym = 0.0;
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+            asym = std::max(asym, double(std::abs(cb.texel(kPY, i, j)[0] - ca.texel(kPY, j, n - 1 - i)[0])));
+    EXPECT_GT(asym, 100 * tol);
+}
+
+TEST(LightVector, TruncationKeepsTheLargestTermsAndReportsTheParsevalError) {
+    const int n = 8;
+    const Cubemap cube = randomCubemap(n, 5);
+    const LightVector full = prt::makeLightVector(cube);
+    const size_t count = full.coefficientCount();
+    ASSERT_EQ(count, size_t(6 * n * n));
+    EXPECT_EQ(full.keptTerms, count);
+    EXPECT_EQ(full.relativeL2Error, 0.0);
+
+    std::vector<double> energy(count);
+    double total = 0.0;
+    for (size_t k = 0; k < count; ++k) {
+        energy[k] = 0.0;
+        for (int c = 0; c < 3; ++c) energy[k] += double(full.rgb[3 * k + c]) * full.rgb[3 * k + c];
+        total += energy[k];
+    }
+    std::vector<double> sorted = energy;
+    std::sort(sorted.begin(), sorted.end(), std::greater<>());
+
+    double previous = 2.0;
+    for (size_t L : {size_t(1), size_t(2), size_t(10), size_t(50), size_t(200), count - 1, count,
+                     count + 5}) {
+        SCOPED_TRACE(L);
+        const LightVector l = prt::makeLightVector(cube, L);
+        EXPECT_EQ(l.keptTerms, std::min(L, count));
+        double dropped = 0.0;
+        for (size_t k = std::min(L, count); k < count; ++k) dropped += sorted[k];
+        const double expected = std::sqrt(dropped / total);
+        EXPECT_NEAR(l.relativeL2Error, expected, 1e-6 * expected + 1e-12);
+        if (L < count) {
+            EXPECT_LT(l.relativeL2Error, previous);
+        }
+        previous = l.relativeL2Error;
+        // Kept values are the original ones; the smallest kept >= the largest dropped.
+        double smallestKept = 1e300, largestDropped = 0.0;
+        for (size_t k = 0; k < count; ++k) {
+            const bool kept = l.rgb[3 * k] != 0.0f || l.rgb[3 * k + 1] != 0.0f || l.rgb[3 * k + 2] != 0.0f;
+            if (kept) {
+                for (int c = 0; c < 3; ++c) ASSERT_EQ(l.rgb[3 * k + c], full.rgb[3 * k + c]);
+                smallestKept = std::min(smallestKept, energy[k]);
+            } else {
+                largestDropped = std::max(largestDropped, energy[k]);
+            }
+        }
+        EXPECT_GE(smallestKept, largestDropped);
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Relighting
+
+struct FileSpec {
+    bool ms = true;
+    bool iso = true;
+    int terms = 4;
+};
+
+// Random file: per vertex 0..maxCoefficients random distinct indices, values with
+// magnitudes over four decades and random signs, occasionally an all-zero channel.
+TransportFile randomFile(uint32_t n, size_t vertices, const FileSpec& spec, uint32_t seed,
+                         size_t maxCoefficients = 200) {
+    TransportFile file;
+    file.cubemapSize = n;
+    file.mesh.vertexCount = vertices;
+    std::mt19937 rng(seed);
+    const uint32_t count = 6 * n * n;
+    std::vector<uint32_t> all(count);
+    std::iota(all.begin(), all.end(), 0u);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f), decade(-3.0f, 1.0f);
+
+    const auto makeComponent = [&](ComponentKind kind, uint32_t term) {
+        TransportComponent c;
+        c.kind = kind;
+        c.term = term;
+        std::vector<float> rgb;
+        for (size_t v = 0; v < vertices; ++v) {
+            const size_t m = std::uniform_int_distribution<size_t>(
+                0, std::min<size_t>(maxCoefficients, count))(rng);
+            std::shuffle(all.begin(), all.end(), rng);
+            const int zeroChannel = std::uniform_int_distribution<int>(-8, 2)(rng);
+            rgb.resize(3 * m);
+            for (size_t k = 0; k < m; ++k)
+                for (int ch = 0; ch < 3; ++ch)
+                    rgb[3 * k + ch] = ch == zeroChannel ? 0.0f : unit(rng) * std::pow(10.0f, decade(rng));
+            c.vectors.appendVertex(std::span<const uint32_t>(all.data(), m), rgb);
+        }
+        return c;
+    };
+    // Term components deliberately out of term order.
+    std::vector<uint32_t> termOrder(size_t(spec.terms));
+    std::iota(termOrder.begin(), termOrder.end(), 0u);
+    std::reverse(termOrder.begin(), termOrder.end());
+    if (spec.terms > 0) file.components.push_back(makeComponent(ComponentKind::SingleScatteringTerm, termOrder[0]));
+    if (spec.ms) file.components.push_back(makeComponent(ComponentKind::MultipleScattering, 0));
+    for (size_t k = 1; k < termOrder.size(); ++k)
+        file.components.push_back(makeComponent(ComponentKind::SingleScatteringTerm, termOrder[k]));
+    if (spec.iso) file.components.push_back(makeComponent(ComponentKind::SingleScatteringIsotropic, 0));
+    if (spec.terms > 0) {
+        prt::ViewMaps maps;
+        maps.size = 2;
+        maps.terms = spec.terms;
+        maps.data.assign(size_t(spec.terms) * 6 * 4, 1.0f);
+        file.viewMaps = maps;
+    }
+    return file;
+}
+
+// The test's own expectation, straight from the definition: per vertex, the sum over
+// the selected components of dequantized value x light in double, and the sum of
+// absolute products (the scale of the float error allowed).
+struct Expected {
+    std::vector<glm::dvec3> diffuse, diffuseAbs;
+    std::vector<std::vector<glm::dvec3>> terms, termsAbs;  // by term index
+};
+
+Expected expectedRadiance(const TransportFile& file, const LightVector& light, const ComponentSet& set) {
+    const size_t vertices = file.mesh.vertexCount;
+    Expected e;
+    e.diffuse.assign(vertices, glm::dvec3(0.0));
+    e.diffuseAbs.assign(vertices, glm::dvec3(0.0));
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    size_t termCount = 0;
+    for (const TransportComponent& c : file.components)
+        if (c.kind == ComponentKind::SingleScatteringTerm) termCount = std::max<size_t>(termCount, c.term + 1);
+    if (set.singleScattering) {
+        e.terms.assign(termCount, std::vector<glm::dvec3>(vertices, glm::dvec3(0.0)));
+        e.termsAbs = e.terms;
+    }
+    for (const TransportComponent& c : file.components) {
+        const bool selected =
+            c.kind == ComponentKind::MultipleScattering ? set.multipleScattering : set.singleScattering;
+        if (!selected) continue;
+        const bool term = c.kind == ComponentKind::SingleScatteringTerm;
+        for (size_t v = 0; v < vertices; ++v) {
+            c.vectors.dequantizeVertex(v, idx, rgb);
+            glm::dvec3 s(0.0), a(0.0);
+            for (size_t k = 0; k < idx.size(); ++k)
+                for (int ch = 0; ch < 3; ++ch) {
+                    const double p = double(rgb[3 * k + ch]) * light.rgb[3 * size_t(idx[k]) + ch];
+                    s[ch] += p;
+                    a[ch] += std::abs(p);
+                }
+            (term ? e.terms[c.term][v] : e.diffuse[v]) += s;
+            (term ? e.termsAbs[c.term][v] : e.diffuseAbs[v]) += a;
+        }
+    }
+    return e;
+}
+
+void expectClose(const std::vector<glm::vec3>& got, const std::vector<glm::dvec3>& want,
+                 const std::vector<glm::dvec3>& scale, double relative, const std::string& what) {
+    ASSERT_EQ(got.size(), want.size()) << what;
+    size_t failures = 0;
+    for (size_t v = 0; v < got.size() && failures < 5; ++v)
+        for (int c = 0; c < 3; ++c)
+            if (!(std::abs(double(got[v][c]) - want[v][c]) <= relative * scale[v][c] + 1e-30)) {
+                ADD_FAILURE() << what << " vertex " << v << " channel " << c << ": " << got[v][c]
+                              << " vs " << want[v][c] << " (scale " << scale[v][c] << ")";
+                ++failures;
+            }
+}
+
+void expectMatches(const VertexRadiance& got, const Expected& e, double relative, const std::string& what) {
+    expectClose(got.diffuse, e.diffuse, e.diffuseAbs, relative, what + " diffuse");
+    ASSERT_EQ(got.terms.size(), e.terms.size()) << what;
+    for (size_t k = 0; k < e.terms.size(); ++k)
+        expectClose(got.terms[k], e.terms[k], e.termsAbs[k], relative, what + " term " + std::to_string(k));
+}
+
+bool bitwiseEqual(const VertexRadiance& a, const VertexRadiance& b) {
+    const auto same = [](const std::vector<glm::vec3>& x, const std::vector<glm::vec3>& y) {
+        return x.size() == y.size() && std::memcmp(x.data(), y.data(), x.size() * sizeof(glm::vec3)) == 0;
+    };
+    if (!same(a.diffuse, b.diffuse) || a.terms.size() != b.terms.size()) return false;
+    for (size_t k = 0; k < a.terms.size(); ++k)
+        if (!same(a.terms[k], b.terms[k])) return false;
+    return true;
+}
+
+// Every fast-path variant this machine can run.
+std::vector<prt::RelightOptions> variants() {
+    std::vector<prt::RelightOptions> out;
+    for (prt::RelightIsa isa : {prt::RelightIsa::Baseline, prt::RelightIsa::Avx2Fma})
+        for (prt::RelightLayout layout : {prt::RelightLayout::Rgb3, prt::RelightLayout::Rgb4})
+            if (prt::relightIsaSupported(isa)) out.push_back({layout, isa});
+    return out;
+}
+
+std::string variantName(const prt::RelightOptions& o) {
+    return std::string(o.isa == prt::RelightIsa::Avx2Fma ? "avx2" : "baseline") +
+           (o.layout == prt::RelightLayout::Rgb3 ? " rgb3" : " rgb4");
+}
+
+const ComponentSet kSets[] = {{true, true}, {true, false}, {false, true}, {false, false}};
+
+std::string setName(const ComponentSet& s) {
+    return std::string(s.multipleScattering ? "ms" : "-") + "," + (s.singleScattering ? "ss" : "-");
+}
+
+TEST(Relight, FastKernelMatchesReferenceOnRandomFiles) {
+    const uint32_t n = 8;
+    const LightVector light = prt::makeLightVector(randomCubemap(int(n), 21));
+    const FileSpec specs[] = {{true, true, 4}, {true, false, 0}, {false, true, 4}, {true, true, 0},
+                              {false, false, 4}};
+    uint32_t seed = 100;
+    for (const FileSpec& spec : specs) {
+        const TransportFile file = randomFile(n, 2100, spec, seed++);
+        for (const ComponentSet& set : kSets) {
+            const std::string what = "file ms=" + std::to_string(spec.ms) + " iso=" +
+                                     std::to_string(spec.iso) + " K=" + std::to_string(spec.terms) +
+                                     ", set " + setName(set);
+            SCOPED_TRACE(what);
+            const Expected e = expectedRadiance(file, light, set);
+            VertexRadiance reference, fast;
+            prt::relightVerticesReference(file, light, set, reference);
+            prt::relightVertices(file, light, set, fast);
+            expectMatches(reference, e, 1e-7, "reference");
+            expectMatches(fast, e, 1e-5, "fast");
+            EXPECT_EQ(fast.terms.size(), set.singleScattering ? size_t(spec.terms) : 0u);
+            for (const prt::RelightOptions& options : variants()) {
+                VertexRadiance v;
+                prt::relightVertices(file, light, set, v, options);
+                expectMatches(v, e, 1e-5, variantName(options));
+            }
+        }
+    }
+}
+
+TEST(Relight, FastKernelWithTruncatedLightAndLargeCubemap) {
+    // N = 64 (24576 coefficients), an approximated light vector with many zeros.
+    const uint32_t n = 64;
+    const LightVector light = prt::makeLightVector(randomCubemap(int(n), 8), 500);
+    const TransportFile file = randomFile(n, 700, {true, true, 2}, 9, 300);
+    const Expected e = expectedRadiance(file, light, {true, true});
+    for (const prt::RelightOptions& options : variants()) {
+        VertexRadiance fast;
+        prt::relightVertices(file, light, {true, true}, fast, options);
+        expectMatches(fast, e, 1e-5, variantName(options));
+    }
+}
+
+TEST(Relight, ResultIsIndependentOfThreadCountAndReusesOutput) {
+    const uint32_t n = 16;
+    const LightVector light = prt::makeLightVector(randomCubemap(int(n), 4));
+    const TransportFile file = randomFile(n, 5000, {true, true, 4}, 77, 128);
+    const ComponentSet all{true, true};
+    // (More threads than cores would only be refused by TBB's market on a small machine.)
+    for (const prt::RelightOptions& options : variants()) {
+        SCOPED_TRACE(variantName(options));
+        VertexRadiance one, two, defaultArena;
+        tbb::task_arena(1).execute([&] { prt::relightVertices(file, light, all, one, options); });
+        tbb::task_arena(2).execute([&] { prt::relightVertices(file, light, all, two, options); });
+        prt::relightVertices(file, light, all, defaultArena, options);
+        EXPECT_TRUE(bitwiseEqual(one, two));
+        EXPECT_TRUE(bitwiseEqual(one, defaultArena));
+    }
+    VertexRadiance one;
+    prt::relightVertices(file, light, all, one);
+
+    // Reusing an output that held another result (more terms, other values) gives the
+    // same answer: every entry is overwritten, surplus terms are dropped.
+    VertexRadiance reused;
+    reused.diffuse.assign(9000, glm::vec3(7.0f));
+    reused.terms.assign(6, std::vector<glm::vec3>(9000, glm::vec3(-1.0f)));
+    prt::relightVertices(file, light, all, reused);
+    EXPECT_EQ(reused.diffuse.size(), 5000u);
+    EXPECT_EQ(reused.terms.size(), 4u);
+    EXPECT_TRUE(bitwiseEqual(one, reused));
+}
+
+TEST(Relight, SingleScalingCoefficientUnderConstantLightIsClosedForm) {
+    // MS vector of vertex v: the scaling coefficient of face f = v % 6 with value a_v;
+    // constant light `value` has scaling coefficient value * N on every face, so the
+    // relit radiance is a_v * value * N. Vertices >= 6 also carry a larger detail
+    // coefficient (3 a_v; zero light), so a_v is quantized to round(32767 / 3) steps:
+    // the result then carries the 16-bit quantization error, within its documented bound.
+    const int n = 4;
+    const glm::vec3 value(1.0f, 2.0f, 3.0f);
+    const LightVector light = prt::makeLightVector(prt::constantEnvironment(64, value), n);
+    TransportFile file;
+    file.cubemapSize = uint32_t(n);
+    const size_t vertices = 18;
+    file.mesh.vertexCount = vertices;
+    TransportComponent ms;
+    std::vector<glm::vec3> a(vertices);
+    for (size_t v = 0; v < vertices; ++v) {
+        a[v] = glm::vec3(0.5f + float(v), -2.0f + 0.37f * float(v), 1e-3f * float(v + 1));
+        const uint32_t f = uint32_t(v % 6);
+        std::vector<uint32_t> idx{f * uint32_t(n * n)};
+        std::vector<float> rgb{a[v].x, a[v].y, a[v].z};
+        if (v >= 6) {
+            idx.push_back(f * uint32_t(n * n) + 5);
+            for (int c = 0; c < 3; ++c) rgb.push_back(3.0f * a[v][c]);
+        }
+        ms.vectors.appendVertex(idx, rgb);
+    }
+    file.components.push_back(ms);
+
+    VertexRadiance fast, reference;
+    prt::relightVertices(file, light, {true, true}, fast);
+    prt::relightVerticesReference(file, light, {true, true}, reference);
+    ASSERT_EQ(fast.diffuse.size(), vertices);
+    EXPECT_TRUE(fast.terms.empty());
+    bool quantizationVisible = false;
+    for (size_t v = 0; v < vertices; ++v)
+        for (int c = 0; c < 3; ++c) {
+            const double exact = double(a[v][c]) * value[c] * n;
+            const double vertexMax = (v >= 6 ? 3.0 : 1.0) * std::abs(a[v][c]);
+            const double bound = prt::kQuantizationMaxRelativeError * vertexMax * value[c] * n +
+                                 1e-6 * std::abs(exact);
+            EXPECT_NEAR(fast.diffuse[v][c], exact, bound) << "vertex " << v << " channel " << c;
+            EXPECT_NEAR(reference.diffuse[v][c], exact, bound) << "vertex " << v << " channel " << c;
+            if (std::abs(fast.diffuse[v][c] - exact) > 1e-5 * std::abs(exact)) quantizationVisible = true;
+        }
+    EXPECT_TRUE(quantizationVisible) << "the test should exercise the quantization error";
+}
+
+TEST(Relight, CubemapSizeMismatchThrows) {
+    TransportFile file;
+    file.cubemapSize = 32;
+    file.mesh.vertexCount = 1;
+    TransportComponent ms;
+    const std::vector<uint32_t> idx{0};
+    const std::vector<float> rgb{1, 1, 1};
+    ms.vectors.appendVertex(idx, rgb);
+    file.components.push_back(ms);
+    const LightVector light = prt::makeLightVector(prt::constantEnvironment(32, glm::vec3(1.0f)), 16);
+    VertexRadiance out;
+    for (int pass = 0; pass < 2; ++pass) {
+        try {
+            if (pass == 0)
+                prt::relightVertices(file, light, {true, true}, out);
+            else
+                prt::relightVerticesReference(file, light, {true, true}, out);
+            ADD_FAILURE() << "no exception";
+        } catch (const prt::Error& e) {
+            EXPECT_STREQ(e.what(), "light vector: cubemap size 16 does not match the transport file's 32");
+        }
+    }
+}
+
+TEST(Relight, CorruptInMemoryVectorsAreRefusedNotRead) {
+    const uint32_t n = 4;
+    TransportFile good = randomFile(n, 3000, {true, false, 0}, 5, 40);
+    const LightVector light = prt::makeLightVector(randomCubemap(int(n), 1));
+    VertexRadiance out;
+    EXPECT_NO_THROW(prt::relightVertices(good, light, {true, true}, out));
+
+    TransportFile badIndex = good;  // an index past 6 N^2 at a vertex's end
+    auto& s = badIndex.components[0].vectors;
+    size_t v = 2500;
+    while (s.offsets[v + 1] == s.offsets[v]) ++v;
+    s.indices[s.offsets[v + 1] - 1] = uint16_t(6 * n * n);
+    EXPECT_THROW(prt::relightVertices(badIndex, light, {true, true}, out), prt::Error);
+    EXPECT_THROW(prt::relightVerticesReference(badIndex, light, {true, true}, out), prt::Error);
+    EXPECT_NO_THROW(prt::relightVertices(badIndex, light, {false, true}, out));  // not selected
+
+    TransportFile badOffsets = good;
+    badOffsets.components[0].vectors.offsets[1000] = badOffsets.components[0].vectors.offsets[1001] + 1;
+    EXPECT_THROW(prt::relightVertices(badOffsets, light, {true, true}, out), prt::Error);
+
+    TransportFile badSizes = good;
+    badSizes.components[0].vectors.scales.pop_back();
+    EXPECT_THROW(prt::relightVertices(badSizes, light, {true, true}, out), prt::Error);
+
+    TransportFile mixedCounts = randomFile(n, 10, {true, true, 0}, 6, 10);
+    mixedCounts.components[1].vectors.appendVertex(std::span<const uint32_t>(), std::span<const float>());
+    EXPECT_THROW(prt::relightVertices(mixedCounts, light, {true, true}, out), prt::Error);
+
+    LightVector shortLight = light;
+    shortLight.rgb.pop_back();
+    EXPECT_THROW(prt::relightVertices(good, shortLight, {true, true}, out), prt::Error);
+}
+
+TEST(Relight, StreamBytesCountTheSelectedComponents) {
+    const TransportFile file = randomFile(4, 300, {true, true, 3}, 12, 30);
+    size_t ms = 0, ss = 0;
+    for (const TransportComponent& c : file.components)
+        (c.kind == ComponentKind::MultipleScattering ? ms : ss) += c.vectors.byteSize();
+    ASSERT_GT(ms, 0u);
+    ASSERT_GT(ss, 0u);
+    EXPECT_EQ(prt::relightStreamBytes(file, {true, false}), ms);
+    EXPECT_EQ(prt::relightStreamBytes(file, {false, true}), ss);
+    EXPECT_EQ(prt::relightStreamBytes(file, {true, true}), ms + ss);
+    EXPECT_EQ(prt::relightStreamBytes(file, {false, false}), 0u);
+    // offsets (V + 1) x 4 + indices x 2 + values x 6 + scales V x 12
+    const auto& v = file.components[1].vectors;
+    EXPECT_EQ(v.byteSize(), 4 * 301 + 8 * v.indices.size() + 12 * 300);
+}
+
+TEST(Relight, VariantsAreAvailable) {
+    EXPECT_TRUE(prt::relightIsaSupported(prt::RelightIsa::Best));
+    EXPECT_TRUE(prt::relightIsaSupported(prt::RelightIsa::Baseline));
+    if (!prt::relightIsaSupported(prt::RelightIsa::Avx2Fma)) {
+        const TransportFile file = randomFile(4, 10, {true, false, 0}, 1, 5);
+        VertexRadiance out;
+        EXPECT_THROW(prt::relightVertices(file, prt::makeLightVector(randomCubemap(4, 1)), {true, true},
+                                          out, {prt::RelightLayout::Rgb4, prt::RelightIsa::Avx2Fma}),
+                     prt::Error);
+        GTEST_SKIP() << "no AVX2 + FMA: only the baseline kernel is tested";
+    }
+}
+
+TEST(Relight, ParseComponents) {
+    const auto check = [](const std::string& text, bool ms, bool ss) {
+        const ComponentSet s = prt::parseComponents(text);
+        EXPECT_EQ(s.multipleScattering, ms) << text;
+        EXPECT_EQ(s.singleScattering, ss) << text;
+    };
+    check("ms", true, false);
+    check("ss", false, true);
+    check("ms,ss", true, true);
+    check("ss,ms", true, true);
+    check("all", true, true);
+    for (const char* bad : {"", "MS", "ms,", ",ss", "ms,,ss", "ms ss", "specular", "all,ms"}) {
+        try {
+            prt::parseComponents(bad);
+            ADD_FAILURE() << "accepted '" << bad << "'";
+        } catch (const prt::Error& e) {
+            EXPECT_EQ(e.subject(), "--components") << bad;
+        }
+    }
+}
+
+}  // namespace
