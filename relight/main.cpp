@@ -1,9 +1,12 @@
 // prt-relight: relighting of translucent objects from precomputed transport
-// (docs/relight.md). Subcommands:
+// (docs/relight.md, docs/viewer.md). Subcommands:
 //   render  headless frames (linear EXR + tone-mapped PNG), single, turntable or
 //           environment spin;
-//   (view   the interactive viewer: to be added as another subcommand beside render,
-//           sharing loadRelightObject / TranslucentShader / the camera options.)
+//   view    the interactive viewer (relight/view.h), scriptable for tests.
+// Both take the same camera options (addCameraOptions / makeCamera) and the same
+// lighting options (addLightingOptions: --env-rotation, --components, -L, --specular,
+// --specular-blur, --exposure), so a viewer screenshot and a render of the same
+// arguments show the same image.
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
@@ -25,6 +28,7 @@
 #include "common/progress.h"
 #include "common/relight.h"
 #include "common/render.h"
+#include "relight/view.h"
 
 using namespace prt;
 
@@ -34,7 +38,7 @@ double msSince(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Camera options shared by render (and, later, view).
+// Camera options shared by render and view.
 struct CameraOptions {
     std::vector<double> eye, target, up{0.0, 1.0, 0.0};
     double fov = 30.0;
@@ -90,15 +94,48 @@ Camera makeCamera(const CameraOptions& o, const RelightObject& object) {
     return c;
 }
 
-struct RenderOptions {
-    std::string mesh, transport, environment, output;
-    CameraOptions camera;
+// Lighting options shared by render and view.
+struct LightingOptions {
     double envRotation = 0.0, exposure = 0.0;
     std::string components = "all";
     size_t lightTerms = 0;
-    int turntable = 0, envSpin = 0;
     bool specular = false;
-    int specularBlur = 0;  // 0: automatic
+    int specularBlur = 0;  // 0: automatic (specularBlurFactor)
+};
+
+// Returns the --specular flag (render makes --specular-blur need it).
+CLI::Option* addLightingOptions(CLI::App& app, LightingOptions& o, CLI::Option** blur) {
+    app.add_option("--env-rotation", o.envRotation, "Rotate the environment by this many degrees about +Y")
+        ->capture_default_str()->group("Lighting");
+    app.add_option("--components", o.components,
+                   "Components to render: ms, ss, ms,ss or all (default: all the file has)")
+        ->capture_default_str()->group("Lighting");
+    app.add_option("-L,--light-terms", o.lightTerms,
+                   "Keep the largest L Haar terms of the light (0 = all)")
+        ->capture_default_str()->group("Lighting");
+    auto* specularFlag = app.add_flag("--specular", o.specular,
+                 "Add a Fresnel-weighted specular reflection of the pre-filtered environment "
+                 "(off by default; the reference renderer has none)")
+        ->group("Lighting");
+    *blur = app.add_option("--specular-blur", o.specularBlur,
+                   "Pre-filter of the specular layer: box-filter the lat-long map down by this factor "
+                   "(must divide its size; default: the largest of 8, 4, 2, 1 that does)")
+        ->group("Lighting");
+    app.add_option("--exposure", o.exposure, "Exposure in stops for the PNG (the EXR stays linear)")
+        ->capture_default_str()->group("Output");
+    return specularFlag;
+}
+
+void checkLightingOptions(const LightingOptions& o) {
+    if (!std::isfinite(o.envRotation)) throw Error("--env-rotation", "must be finite");
+    if (!std::isfinite(o.exposure)) throw Error("--exposure", "must be finite");
+    if (o.specularBlur < 0) throw Error("--specular-blur", "must be >= 1");
+}
+
+struct RenderOptions : LightingOptions {
+    std::string mesh, transport, environment, output;
+    CameraOptions camera;
+    int turntable = 0, envSpin = 0;
     int threads = 0;
 };
 
@@ -113,24 +150,9 @@ void addRenderOptions(CLI::App& app, RenderOptions& o) {
                    "<prefix>.png (sRGB); sequences write <prefix>_0000.exr/.png, ...")
         ->required();
     addCameraOptions(app, o.camera);
-    app.add_option("--env-rotation", o.envRotation, "Rotate the environment by this many degrees about +Y")
-        ->capture_default_str()->group("Lighting");
-    app.add_option("--components", o.components,
-                   "Components to render: ms, ss, ms,ss or all (default: all the file has)")
-        ->capture_default_str()->group("Lighting");
-    app.add_option("-L,--light-terms", o.lightTerms,
-                   "Keep the largest L Haar terms of the light (0 = all)")
-        ->capture_default_str()->group("Lighting");
-    auto* specularFlag = app.add_flag("--specular", o.specular,
-                 "Add a Fresnel-weighted specular reflection of the pre-filtered environment "
-                 "(off by default; the reference renderer has none)")
-        ->group("Lighting");
-    app.add_option("--specular-blur", o.specularBlur,
-                   "Pre-filter of the specular layer: box-filter the lat-long map down by this factor "
-                   "(must divide its size; default: the largest of 8, 4, 2, 1 that does)")
-        ->needs(specularFlag)->group("Lighting");
-    app.add_option("--exposure", o.exposure, "Exposure in stops for the PNG (the EXR stays linear)")
-        ->capture_default_str()->group("Output");
+    CLI::Option* blur = nullptr;
+    CLI::Option* specularFlag = addLightingOptions(app, o, &blur);
+    blur->needs(specularFlag);
     auto* tt = app.add_option("--turntable", o.turntable,
                               "Render N frames of the object turning 360 degrees about the vertical "
                               "axis through its bounding-box centre (environment fixed in the world)")
@@ -144,7 +166,8 @@ void addRenderOptions(CLI::App& app, RenderOptions& o) {
 
 // Which components to evaluate: the request intersected with what the file has; an
 // explicit request for a component the file lacks is an error.
-ComponentSet selectComponents(const RenderOptions& o, const TransportFile& file) {
+ComponentSet selectComponents(const LightingOptions& o, const std::string& transportPath,
+                              const TransportFile& file) {
     const ComponentSet asked = parseComponents(o.components);
     const bool explicitRequest = o.components != "all";
     const bool hasMs = file.find(ComponentKind::MultipleScattering) != nullptr;
@@ -152,14 +175,14 @@ ComponentSet selectComponents(const RenderOptions& o, const TransportFile& file)
     for (const TransportComponent& c : file.components)
         hasSs = hasSs || c.kind == ComponentKind::SingleScatteringTerm;
     if (explicitRequest && asked.multipleScattering && !hasMs)
-        throw Error(o.transport, "has no multiple-scattering component (asked for by --components)");
+        throw Error(transportPath, "has no multiple-scattering component (asked for by --components)");
     if (explicitRequest && asked.singleScattering && !hasSs)
-        throw Error(o.transport, "has no single-scattering component (asked for by --components)");
+        throw Error(transportPath, "has no single-scattering component (asked for by --components)");
     ComponentSet s;
     s.multipleScattering = asked.multipleScattering && hasMs;
     s.singleScattering = asked.singleScattering && hasSs;
     if (!s.multipleScattering && !s.singleScattering)
-        throw Error(o.transport, "has none of the requested components");
+        throw Error(transportPath, "has none of the requested components");
     return s;
 }
 
@@ -177,13 +200,12 @@ int runRender(const RenderOptions& o) {
         limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                       size_t(o.threads));
     if (o.turntable < 0 || o.envSpin < 0) throw Error("--turntable/--env-spin", "frame count must be >= 0");
-    if (!std::isfinite(o.envRotation)) throw Error("--env-rotation", "must be finite");
-    if (!std::isfinite(o.exposure)) throw Error("--exposure", "must be finite");
+    checkLightingOptions(o);
     if (o.output.empty()) throw Error("--output", "empty prefix");
 
     const auto loadStart = std::chrono::steady_clock::now();
     const RelightObject object = loadRelightObject(o.mesh, o.transport);
-    const ComponentSet components = selectComponents(o, object.transport);
+    const ComponentSet components = selectComponents(o, o.transport, object.transport);
     const Camera camera = makeCamera(o.camera, object);
     const Image environment = loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
     const RayScene scene(object.mesh);
@@ -192,15 +214,7 @@ int runRender(const RenderOptions& o) {
                                        ? &*object.transport.viewMaps
                                        : nullptr);
     Image prefiltered;
-    if (o.specular) {
-        int factor = o.specularBlur;
-        if (factor < 0) throw Error("--specular-blur", "must be >= 1");
-        if (factor == 0) {
-            factor = 8;
-            while (factor > 1 && (environment.width % factor || environment.height % factor)) factor /= 2;
-        }
-        prefiltered = prefilterEnvironment(environment, factor);
-    }
+    if (o.specular) prefiltered = prefilterEnvironment(environment, specularBlurFactor(o.specularBlur, environment));
     const double loadMs = msSince(loadStart);
 
     const std::filesystem::path parent = std::filesystem::path(o.output).parent_path();
@@ -300,6 +314,103 @@ int runRender(const RenderOptions& o) {
     return 0;
 }
 
+// ---------------------------------------------------------------------------
+// view
+// ---------------------------------------------------------------------------
+
+struct ViewOptions : LightingOptions {
+    std::string mesh, transport;
+    std::vector<std::string> environments;
+    CameraOptions camera;
+    int frames = 0;
+    std::vector<std::string> screenshots;
+    bool screenshotWithPanel = false, noVsync = false, hidePanel = false;
+    double spin = 0.0, orbit = 0.0;
+    int threads = 0;
+};
+
+void addViewOptions(CLI::App& app, ViewOptions& o) {
+    app.add_option("mesh", o.mesh, "Mesh file the transport file was computed for (.obj .ply .off .stl, .gz)")
+        ->required();
+    app.add_option("-t,--transport", o.transport, "Transport file (prt-precompute output)")->required();
+    app.add_option("-e,--environment", o.environments,
+                   "Lat-long HDR environments (files, or folders of .exr/.hdr), repeatable; the first is "
+                   "shown first (default: data/envmaps/, the eight fetched maps)");
+    addCameraOptions(app, o.camera);
+    CLI::Option* blur = nullptr;
+    addLightingOptions(app, o, &blur);
+    app.add_option("--frames", o.frames,
+                   "Scripted run: render N frames once the first relight has landed, write the "
+                   "--screenshot files and exit (0 = interactive)")
+        ->capture_default_str()->group("Scripting");
+    app.add_option("--screenshot", o.screenshots,
+                   "Write the view at exit (with --frames) to this file: .exr = linear RGBA float as "
+                   "render's EXR, otherwise an sRGB PNG as render's PNG; repeatable")
+        ->group("Scripting");
+    app.add_flag("--screenshot-panel", o.screenshotWithPanel,
+                 "PNG screenshots show the whole window, panel included")
+        ->group("Scripting");
+    app.add_option("--spin", o.spin, "Rotate the environment by this many degrees every frame (relights)")
+        ->capture_default_str()->group("Scripting");
+    app.add_option("--orbit", o.orbit,
+                   "Turn the camera by this many degrees every frame about its up axis through the target "
+                   "(the environment stays)")
+        ->capture_default_str()->group("Scripting");
+    app.add_flag("--no-vsync", o.noVsync, "Do not wait for vertical sync (measure frame rates)")
+        ->group("Scripting");
+    app.add_flag("--hide-panel", o.hidePanel, "Start with the panel hidden (H toggles it)")->group("Scripting");
+    app.add_option("-j,--threads", o.threads, "Worker threads of the relight (default: all cores)");
+}
+
+int runView(const ViewOptions& o) {
+#ifndef PRT_HAVE_VIEWER
+    throw Error("view", "this prt-relight was built without the viewer (configure with -DPRT_BUILD_VIEWER=ON)");
+#else
+    if (o.threads < 0) throw Error("--threads", "must be >= 0");
+    std::unique_ptr<tbb::global_control> limit;
+    if (o.threads > 0)
+        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                      size_t(o.threads));
+    checkLightingOptions(o);
+    if (o.frames < 0) throw Error("--frames", "must be >= 0");
+    if (!o.screenshots.empty() && o.frames == 0)
+        throw Error("--screenshot", "needs --frames N (interactive screenshots: F12 or P)");
+    if (!std::isfinite(o.spin)) throw Error("--spin", "must be finite");
+    if (!std::isfinite(o.orbit)) throw Error("--orbit", "must be finite");
+    for (const std::string& path : o.screenshots)
+        if (path.empty()) throw Error("--screenshot", "empty path");
+    // Cheap checks first: the display, the environments' paths.
+    checkViewerDisplay();
+    ViewerSetup setup;
+    setup.environments = findEnvironments(o.environments);
+
+    const auto loadStart = std::chrono::steady_clock::now();
+    setup.object = loadRelightObject(o.mesh, o.transport);
+    setup.meshPath = o.mesh;
+    setup.transportPath = o.transport;
+    setup.components = selectComponents(o, o.transport, setup.object.transport);
+    setup.camera = makeCamera(o.camera, setup.object);
+    std::printf("object: %zu vertices, %zu triangles, %.4g mm across, eta %.4g; cubemap 6x%ux%u; loaded in %.0f ms\n",
+                setup.object.mesh.vertexCount(), setup.object.mesh.triangleCount(),
+                double(setup.object.box.diagonal()), setup.object.eta, setup.object.transport.cubemapSize,
+                setup.object.transport.cubemapSize, msSince(loadStart));
+    std::fflush(stdout);
+    setup.envRotation = o.envRotation;
+    setup.exposure = o.exposure;
+    setup.lightTerms = o.lightTerms;
+    setup.specular = o.specular;
+    setup.specularBlur = o.specularBlur;
+    setup.frames = o.frames;
+    setup.screenshots = o.screenshots;
+    setup.screenshotWithPanel = o.screenshotWithPanel;
+    setup.spinDegreesPerFrame = o.spin;
+    setup.orbitDegreesPerFrame = o.orbit;
+    setup.vsync = !o.noVsync;
+    setup.showPanel = !o.hidePanel;
+    return runViewer(std::move(setup));
+#endif
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -309,6 +420,7 @@ int main(int argc, char** argv) {
             "Examples:\n"
             "  prt-relight render data/meshes/bunny.off -t out/bunny.prt -e sunset.exr -o out/bunny\n"
             "  prt-relight render bunny.off -t bunny.prt -e studio.exr --turntable 36 -o out/tt/bunny\n"
+            "  prt-relight view data/meshes/bunny.off -t out/bunny.prt -e data/envmaps\n"
             "Vector options take comma-separated values; write negative ones as --eye=-10,0,50."};
         app.require_subcommand(1);
 
@@ -318,6 +430,12 @@ int main(int argc, char** argv) {
                       "environment spin (docs/relight.md)");
         addRenderOptions(*renderCmd, render);
 
+        ViewOptions view;
+        CLI::App* viewCmd = app.add_subcommand(
+            "view", "Interactive viewer: orbit camera, environment rotation and switching, component "
+                    "toggles, light terms; scriptable with --frames/--screenshot (docs/viewer.md)");
+        addViewOptions(*viewCmd, view);
+
         try {
             app.parse(argc, argv);
         } catch (const CLI::CallForHelp& e) {
@@ -326,9 +444,11 @@ int main(int argc, char** argv) {
             return app.exit(e);
         } catch (const CLI::ParseError& e) {
             // Usage errors are one line and exit code 1, like every other error.
-            throw Error("", std::string(e.what()) + " (see prt-relight render --help)");
+            const char* sub = viewCmd->parsed() ? "view" : "render";
+            throw Error("", std::string(e.what()) + " (see prt-relight " + sub + " --help)");
         }
         if (renderCmd->parsed()) return runRender(render);
+        if (viewCmd->parsed()) return runView(view);
         return 1;
     });
 }

@@ -1,0 +1,172 @@
+#!/usr/bin/env bash
+# The viewer against the offline renderer (registered as the CTest viewer_matches_render
+# in relight/CMakeLists.txt; docs/viewer.md).
+#
+#   viewer_test.sh PRT_RELIGHT PRT_PRECOMPUTE PRT_COMPARE PRT_MAKE_TEST_SCENE WORKDIR
+#
+# Under xvfb-run (Mesa llvmpipe), `prt-relight view --frames N --screenshot` of a small
+# generated scene must match `prt-relight render` of the same camera, environment,
+# rotation, light terms and exposure:
+#   - coverage: pixels that are object in one image and background in the other are
+#     silhouette pixels whose centre lies within a rounding error of an edge (OpenGL
+#     snaps vertices to 1/256 pixel); at most 0.1% of the object pixels + 2 (measured
+#     0 or 1 per image) -- prt-make-test-scene agree;
+#   - linear EXR over the object pixels common to both (prt-compare against the render
+#     with alpha = object in both): relative RMSE <= 1e-4 (measured 2e-6 .. 5e-6: float
+#     shaders against double C++), <= 2e-3 with the specular layer (measured 2.6e-4:
+#     float atan/acos of the mirror direction looked up in a 16 x 8 pre-filtered map);
+#   - sRGB PNG, every pixel with equal coverage (background included): at most one
+#     level of 255 apart (measured: 1 level on a few pixels).
+# Bad inputs (missing transport, mismatched mesh, no display, no OpenGL 3.3, a
+# screenshot without --frames) must exit with code 1 and a one-line message.
+# Exit 77 (CTest: skipped) when xvfb-run is not installed.
+set -u
+
+if [ $# -ne 5 ]; then
+    echo "usage: $0 PRT_RELIGHT PRT_PRECOMPUTE PRT_COMPARE PRT_MAKE_TEST_SCENE WORKDIR" >&2
+    exit 2
+fi
+RELIGHT=$1 PRECOMPUTE=$2 COMPARE=$3 MAKE_SCENE=$4 WORK=$5
+
+if ! command -v xvfb-run > /dev/null; then
+    echo "SKIP: xvfb-run not found (apt-get install xvfb xauth libgl1-mesa-dri)"
+    exit 77
+fi
+
+failures=0
+fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+pass() { echo "PASS: $*"; }
+
+rm -rf "$WORK"
+mkdir -p "$WORK/out"
+S=$WORK/scene
+O=$WORK/out
+
+"$MAKE_SCENE" scene "$S" || { echo "FAIL: prt-make-test-scene"; exit 1; }
+"$PRECOMPUTE" "$S/torus.ply" --size-mm 20 --cubemap-size 8 --samples 2000 -q -o "$S/torus.prt" \
+    > "$O/precompute.log" 2>&1 || { cat "$O/precompute.log"; echo "FAIL: prt-precompute"; exit 1; }
+
+# Runs a command under xvfb-run and returns the COMMAND's exit code: xvfb-run itself
+# sometimes exits 5 ("problem while cleaning up temporary directory", a race in its
+# cleanup after a command that exits quickly), whatever the command returned.
+inx() {
+    local out rc
+    out=$(xvfb-run -a bash -c '"$@"; echo "exit code: $?"' bash "$@" 2>&1)
+    echo "$out" | grep -v "^exit code: \|xvfb-run: error: problem while cleaning up"
+    rc=$(echo "$out" | sed -n 's/^exit code: //p' | tail -1)
+    return "${rc:-125}"
+}
+view() { inx "$RELIGHT" view "$@"; }
+
+# compare NAME TEST REFERENCE MAX_REL_RMSE
+compare() {
+    local name=$1 test=$2 ref=$3 max=$4
+    local out
+    out=$("$COMPARE" "$test" "$ref" --max-rel-rmse "$max" 2>&1)
+    local rc=$?
+    echo "$out" | grep -E "^(compared|overall|warning|PASS|FAIL)"
+    if [ $rc -eq 0 ]; then pass "$name"; else fail "$name (prt-compare exit $rc)"; fi
+}
+
+# matches_render NAME MAX_EXR RENDER_ARGS VIEW_ARGS...
+matches_render() {
+    local name=$1 maxExr=$2 renderArgs=$3
+    shift 3
+    echo "--- $name"
+    if ! view "$@" --frames 5 --screenshot "$O/$name.view.exr" --screenshot "$O/$name.view.png" \
+        > "$O/$name.view.log" 2>&1; then
+        cat "$O/$name.view.log"
+        fail "$name: the viewer failed"
+        return
+    fi
+    grep -E "^(viewer|relights):" "$O/$name.view.log"
+    # shellcheck disable=SC2086
+    if ! "$RELIGHT" render $renderArgs -o "$O/$name.render" > "$O/$name.render.log" 2>&1; then
+        cat "$O/$name.render.log"
+        fail "$name: the renderer failed"
+        return
+    fi
+    agree "$name" "$O/$name.view" "$O/$name.render"
+    compare "$name: EXR, common object pixels" "$O/$name.view.exr" "$O/$name.render.masked.exr" "$maxExr"
+}
+
+# agree NAME VIEW_PREFIX RENDER_PREFIX: coverage mismatches and PNGs; writes RENDER.masked.exr
+agree() {
+    local out rc
+    out=$("$MAKE_SCENE" agree "$2" "$3" "$3.masked.exr" 2>&1)
+    rc=$?
+    echo "$out"
+    if [ $rc -eq 0 ]; then pass "$1: coverage and PNG"; else fail "$1: coverage or PNG (exit $rc)"; fi
+}
+
+# 1. Precomputed multiple scattering, automatic framing.
+A="$S/torus.ply -t $S/torus.prt -W 256 -H 192"
+matches_render precomputed 1e-4 "$A -e $S/sky.exr" $A -e "$S/sky.exr"
+
+# 2. Three view-map terms (synthetic transport), explicit camera, rotation, exposure,
+#    light terms, environment list (the first is shown).
+B="$S/torus.ply -t $S/synthetic.prt -W 320 -H 240 --eye=-18,14,22 --target=0,-1,0 --up=0,1,0 --fov 35
+   --env-rotation=-70 --exposure 1.5 -L 40"
+matches_render view_terms 1e-4 "$B -e $S/dusk.exr" $B -e "$S/dusk.exr" -e "$S/sky.exr"
+
+# 3. The specular layer.
+C="$S/torus.ply -t $S/synthetic.prt -W 320 -H 240 --azimuth 40 --elevation 35 --env-rotation=-70 --exposure 1.5
+   --specular"
+matches_render specular 2e-3 "$C -e $S/dusk.exr" $C -e "$S/dusk.exr"
+
+# 4. Relights in flight: the environment turns 7 degrees per frame for 5 frames after
+#    the first light (results land while frames keep coming); the screenshot shows the
+#    final rotation 10 + 5 x 7 = 45 degrees.
+D="$S/torus.ply -t $S/torus.prt -W 200 -H 200 --azimuth=-30"
+echo "--- spin"
+if view $D -e "$S/sky.exr" --env-rotation 10 --spin 7 --frames 5 --screenshot "$O/spin.view.exr" \
+    --screenshot "$O/spin.view.png" \
+    > "$O/spin.view.log" 2>&1; then
+    grep -E "^(viewer|relights):" "$O/spin.view.log"
+    "$RELIGHT" render $D -e "$S/sky.exr" --env-rotation 45 -o "$O/spin.render" > /dev/null 2>&1 \
+        || fail "spin: the renderer failed"
+    agree spin "$O/spin.view" "$O/spin.render"
+    compare "spin: final rotation" "$O/spin.view.exr" "$O/spin.render.masked.exr" 1e-4
+else
+    cat "$O/spin.view.log"
+    fail "spin: the viewer failed"
+fi
+
+# 5. Camera orbit: 5 frames of 5 degrees about +Y through the target from azimuth 15 are
+#    the automatic framing at azimuth 40 (the visibility pass is redrawn every frame).
+matches_render orbit 1e-4 "$S/torus.ply -t $S/torus.prt -e $S/sky.exr -W 200 -H 160 --azimuth 40 --elevation 25" \
+    "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 200 -H 160 --azimuth 15 --elevation 25 --orbit 5
+
+# 6. Bad inputs: exit code 1 and a message naming the problem.
+# expect_error NAME PATTERN COMMAND...
+expect_error() {
+    local name=$1 pattern=$2
+    shift 2
+    local out rc
+    out=$("$@" 2>&1)
+    rc=$?
+    if [ $rc -eq 1 ] && echo "$out" | grep -q -- "$pattern"; then
+        pass "$name: $(echo "$out" | grep -- "$pattern" | head -1)"
+    else
+        echo "$out" | tail -5
+        fail "$name: exit $rc, expected 1 and a message matching '$pattern'"
+    fi
+}
+expect_error "missing transport" "missing.prt" \
+    inx "$RELIGHT" view "$S/torus.ply" -t "$S/missing.prt" -e "$S/sky.exr" --frames 1
+expect_error "mismatched mesh" "torus.prt" \
+    inx "$RELIGHT" view "$S/sphere.ply" -t "$S/torus.prt" -e "$S/sky.exr" --frames 1
+expect_error "missing environment" "nowhere.exr" \
+    inx "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/nowhere.exr" --frames 1
+expect_error "no display" "display" \
+    env -u DISPLAY -u WAYLAND_DISPLAY "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --frames 1
+expect_error "no OpenGL 3.3" "OpenGL 3.3" \
+    inx env MESA_GL_VERSION_OVERRIDE=3.0 "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --frames 1
+expect_error "screenshot without --frames" "needs --frames" \
+    "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --screenshot "$O/x.png"
+
+if [ $failures -gt 0 ]; then
+    echo "viewer test: $failures failure(s)"
+    exit 1
+fi
+echo "viewer test: all passed"
