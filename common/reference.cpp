@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -43,6 +44,13 @@ void basisAround(const glm::dvec3& n, glm::dvec3& t, glm::dvec3& b) {
     const double c = n.x * n.y * a;
     t = glm::dvec3(1.0 + sign * n.x * n.x * a, sign * c, -sign * n.x);
     b = glm::dvec3(c, sign + n.y * n.y * a, -n.y);
+}
+
+// SplitMix64's finaliser, for hashing pixel data into stream numbers.
+uint64_t mix64(uint64_t z) {
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
 }
 
 double median(std::vector<double> v) {
@@ -342,8 +350,235 @@ RadianceEstimate MultipleScatteringReference::radiance(const GBufferPixel& p) co
 }
 
 // ---------------------------------------------------------------------------
+// Single scattering
+// ---------------------------------------------------------------------------
+
+const char* toString(SingleScatteringPath path) {
+    return path == SingleScatteringPath::Refracted ? "refracted" : "normal";
+}
+
+SingleScatteringReference::SingleScatteringReference(const Material& material, const TriangleMesh& mesh,
+                                                     const RayScene& scene, const EnvironmentSampler& env,
+                                                     const SingleScatteringOptions& options)
+    : material_(material), mesh_(&mesh), scene_(&scene), env_(&env), options_(options) {
+    validateMaterial(material_);
+    if (options_.pathSamples < 1) throw Error("--ss-samples", "need at least one path sample per pixel");
+    if (options_.lightSamples < 1) throw Error("--ss-light-samples", "need at least one direction per path sample");
+    if (!(options_.environmentFraction >= 0.0 && options_.environmentFraction <= 1.0))
+        throw Error("--ss-env-fraction", "must be in [0, 1]");
+    if (mesh.normals.size() != mesh.positions.size())
+        throw Error("reference", "single scattering needs one normal per vertex");
+    if (scene.triangleCount() != mesh.triangleCount())
+        throw Error("reference", "the ray scene was not built from this mesh");
+    sigmaS_ = material_.sigmaS();
+    sigmaT_ = material_.sigmaT();
+    sigmaTLuminance_ = luminance(sigmaT_);
+    if (!(sigmaTLuminance_ > 0.0)) throw Error("sigma_t", "single scattering needs a positive extinction");
+}
+
+uint64_t SingleScatteringReference::pixelStream(const GBufferPixel& p) {
+    uint64_t h = mix64(0x5353u + uint64_t(p.triangle));
+    for (const glm::vec3* v : {&p.position, &p.normal, &p.toViewer})
+        for (int k = 0; k < 3; ++k) h = mix64(h ^ (uint64_t(std::bit_cast<uint32_t>((*v)[k])) + 0x9e3779b97f4a7c15ull));
+    return h;
+}
+
+RadianceEstimate SingleScatteringReference::radiance(const GBufferPixel& p) const {
+    if (p.triangle >= mesh_->triangleCount()) throw Error("reference", "G-buffer triangle out of range");
+    return estimate(p.position, p.normal, faceNormal(*mesh_, p.triangle), p.toViewer, pixelStream(p));
+}
+
+RadianceEstimate SingleScatteringReference::estimate(const glm::vec3& position, const glm::vec3& normal,
+                                                     const glm::vec3& geometricNormal, const glm::vec3& toViewer,
+                                                     uint64_t stream) const {
+    RadianceEstimate out;
+    const double eta = material_.eta;
+    const glm::dvec3 n = glm::normalize(glm::dvec3(normal));
+    const glm::dvec3 wo = glm::normalize(glm::dvec3(toViewer));
+    const double cosView = glm::dot(n, wo);
+    if (!(cosView > 0.0) || env_->black()) return out;
+    glm::dvec3 woRefracted;
+    if (!refractDirection(wo, n, eta, woRefracted)) return out;
+    const glm::dvec3 toEye = -woRefracted;  // propagation direction after scattering
+    const glm::dvec3 path = options_.path == SingleScatteringPath::Refracted ? woRefracted : -n;
+    // Triangles wound against their vertex normals (meshes with inconsistent
+    // orientation) are taken to face the way the shading normal does.
+    glm::dvec3 ng(geometricNormal);
+    if (glm::dot(ng, n) < 0.0) ng = -ng;
+    if (!(glm::dot(path, ng) < 0.0)) return out;  // the path does not enter the object
+
+    // The path's length d inside the object, from an origin offset inward.
+    const glm::vec3 pathF(path);
+    const glm::vec3 origin = scene_->offsetRayOrigin(position, geometricNormal, pathF);
+    const Hit exit = scene_->intersect(origin, pathF, 0.0f, std::numeric_limits<float>::infinity());
+    uint64_t rays = 1;
+    const double d = exit.hit ? double(exit.t) : 0.0;
+    if (!(d > 0.0)) {
+        rays_.fetch_add(rays, std::memory_order_relaxed);
+        return out;
+    }
+    const double st = sigmaTLuminance_;
+    const double lambda = -std::expm1(-st * d);  // 1 - e^(-|sigma_t| d)
+
+    const size_t M = options_.pathSamples, L = options_.lightSamples;
+    const size_t nEnv = size_t(std::llround(options_.environmentFraction * double(L)));
+    const size_t nUni = L - nEnv;
+    const double pUniform = 1.0 / (4.0 * kPi);
+
+    // Draw all path points and directions; keep those with non-zero radiance.
+    struct Candidate {
+        uint32_t pathSample;
+        double s;               // distance along the path
+        glm::dvec3 direction;   // w, toward the light
+        glm::dvec3 weight;      // L(w) / (n_env p_env + n_uni p_uni) / pdf(s)
+    };
+    std::vector<Candidate> candidates;
+    candidates.reserve(M * L);
+    std::vector<float> ox, oy, oz, dx, dy, dz;
+    ox.reserve(M * L), oy.reserve(M * L), oz.reserve(M * L);
+    dx.reserve(M * L), dy.reserve(M * L), dz.reserve(M * L);
+
+    Random rng(options_.seed ^ 0x53494e474c45ull, stream);  // "SINGLE": apart from the irradiance streams
+    for (size_t m = 0; m < M; ++m) {
+        const double xi = (double(m) + rng.uniform()) / double(M);
+        const double s = std::min(d, -std::log1p(-lambda * xi) / st);
+        const double pdfS = st * std::exp(-st * s) / lambda;
+        const glm::dvec3 xp = glm::dvec3(origin) + s * path;
+        for (size_t k = 0; k < L; ++k) {
+            glm::dvec3 w, radiance;
+            double pEnv;
+            if (k < nEnv) {
+                const double u1 = rng.uniform(), u2 = rng.uniform(), u3 = rng.uniform(), u4 = rng.uniform();
+                const EnvironmentSampler::Sample smp = env_->sample(u1, u2, u3, u4);
+                w = smp.direction;
+                radiance = smp.radiance;
+                pEnv = smp.pdf;
+            } else {
+                const double z = 1.0 - 2.0 * rng.uniform(), phi = 2.0 * kPi * rng.uniform();
+                const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
+                w = glm::normalize(glm::dvec3(r * std::cos(phi), r * std::sin(phi), z));
+                radiance = env_->radiance(w);
+                pEnv = env_->pdf(w);
+            }
+            if (radiance.x <= 0.0 && radiance.y <= 0.0 && radiance.z <= 0.0) continue;
+            const double denominator = double(nEnv) * pEnv + double(nUni) * pUniform;
+            if (!(denominator > 0.0)) continue;  // cannot happen: the drawing strategy has p > 0
+            candidates.push_back({uint32_t(m), s, w, radiance / (denominator * pdfS)});
+            ox.push_back(float(xp.x)), oy.push_back(float(xp.y)), oz.push_back(float(xp.z));
+            dx.push_back(float(w.x)), dy.push_back(float(w.y)), dz.push_back(float(w.z));
+        }
+    }
+
+    // Where each direction's (unrefracted) ray leaves the object.
+    std::vector<Hit> hits(candidates.size());
+    if (!candidates.empty())
+        scene_->intersectBatch(ox.data(), oy.data(), oz.data(), dx.data(), dy.data(), dz.data(), candidates.size(),
+                               0.0f, std::numeric_limits<float>::infinity(), hits.data());
+    rays += candidates.size();
+
+    // Unoccluded contributions; the occlusion rays start at the exit points.
+    std::vector<glm::dvec3> contribution;
+    std::vector<uint32_t> owner;
+    contribution.reserve(candidates.size());
+    owner.reserve(candidates.size());
+    size_t shadowRays = 0;
+    const double invEta2 = 1.0 / (eta * eta);
+    for (size_t c = 0; c < candidates.size(); ++c) {
+        const Hit& hit = hits[c];
+        const Candidate& cand = candidates[c];
+        if (!hit.hit) continue;
+        const glm::dvec3 w = cand.direction;
+        const glm::uvec3 tri = mesh_->triangles[hit.triangle];
+        const double b0 = 1.0 - double(hit.u) - double(hit.v), b1 = hit.u, b2 = hit.v;
+        const glm::dvec3 ni = glm::normalize(b0 * glm::dvec3(mesh_->normals[tri.x]) +
+                                             b1 * glm::dvec3(mesh_->normals[tri.y]) +
+                                             b2 * glm::dvec3(mesh_->normals[tri.z]));
+        glm::dvec3 ngi(hit.geometricNormal);
+        if (glm::dot(ngi, ni) < 0.0) ngi = -ngi;         // reversed triangle: as at x_o
+        if (!(glm::dot(ngi, w) > 0.0)) continue;          // entered, not left: x_p outside
+        const double cosI = glm::dot(w, ni);
+        glm::dvec3 a;
+        if (!(cosI > 0.0) || !refractDirection(w, ni, eta, a)) continue;
+        // Eq. 5: the refracted length from the observed one.
+        const double si = double(hit.t);
+        const double siRefracted = si * cosI / std::sqrt(1.0 - invEta2 * (1.0 - cosI * cosI));
+        const double phase = options_.phase == SingleScatteringPhase::Isotropic
+                                 ? pUniform
+                                 : henyeyGreenstein(material_.g, glm::dot(a, toEye));
+        const double common = phase * fresnelTransmittance(eta, cosI);
+        glm::dvec3 f;
+        for (int ch = 0; ch < 3; ++ch)
+            f[ch] = sigmaS_[ch] * common * std::exp(-sigmaT_[ch] * (siRefracted + cand.s)) * cand.weight[ch];
+        if (f.x <= 0.0 && f.y <= 0.0 && f.z <= 0.0) continue;
+        const glm::vec3 xi = float(b0) * mesh_->positions[tri.x] + float(b1) * mesh_->positions[tri.y] +
+                             float(b2) * mesh_->positions[tri.z];
+        const glm::vec3 o = scene_->offsetRayOrigin(xi, hit.geometricNormal, glm::vec3(w));
+        contribution.push_back(f);
+        owner.push_back(cand.pathSample);
+        ox[shadowRays] = o.x, oy[shadowRays] = o.y, oz[shadowRays] = o.z;
+        dx[shadowRays] = dx[c], dy[shadowRays] = dy[c], dz[shadowRays] = dz[c];
+        ++shadowRays;
+    }
+    std::vector<uint8_t> occluded(shadowRays, 0);
+    if (options_.visibility && shadowRays > 0) {
+        scene_->occludedBatch(ox.data(), oy.data(), oz.data(), dx.data(), dy.data(), dz.data(), shadowRays, 0.0f,
+                              std::numeric_limits<float>::infinity(), occluded.data());
+        rays += shadowRays;
+    }
+
+    // Per path sample Y_m, their mean, and the paired-strata variance.
+    std::vector<glm::dvec3> Y(M, glm::dvec3(0.0));
+    for (size_t c = 0; c < shadowRays; ++c)
+        if (!occluded[c]) Y[owner[c]] += contribution[c];
+    glm::dvec3 sum(0.0), variance(0.0);
+    for (size_t m = 0; m < M; ++m) sum += Y[m];
+    const double Md = double(M);
+    if (M >= 2) {
+        const size_t pairs = M / 2;
+        for (size_t j = 0; j < pairs; ++j) {
+            const glm::dvec3 diff = Y[2 * j] - Y[2 * j + 1];
+            variance += diff * diff;
+        }
+        variance /= 2.0 * double(pairs) * Md;
+    } else {
+        variance = Y[0] * Y[0];  // one sample: no spread to estimate; its square bounds the second moment
+    }
+    const double ft = fresnelTransmittance(eta, cosView);
+    out.value = ft * sum / Md;
+    out.variance = ft * ft * variance;
+    rays_.fetch_add(rays, std::memory_order_relaxed);
+    paths_.fetch_add(M, std::memory_order_relaxed);
+    return out;
+}
+
+// ---------------------------------------------------------------------------
 // Frames
 // ---------------------------------------------------------------------------
+
+namespace {
+
+// Object-pixel count and noise statistics of a frame from its per-pixel values and
+// variances (see ReferenceFrame).
+void frameStatistics(ReferenceFrame& frame, const std::vector<uint8_t>& object, const std::vector<glm::dvec3>& value,
+                     const std::vector<glm::dvec3>& variance) {
+    double sumVariance = 0.0, sumSquares = 0.0;
+    std::vector<double> relative;
+    frame.objectPixels = 0;
+    for (size_t i = 0; i < object.size(); ++i) {
+        if (!object[i]) continue;
+        ++frame.objectPixels;
+        const double var = variance[i].x + variance[i].y + variance[i].z;
+        sumVariance += var;
+        sumSquares += glm::dot(value[i], value[i]);
+        const double sum = value[i].x + value[i].y + value[i].z;
+        if (sum > 0.0) relative.push_back(std::sqrt(var) / sum);
+    }
+    frame.expectedRelativeRmse = sumSquares > 0.0 ? std::sqrt(sumVariance / sumSquares) : 0.0;
+    frame.maxRelativeStandardError = relative.empty() ? 0.0 : *std::max_element(relative.begin(), relative.end());
+    frame.medianRelativeStandardError = median(std::move(relative));
+}
+
+}  // namespace
 
 ReferenceFrame renderReference(const GBuffer& g, const std::vector<const ReferenceComponent*>& components,
                                const Image& background, const glm::dmat3& envRotation, Progress* progress) {
@@ -381,22 +616,55 @@ ReferenceFrame renderReference(const GBuffer& g, const std::vector<const Referen
         if (progress && shaded) progress->advance(shaded);
     });
 
-    double sumVariance = 0.0, sumSquares = 0.0;
-    std::vector<double> relative;
-    for (size_t i = 0; i < g.pixels.size(); ++i) {
-        if (!g.pixels[i].hit) continue;
-        ++frame.objectPixels;
-        const double var = variance[i].x + variance[i].y + variance[i].z;
-        sumVariance += var;
-        sumSquares += glm::dot(value[i], value[i]);
-        const double sum = value[i].x + value[i].y + value[i].z;
-        if (sum > 0.0) relative.push_back(std::sqrt(var) / sum);
-    }
-    frame.expectedRelativeRmse = sumSquares > 0.0 ? std::sqrt(sumVariance / sumSquares) : 0.0;
-    frame.maxRelativeStandardError = relative.empty() ? 0.0 : *std::max_element(relative.begin(), relative.end());
-    frame.medianRelativeStandardError = median(std::move(relative));
+    std::vector<uint8_t> object(g.pixels.size());
+    for (size_t i = 0; i < g.pixels.size(); ++i) object[i] = g.pixels[i].hit ? 1 : 0;
+    frameStatistics(frame, object, value, variance);
     frame.seconds = seconds(start);
     return frame;
+}
+
+ReferenceFrame sumReferenceFrames(const std::vector<const ReferenceFrame*>& parts) {
+    if (parts.empty() || !parts[0]) throw Error("reference", "no frames to add");
+    const ReferenceFrame& first = *parts[0];
+    const int w = first.image.width, h = first.image.height;
+    if (first.image.channels != 4 || first.standardError.channels != 3 || first.standardError.width != w ||
+        first.standardError.height != h)
+        throw Error("reference", "malformed reference frame");
+    ReferenceFrame out;
+    out.image = first.image;
+    out.standardError = Image(w, h, 3, 0.0f);
+    const size_t count = size_t(w) * h;
+    std::vector<uint8_t> object(count);
+    std::vector<glm::dvec3> value(count, glm::dvec3(0.0)), variance(count, glm::dvec3(0.0));
+    for (const ReferenceFrame* part : parts) {
+        if (!part || part->image.width != w || part->image.height != h || part->image.channels != 4 ||
+            part->standardError.width != w || part->standardError.height != h || part->standardError.channels != 3)
+            throw Error("reference", "frames of different sizes cannot be added");
+        out.seconds += part->seconds;
+    }
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const size_t i = size_t(y) * w + x;
+            const bool isObject = first.image.at(x, y, 3) > 0.5f;
+            object[i] = isObject ? 1 : 0;
+            for (const ReferenceFrame* part : parts) {
+                if ((part->image.at(x, y, 3) > 0.5f) != isObject)
+                    throw Error("reference", "frames with different object pixels cannot be added");
+                if (!isObject) continue;
+                for (int c = 0; c < 3; ++c) {
+                    value[i][c] += double(part->image.at(x, y, c));
+                    const double se = double(part->standardError.at(x, y, c));
+                    variance[i][c] += se * se;
+                }
+            }
+            if (!isObject) continue;
+            for (int c = 0; c < 3; ++c) {
+                out.image.at(x, y, c) = float(value[i][c]);
+                out.standardError.at(x, y, c) = float(std::sqrt(variance[i][c]));
+            }
+        }
+    frameStatistics(out, object, value, variance);
+    return out;
 }
 
 }  // namespace prt

@@ -27,12 +27,14 @@
 // with (seed, i); the sum over samples runs serially per pixel. Results do not
 // depend on the number of threads.
 //
-// Components. The outgoing radiance of a pixel is the sum of ReferenceComponents;
-// multiple scattering is the only one today. Single scattering (Wang Eqs. 10-11,
-// Monte Carlo along the refracted view ray) will be another ReferenceComponent.
+// Components. The outgoing radiance of a pixel is the sum of ReferenceComponents:
+// multiple scattering (above) and single scattering (SingleScatteringReference below:
+// Wang Eq. 4 with Eq. 5, Monte Carlo along the refracted view ray, exact
+// Henyey-Greenstein phase).
 
 #include <glm/glm.hpp>
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -218,6 +220,130 @@ private:
 };
 
 // ---------------------------------------------------------------------------
+// Single scattering
+// ---------------------------------------------------------------------------
+
+// Wang et al. 2005, Eq. 4 with Eq. 5 (their Fig. 2a / Fig. 5a, after Jensen et al.
+// 2001), evaluated by Monte Carlo for an object pixel with hit point x_o, shading
+// normal n_o and direction to the eye w_o:
+//
+//   L1(x_o, w_o) = sigma_s^c F_t(eta, n_o.w_o) int_{4 pi} int_0^d
+//                  p(a, -w_o') F_t(eta, n_i.w) e^(-sigma_t^c (s_i' + s)) L^c(w) V ds dw
+//
+//   w_o' = refractDirection(w_o, n_o, eta)   (into the medium; none -> 0)
+//   x_p  = x_o + s P,  P = w_o' (true path, default) or -n_o (Wang's precomputation
+//          path, Fig. 2b: SingleScatteringPath::Normal), s in [0, d], d the distance
+//          along P to where that ray leaves the object;
+//   w    a world direction toward the light; the ray x_p + t w (NOT refracted: the
+//        "observed" path of Eq. 5) leaves the object at x_i after s_i = t, where the
+//        interpolated normal is n_i;
+//   s_i' = s_i |w.n_i| / sqrt(1 - (1/eta)^2 (1 - |w.n_i|^2))   (Eq. 5; exact for a
+//          flat surface and distant light, where it is the refracted path's length);
+//   a    = refractDirection(w, n_i, eta), the light's propagation direction inside;
+//   p    = henyeyGreensteinDirections(g, a, -w_o'): theta between the propagation
+//          directions before (a) and after (-w_o', toward the eye) scattering, g > 0
+//          forward (bssrdf.h, phase.h). In Normal mode only the path changes: the phase
+//          still uses the true w_o' (what the precomputation's h_k(w_o') factor stands
+//          for), as do F_t(eta, n_o.w_o) and sigma_s;
+//   V    = 1 when the ray from x_i toward w meets nothing more.
+//
+// As in Eq. 4, dw is the solid angle OUTSIDE the object and there is no
+// refraction Jacobian (cos_i / cos_t) for the change of solid angle at x_i; this is
+// the formula the precomputation (Eqs. 10-11) approximates, so the two stay
+// comparable. sigma_s = sigma_s' / (1 - g) and sigma_t = sigma_a + sigma_s
+// (Material); the material's g is used.
+//
+// Estimator. M path samples s_m, stratified in the inverse CDF of the truncated
+// exponential pdf(s) = |sigma_t| e^(-|sigma_t| s) / (1 - e^(-|sigma_t| d)),
+// s = -ln(1 - lambda xi) / |sigma_t|, xi = (m + u_m) / M (|sigma_t| = luminance of
+// sigma_t, the precomputation's choice). At each x_p, L directions: round(f L) from
+// the EnvironmentSampler (luminance x solid angle) and the rest uniform on the sphere,
+// combined by the multi-sample balance heuristic: each contributes
+// f(w) / (n_env p_env(w) + n_uni / (4 pi)). Rays: one Embree intersect per path (d),
+// per direction one intersect (x_i) and, when the unoccluded contribution is not
+// zero, one occlusion ray from offsetRayOrigin(x_i, geometric normal, w). A
+// direction contributes nothing when its ray leaves through a triangle whose
+// geometric normal faces away from w (x_p was not inside: open or broken meshes)
+// or through a point with n_i.w <= 0 (no refraction with the shading normal); the
+// path is empty (0) when P points out of the surface geometrically (P . n_g >= 0) or
+// its ray never hits the mesh again (open meshes). Geometric normals are first
+// turned to the side of the interpolated normal (triangles wound against their
+// vertex normals). The path ends at the first surface it meets: on self-intersecting
+// meshes (folded sheets) that can be very short, and such pixels come out dark.
+//
+// Noise. Y_m = (1/pdf(s_m)) sum over the L directions of their contributions, the
+// estimate is the mean of the Y_m, and its variance is estimated from the differences
+// of neighbouring strata, sum over pairs (Y_2j - Y_2j+1)^2 / M^2 (the usual
+// estimator for one sample per stratum, slightly conservative: it treats each pair
+// as one stratum of twice the width). See docs/reference.md for how it compares
+// with the spread between seeds.
+//
+// Determinism. A pixel draws from a SplitMix64 stream seeded with (seed, a hash of
+// the pixel's hit point, normal, direction to the eye and triangle): a pure
+// function of the pixel's G-buffer entry, independent of threads and image layout.
+enum class SingleScatteringPath {
+    Refracted,  // along w_o' (Wang Eq. 4, Fig. 2a / 5a): the reference
+    Normal,     // along -n_o (Wang's precomputation, Fig. 2b / 5b)
+};
+enum class SingleScatteringPhase {
+    HenyeyGreenstein,  // HG with the material's g
+    Isotropic,         // explicit 1 / (4 pi) (tests)
+};
+
+struct SingleScatteringOptions {
+    size_t pathSamples = 64;            // M per pixel (>= 1), stratified
+    size_t lightSamples = 16;           // L directions per path sample (>= 1)
+    double environmentFraction = 0.75;  // share of the L drawn from the environment, in [0, 1]
+    SingleScatteringPath path = SingleScatteringPath::Refracted;
+    SingleScatteringPhase phase = SingleScatteringPhase::HenyeyGreenstein;
+    uint64_t seed = 1;                  // of the Monte Carlo numbers
+    bool visibility = true;             // false: V = 1 (tests)
+};
+
+const char* toString(SingleScatteringPath path);
+
+class SingleScatteringReference : public ReferenceComponent {
+public:
+    // `mesh` (mm) supplies the triangles and vertex normals for n_i and the geometric
+    // normals of the G-buffer's triangles; `scene` must be built from the same mesh.
+    // Both, and `env`, must outlive this object. Throws prt::Error for invalid options
+    // or material.
+    SingleScatteringReference(const Material& material, const TriangleMesh& mesh, const RayScene& scene,
+                              const EnvironmentSampler& env, const SingleScatteringOptions& options);
+
+    std::string name() const override { return "single scattering"; }
+    // estimate(p.position, p.normal, geometric normal of p.triangle, p.toViewer,
+    // pixelStream(p)).
+    RadianceEstimate radiance(const GBufferPixel& p) const override;
+
+    // The estimate at x_o (mm) with unit shading normal n_o, unit geometric normal
+    // ng (the ray-origin offset) and unit direction to the eye w_o, from random
+    // stream `stream`.
+    RadianceEstimate estimate(const glm::vec3& position, const glm::vec3& normal, const glm::vec3& geometricNormal,
+                              const glm::vec3& toViewer, uint64_t stream) const;
+
+    // The stream radiance() uses for a pixel (a hash of its G-buffer entry).
+    static uint64_t pixelStream(const GBufferPixel& p);
+
+    const SingleScatteringOptions& options() const { return options_; }
+    const Material& material() const { return material_; }
+    // Counters since construction (all threads): rays traced (intersections and
+    // occlusion rays) and path samples taken.
+    uint64_t raysTraced() const { return rays_.load(std::memory_order_relaxed); }
+    uint64_t pathSamplesTaken() const { return paths_.load(std::memory_order_relaxed); }
+
+private:
+    Material material_;
+    glm::dvec3 sigmaS_{0.0}, sigmaT_{0.0};
+    double sigmaTLuminance_ = 0.0;
+    const TriangleMesh* mesh_;
+    const RayScene* scene_;
+    const EnvironmentSampler* env_;
+    SingleScatteringOptions options_;
+    mutable std::atomic<uint64_t> rays_{0}, paths_{0};
+};
+
+// ---------------------------------------------------------------------------
 // Frames
 // ---------------------------------------------------------------------------
 
@@ -241,5 +367,12 @@ struct ReferenceFrame {
 ReferenceFrame renderReference(const GBuffer& g, const std::vector<const ReferenceComponent*>& components,
                                const Image& background, const glm::dmat3& envRotation,
                                Progress* progress = nullptr);
+
+// The frame of the sum of independently rendered components (frames of the same
+// G-buffer, e.g. multiple and single scattering rendered one after the other):
+// object pixels (A = 1 in every part) add their values and variances; the
+// background and A come from the first part; the statistics are recomputed and
+// seconds added. Throws prt::Error for an empty list or mismatched frames.
+ReferenceFrame sumReferenceFrames(const std::vector<const ReferenceFrame*>& parts);
 
 }  // namespace prt

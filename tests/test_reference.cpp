@@ -4,6 +4,7 @@
 #include <tbb/global_control.h>
 
 #include <cmath>
+#include <limits>
 #include <map>
 
 #include "common/bssrdf.h"
@@ -513,3 +514,389 @@ TEST(ReferenceMultipleScattering, ExpectedNoiseMatchesTheSpreadBetweenSeeds) {
     EXPECT_NEAR(measured / predicted, 1.0, 0.25) << "measured " << measured << " predicted " << predicted;
 }
 
+
+// ---------------------------------------------------------------------------
+// Single scattering
+// ---------------------------------------------------------------------------
+
+namespace {
+
+// A sun (one lat-long pixel of a 512 x 256 map) whose pixel contains `direction`.
+struct SunPixel {
+    int x = 0, y = 0, width = 512, height = 256;
+    glm::vec3 rgb{0.0f};
+    Image image() const { return sunEnvironment(width, latLongPixelDirection(x, y, width, height), rgb); }
+    // Integral over the pixel of rgb f(w) dw by a 48 x 48 grid of equal-solid-angle
+    // cells (uniform in longitude and in cos(polar angle), as the pixel is).
+    template <class F>
+    glm::dvec3 integrate(F f) const {
+        const int m = 48;
+        const double cos0 = std::cos(kPi * y / height), cos1 = std::cos(kPi * (y + 1) / height);
+        const double cell = latLongPixelSolidAngle(y, width, height) / (m * m);
+        glm::dvec3 sum(0.0);
+        for (int i = 0; i < m; ++i)
+            for (int j = 0; j < m; ++j) {
+                const double u = (x + (i + 0.5) / m) / width;
+                const double v = std::acos(cos0 + (j + 0.5) / m * (cos1 - cos0)) / kPi;
+                sum += glm::dvec3(rgb) * f(latLongToDirection(u, v)) * cell;
+            }
+        return sum;
+    }
+};
+
+SunPixel sunAt(const glm::dvec3& direction, glm::vec3 rgb) {
+    SunPixel s;
+    s.rgb = rgb;
+    const glm::dvec2 uv = directionToLatLong(glm::normalize(direction));
+    s.x = std::min(s.width - 1, int(uv.x * s.width));
+    s.y = std::min(s.height - 1, int(uv.y * s.height));
+    return s;
+}
+
+glm::dvec3 unitFromAngles(double polarDeg, double azimuthDeg) {
+    const double t = glm::radians(polarDeg), p = glm::radians(azimuthDeg);
+    return {std::sin(t) * std::cos(p), std::cos(t), std::sin(t) * std::sin(p)};
+}
+
+// The closed form of Eq. 4 + Eq. 5 in a half-space y < 0 (flat surface, normal
+// n = +y) lit by a distant light from direction w, seen from direction w_o at a
+// surface point, integrating along the unit path direction P (P = w_o' or -n):
+//   x_p at distance s along P is at depth z = s c_p, c_p = -P . n;
+//   the unrefracted ray from x_p toward w leaves after s_i = z / cos_i, and Eq. 5
+//   gives s_i' = s_i cos_i / mu_t = z / mu_t, mu_t = sqrt(1 - (1 - cos_i^2) / eta^2)
+//   (on a flat surface exactly the length of the refracted light path);
+//   the phase angle, the Fresnel terms and L do not depend on s, so
+//   int_0^inf e^(-sigma_t (s + s c_p / mu_t)) ds = 1 / (sigma_t (1 + c_p / mu_t)) and
+//   L1 = sigma_s p(a . (-w_o')) F_t(eta, cos_i) F_t(eta, cos_o) E / (sigma_t (1 + c_p / mu_t))
+// per channel, with E the light's radiance x solid angle (integrated over the sun's
+// pixel by SunPixel::integrate). For a view along the normal, c_p = 1 in both modes.
+// `phaseOverride` < 0: Henyey-Greenstein with m.g; otherwise that constant.
+//
+// `originDepth`: the estimator's path starts at the ray origin, offset this far
+// below the surface (RayScene::epsilon()), which adds e^(-sigma_t originDepth / mu_t).
+// `thickness`: a slab instead of a half-space: the path ends at the bottom, after
+// d = (thickness - originDepth) / c_p, and the s integral is multiplied by
+// 1 - e^(-sigma_t (1 + c_p / mu_t) d) (the light still enters through the top).
+glm::dvec3 halfSpaceSingleScattering(const Material& m, const glm::dvec3& w, const glm::dvec3& wo,
+                                     SingleScatteringPath path, double phaseOverride = -1.0,
+                                     double originDepth = 0.0,
+                                     double thickness = std::numeric_limits<double>::infinity()) {
+    const glm::dvec3 n(0, 1, 0);
+    const double cosI = glm::dot(w, n), cosO = glm::dot(wo, n);
+    glm::dvec3 a, woRefracted;
+    if (!(cosI > 0) || !(cosO > 0) || !refractDirection(w, n, m.eta, a) || !refractDirection(wo, n, m.eta, woRefracted))
+        return glm::dvec3(0.0);
+    const double muT = std::sqrt(1 - (1 - cosI * cosI) / (m.eta * m.eta));
+    const double cp = path == SingleScatteringPath::Refracted ? -glm::dot(woRefracted, n) : 1.0;
+    const double p = phaseOverride >= 0 ? phaseOverride : henyeyGreenstein(m.g, glm::dot(a, -woRefracted));
+    const double common = p * fresnelTransmittance(m.eta, cosI) * fresnelTransmittance(m.eta, cosO);
+    const glm::dvec3 sigmaS = m.sigmaS(), sigmaT = m.sigmaT();
+    glm::dvec3 out;
+    const double d = (thickness - originDepth) / cp;
+    for (int c = 0; c < 3; ++c) {
+        const double k = sigmaT[c] * (1 + cp / muT);
+        out[c] = sigmaS[c] * common / k * std::exp(-sigmaT[c] * originDepth / muT) * -std::expm1(-k * d);
+    }
+    return out;
+}
+
+// A 200 x 60 x 200 mm box with its top face at y = 0: a half-space for anything
+// within a few mean free paths of the top centre (e^(-60 sigma_t) through the
+// bottom).
+TriangleMesh halfSpaceBox() { return shifted(makeBox({200.0f, 60.0f, 200.0f}), {0.0f, -30.0f, 0.0f}); }
+
+}  // namespace
+
+TEST(ReferenceSingleScattering, HalfSpaceUnderASunMatchesTheClosedForm) {
+    // Sun at 40 degrees from the normal, views along the normal and at 50 degrees
+    // (other azimuth), both integration paths, three phase functions (HG forward and
+    // backward and the explicit isotropic 1/(4 pi)), a half-space (200 x 60 x 200 mm
+    // box) and a 1 mm slab (the path truncated at the bottom, lambda = 0.77). With 4096
+    // stratified path samples the standard error is 1e-5 to 1e-4 relative. The path
+    // starts at the ray origin, offset 3.8e-4 mm inward: that costs
+    // e^(-sigma_t 3.8e-4 / mu_t), up to 1e-3, and is put into the closed form (without
+    // it the errors were measured at -2e-4 to -9.7e-4, proportional to sigma_t); what
+    // remains is the quadrature of the sun's pixel (< 1e-6). So: within 3 standard
+    // errors + 2e-4. Errors this catches: sigma_s' for sigma_s (-30% at g = 0.3),
+    // e^(-sigma_t s_i) for Eq. 5's s_i' (-17%), the phase with cos of the wrong sign
+    // (x4.5 or /4.5), a pdf without the truncation lambda (slab), F_t missing at either
+    // end, and the normal path used in refracted mode or vice versa (the oblique view's
+    // closed forms differ by 9%).
+    const glm::dvec3 sunDirection = unitFromAngles(40.0, 30.0);
+    const SunPixel sun = sunAt(sunDirection, glm::vec3(3000.0f, 2000.0f, 1000.0f));
+    const EnvironmentSampler env(sun.image());
+    const glm::vec3 xo(0.0f), n(0.0f, 1.0f, 0.0f);
+
+    struct Case {
+        double g;
+        SingleScatteringPhase phase;
+        double thickness;  // infinity: the half-space box
+    };
+    const double inf = std::numeric_limits<double>::infinity();
+    for (const Case& k : {Case{0.3, SingleScatteringPhase::HenyeyGreenstein, inf},
+                          Case{-0.5, SingleScatteringPhase::HenyeyGreenstein, inf},
+                          Case{0.3, SingleScatteringPhase::Isotropic, inf},
+                          Case{-0.5, SingleScatteringPhase::HenyeyGreenstein, 1.0}}) {
+        const TriangleMesh mesh = std::isinf(k.thickness)
+                                      ? halfSpaceBox()
+                                      : shifted(makeBox({200.0f, float(k.thickness), 200.0f}),
+                                                {0.0f, -0.5f * float(k.thickness), 0.0f});
+        const RayScene scene(mesh);
+        const double depth = scene.epsilon();  // the inward ray-origin offset (3.8e-4 mm)
+        const Material m = customMaterial({0.5, 1.0, 1.5}, {0.2, 0.1, 0.05}, 1.3, k.g);
+        for (const glm::dvec3& wo : {glm::dvec3(0, 1, 0), unitFromAngles(50.0, 200.0)})
+            for (SingleScatteringPath path : {SingleScatteringPath::Refracted, SingleScatteringPath::Normal}) {
+                SingleScatteringOptions o;
+                o.pathSamples = 4096;
+                o.lightSamples = 2;  // one from the environment, one uniform (MIS)
+                o.environmentFraction = 0.5;
+                o.path = path;
+                o.phase = k.phase;
+                const SingleScatteringReference ss(m, mesh, scene, env, o);
+                const RadianceEstimate e = ss.estimate(xo, n, n, glm::vec3(wo), 17);
+                const double isotropic = k.phase == SingleScatteringPhase::Isotropic ? 1.0 / (4.0 * kPi) : -1.0;
+                const glm::dvec3 expected = sun.integrate(
+                    [&](const glm::dvec3& w) {
+                        return halfSpaceSingleScattering(m, w, wo, path, isotropic, depth, k.thickness);
+                    });
+                for (int c = 0; c < 3; ++c) {
+                    const double se = std::sqrt(e.variance[c]);
+                    EXPECT_GT(expected[c], 0.0);
+                    EXPECT_LT(se, 2e-3 * expected[c]) << "the test needs a small standard error";
+                    EXPECT_NEAR(e.value[c], expected[c], 3 * se + 2e-4 * expected[c])
+                        << "g " << k.g << " phase " << int(k.phase) << " thickness " << k.thickness << " view "
+                        << wo.x << "," << wo.y << "," << wo.z << " path " << toString(path) << " channel " << c;
+                }
+            }
+    }
+    // The two paths really differ for the oblique view (so the above tells them apart).
+    const Material m = customMaterial({0.5, 1.0, 1.5}, {0.2, 0.1, 0.05}, 1.3, 0.3);
+    const glm::dvec3 oblique = unitFromAngles(50.0, 200.0);
+    const double refracted = halfSpaceSingleScattering(m, sunDirection, oblique, SingleScatteringPath::Refracted).y;
+    const double normal = halfSpaceSingleScattering(m, sunDirection, oblique, SingleScatteringPath::Normal).y;
+    EXPECT_GT(refracted / normal, 1.05);
+}
+
+TEST(ReferenceSingleScattering, ForwardScatteringBrightensBacklightingAndBackwardFrontLighting) {
+    // A 1 mm slab seen from above along the normal. Backlit (sun below, 30 degrees
+    // from -y) the light reaches the eye nearly undeflected (cos theta ~ 0.92), so
+    // g = +0.5 (forward) must be brighter than g = -0.5; front-lit (sun above, 45
+    // degrees) the light turns back toward the eye (cos theta ~ -0.84) and g = -0.5
+    // must be brighter. sigma_s is held fixed (sigma_s' = sigma_s (1 - g)) so the phase
+    // function is the only difference. A flipped cos(theta) convention reverses both.
+    const TriangleMesh slab = makeBox({200.0f, 1.0f, 200.0f});
+    const RayScene scene(slab);
+    const glm::vec3 xo(0.0f, 0.5f, 0.0f), n(0.0f, 1.0f, 0.0f);
+    const double sigmaS = 0.8, sigmaA = 0.1;
+    auto render = [&](double g, const glm::dvec3& sunDirection) {
+        const EnvironmentSampler env(sunAt(sunDirection, glm::vec3(1000.0f)).image());
+        const Material m = customMaterial(glm::dvec3(sigmaS * (1 - g)), glm::dvec3(sigmaA), 1.3, g);
+        EXPECT_NEAR(m.sigmaS().x, sigmaS, 1e-12);
+        SingleScatteringOptions o;
+        o.pathSamples = 256;
+        o.lightSamples = 4;
+        const SingleScatteringReference ss(m, slab, scene, env, o);
+        return ss.estimate(xo, n, n, n, 5);
+    };
+    const glm::dvec3 below = unitFromAngles(150.0, 10.0), above = unitFromAngles(45.0, 10.0);
+    const RadianceEstimate backForward = render(0.5, below), backBackward = render(-0.5, below);
+    const RadianceEstimate frontForward = render(0.5, above), frontBackward = render(-0.5, above);
+    for (const RadianceEstimate* e : {&backForward, &backBackward, &frontForward, &frontBackward}) {
+        EXPECT_GT(e->value.x, 0.0);
+        EXPECT_LT(std::sqrt(e->variance.x), 0.05 * e->value.x);
+    }
+    // HG(0.5, 0.92) / HG(-0.5, 0.92) ~ 17; HG(-0.5, -0.84) / HG(0.5, -0.84) ~ 12.
+    EXPECT_GT(backForward.value.x, 5 * backBackward.value.x);
+    EXPECT_GT(frontBackward.value.x, 5 * frontForward.value.x);
+}
+
+TEST(ReferenceSingleScattering, ZeroAsymmetryEqualsExplicitIsotropicPhase) {
+    // HG with g = 0 is 1/(4 pi) exactly; with the same random stream the estimates
+    // agree to rounding, on a curved object under a sun and sky with occlusion
+    // (a second sphere beside it).
+    TriangleMesh mesh = makeIcosphere(4, 5.0f);
+    const TriangleMesh other = shifted(makeIcosphere(3, 3.0f), {8.0f, 2.0f, 0.0f});
+    const uint32_t base = uint32_t(mesh.positions.size());
+    mesh.positions.insert(mesh.positions.end(), other.positions.begin(), other.positions.end());
+    mesh.normals.insert(mesh.normals.end(), other.normals.begin(), other.normals.end());
+    for (const glm::uvec3& t : other.triangles) mesh.triangles.push_back(t + glm::uvec3(base));
+    const RayScene scene(mesh);
+    Image envImage = twoToneEnvironment(128, glm::vec3(0.5f, 0.6f, 0.7f), glm::vec3(0.1f));
+    envImage.at(20, 20, 0) = envImage.at(20, 20, 1) = envImage.at(20, 20, 2) = 3000.0f;
+    const EnvironmentSampler env(envImage);
+    const Material m = customMaterial({0.7, 0.9, 1.1}, {0.02, 0.05, 0.1}, 1.3, 0.0);
+    SingleScatteringOptions o;
+    o.pathSamples = 32;
+    o.lightSamples = 8;
+    const SingleScatteringReference hg(m, mesh, scene, env, o);
+    o.phase = SingleScatteringPhase::Isotropic;
+    const SingleScatteringReference iso(m, mesh, scene, env, o);
+    Camera cam = frontCamera(24);
+    cam.fovY = 13.0;
+    const GBuffer g = traceGBuffer(scene, mesh, cam);
+    int compared = 0;
+    for (const GBufferPixel& p : g.pixels) {
+        if (!p.hit) continue;
+        const RadianceEstimate a = hg.radiance(p), b = iso.radiance(p);
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_NEAR(a.value[c], b.value[c], 1e-12 * std::abs(b.value[c]) + 1e-300);
+            EXPECT_NEAR(a.variance[c], b.variance[c], 1e-10 * b.variance[c] + 1e-300);
+        }
+        if (a.value.x > 0) ++compared;
+    }
+    EXPECT_GT(compared, 200);
+}
+
+TEST(ReferenceSingleScattering, NormalPathEqualsTruePathWhenViewingAlongTheNormal) {
+    // Along the normal w_o' = -n_o, so the two modes integrate the same path: with the
+    // same stream they agree to rounding, at every pixel of a sphere whose view
+    // direction is replaced by its normal; for the actual (oblique) views they differ.
+    const TriangleMesh mesh = makeIcosphere(4, 5.0f);
+    const RayScene scene(mesh);
+    Image envImage = twoToneEnvironment(128, glm::vec3(0.5f), glm::vec3(0.1f));
+    envImage.at(90, 30, 0) = envImage.at(90, 30, 1) = envImage.at(90, 30, 2) = 3000.0f;
+    const EnvironmentSampler env(envImage);
+    const Material m = customMaterial({0.7, 0.9, 1.1}, {0.02, 0.05, 0.1}, 1.3, -0.3);
+    SingleScatteringOptions o;
+    o.pathSamples = 16;
+    o.lightSamples = 8;
+    const SingleScatteringReference refracted(m, mesh, scene, env, o);
+    o.path = SingleScatteringPath::Normal;
+    const SingleScatteringReference normal(m, mesh, scene, env, o);
+    Camera cam = frontCamera(16);
+    cam.fovY = 13.0;
+    const GBuffer g = traceGBuffer(scene, mesh, cam);
+    int compared = 0;
+    double sumRefracted = 0, sumNormal = 0, varRefracted = 0, varNormal = 0;
+    for (GBufferPixel p : g.pixels) {
+        if (!p.hit) continue;
+        const RadianceEstimate ra = refracted.radiance(p), na = normal.radiance(p);
+        sumRefracted += ra.value.y, varRefracted += ra.variance.y;
+        sumNormal += na.value.y, varNormal += na.variance.y;
+        p.toViewer = p.normal;
+        const uint64_t stream = SingleScatteringReference::pixelStream(p);
+        const glm::vec3 ng = faceNormal(mesh, p.triangle);
+        const RadianceEstimate a = refracted.estimate(p.position, p.normal, ng, p.toViewer, stream);
+        const RadianceEstimate b = normal.estimate(p.position, p.normal, ng, p.toViewer, stream);
+        ASSERT_GT(a.value.x, 0.0);
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(a.value[c], b.value[c], 1e-9 * b.value[c]);
+        ++compared;
+    }
+    EXPECT_GT(compared, 40);
+    // For the real (oblique) views the true path is shallower than -n_o (as in the
+    // half-space closed form), so it collects more light: measured +17% summed over
+    // the sphere, > 10 standard errors.
+    EXPECT_GT(sumRefracted - sumNormal, 5 * std::sqrt(varRefracted + varNormal));
+}
+
+TEST(ReferenceSingleScattering, OccluderAboveTheSurfaceBlocksTheSun) {
+    // A plate 5 mm above the half-space shadows the sun (40 degrees off the normal)
+    // for the whole neighbourhood of the viewed point: the light that leaves the object
+    // toward the sun is blocked after x_i. Without visibility the closed form returns.
+    TriangleMesh mesh = halfSpaceBox();
+    const TriangleMesh plate = shifted(makeBox({200.0f, 1.0f, 200.0f}), {0.0f, 5.0f, 0.0f});
+    const uint32_t base = uint32_t(mesh.positions.size());
+    mesh.positions.insert(mesh.positions.end(), plate.positions.begin(), plate.positions.end());
+    mesh.normals.insert(mesh.normals.end(), plate.normals.begin(), plate.normals.end());
+    for (const glm::uvec3& t : plate.triangles) mesh.triangles.push_back(t + glm::uvec3(base));
+    const RayScene scene(mesh);
+    const glm::dvec3 sunDirection = unitFromAngles(40.0, 30.0);
+    const SunPixel sun = sunAt(sunDirection, glm::vec3(1000.0f));
+    const EnvironmentSampler env(sun.image());
+    const Material m = customMaterial({0.5, 1.0, 1.5}, {0.2, 0.1, 0.05}, 1.3, 0.2);
+    SingleScatteringOptions o;
+    o.pathSamples = 256;
+    o.lightSamples = 2;
+    const glm::vec3 n(0.0f, 1.0f, 0.0f);
+    const SingleScatteringReference shadowed(m, mesh, scene, env, o);
+    EXPECT_EQ(shadowed.estimate(glm::vec3(0.0f), n, n, n, 3).value, glm::dvec3(0.0));
+    o.visibility = false;
+    const SingleScatteringReference open(m, mesh, scene, env, o);
+    const RadianceEstimate e = open.estimate(glm::vec3(0.0f), n, n, n, 3);
+    const glm::dvec3 expected = sun.integrate([&](const glm::dvec3& w) {
+        return halfSpaceSingleScattering(m, w, glm::dvec3(n), SingleScatteringPath::Refracted, -1.0, scene.epsilon());
+    });
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(e.value[c], expected[c], 3 * std::sqrt(e.variance[c]) + 2e-4 * expected[c]);
+}
+
+TEST(ReferenceSingleScattering, FramesAreDeterministicAddUpAndReportHonestNoise) {
+    // A 3 mm sphere of a fairly clear material (light travels ~1 mm) under a sky and a
+    // sun. (1) The frame does not depend on the thread count. (2) Rendering ms and ss
+    // separately and adding them (sumReferenceFrames) equals rendering both at once.
+    // (3) Two renders differing only in the seed differ by sqrt(2) x the reported noise
+    // floor, up to the conservatism of the paired-strata variance estimate.
+    const TriangleMesh mesh = makeIcosphere(4, 3.0f);
+    const RayScene scene(mesh);
+    Image envImage = twoToneEnvironment(64, glm::vec3(0.5f), glm::vec3(0.1f));
+    envImage.at(20, 10, 0) = envImage.at(20, 10, 1) = envImage.at(20, 10, 2) = 2000.0f;
+    const EnvironmentSampler env(envImage);
+    const Material m = customMaterial({1.0, 1.5, 2.0}, {0.1, 0.2, 0.3}, 1.3, 0.4);
+    Camera cam = frontCamera(32);
+    cam.fovY = 7.0;
+    const GBuffer g = traceGBuffer(scene, mesh, cam);
+    SingleScatteringOptions o;
+    o.pathSamples = 8;  // deliberately noisy
+    o.lightSamples = 4;
+    ReferenceFrame frames[2];
+    for (int k = 0; k < 2; ++k) {
+        o.seed = 100 + k;
+        const SingleScatteringReference ss(m, mesh, scene, env, o);
+        frames[k] = renderReference(g, {&ss}, Image(), glm::dmat3(1.0));
+        if (k == 0) {
+            EXPECT_GT(ss.raysTraced(), g.objectPixels() * 8 * 4);
+            EXPECT_LE(ss.pathSamplesTaken(), g.objectPixels() * 8);
+            EXPECT_GT(ss.pathSamplesTaken(), g.objectPixels() * 8 / 2);
+            tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+            const ReferenceFrame serial = renderReference(g, {&ss}, Image(), glm::dmat3(1.0));
+            EXPECT_EQ(serial.image.pixels, frames[0].image.pixels);
+            EXPECT_EQ(serial.standardError.pixels, frames[0].standardError.pixels);
+        }
+    }
+    double sqErr = 0, sqRef = 0;
+    for (int y = 0; y < 32; ++y)
+        for (int x = 0; x < 32; ++x) {
+            if (frames[0].image.at(x, y, 3) < 0.5f) continue;
+            for (int c = 0; c < 3; ++c) {
+                const double a = frames[0].image.at(x, y, c), b = frames[1].image.at(x, y, c);
+                sqErr += (a - b) * (a - b);
+                sqRef += b * b;
+            }
+        }
+    const double measured = std::sqrt(sqErr / sqRef);
+    const double predicted = std::sqrt(2.0) * 0.5 * (frames[0].expectedRelativeRmse + frames[1].expectedRelativeRmse);
+    // Measured ratio measured / predicted: 0.85-0.94 over four seed pairs at 8 path
+    // samples, 0.93-1.05 at 64 (the paired-strata estimate is slightly conservative).
+    EXPECT_GT(predicted, 1e-2);
+    EXPECT_GT(measured / predicted, 0.7) << "measured " << measured << " predicted " << predicted;
+    EXPECT_LT(measured / predicted, 1.15) << "measured " << measured << " predicted " << predicted;
+
+    // Sum of separately rendered components.
+    const SampleSet samples = poissonDiskSamples(mesh, 1000, 1);
+    std::vector<glm::vec3> positions;
+    for (const SurfaceSample& s : samples.samples) positions.push_back(s.position);
+    IrradianceEstimatorOptions io;
+    io.directions = 64;
+    const MultipleScatteringReference ms(m, positions, samples.areaPerSample,
+                                         computeSampleIrradiance(env, &scene, samples, m.eta, io));
+    o.seed = 100;
+    const SingleScatteringReference ss(m, mesh, scene, env, o);
+    const Image background = twoToneEnvironment(64, glm::vec3(3.0f), glm::vec3(1.0f));
+    const ReferenceFrame both = renderReference(g, {&ms, &ss}, background, glm::dmat3(1.0));
+    const ReferenceFrame msOnly = renderReference(g, {&ms}, background, glm::dmat3(1.0));
+    const ReferenceFrame ssOnly = renderReference(g, {&ss}, background, glm::dmat3(1.0));
+    const ReferenceFrame sum = sumReferenceFrames({&msOnly, &ssOnly});
+    EXPECT_EQ(sum.objectPixels, both.objectPixels);
+    for (int y = 0; y < 32; ++y)
+        for (int x = 0; x < 32; ++x)
+            for (int c = 0; c < 4; ++c) {
+                EXPECT_NEAR(sum.image.at(x, y, c), both.image.at(x, y, c), 1e-6f * std::abs(both.image.at(x, y, c)));
+                if (c < 3) {
+                    EXPECT_NEAR(sum.standardError.at(x, y, c), both.standardError.at(x, y, c),
+                                1e-5f * both.standardError.at(x, y, c));
+                }
+            }
+    EXPECT_NEAR(sum.expectedRelativeRmse, both.expectedRelativeRmse, 1e-5 * both.expectedRelativeRmse);
+    EXPECT_EQ(sum.image.at(0, 0, 3), 0.0f);
+    EXPECT_FLOAT_EQ(sum.image.at(0, 0, 0), 3.0f);  // background from the first part, not doubled
+    EXPECT_THROW(sumReferenceFrames({}), Error);
+}

@@ -2,10 +2,12 @@
 // placement, camera, environment and material as prt-relight render, but no
 // cubemap, no wavelets, no hierarchy, no truncation: per-sample irradiance by Monte
 // Carlo from the full-resolution lat-long map with Embree visibility, then the dipole
-// summed over all samples for every pixel (common/reference.h).
+// summed over all samples for every pixel; single scattering by Monte Carlo along
+// the refracted view ray with the exact phase function (common/reference.h).
 //
 // The transport file is read only for its header and parameters (mesh fingerprint,
-// mm per unit, material, sample count and seed), never for its vectors.
+// mm per unit, material and g, sample count and seed, components), never for its
+// vectors.
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
@@ -165,6 +167,60 @@ std::string formatRgb(const glm::dvec3& v) {
     return buf;
 }
 
+// --- components ----------------------------------------------------------------------
+
+struct Components {
+    bool ms = false, ss = false;
+};
+
+std::vector<std::string> splitList(const std::string& text) {
+    std::vector<std::string> out;
+    std::stringstream in(text);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+        const size_t a = item.find_first_not_of(" \t"), b = item.find_last_not_of(" \t");
+        out.push_back(a == std::string::npos ? std::string() : item.substr(a, b - a + 1));
+    }
+    return out;
+}
+
+// "ms", "ss", "ms,ss", "ss,ms" or "all" (the same spellings as prt-relight render).
+Components parseComponents(const std::string& text) {
+    Components c;
+    for (const std::string& item : splitList(text)) {
+        if (item == "ms") c.ms = true;
+        else if (item == "ss") c.ss = true;
+        else if (item == "all") c.ms = c.ss = true;
+        else throw Error("--components", "unknown component '" + item + "'; use ms, ss, ms,ss or all");
+    }
+    if (!c.ms && !c.ss) throw Error("--components", "no component selected");
+    return c;
+}
+
+// Whether the transport file has single scattering: a single-scattering section, or
+// an "ss..." entry in its "components" parameter.
+bool fileHasSingleScattering(const TransportFileInfo& info) {
+    for (const TransportFileInfo::Component& c : info.components)
+        if (c.kind != ComponentKind::MultipleScattering) return true;
+    if (info.hasParameter("components"))
+        for (const std::string& item : splitList(info.parameter("components")))
+            if (item.rfind("ss", 0) == 0) return true;
+    return false;
+}
+
+SingleScatteringPath parsePath(const std::string& text) {
+    if (text == "refracted" || text == "true") return SingleScatteringPath::Refracted;
+    if (text == "normal") return SingleScatteringPath::Normal;
+    throw Error("--ss-path", "unknown path '" + text + "'; use refracted or normal");
+}
+
+void printNoise(const char* what, const ReferenceFrame& f) {
+    std::printf("  %s noise: expected relative RMSE from Monte Carlo noise %.3g%% (per pixel: median %.3g%%, max "
+                "%.3g%% relative standard error)\n",
+                what, 100 * f.expectedRelativeRmse, 100 * f.medianRelativeStandardError,
+                100 * f.maxRelativeStandardError);
+}
+
 // --- the run -------------------------------------------------------------------------
 
 struct Options {
@@ -175,6 +231,11 @@ struct Options {
     std::optional<size_t> samples;
     std::optional<uint64_t> seed;
     IrradianceEstimatorOptions irradiance;
+    std::string components;  // empty: ms, plus ss when the file has it
+    SingleScatteringOptions ss;
+    std::string ssPath = "refracted";
+    std::optional<double> g;
+    bool componentImages = false;
     bool perVertex = false;
     std::string noiseImage;
     int threads = 0;
@@ -216,13 +277,24 @@ int run(const Options& o) {
         warn("--material " + material.name + " overrides the transport file's material (" +
              info.parameter("material") + "): the reference no longer matches the file");
     }
-    const size_t sampleCount =
-        o.samples ? *o.samples : size_t(parseCount(requireParameter(info, o.transport, "samples", "--samples"),
-                                                   o.transport, "samples"));
-    const uint64_t seed =
-        o.seed ? *o.seed : parseCount(requireParameter(info, o.transport, "seed", "--seed"), o.transport, "seed");
-    if (sampleCount < 1) throw Error("--samples", "must be at least 1");
-
+    if (o.g) {
+        material.g = *o.g;
+        validateMaterial(material);
+        warn("--g overrides the phase asymmetry (sigma_s' kept): single scattering no longer matches the file");
+    }
+    const Components components = o.components.empty()
+                                      ? Components{true, fileHasSingleScattering(info)}
+                                      : parseComponents(o.components);
+    if (o.perVertex && !components.ms) warn("--per-vertex applies to multiple scattering only; ignored");
+    SingleScatteringOptions ssOptions = o.ss;
+    ssOptions.path = parsePath(o.ssPath);
+    ssOptions.seed = o.irradiance.seed;
+    if (components.ss) {
+        if (ssOptions.pathSamples < 1) throw Error("--ss-samples", "must be at least 1");
+        if (ssOptions.lightSamples < 1) throw Error("--ss-light-samples", "must be at least 1");
+        if (!(ssOptions.environmentFraction >= 0 && ssOptions.environmentFraction <= 1))
+            throw Error("--ss-env-fraction", "must be in [0, 1]");
+    }
     glm::dvec3 sphereCentre;
     double sphereRadius;
     boundingSphere(mesh, sphereCentre, sphereRadius);
@@ -236,93 +308,139 @@ int run(const Options& o) {
 
     std::printf("mesh: %s, %zu vertices, %zu triangles, %.4g mm per unit, %.4g mm across\n", o.mesh.c_str(),
                 mesh.vertexCount(), mesh.triangleCount(), info.mmPerUnit, double(bounds(mesh).diagonal()));
-    std::printf("material: %s, sigma_s' %s /mm, sigma_a %s /mm, eta %.4g\n", material.name.c_str(),
-                formatRgb(material.sigmaSPrime).c_str(), formatRgb(material.sigmaA).c_str(), material.eta);
+    std::printf("material: %s, sigma_s' %s /mm, sigma_a %s /mm, eta %.4g, g %.4g (sigma_s %s /mm)\n",
+                material.name.c_str(), formatRgb(material.sigmaSPrime).c_str(), formatRgb(material.sigmaA).c_str(),
+                material.eta, material.g, formatRgb(material.sigmaS()).c_str());
+    std::printf("components: %s%s%s\n", components.ms ? "multiple scattering" : "",
+                components.ms && components.ss ? " + " : "",
+                components.ss ? (std::string("single scattering (") + toString(ssOptions.path) + " path)").c_str()
+                              : "");
     std::printf("camera: eye (%.4g, %.4g, %.4g) target (%.4g, %.4g, %.4g) fov %.4g, %dx%d\n", camera.eye.x,
                 camera.eye.y, camera.eye.z, camera.target.x, camera.target.y, camera.target.z, camera.fovY,
                 camera.width, camera.height);
     std::fflush(stdout);
 
-    // Samples, exactly as prt-precompute placed them (same mesh, count and seed).
     const RayScene scene(mesh);
-    SampleSet samples;
-    {
-        Progress p("samples", sampleCount, "samples");
-        samples = poissonDiskSamples(mesh, sampleCount, seed);
-        p.advance(sampleCount);
-    }
-
-    // Cross-check: with the file's count and seed the samples must be the file's.
-    if (!o.samples && !o.seed && info.hasParameter("sample_area_mm2")) {
-        const double fileArea = parseNumber(info.parameter("sample_area_mm2"), o.transport, "sample_area_mm2");
-        if (!(std::abs(fileArea - samples.areaPerSample) <= 1e-6 * fileArea))
-            warn("sample area " + std::to_string(samples.areaPerSample) + " mm^2 differs from the transport file's " +
-                 info.parameter("sample_area_mm2") + " mm^2: the samples are not the ones it was computed from");
-    }
-
-    // Irradiance per sample from the full-resolution map.
-    SampleIrradiance irradiance;
-    {
-        Progress p("irradiance (" + std::to_string(o.irradiance.directions) + " directions per sample)",
-                   samples.samples.size(), "samples");
-        irradiance = computeSampleIrradiance(sampler, &scene, samples, material.eta, o.irradiance, &p);
-    }
-    const uint64_t occlusionRays = irradiance.rays;
-    const double irradianceSeconds = irradiance.seconds;
-    const double sampleRelativeError = irradiance.medianRelativeStandardError;
-
-    std::vector<glm::vec3> positions;
-    positions.reserve(samples.samples.size());
-    for (const SurfaceSample& s : samples.samples) positions.push_back(s.position);
-    MultipleScatteringReference ms(material, std::move(positions), samples.areaPerSample, std::move(irradiance));
-
-    double vertexSeconds = 0;
-    if (o.perVertex) {
-        const auto t0 = std::chrono::steady_clock::now();
-        Progress p("multiple scattering at vertices", mesh.vertexCount(), "vertices");
-        ms.evaluateAtVertices(mesh, &p);
-        vertexSeconds = secondsSince(t0);
-    }
-
     const auto raysStart = std::chrono::steady_clock::now();
     const GBuffer gbuffer = traceGBuffer(scene, mesh, camera);
     const double raysSeconds = secondsSince(raysStart);
 
-    ReferenceFrame frame;
-    {
-        Progress p(o.perVertex ? "shading (interpolated)" : "multiple scattering per pixel", gbuffer.objectPixels(),
-                   "pixels");
-        frame = renderReference(gbuffer, {&ms}, environment, rotation, &p);
+    std::vector<ReferenceFrame> parts;
+    std::vector<std::string> partNames;
+
+    if (components.ms) {
+        // Samples, exactly as prt-precompute placed them (same mesh, count and seed).
+        const size_t sampleCount =
+            o.samples ? *o.samples : size_t(parseCount(requireParameter(info, o.transport, "samples", "--samples"),
+                                                       o.transport, "samples"));
+        const uint64_t seed =
+            o.seed ? *o.seed : parseCount(requireParameter(info, o.transport, "seed", "--seed"), o.transport, "seed");
+        if (sampleCount < 1) throw Error("--samples", "must be at least 1");
+        SampleSet samples;
+        {
+            Progress p("samples", sampleCount, "samples");
+            samples = poissonDiskSamples(mesh, sampleCount, seed);
+            p.advance(sampleCount);
+        }
+
+        // Cross-check: with the file's count and seed the samples must be the file's.
+        if (!o.samples && !o.seed && info.hasParameter("sample_area_mm2")) {
+            const double fileArea = parseNumber(info.parameter("sample_area_mm2"), o.transport, "sample_area_mm2");
+            if (!(std::abs(fileArea - samples.areaPerSample) <= 1e-6 * fileArea))
+                warn("sample area " + std::to_string(samples.areaPerSample) +
+                     " mm^2 differs from the transport file's " + info.parameter("sample_area_mm2") +
+                     " mm^2: the samples are not the ones it was computed from");
+        }
+
+        // Irradiance per sample from the full-resolution map.
+        SampleIrradiance irradiance;
+        {
+            Progress p("irradiance (" + std::to_string(o.irradiance.directions) + " directions per sample)",
+                       samples.samples.size(), "samples");
+            irradiance = computeSampleIrradiance(sampler, &scene, samples, material.eta, o.irradiance, &p);
+        }
+        const uint64_t occlusionRays = irradiance.rays;
+        const double irradianceSeconds = irradiance.seconds;
+        const double sampleRelativeError = irradiance.medianRelativeStandardError;
+
+        std::vector<glm::vec3> positions;
+        positions.reserve(samples.samples.size());
+        for (const SurfaceSample& s : samples.samples) positions.push_back(s.position);
+        MultipleScatteringReference ms(material, std::move(positions), samples.areaPerSample, std::move(irradiance));
+
+        double vertexSeconds = 0;
+        if (o.perVertex) {
+            const auto t0 = std::chrono::steady_clock::now();
+            Progress p("multiple scattering at vertices", mesh.vertexCount(), "vertices");
+            ms.evaluateAtVertices(mesh, &p);
+            vertexSeconds = secondsSince(t0);
+        }
+        {
+            Progress p(o.perVertex ? "multiple scattering (interpolated)" : "multiple scattering per pixel",
+                       gbuffer.objectPixels(), "pixels");
+            parts.push_back(renderReference(gbuffer, {&ms}, environment, rotation, &p));
+            partNames.push_back("ms");
+        }
+        const ReferenceFrame& frame = parts.back();
+
+        const size_t nEnv = size_t(std::llround(o.irradiance.environmentFraction * double(o.irradiance.directions)));
+        std::printf("samples: %zu (seed %llu), A_i = %.4g mm^2 (total %.4g mm^2), min spacing %.4g mm\n",
+                    samples.samples.size(), (unsigned long long)seed, samples.areaPerSample, samples.totalArea,
+                    samples.minSpacing);
+        std::printf("irradiance: %zu directions per sample (%zu environment + %zu cosine, MIS balance heuristic, "
+                    "Monte Carlo seed %llu), %llu occlusion rays in %.1f s (%.3g rays/s)\n",
+                    o.irradiance.directions, nEnv, o.irradiance.directions - nEnv,
+                    (unsigned long long)o.irradiance.seed, (unsigned long long)occlusionRays, irradianceSeconds,
+                    irradianceSeconds > 0 ? occlusionRays / irradianceSeconds : 0.0);
+        std::printf("  median relative standard error of one sample's irradiance: %.3g%%\n",
+                    100 * sampleRelativeError);
+        const double pairs =
+            double(o.perVertex ? mesh.vertexCount() : frame.objectPixels) * double(samples.samples.size());
+        std::printf("multiple scattering: %s, %.3g point-sample pairs in %.1f s\n",
+                    o.perVertex ? "per vertex, interpolated" : "per pixel", pairs,
+                    o.perVertex ? vertexSeconds + frame.seconds : frame.seconds);
+        printNoise("multiple scattering", frame);
+        std::fflush(stdout);
     }
+
+    if (components.ss) {
+        SingleScatteringReference ss(material, mesh, scene, sampler, ssOptions);
+        {
+            Progress p(std::string("single scattering (") + toString(ssOptions.path) + " path)",
+                       gbuffer.objectPixels(), "pixels");
+            parts.push_back(renderReference(gbuffer, {&ss}, environment, rotation, &p));
+            partNames.push_back("ss");
+        }
+        const ReferenceFrame& frame = parts.back();
+        const size_t nEnv = size_t(std::llround(ssOptions.environmentFraction * double(ssOptions.lightSamples)));
+        std::printf("single scattering: %s path, %zu path samples x %zu directions (%zu environment + %zu uniform, "
+                    "MIS balance heuristic) per pixel, HG g = %.4g; %llu rays in %.1f s (%.3g rays/s)\n",
+                    toString(ssOptions.path), ssOptions.pathSamples, ssOptions.lightSamples, nEnv,
+                    ssOptions.lightSamples - nEnv, material.g, (unsigned long long)ss.raysTraced(), frame.seconds,
+                    frame.seconds > 0 ? double(ss.raysTraced()) / frame.seconds : 0.0);
+        printNoise("single scattering", frame);
+        std::fflush(stdout);
+    }
+
+    std::vector<const ReferenceFrame*> partPointers;
+    for (const ReferenceFrame& f : parts) partPointers.push_back(&f);
+    const ReferenceFrame frame = parts.size() == 1 ? parts[0] : sumReferenceFrames(partPointers);
 
     writeExr(o.output + ".exr", frame.image);
     writePng(o.output + ".png", frame.image, o.exposure);
     if (!o.noiseImage.empty()) writeExr(o.noiseImage, frame.standardError);
+    if (o.componentImages)
+        for (size_t k = 0; k < parts.size(); ++k) {
+            writeExr(o.output + "_" + partNames[k] + ".exr", parts[k].image);
+            writePng(o.output + "_" + partNames[k] + ".png", parts[k].image, o.exposure);
+        }
 
-    // Summary.
-    const size_t nEnv = size_t(std::llround(o.irradiance.environmentFraction * double(o.irradiance.directions)));
-    std::printf("samples: %zu (seed %llu), A_i = %.4g mm^2 (total %.4g mm^2), min spacing %.4g mm\n",
-                samples.samples.size(), (unsigned long long)seed, samples.areaPerSample, samples.totalArea,
-                samples.minSpacing);
-    std::printf("irradiance: %zu directions per sample (%zu environment + %zu cosine, MIS balance heuristic, "
-                "Monte Carlo seed %llu), %llu occlusion rays in %.1f s (%.3g rays/s)\n",
-                o.irradiance.directions, nEnv, o.irradiance.directions - nEnv,
-                (unsigned long long)o.irradiance.seed, (unsigned long long)occlusionRays, irradianceSeconds,
-                irradianceSeconds > 0 ? occlusionRays / irradianceSeconds : 0.0);
-    std::printf("  median relative standard error of one sample's irradiance: %.3g%%\n", 100 * sampleRelativeError);
-    const double pairs = double(o.perVertex ? mesh.vertexCount() : frame.objectPixels) * double(samples.samples.size());
-    std::printf("multiple scattering: %s, %.3g point-sample pairs in %.1f s; %zu object pixels, %d x %d primary rays "
-                "in %.2f s\n",
-                o.perVertex ? "per vertex, interpolated" : "per pixel", pairs,
-                o.perVertex ? vertexSeconds : frame.seconds, frame.objectPixels, camera.width, camera.height,
-                raysSeconds);
-    std::printf("noise: expected relative RMSE from Monte Carlo noise %.3g%% (per pixel: median %.3g%%, max %.3g%% "
-                "relative standard error)\n",
-                100 * frame.expectedRelativeRmse, 100 * frame.medianRelativeStandardError,
-                100 * frame.maxRelativeStandardError);
-    std::printf("wrote %s.exr and %s.png%s%s; total %s\n", o.output.c_str(), o.output.c_str(),
+    std::printf("%zu object pixels, %d x %d primary rays in %.2f s\n", frame.objectPixels, camera.width,
+                camera.height, raysSeconds);
+    printNoise("total", frame);
+    std::printf("wrote %s.exr and %s.png%s%s%s; total %s\n", o.output.c_str(), o.output.c_str(),
                 o.noiseImage.empty() ? "" : " and ", o.noiseImage.c_str(),
-                formatDuration(secondsSince(start)).c_str());
+                o.componentImages ? " and per-component images" : "", formatDuration(secondsSince(start)).c_str());
     return 0;
 }
 
@@ -331,10 +449,11 @@ int run(const Options& o) {
 int main(int argc, char** argv) {
     return runMain("prt-reference", [&]() -> int {
         CLI::App app{
-            "prt-reference: brute-force reference frames of a translucent object (multiple scattering):\n"
+            "prt-reference: brute-force reference frames of a translucent object. Multiple scattering:\n"
             "per-sample irradiance from the full-resolution environment (Monte Carlo, Embree visibility),\n"
-            "dipole summed over all samples per pixel. Same placement, camera and outputs as\n"
-            "prt-relight render; compare the two with prt-compare.\n"
+            "dipole summed over all samples per pixel. Single scattering (--components ss): Monte Carlo\n"
+            "along the refracted view ray with the exact Henyey-Greenstein phase (Wang Eq. 4 + Eq. 5).\n"
+            "Same placement, camera and outputs as prt-relight render; compare with prt-compare.\n"
             "Example:\n"
             "  prt-reference bunny.off -t bunny.prt -e sunset.exr -o out/bunny_ref\n"
             "Vector options take comma-separated values; write negative ones as --eye=-10,0,50."};
@@ -373,6 +492,30 @@ int main(int argc, char** argv) {
             ->capture_default_str()->group("Reference");
         app.add_option("--mc-seed", o.irradiance.seed, "Seed of the Monte Carlo directions")
             ->capture_default_str()->group("Reference");
+        app.add_option("--components", o.components,
+                       "Components: ms, ss, ms,ss or all (default: ms, plus ss when the transport file has single "
+                       "scattering)")
+            ->group("Reference");
+        app.add_option("--ss-samples", o.ss.pathSamples,
+                       "Single scattering: stratified path samples per pixel (along the refracted view ray)")
+            ->capture_default_str()->group("Single scattering");
+        app.add_option("--ss-light-samples", o.ss.lightSamples, "Single scattering: directions per path sample")
+            ->capture_default_str()->group("Single scattering");
+        app.add_option("--ss-env-fraction", o.ss.environmentFraction,
+                       "Single scattering: share of the directions drawn from the environment's luminance (the "
+                       "rest uniform on the sphere)")
+            ->capture_default_str()->group("Single scattering");
+        app.add_option("--ss-path", o.ssPath,
+                       "Single scattering integration path: refracted (the true w_o', Wang Fig. 5a) or normal "
+                       "(-n_o, the precomputation's approximation, Fig. 5b)")
+            ->capture_default_str()->group("Single scattering");
+        app.add_option("--g", o.g,
+                       "Override the Henyey-Greenstein asymmetry (default: the transport file's 'g'); sigma_s' is "
+                       "kept, so sigma_s = sigma_s' / (1 - g) changes")
+            ->group("Single scattering");
+        app.add_flag("--component-images", o.componentImages,
+                     "Also write <prefix>_ms.exr/.png and <prefix>_ss.exr/.png, one per rendered component")
+            ->group("Output");
         app.add_flag("--per-vertex", o.perVertex,
                      "Sum at the mesh vertices and interpolate barycentrically (as the precomputed renderer "
                      "does) instead of summing at every pixel's hit point")
