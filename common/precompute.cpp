@@ -6,14 +6,17 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <sstream>
 
 #include "common/error.h"
 #include "common/hierarchy.h"
 #include "common/irradiance.h"
+#include "common/phase.h"
 #include "common/progress.h"
 #include "common/raytrace.h"
 #include "common/sampling.h"
+#include "common/single_scattering.h"
 
 namespace prt {
 
@@ -53,7 +56,45 @@ double seconds(std::chrono::steady_clock::time_point since) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
+// Single-scattering options the pipeline does not expose (recorded in the file).
+SingleScatteringOptions singleScatteringOptions(const PrecomputeSettings& s) {
+    SingleScatteringOptions o;
+    o.cubemapSize = s.cubemapSize;
+    o.supersample = s.ssSupersample;
+    o.pathSamples = s.pathSamples;
+    o.keepCoefficients = s.vertexCoefficients;
+    return o;
+}
+
 }  // namespace
+
+PrecomputeComponents parsePrecomputeComponents(const std::string& text) {
+    PrecomputeComponents c{false, false};
+    if (text == "all") return {true, true};
+    size_t pos = 0;
+    while (true) {
+        const size_t comma = text.find(',', pos);
+        const std::string name = text.substr(pos, comma == std::string::npos ? std::string::npos
+                                                                              : comma - pos);
+        bool* flag = name == "ms" ? &c.multipleScattering
+                     : name == "ss" ? &c.singleScattering
+                                    : nullptr;
+        if (!flag)
+            throw Error("--components", "expected ms, ss, ms,ss or all, got \"" + text + "\"");
+        if (*flag) throw Error("--components", "\"" + name + "\" given twice in \"" + text + "\"");
+        *flag = true;
+        if (comma == std::string::npos) break;
+        pos = comma + 1;
+    }
+    return c;
+}
+
+std::string toString(const PrecomputeComponents& c) {
+    if (c.multipleScattering && c.singleScattering) return "ms,ss";
+    if (c.singleScattering) return "ss";
+    if (c.multipleScattering) return "ms";
+    return "";
+}
 
 size_t peakMemoryBytes() {
     rusage usage{};
@@ -84,6 +125,20 @@ void validateSettings(const PrecomputeSettings& s) {
     if (!(s.sampleSpacingMm >= 0) || !std::isfinite(s.sampleSpacingMm))
         throw Error("--sample-spacing", "must be a positive length in mm, got " + fmt(s.sampleSpacingMm));
     if (s.maxSamples < 1) throw Error("--max-samples", "must be at least 1");
+    if (!s.components.multipleScattering && !s.components.singleScattering)
+        throw Error("--components", "select at least one of ms, ss");
+    // M <= 32: the phase table is (6 M^2)^2 doubles (common/phase.h).
+    if (!isPowerOfTwo(s.phaseMapSize) || s.phaseMapSize > 32)
+        throw Error("--phase-map-size", "must be a power of two between 1 and 32, got " +
+                                            std::to_string(s.phaseMapSize));
+    const int phaseTexels = 6 * s.phaseMapSize * s.phaseMapSize;
+    if (s.phaseTerms < 1 || s.phaseTerms > phaseTexels)
+        throw Error("--phase-terms", "must be between 1 and 6 M^2 = " + std::to_string(phaseTexels) +
+                                         ", got " + std::to_string(s.phaseTerms));
+    if (s.pathSamples < 1 || s.pathSamples > 4096)
+        throw Error("--path-samples", "must be between 1 and 4096, got " + std::to_string(s.pathSamples));
+    if (s.ssSupersample < 1 || s.ssSupersample > 8)
+        throw Error("--ss-supersample", "must be between 1 and 8, got " + std::to_string(s.ssSupersample));
 }
 
 std::vector<std::pair<std::string, std::string>> settingsParameters(const PrecomputeSettings& s,
@@ -100,7 +155,7 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
         {"sigma_a", fmt(s.material.sigmaA)},
         {"eta", fmt(s.material.eta)},
         {"g", fmt(s.material.g)},
-        {"components", "ms"},
+        {"components", toString(s.components)},
         {"cubemap_size", std::to_string(s.cubemapSize)},
         {"supersample", std::to_string(s.supersample)},
         {"sample_coefficients", std::to_string(s.sampleCoefficients)},
@@ -113,6 +168,24 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
         {"seed", std::to_string(s.seed)},
         {"ms_normalisation", "T_d/pi (radiance = F_t(w_o) * dot(vector, light))"},
     };
+    if (s.components.singleScattering) {
+        const SingleScatteringOptions o = singleScatteringOptions(s);
+        const bool isotropic = s.material.g == 0.0;
+        p.push_back({"ss_phase", isotropic ? "isotropic" : "henyey-greenstein svd"});
+        if (!isotropic) {
+            p.push_back({"phase_terms", std::to_string(s.phaseTerms)});
+            p.push_back({"phase_map_size", std::to_string(s.phaseMapSize)});
+        }
+        p.push_back({"path_samples", std::to_string(o.pathSamples)});
+        p.push_back({"ss_supersample", std::to_string(o.supersample)});
+        p.push_back({"ss_path", "inward normal, deterministic importance samples (Wang 2005 Eqs. 10-11)"});
+        p.push_back({"ss_depth_cap_mfp", fmt(o.depthCapMeanFreePaths)});
+        p.push_back({"ss_min_throughput", fmt(o.minThroughput)});
+        p.push_back({"ss_normalisation",
+                     isotropic ? "1/(4 pi) folded in (radiance = F_t(w_o) * dot(vector, light))"
+                               : "radiance = F_t(w_o) * sum_k h_k(w_o') * dot(term_k, light), "
+                                 "w_o' refracted into the medium"});
+    }
     p.push_back({"input_digest", inputDigest(p)});
     return p;
 }
@@ -130,12 +203,32 @@ std::string PrecomputeSummary::format() const {
     }
     add("output            %s (%.2f MB)", outputPath.c_str(), fileBytes / 1e6);
     add("mesh              %zu vertices, %zu triangles, %.1f mm^2", vertices, triangles, totalAreaMm2);
-    add("samples           %zu (spacing %.3f mm)", samples, sampleSpacingMm);
-    add("pass 1            %s, %.3g rays, %.3g rays/s, retained energy %.4f",
-        formatDuration(pass1Seconds).c_str(), double(raysTraced), pass1RaysPerSecond,
-        sampleRetainedEnergy);
-    add("pass 2            %s, %.1f nodes visited per vertex, retained energy %.4f",
-        formatDuration(pass2Seconds).c_str(), meanNodesVisited, vertexRetainedEnergy);
+    if (components.multipleScattering) {
+        add("samples           %zu (spacing %.3f mm)", samples, sampleSpacingMm);
+        add("pass 1            %s, %.3g rays, %.3g rays/s, retained energy %.4f",
+            formatDuration(pass1Seconds).c_str(), double(raysTraced), pass1RaysPerSecond,
+            sampleRetainedEnergy);
+        add("pass 2            %s, %.1f nodes visited per vertex, retained energy %.4f",
+            formatDuration(pass2Seconds).c_str(), meanNodesVisited, vertexRetainedEnergy);
+    }
+    if (components.singleScattering) {
+        if (ssIsotropic)
+            add("phase             isotropic (1/(4 pi) folded into one vector)");
+        else
+            add("phase             HG svd, %d terms, rms error %.4f, %s", ssTerms, phaseRmsError,
+                formatDuration(phaseSeconds).c_str());
+        add("single scattering %s, %.3g rays, %.3g rays/s, retained energy %.4f",
+            formatDuration(ssSeconds).c_str(), double(ssRaysTraced), ssRaysPerSecond,
+            ssRetainedEnergy);
+        add("  rays            %.3g exit, %.3g occlusion, %.3g culled (throughput), %.3g escaping, "
+            "%.3g exits through reversed triangles",
+            double(ssExitRays), double(ssOcclusionRays), double(ssCulledRays), double(ssEscapedRays),
+            double(ssReversedHits));
+        add("  path            mean d_m %.3f mm, %llu vertices with capped d_m, %llu integrated "
+            "along +n (normal pointing inward), %llu path samples outside the object",
+            ssMeanDepthMm, (unsigned long long)ssCappedDepths, (unsigned long long)ssFlippedNormals,
+            (unsigned long long)ssOutsideSamples);
+    }
     add("total             %s, peak memory %.0f MB", formatDuration(totalSeconds).c_str(),
         peakMemoryBytes / 1e6);
     return o.str();
@@ -146,6 +239,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
     validateSettings(settings);
     PrecomputeSummary summary;
     summary.outputPath = settings.outputPath;
+    summary.components = settings.components;
 
     TriangleMesh mesh = loadMesh(settings.meshPath);
     const MeshFingerprint fingerprint{mesh.vertexCount(), meshFingerprint(mesh)};
@@ -170,78 +264,148 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
     summary.triangles = mesh.triangleCount();
     summary.totalAreaMm2 = totalArea(mesh);
 
-    // Samples: spacing about the mean free path l_u = 1 / sigma_t' (Jensen-Buhler).
-    const double spacing = settings.sampleSpacingMm > 0 ? settings.sampleSpacingMm
-                                                        : settings.material.minMeanFreePath();
-    const size_t sampleCount =
-        settings.sampleCount > 0 ? settings.sampleCount
-                                 : defaultSampleCount(summary.totalAreaMm2, spacing, settings.maxSamples);
-    SampleSet samples;
-    {
-        Progress p("samples", sampleCount, "samples");
-        samples = poissonDiskSamples(mesh, sampleCount, settings.seed);
-        p.advance(sampleCount);
-    }
-    summary.samples = samples.samples.size();
-    summary.sampleSpacingMm = std::sqrt(2.0 * samples.areaPerSample / std::sqrt(3.0));
-
-    // Pass 1: irradiance transport per sample.
-    RayScene scene(mesh);
-    IrradianceOptions irradiance;
-    irradiance.cubemapSize = settings.cubemapSize;
-    irradiance.supersample = settings.supersample;
-    irradiance.keepCoefficients = settings.sampleCoefficients;
-    irradiance.eta = settings.material.eta;
-    IrradianceResult pass1;
-    {
-        Progress p("pass 1 (irradiance transport)", samples.samples.size(), "samples");
-        pass1 = computeIrradianceTransport(&scene, samples, irradiance, &p);
-    }
-    summary.raysTraced = pass1.raysTraced;
-    summary.pass1Seconds = pass1.seconds;
-    summary.pass1RaysPerSecond = pass1.seconds > 0 ? pass1.raysTraced / pass1.seconds : 0;
-    summary.sampleRetainedEnergy = pass1.retainedEnergyFraction;
-
-    // Pass 2: hierarchical integration per vertex.
-    SampleCloud cloud;
-    cloud.positions.reserve(samples.samples.size());
-    for (const SurfaceSample& s : samples.samples) cloud.positions.push_back(s.position);
-    cloud.areas.assign(samples.samples.size(), float(samples.areaPerSample));
-    cloud.irradiance = std::move(pass1.vectors);
-    HierarchyOptions hierarchy;
-    hierarchy.epsilon = settings.epsilon;
-    hierarchy.nodeCoefficients = settings.nodeCoefficients;
-    hierarchy.vertexCoefficients = settings.vertexCoefficients;
-    const size_t coefficientCount = size_t(6) * settings.cubemapSize * settings.cubemapSize;
-    std::vector<SparseVector> transport;
-    MultipleScatteringStats stats;
-    const auto pass2Start = std::chrono::steady_clock::now();
-    {
-        SampleTree tree(std::move(cloud), hierarchy);
-        Progress p("pass 2 (multiple scattering)", mesh.vertexCount(), "vertices");
-        transport = multipleScatteringTransport(tree, mesh.positions, settings.material, hierarchy,
-                                                coefficientCount, &stats, &p);
-    }
-    summary.pass2Seconds = seconds(pass2Start);
-    summary.meanNodesVisited = stats.meanNodesVisited;
-    summary.vertexRetainedEnergy = stats.retainedEnergyFraction;
-
-    // Output.
     TransportFile file;
     file.cubemapSize = uint32_t(settings.cubemapSize);
     file.mesh = fingerprint;
     file.mmPerUnit = mmPerUnit;
     file.parameters = params;
-    file.parameters.insert(file.parameters.end() - 1,
-                           {{"mm_per_unit", fmt(mmPerUnit)},
-                            {"samples", std::to_string(summary.samples)},
-                            {"sample_area_mm2", fmt(samples.areaPerSample)}});
-    TransportComponent ms;
-    ms.kind = ComponentKind::MultipleScattering;
-    ms.vectors.reserve(transport.size(), transport.size() * settings.vertexCoefficients);
-    for (const SparseVector& v : transport) ms.vectors.appendVertex(v.index, v.value);
-    transport.clear();
-    file.components.push_back(std::move(ms));
+    std::vector<std::pair<std::string, std::string>> derived = {{"mm_per_unit", fmt(mmPerUnit)}};
+
+    RayScene scene(mesh);
+    const size_t coefficientCount = size_t(6) * settings.cubemapSize * settings.cubemapSize;
+
+    if (settings.components.multipleScattering) {
+        // Samples: spacing about the mean free path l_u = 1 / sigma_t' (Jensen-Buhler).
+        const double spacing = settings.sampleSpacingMm > 0 ? settings.sampleSpacingMm
+                                                            : settings.material.minMeanFreePath();
+        const size_t sampleCount =
+            settings.sampleCount > 0
+                ? settings.sampleCount
+                : defaultSampleCount(summary.totalAreaMm2, spacing, settings.maxSamples);
+        SampleSet samples;
+        {
+            Progress p("samples", sampleCount, "samples");
+            samples = poissonDiskSamples(mesh, sampleCount, settings.seed);
+            p.advance(sampleCount);
+        }
+        summary.samples = samples.samples.size();
+        summary.sampleSpacingMm = std::sqrt(2.0 * samples.areaPerSample / std::sqrt(3.0));
+        derived.push_back({"samples", std::to_string(summary.samples)});
+        derived.push_back({"sample_area_mm2", fmt(samples.areaPerSample)});
+
+        // Pass 1: irradiance transport per sample.
+        IrradianceOptions irradiance;
+        irradiance.cubemapSize = settings.cubemapSize;
+        irradiance.supersample = settings.supersample;
+        irradiance.keepCoefficients = settings.sampleCoefficients;
+        irradiance.eta = settings.material.eta;
+        IrradianceResult pass1;
+        {
+            Progress p("pass 1 (irradiance transport)", samples.samples.size(), "samples");
+            pass1 = computeIrradianceTransport(&scene, samples, irradiance, &p);
+        }
+        summary.raysTraced = pass1.raysTraced;
+        summary.pass1Seconds = pass1.seconds;
+        summary.pass1RaysPerSecond = pass1.seconds > 0 ? pass1.raysTraced / pass1.seconds : 0;
+        summary.sampleRetainedEnergy = pass1.retainedEnergyFraction;
+
+        // Pass 2: hierarchical integration per vertex.
+        SampleCloud cloud;
+        cloud.positions.reserve(samples.samples.size());
+        for (const SurfaceSample& s : samples.samples) cloud.positions.push_back(s.position);
+        cloud.areas.assign(samples.samples.size(), float(samples.areaPerSample));
+        cloud.irradiance = std::move(pass1.vectors);
+        HierarchyOptions hierarchy;
+        hierarchy.epsilon = settings.epsilon;
+        hierarchy.nodeCoefficients = settings.nodeCoefficients;
+        hierarchy.vertexCoefficients = settings.vertexCoefficients;
+        std::vector<SparseVector> transport;
+        MultipleScatteringStats stats;
+        const auto pass2Start = std::chrono::steady_clock::now();
+        {
+            SampleTree tree(std::move(cloud), hierarchy);
+            Progress p("pass 2 (multiple scattering)", mesh.vertexCount(), "vertices");
+            transport = multipleScatteringTransport(tree, mesh.positions, settings.material,
+                                                    hierarchy, coefficientCount, &stats, &p);
+        }
+        summary.pass2Seconds = seconds(pass2Start);
+        summary.meanNodesVisited = stats.meanNodesVisited;
+        summary.vertexRetainedEnergy = stats.retainedEnergyFraction;
+
+        TransportComponent ms;
+        ms.kind = ComponentKind::MultipleScattering;
+        ms.vectors.reserve(transport.size(), transport.size() * settings.vertexCoefficients);
+        for (const SparseVector& v : transport) ms.vectors.appendVertex(v.index, v.value);
+        transport.clear();
+        file.components.push_back(std::move(ms));
+    }
+
+    if (settings.components.singleScattering) {
+        // Phase: isotropic for g = 0, else the K-term SVD of HG(g) (common/phase.h).
+        std::optional<PhaseFactorization> phase;
+        if (settings.material.g != 0.0) {
+            const auto phaseStart = std::chrono::steady_clock::now();
+            phase = factorPhaseFunction(settings.material.g, settings.phaseTerms,
+                                        settings.phaseMapSize);
+            summary.phaseSeconds = seconds(phaseStart);
+            summary.phaseRmsError = phaseApproximationError(*phase, settings.phaseTerms);
+            derived.push_back({"phase_rms_error", fmt(summary.phaseRmsError)});
+        }
+        const SingleScatteringContext context(scene, mesh, settings.material,
+                                              phase ? &*phase : nullptr,
+                                              singleScatteringOptions(settings));
+        const int terms = context.terms();
+        std::vector<TransportComponent> ss(static_cast<size_t>(terms));
+        for (int k = 0; k < terms; ++k) {
+            ss[size_t(k)].kind = context.isotropic() ? ComponentKind::SingleScatteringIsotropic
+                                                     : ComponentKind::SingleScatteringTerm;
+            ss[size_t(k)].term = context.isotropic() ? 0 : uint32_t(k);
+            ss[size_t(k)].vectors.reserve(mesh.vertexCount(),
+                                          mesh.vertexCount() * settings.vertexCoefficients);
+        }
+        SingleScatteringResult result;
+        {
+            Progress p(context.isotropic() ? "single scattering (isotropic)"
+                                           : "single scattering (" + std::to_string(terms) + " terms)",
+                       mesh.vertexCount(), "vertices");
+            result = computeSingleScattering(
+                context,
+                [&](size_t, const std::vector<SparseVector>& vectors) {
+                    for (int k = 0; k < terms; ++k)
+                        ss[size_t(k)].vectors.appendVertex(vectors[size_t(k)].index,
+                                                           vectors[size_t(k)].value);
+                },
+                &p);
+        }
+        for (TransportComponent& c : ss) file.components.push_back(std::move(c));
+        if (phase) {
+            ViewMaps maps;
+            maps.size = phase->mapSize;
+            maps.terms = terms;
+            for (const Cubemap& h : phase->viewMaps)
+                maps.data.insert(maps.data.end(), h.data().begin(), h.data().end());
+            file.viewMaps = std::move(maps);
+        }
+        summary.ssTerms = terms;
+        summary.ssIsotropic = context.isotropic();
+        summary.ssSeconds = result.seconds;
+        summary.ssRaysTraced = result.stats.rays();
+        summary.ssExitRays = result.stats.exitRays;
+        summary.ssOcclusionRays = result.stats.occlusionRays;
+        summary.ssCulledRays = result.stats.culledRays;
+        summary.ssReversedHits = result.stats.reversedHits;
+        summary.ssOutsideSamples = result.stats.outsideSamples;
+        summary.ssFlippedNormals = result.stats.flippedNormals;
+        summary.ssEscapedRays = result.stats.escapedRays;
+        summary.ssCappedDepths = result.stats.cappedDepths;
+        summary.ssRaysPerSecond = result.raysPerSecond();
+        summary.ssMeanDepthMm =
+            mesh.vertexCount() ? result.stats.depthSum / double(mesh.vertexCount()) : 0.0;
+        summary.ssRetainedEnergy = result.retainedEnergyFraction;
+    }
+
+    // Derived values go before the digest (which stays the last parameter).
+    file.parameters.insert(file.parameters.end() - 1, derived.begin(), derived.end());
     saveTransportFile(settings.outputPath, file);
 
     summary.fileBytes = std::filesystem::file_size(settings.outputPath);

@@ -4,11 +4,15 @@
 //
 //   mesh --scale--> samples (Poisson disk) --pass 1--> sparse Haar irradiance
 //   transport per sample --pass 2 (kd-tree, Jensen-Buhler)--> sparse RGB multiple
-//   scattering transport per vertex --> transport file (atomic write).
+//   scattering transport per vertex (component "ms")
+//   mesh --single scattering along -n_o (Eqs. 10-11)--> one isotropic sparse RGB
+//   vector per vertex (g = 0) or K term vectors + the h_k view maps (g != 0)
+//   (component "ss")
+//   --> transport file (atomic write).
 //
 // Each stage is its own library function (sampling.h, irradiance.h, hierarchy.h,
-// transport_file.h) so it can be tested and timed alone; this module only wires
-// them, reports progress and collects the summary.
+// single_scattering.h, phase.h, transport_file.h) so it can be tested and timed
+// alone; this module only wires them, reports progress and collects the summary.
 
 #include <cstdint>
 #include <string>
@@ -20,6 +24,18 @@
 #include "common/transport_file.h"
 
 namespace prt {
+
+// Which transport components to compute.
+struct PrecomputeComponents {
+    bool multipleScattering = true;   // "ms": dipole diffusion, stored as T_d / pi
+    bool singleScattering = false;    // "ss": Wang Eqs. 10-11 (isotropic or K terms)
+    bool operator==(const PrecomputeComponents&) const = default;
+};
+// "ms", "ss", "ms,ss" (either order; "all" = both). Throws prt::Error("--components",
+// ...) for anything else (unknown, repeated or empty names).
+PrecomputeComponents parsePrecomputeComponents(const std::string& text);
+// "ms", "ss" or "ms,ss".
+std::string toString(const PrecomputeComponents& c);
 
 struct PrecomputeSettings {
     std::string meshPath;
@@ -36,6 +52,12 @@ struct PrecomputeSettings {
     double sampleSpacingMm = 0;   // 0: the material's smallest mean free path l_u
     size_t maxSamples = 300000;   // cap on the automatic count
     uint64_t seed = 1;
+    // Single scattering (used when components.singleScattering).
+    PrecomputeComponents components;  // default: multiple scattering only
+    int phaseTerms = 4;           // K of the SVD-factored HG phase when g != 0 (g = 0: isotropic)
+    int phaseMapSize = 16;        // M of the 6 x M x M light / view maps
+    int pathSamples = 16;         // deterministic samples along -n_o
+    int ssSupersample = 1;        // s x s sub-directions per texel in single scattering
 };
 
 // Throws prt::Error naming the bad option.
@@ -43,20 +65,37 @@ void validateSettings(const PrecomputeSettings& s);
 
 // Every setting as text, in a fixed order: stored in the transport file and hashed
 // into `input_digest` so that a batch run can tell whether an output is up to date.
+// The single-scattering settings (phase_terms, phase_map_size, path_samples, ...) are
+// listed only when single scattering is selected, so a multiple-scattering-only job
+// keeps the parameters (and digest) it had before single scattering existed.
 std::vector<std::pair<std::string, std::string>> settingsParameters(const PrecomputeSettings& s,
                                                                     const MeshFingerprint& mesh);
 
 struct PrecomputeSummary {
     std::string outputPath;
     bool skipped = false;  // output already up to date
+    PrecomputeComponents components;
     size_t vertices = 0, triangles = 0, samples = 0;
     double totalAreaMm2 = 0, sampleSpacingMm = 0;
-    uint64_t raysTraced = 0;
+    uint64_t raysTraced = 0;          // pass 1
     double pass1Seconds = 0, pass2Seconds = 0, totalSeconds = 0;
     double pass1RaysPerSecond = 0;
     double sampleRetainedEnergy = 0;  // mean kept/total energy of pass-1 truncations
     double vertexRetainedEnergy = 0;  // mean kept/total energy of the per-vertex truncations
     double meanNodesVisited = 0;
+    // Single scattering.
+    int ssTerms = 0;                  // 0: not computed; 1 and ssIsotropic; or K
+    bool ssIsotropic = true;
+    double phaseSeconds = 0;          // SVD of the phase function
+    double phaseRmsError = 0;         // relative RMS error of the K-term phase (0 if isotropic)
+    double ssSeconds = 0;
+    uint64_t ssRaysTraced = 0;        // depth + exit + occlusion rays
+    uint64_t ssExitRays = 0, ssOcclusionRays = 0, ssCulledRays = 0;
+    uint64_t ssEscapedRays = 0, ssReversedHits = 0, ssOutsideSamples = 0;
+    uint64_t ssFlippedNormals = 0, ssCappedDepths = 0;
+    double ssRaysPerSecond = 0;
+    double ssMeanDepthMm = 0;         // mean d_m
+    double ssRetainedEnergy = 0;      // mean kept/total energy of the per-vertex truncations
     size_t peakMemoryBytes = 0;       // of the process, at the end
     size_t fileBytes = 0;
 

@@ -26,6 +26,7 @@ struct RawOptions {
     std::vector<double> sigmaA, sigmaSPrime;
     double eta = 1.3, g = 0.0;
     bool etaSet = false;
+    std::string components = "ms";
 };
 
 // Declares every per-job option on `app`, bound to `raw` and `s`.
@@ -62,11 +63,27 @@ void addJobOptions(CLI::App& app, RawOptions& raw, PrecomputeSettings& s) {
                    "Sample spacing in mm (default: the material's mean free path 1/sigma_t')");
     app.add_option("--max-samples", s.maxSamples, "Cap on the automatic sample count")->capture_default_str();
     app.add_option("--seed", s.seed, "Seed of the sample placement")->capture_default_str();
+    app.add_option("--components", raw.components,
+                   "Components to compute: ms (multiple scattering), ss (single scattering) or ms,ss")
+        ->capture_default_str();
+    app.add_option("--phase-terms", s.phaseTerms,
+                   "Single scattering with g != 0: K terms of the SVD-factored HG phase function")
+        ->capture_default_str();
+    app.add_option("--phase-map-size", s.phaseMapSize,
+                   "Face size M of the 6 x M x M phase light/view maps")
+        ->capture_default_str();
+    app.add_option("--path-samples", s.pathSamples,
+                   "Single scattering: deterministic importance samples along the inward normal")
+        ->capture_default_str();
+    app.add_option("--ss-supersample", s.ssSupersample,
+                   "Single scattering: s x s sub-directions per texel")
+        ->capture_default_str();
 }
 
 PrecomputeSettings finishSettings(const RawOptions& raw, PrecomputeSettings s) {
     s.meshPath = raw.mesh;
     s.outputPath = raw.output;
+    s.components = parsePrecomputeComponents(raw.components);
     if (raw.sizeMm && raw.mmPerUnit)
         throw Error("--size-mm", "give either --size-mm or --mm-per-unit, not both");
     if (raw.mmPerUnit) s.scale.mmPerUnit = raw.mmPerUnit;
@@ -163,9 +180,10 @@ int runJobFile(const std::string& path, bool force) {
 int main(int argc, char** argv) {
     return runMain("prt-precompute", [&]() -> int {
         CLI::App app{
-            "prt-precompute: precompute translucent light transport (dipole multiple scattering)\n"
-            "into per-vertex Haar wavelet vectors. Example:\n"
+            "prt-precompute: precompute translucent light transport (dipole multiple scattering,\n"
+            "single scattering) into per-vertex Haar wavelet vectors. Examples:\n"
             "  prt-precompute data/meshes/bunny.off --size-mm 30 --material Marble -o out/bunny.prt\n"
+            "  prt-precompute data/meshes/bunny.off --components ms,ss --g 0.25 --phase-terms 4 -o b.prt\n"
             "  prt-precompute --jobs jobs.json"};
         RawOptions raw;
         PrecomputeSettings settings;
