@@ -359,7 +359,7 @@ const char* toString(SingleScatteringPath path) {
 
 SingleScatteringReference::SingleScatteringReference(const Material& material, const TriangleMesh& mesh,
                                                      const RayScene& scene, const EnvironmentSampler& env,
-                                                     const SingleScatteringOptions& options)
+                                                     const SingleScatteringReferenceOptions& options)
     : material_(material), mesh_(&mesh), scene_(&scene), env_(&env), options_(options) {
     validateMaterial(material_);
     if (options_.pathSamples < 1) throw Error("--ss-samples", "need at least one path sample per pixel");

@@ -290,7 +290,7 @@ enum class SingleScatteringPhase {
     Isotropic,         // explicit 1 / (4 pi) (tests)
 };
 
-struct SingleScatteringOptions {
+struct SingleScatteringReferenceOptions {
     size_t pathSamples = 64;            // M per pixel (>= 1), stratified
     size_t lightSamples = 16;           // L directions per path sample (>= 1)
     double environmentFraction = 0.75;  // share of the L drawn from the environment, in [0, 1]
@@ -309,7 +309,7 @@ public:
     // Both, and `env`, must outlive this object. Throws prt::Error for invalid options
     // or material.
     SingleScatteringReference(const Material& material, const TriangleMesh& mesh, const RayScene& scene,
-                              const EnvironmentSampler& env, const SingleScatteringOptions& options);
+                              const EnvironmentSampler& env, const SingleScatteringReferenceOptions& options);
 
     std::string name() const override { return "single scattering"; }
     // estimate(p.position, p.normal, geometric normal of p.triangle, p.toViewer,
@@ -325,7 +325,7 @@ public:
     // The stream radiance() uses for a pixel (a hash of its G-buffer entry).
     static uint64_t pixelStream(const GBufferPixel& p);
 
-    const SingleScatteringOptions& options() const { return options_; }
+    const SingleScatteringReferenceOptions& options() const { return options_; }
     const Material& material() const { return material_; }
     // Counters since construction (all threads): rays traced (intersections and
     // occlusion rays) and path samples taken.
@@ -339,7 +339,7 @@ private:
     const TriangleMesh* mesh_;
     const RayScene* scene_;
     const EnvironmentSampler* env_;
-    SingleScatteringOptions options_;
+    SingleScatteringReferenceOptions options_;
     mutable std::atomic<uint64_t> rays_{0}, paths_{0};
 };
 

@@ -124,6 +124,27 @@ SingleScatteringContext::SingleScatteringContext(const RayScene& scene, const Tr
     if (scene.triangleCount() != mesh.triangles.size())
         throw Error("single scattering", "the ray scene was not built from this mesh");
 
+    {
+        std::vector<glm::dvec3> centroidSum(mesh.positions.size(), glm::dvec3(0.0));
+        std::vector<uint32_t> triangleCount(mesh.positions.size(), 0);
+        for (const glm::uvec3& t : mesh.triangles) {
+            const glm::dvec3 c = (glm::dvec3(mesh.positions[t.x]) + glm::dvec3(mesh.positions[t.y]) +
+                                  glm::dvec3(mesh.positions[t.z])) / 3.0;
+            for (uint32_t v : {t.x, t.y, t.z}) {
+                centroidSum[v] += c;
+                ++triangleCount[v];
+            }
+        }
+        constexpr double kTowardRing = 0.01;
+        pathOrigins_.resize(mesh.positions.size());
+        for (size_t v = 0; v < mesh.positions.size(); ++v) {
+            const glm::dvec3 x(mesh.positions[v]);
+            pathOrigins_[v] = triangleCount[v]
+                                  ? glm::vec3(x + kTowardRing * (centroidSum[v] / double(triangleCount[v]) - x))
+                                  : mesh.positions[v];
+        }
+    }
+
     if (phase) {
         if (std::abs(phase->g - material.g) > 1e-12)
             throw Error("--g", "the phase factorisation (g = " + std::to_string(phase->g) +
@@ -478,7 +499,7 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
                               ThreadState& st = states.local();
                               st.dense.resize(ctx.denseSize());
                               for (size_t v = r.begin(); v != r.end(); ++v) {
-                                  singleScatteringVertex(ctx, mesh.positions[v], mesh.normals[v],
+                                  singleScatteringVertex(ctx, ctx.pathOrigin(v), mesh.normals[v],
                                                          st.dense.data(), st.scratch, st.stats);
                                   retained[v - base] =
                                       compressSingleScattering(ctx, st.dense.data(), block[v - base]);

@@ -165,6 +165,14 @@ public:
     // eta < 1, where F_t has a kink at the critical angle).
     float fresnel(float cosTheta) const;
 
+    // Where the inward path of vertex v starts: the vertex moved 1% of the way toward
+    // the mean centroid of its own triangles. On smooth meshes this is a shift of
+    // ~0.3% of an edge; at a crease with split vertices (a box edge, each face with
+    // its own vertices and flat normals) it takes the path -n_o off the plane of the
+    // adjacent face, on which it would otherwise run (half its rays then leave
+    // through that face at t ~ 0 and are lost: black edges).
+    const glm::vec3& pathOrigin(size_t v) const { return pathOrigins_[v]; }
+
     const RayScene& scene() const { return *scene_; }
     const TriangleMesh& mesh() const { return *mesh_; }
     const Material& material() const { return material_; }
@@ -176,6 +184,7 @@ private:
     SingleScatteringOptions options_;
     TexelDirections dirs_;
     Directions traced_;
+    std::vector<glm::vec3> pathOrigins_;
     bool isotropic_ = true;
     int terms_ = 1;
     Cubemap lightMaps_;  // M x M faces, K channels (channel k = g_k); empty if isotropic

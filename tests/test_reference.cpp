@@ -646,7 +646,7 @@ TEST(ReferenceSingleScattering, HalfSpaceUnderASunMatchesTheClosedForm) {
         const Material m = customMaterial({0.5, 1.0, 1.5}, {0.2, 0.1, 0.05}, 1.3, k.g);
         for (const glm::dvec3& wo : {glm::dvec3(0, 1, 0), unitFromAngles(50.0, 200.0)})
             for (SingleScatteringPath path : {SingleScatteringPath::Refracted, SingleScatteringPath::Normal}) {
-                SingleScatteringOptions o;
+                SingleScatteringReferenceOptions o;
                 o.pathSamples = 4096;
                 o.lightSamples = 2;  // one from the environment, one uniform (MIS)
                 o.environmentFraction = 0.5;
@@ -692,7 +692,7 @@ TEST(ReferenceSingleScattering, ForwardScatteringBrightensBacklightingAndBackwar
         const EnvironmentSampler env(sunAt(sunDirection, glm::vec3(1000.0f)).image());
         const Material m = customMaterial(glm::dvec3(sigmaS * (1 - g)), glm::dvec3(sigmaA), 1.3, g);
         EXPECT_NEAR(m.sigmaS().x, sigmaS, 1e-12);
-        SingleScatteringOptions o;
+        SingleScatteringReferenceOptions o;
         o.pathSamples = 256;
         o.lightSamples = 4;
         const SingleScatteringReference ss(m, slab, scene, env, o);
@@ -725,7 +725,7 @@ TEST(ReferenceSingleScattering, ZeroAsymmetryEqualsExplicitIsotropicPhase) {
     envImage.at(20, 20, 0) = envImage.at(20, 20, 1) = envImage.at(20, 20, 2) = 3000.0f;
     const EnvironmentSampler env(envImage);
     const Material m = customMaterial({0.7, 0.9, 1.1}, {0.02, 0.05, 0.1}, 1.3, 0.0);
-    SingleScatteringOptions o;
+    SingleScatteringReferenceOptions o;
     o.pathSamples = 32;
     o.lightSamples = 8;
     const SingleScatteringReference hg(m, mesh, scene, env, o);
@@ -757,7 +757,7 @@ TEST(ReferenceSingleScattering, NormalPathEqualsTruePathWhenViewingAlongTheNorma
     envImage.at(90, 30, 0) = envImage.at(90, 30, 1) = envImage.at(90, 30, 2) = 3000.0f;
     const EnvironmentSampler env(envImage);
     const Material m = customMaterial({0.7, 0.9, 1.1}, {0.02, 0.05, 0.1}, 1.3, -0.3);
-    SingleScatteringOptions o;
+    SingleScatteringReferenceOptions o;
     o.pathSamples = 16;
     o.lightSamples = 8;
     const SingleScatteringReference refracted(m, mesh, scene, env, o);
@@ -804,7 +804,7 @@ TEST(ReferenceSingleScattering, OccluderAboveTheSurfaceBlocksTheSun) {
     const SunPixel sun = sunAt(sunDirection, glm::vec3(1000.0f));
     const EnvironmentSampler env(sun.image());
     const Material m = customMaterial({0.5, 1.0, 1.5}, {0.2, 0.1, 0.05}, 1.3, 0.2);
-    SingleScatteringOptions o;
+    SingleScatteringReferenceOptions o;
     o.pathSamples = 256;
     o.lightSamples = 2;
     const glm::vec3 n(0.0f, 1.0f, 0.0f);
@@ -834,7 +834,7 @@ TEST(ReferenceSingleScattering, FramesAreDeterministicAddUpAndReportHonestNoise)
     Camera cam = frontCamera(32);
     cam.fovY = 7.0;
     const GBuffer g = traceGBuffer(scene, mesh, cam);
-    SingleScatteringOptions o;
+    SingleScatteringReferenceOptions o;
     o.pathSamples = 8;  // deliberately noisy
     o.lightSamples = 4;
     ReferenceFrame frames[2];

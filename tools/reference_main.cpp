@@ -232,7 +232,7 @@ struct Options {
     std::optional<uint64_t> seed;
     IrradianceEstimatorOptions irradiance;
     std::string components;  // empty: ms, plus ss when the file has it
-    SingleScatteringOptions ss;
+    SingleScatteringReferenceOptions ss;
     std::string ssPath = "refracted";
     std::optional<double> g;
     bool componentImages = false;
@@ -286,7 +286,7 @@ int run(const Options& o) {
                                       ? Components{true, fileHasSingleScattering(info)}
                                       : parseComponents(o.components);
     if (o.perVertex && !components.ms) warn("--per-vertex applies to multiple scattering only; ignored");
-    SingleScatteringOptions ssOptions = o.ss;
+    SingleScatteringReferenceOptions ssOptions = o.ss;
     ssOptions.path = parsePath(o.ssPath);
     ssOptions.seed = o.irradiance.seed;
     if (components.ss) {
