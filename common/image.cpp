@@ -1,3 +1,4 @@
+#include <cctype>
 #include "common/image.h"
 
 #include <OpenImageIO/imageio.h>
@@ -167,6 +168,15 @@ void writePng(const std::string& path, const Image& image, double exposureStops)
     OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
     spec.attribute("oiio:ColorSpace", "sRGB");
     writeAtomically(path, "png", spec, OIIO::TypeDesc::UINT8, rgb.data());
+}
+
+std::string outputPrefix(const std::string& path) {
+    if (path.size() > 4) {
+        std::string ext = path.substr(path.size() - 4);
+        for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+        if (ext == ".exr" || ext == ".png") return path.substr(0, path.size() - 4);
+    }
+    return path;
 }
 
 }  // namespace prt

@@ -65,6 +65,11 @@ void writeExr(const std::string& path, const Image& image,
 // (channel 0 replicated). The file is PNG whatever the extension. Atomic (see above).
 void writePng(const std::string& path, const Image& image, double exposureStops = 0.0);
 
+// An output prefix as the tools take it (they write <prefix>.exr and <prefix>.png):
+// `path` without a trailing ".exr" or ".png" (any case), so "-o frame.exr" writes
+// frame.exr and frame.png rather than frame.exr.exr.
+std::string outputPrefix(const std::string& path);
+
 // The exact piecewise sRGB transfer functions (IEC 61966-2-1):
 // encode: 12.92 x for x <= 0.0031308, else 1.055 x^(1/2.4) - 0.055;
 // decode: x / 12.92 for x <= 0.04045, else ((x + 0.055) / 1.055)^2.4.

@@ -146,7 +146,7 @@ void addRenderOptions(CLI::App& app, RenderOptions& o) {
     app.add_option("-e,--environment", o.environment, "Lat-long HDR environment (EXR, HDR, ...; width = 2 height)")
         ->required();
     app.add_option("-o,--output", o.output,
-                   "Output prefix: writes <prefix>.exr (linear RGBA float, A = 1 on the object) and "
+                   "Output prefix (a trailing .exr/.png is dropped): writes <prefix>.exr (linear RGBA float, A = 1 on the object) and "
                    "<prefix>.png (sRGB); sequences write <prefix>_0000.exr/.png, ...")
         ->required();
     addCameraOptions(app, o.camera);
@@ -201,7 +201,8 @@ int runRender(const RenderOptions& o) {
                                                       size_t(o.threads));
     if (o.turntable < 0 || o.envSpin < 0) throw Error("--turntable/--env-spin", "frame count must be >= 0");
     checkLightingOptions(o);
-    if (o.output.empty()) throw Error("--output", "empty prefix");
+    const std::string output = outputPrefix(o.output);
+    if (output.empty()) throw Error("--output", "empty prefix");
 
     const auto loadStart = std::chrono::steady_clock::now();
     const RelightObject object = loadRelightObject(o.mesh, o.transport);
@@ -217,7 +218,7 @@ int runRender(const RenderOptions& o) {
     if (o.specular) prefiltered = prefilterEnvironment(environment, specularBlurFactor(o.specularBlur, environment));
     const double loadMs = msSince(loadStart);
 
-    const std::filesystem::path parent = std::filesystem::path(o.output).parent_path();
+    const std::filesystem::path parent = std::filesystem::path(output).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);
 
     const int frames = o.turntable > 0 ? o.turntable : o.envSpin > 0 ? o.envSpin : 0;
@@ -281,7 +282,7 @@ int runRender(const RenderOptions& o) {
         const double shadeMs = msSince(t0);
 
         t0 = std::chrono::steady_clock::now();
-        const std::string base = frameName(o.output, f, frames);
+        const std::string base = frameName(output, f, frames);
         writeExr(base + ".exr", image);
         writePng(base + ".png", image, o.exposure);
         const double writeMs = msSince(t0);

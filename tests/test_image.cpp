@@ -254,3 +254,12 @@ TEST_F(ImageIoTest, ReadsRadianceHdr) {
         EXPECT_NEAR(back.pixels[k], img.pixels[k], maxc * 0.01f) << k;
     }
 }
+
+TEST(Image, OutputPrefixDropsAnImageExtension) {
+    EXPECT_EQ(outputPrefix("out/frame.exr"), "out/frame");
+    EXPECT_EQ(outputPrefix("out/frame.PNG"), "out/frame");
+    EXPECT_EQ(outputPrefix("out/frame"), "out/frame");
+    EXPECT_EQ(outputPrefix("out/frame.tif"), "out/frame.tif");
+    EXPECT_EQ(outputPrefix(".exr"), ".exr");  // nothing would be left of the name
+    EXPECT_EQ(outputPrefix("a.exr"), "a");
+}

@@ -249,7 +249,8 @@ int run(const Options& o) {
         limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(o.threads));
     if (!std::isfinite(o.envRotation)) throw Error("--env-rotation", "must be finite");
     if (!std::isfinite(o.exposure)) throw Error("--exposure", "must be finite");
-    if (o.output.empty()) throw Error("--output", "empty prefix");
+    const std::string output = outputPrefix(o.output);
+    if (output.empty()) throw Error("--output", "empty prefix");
     if (o.irradiance.directions < 1) throw Error("--env-samples", "must be at least 1");
     if (!(o.irradiance.environmentFraction >= 0 && o.irradiance.environmentFraction <= 1))
         throw Error("--env-fraction", "must be in [0, 1]");
@@ -303,7 +304,7 @@ int run(const Options& o) {
     const glm::dmat3 rotation = rotationY(o.envRotation);
     const EnvironmentSampler sampler(environment, rotation);
 
-    const std::filesystem::path parent = std::filesystem::path(o.output).parent_path();
+    const std::filesystem::path parent = std::filesystem::path(output).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);
 
     std::printf("mesh: %s, %zu vertices, %zu triangles, %.4g mm per unit, %.4g mm across\n", o.mesh.c_str(),
@@ -426,19 +427,19 @@ int run(const Options& o) {
     for (const ReferenceFrame& f : parts) partPointers.push_back(&f);
     const ReferenceFrame frame = parts.size() == 1 ? parts[0] : sumReferenceFrames(partPointers);
 
-    writeExr(o.output + ".exr", frame.image);
-    writePng(o.output + ".png", frame.image, o.exposure);
+    writeExr(output + ".exr", frame.image);
+    writePng(output + ".png", frame.image, o.exposure);
     if (!o.noiseImage.empty()) writeExr(o.noiseImage, frame.standardError);
     if (o.componentImages)
         for (size_t k = 0; k < parts.size(); ++k) {
-            writeExr(o.output + "_" + partNames[k] + ".exr", parts[k].image);
-            writePng(o.output + "_" + partNames[k] + ".png", parts[k].image, o.exposure);
+            writeExr(output + "_" + partNames[k] + ".exr", parts[k].image);
+            writePng(output + "_" + partNames[k] + ".png", parts[k].image, o.exposure);
         }
 
     std::printf("%zu object pixels, %d x %d primary rays in %.2f s\n", frame.objectPixels, camera.width,
                 camera.height, raysSeconds);
     printNoise("total", frame);
-    std::printf("wrote %s.exr and %s.png%s%s%s; total %s\n", o.output.c_str(), o.output.c_str(),
+    std::printf("wrote %s.exr and %s.png%s%s%s; total %s\n", output.c_str(), output.c_str(),
                 o.noiseImage.empty() ? "" : " and ", o.noiseImage.c_str(),
                 o.componentImages ? " and per-component images" : "", formatDuration(secondsSince(start)).c_str());
     return 0;
@@ -467,7 +468,7 @@ int main(int argc, char** argv) {
         app.add_option("-e,--environment", o.environment, "Lat-long HDR environment (EXR, HDR, ...; width = 2 height)")
             ->required();
         app.add_option("-o,--output", o.output,
-                       "Output prefix: writes <prefix>.exr (linear RGBA float, A = 1 on the object) and "
+                       "Output prefix (a trailing .exr/.png is dropped): writes <prefix>.exr (linear RGBA float, A = 1 on the object) and "
                        "<prefix>.png (sRGB)")
             ->required();
         addCameraOptions(app, o.camera);
