@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <numbers>
 #include <string>
 #include <thread>
@@ -325,37 +327,31 @@ void splitInFace(const SphPoly& poly, const FaceFrame& fr, int n, const Cubemap&
     });
 }
 
-}  // namespace
+// The exact box-filter geometry shared by latLongToCubemap and LatLongCubemapFilter
+// (one code path for both): cuts the pixels of one lat-long row, turned by
+// `rotation`, into pieces that each lie in one cube texel and reports each piece's
+// exact solid angle (method: see latLongToCubemap in envmap.h).
+class LatLongCellSplitter {
+public:
+    LatLongCellSplitter(int width, int height, int n, const glm::dmat3& rotation)
+        : W_(width),
+          H_(height),
+          n_(n),
+          rotation_(rotation),
+          layout_(n, 1),
+          frames_(faceFrames()),
+          // Lat-long pixels larger than `cell_` radians are split into sub-cells (same
+          // pixel) so that each is well approximated by the geodesic quad through its
+          // corners (the error is confined to how a straddling cell's area is shared,
+          // and is of relative order cell^2), and crosses at most ~6 texel lines per
+          // axis (the smallest texel extent is 2 / (3 n) radians), which bounds
+          // polygon sizes. Sub-cell borders depend only on (width, height, n): the
+          // sub-columns of a row are the W * mu meridians phi = 2 pi (k / (W mu) - 1/2).
+          cell_(std::min(1.0 / 128.0, 3.0 / n)),
+          mv_(std::max(1, int(std::ceil((kPi / height) / cell_)))) {}
 
-Cubemap latLongToCubemap(const Image& latlong, int n, const glm::dmat3& rotation) {
-    requireUsable(latlong, "environment");
-    if (!isPowerOfTwo(n))
-        throw Error("environment", "cubemap size " + std::to_string(n) + " is not a power of two");
-    const int W = latlong.width, H = latlong.height, C = latlong.channels;
-    const size_t stride = size_t(C) + 1;  // radiance * area per channel, then area
-    Cubemap cube(n, C);
-    const size_t texels = cube.texelCount();
-    const std::array<FaceFrame, kCubeFaces> frames = faceFrames();
-
-    // Lat-long pixels larger than `cell` radians are split into sub-cells (same
-    // radiance) so that each is well approximated by the geodesic quad through its
-    // corners (the error is confined to how a straddling cell's area is shared, and is
-    // of relative order cell^2), and crosses at most ~6 texel lines per axis (the
-    // smallest texel extent is 2 / (3 n) radians), which bounds polygon sizes.
-    const double cell = std::min(1.0 / 128.0, 3.0 / n);
-    const int mv = std::max(1, int(std::ceil((kPi / H) / cell)));
-
-    // Per row: the texels it reached (in first-touch order) and their sums.
-    struct RowSums {
-        std::vector<std::uint32_t> index;
-        std::vector<double> sums;  // stride values per entry
-    };
-    std::vector<RowSums> rows(static_cast<size_t>(H));
-
+    // Working memory of row(), one per thread.
     struct Scratch {
-        std::vector<double> acc;
-        std::vector<char> touched;
-        std::vector<std::uint32_t> list;
         std::vector<double> sinPhi, cosPhi;  // at the mu * W + 1 sub-column borders
         int mu = 0;
         std::vector<glm::dvec3> cornerDir[2];  // world directions of a sub-row's corners
@@ -363,16 +359,17 @@ Cubemap latLongToCubemap(const Image& latlong, int n, const glm::dmat3& rotation
         std::vector<Piece> pieces;
     };
 
-    auto processRow = [&](Scratch& s, int y) {
-        if (s.acc.empty()) {
-            s.acc.assign(texels * stride, 0.0);
-            s.touched.assign(texels, 0);
-        }
+    // Calls sink(x, texel, area) for every piece of lat-long row y, in a fixed order:
+    // pixel (x, y) contributes `area` steradians (exact up to rounding) to the cube
+    // texel with flat index `texel`. The pieces of one pixel sum to its solid angle.
+    template <class Sink>
+    void row(Scratch& s, int y, Sink&& sink) const {
+        const int W = W_, H = H_, n = n_;
         const double theta0 = kPi * y / H, theta1 = kPi * (y + 1) / H;
         const double maxSin = (theta0 <= kPi / 2 && theta1 >= kPi / 2)
                                   ? 1.0
                                   : std::max(std::sin(theta0), std::sin(theta1));
-        const int mu = std::max(1, int(std::ceil(kTwoPi / W * maxSin / cell)));
+        const int mu = std::max(1, int(std::ceil(kTwoPi / W * maxSin / cell_)));
         const int columns = W * mu;
         if (s.mu != mu) {
             s.sinPhi.resize(size_t(columns) + 1);
@@ -392,28 +389,19 @@ Cubemap latLongToCubemap(const Image& latlong, int n, const glm::dmat3& rotation
             ids.resize(size_t(columns) + 1);
             for (int k = 0; k <= columns; ++k) {
                 const glm::dvec3 local(st * s.sinPhi[size_t(k)], ct, -st * s.cosPhi[size_t(k)]);
-                const glm::dvec3 d = rotation * local;
+                const glm::dvec3 d = rotation_ * local;
                 const TexelCoord t = directionToTexel(n, d);
                 dirs[size_t(k)] = d;
-                ids[size_t(k)] = std::int64_t(cube.texelIndex(t.face, t.i, t.j));
+                ids[size_t(k)] = std::int64_t(layout_.texelIndex(t.face, t.i, t.j));
             }
-        };
-        auto deposit = [&](size_t t, const float* L, double area) {
-            if (!s.touched[t]) {
-                s.touched[t] = 1;
-                s.list.push_back(std::uint32_t(t));
-            }
-            double* a = &s.acc[t * stride];
-            for (int c = 0; c < C; ++c) a[c] += double(L[c]) * area;
-            a[C] += area;
         };
 
         const double dphi = kTwoPi / columns;
         int top = 0;
         cornerRow(theta0, top);
-        for (int b = 0; b < mv; ++b) {
-            const double ta = theta0 + (theta1 - theta0) * b / mv;
-            const double tb = theta0 + (theta1 - theta0) * (b + 1) / mv;
+        for (int b = 0; b < mv_; ++b) {
+            const double ta = theta0 + (theta1 - theta0) * b / mv_;
+            const double tb = theta0 + (theta1 - theta0) * (b + 1) / mv_;
             const int bottom = 1 - top;
             cornerRow(tb, bottom);
             // Exact solid angle of the sub-cell (two meridians, two parallels).
@@ -423,11 +411,11 @@ Cubemap latLongToCubemap(const Image& latlong, int n, const glm::dmat3& rotation
             const auto& iTop = s.cornerTexel[top];
             const auto& iBot = s.cornerTexel[bottom];
             for (int k = 0; k < columns; ++k) {
-                const float* L = latlong.pixel(k / mu, y);
+                const int x = k / mu;
                 const std::int64_t id = iTop[size_t(k)];
                 if (iTop[size_t(k) + 1] == id && iBot[size_t(k)] == id && iBot[size_t(k) + 1] == id) {
                     // All corners in one texel: the (convex) texel contains the cell.
-                    deposit(size_t(id), L, area);
+                    sink(x, size_t(id), area);
                     continue;
                 }
                 // Straddles texel borders: split the cell exactly along them.
@@ -442,27 +430,97 @@ Cubemap latLongToCubemap(const Image& latlong, int n, const glm::dmat3& rotation
                 for (std::int64_t other : {iTop[size_t(k) + 1], iBot[size_t(k)], iBot[size_t(k) + 1]})
                     oneFace = oneFace && int(size_t(other) / (size_t(n) * n)) == f0;
                 if (oneFace) {
-                    splitInFace(poly, frames[size_t(f0)], n, cube, s.pieces);
+                    splitInFace(poly, frames_[size_t(f0)], n, layout_, s.pieces);
                 } else {
                     for (int f = 0; f < kCubeFaces; ++f) {
-                        const FaceFrame& fr = frames[size_t(f)];
+                        const FaceFrame& fr = frames_[size_t(f)];
                         SphPoly part = clipPlane(poly, fr.F - fr.S);
                         part = clipPlane(part, fr.F + fr.S);
                         part = clipPlane(part, fr.F - fr.T);
                         part = clipPlane(part, fr.F + fr.T);
-                        if (part.count >= 3) splitInFace(part, fr, n, cube, s.pieces);
+                        if (part.count >= 3) splitInFace(part, fr, n, layout_, s.pieces);
                     }
                 }
                 double total = 0.0;
                 for (const Piece& p : s.pieces) total += p.area;
                 if (total > 0.0) {
-                    for (const Piece& p : s.pieces) deposit(p.texel, L, area * (p.area / total));
+                    for (const Piece& p : s.pieces) sink(x, p.texel, area * (p.area / total));
                 } else {
-                    deposit(size_t(id), L, area);  // degenerate (e.g. a sliver at a pole)
+                    sink(x, size_t(id), area);  // degenerate (e.g. a sliver at a pole)
                 }
             }
             top = bottom;
         }
+    }
+
+private:
+    int W_, H_, n_;
+    glm::dmat3 rotation_;
+    Cubemap layout_;  // for texelIndex only
+    std::array<FaceFrame, kCubeFaces> frames_;
+    double cell_;
+    int mv_;
+};
+
+// Runs body(scratch, y) for every y in [0, rows) on all hardware threads; rows are
+// handed out dynamically and each worker owns one default-constructed Scratch. Results
+// must go to per-row storage so they do not depend on the schedule.
+template <class Scratch, class Body>
+void forRowsInParallel(int rows, Body&& body) {
+    const int used = std::clamp(int(std::thread::hardware_concurrency()), 1, std::max(1, rows));
+    std::vector<Scratch> scratch(static_cast<size_t>(used));
+    std::atomic<int> next{0};
+    auto worker = [&](int slot) {
+        Scratch& s = scratch[size_t(slot)];
+        for (int y = next.fetch_add(1); y < rows; y = next.fetch_add(1)) body(s, y);
+    };
+    std::vector<std::thread> pool;
+    for (int t = 1; t < used; ++t) pool.emplace_back(worker, t);
+    worker(0);
+    for (auto& th : pool) th.join();
+}
+
+}  // namespace
+
+Cubemap latLongToCubemap(const Image& latlong, int n, const glm::dmat3& rotation) {
+    requireUsable(latlong, "environment");
+    if (!isPowerOfTwo(n))
+        throw Error("environment", "cubemap size " + std::to_string(n) + " is not a power of two");
+    const int W = latlong.width, H = latlong.height, C = latlong.channels;
+    const size_t stride = size_t(C) + 1;  // radiance * area per channel, then area
+    Cubemap cube(n, C);
+    const size_t texels = cube.texelCount();
+    const LatLongCellSplitter splitter(W, H, n, rotation);
+
+    // Per row: the texels it reached (in first-touch order) and their sums.
+    struct RowSums {
+        std::vector<std::uint32_t> index;
+        std::vector<double> sums;  // stride values per entry
+    };
+    std::vector<RowSums> rows(static_cast<size_t>(H));
+
+    struct Scratch {
+        LatLongCellSplitter::Scratch geometry;
+        std::vector<double> acc;
+        std::vector<char> touched;
+        std::vector<std::uint32_t> list;
+    };
+
+    forRowsInParallel<Scratch>(H, [&](Scratch& s, int y) {
+        if (s.acc.empty()) {
+            s.acc.assign(texels * stride, 0.0);
+            s.touched.assign(texels, 0);
+        }
+        splitter.row(s.geometry, y, [&](int x, size_t t, double area) {
+            const float* L = latlong.pixel(x, y);
+            if (!s.touched[t]) {
+                s.touched[t] = 1;
+                s.list.push_back(std::uint32_t(t));
+            }
+            double* a = &s.acc[t * stride];
+            for (int c = 0; c < C; ++c) a[c] += double(L[c]) * area;
+            a[C] += area;
+        });
 
         RowSums& out = rows[size_t(y)];
         out.index = s.list;
@@ -474,22 +532,7 @@ Cubemap latLongToCubemap(const Image& latlong, int n, const glm::dmat3& rotation
             s.touched[s.list[e]] = 0;
         }
         s.list.clear();
-    };
-
-    // Rows are handed out dynamically; each worker owns one scratch slot.
-    const int used = std::clamp(int(std::thread::hardware_concurrency()), 1, H);
-    std::vector<Scratch> scratch(static_cast<size_t>(used));
-    std::atomic<int> nextRow{0};
-    auto worker = [&](int slot) {
-        Scratch& s = scratch[size_t(slot)];
-        for (int y = nextRow.fetch_add(1); y < H; y = nextRow.fetch_add(1)) processRow(s, y);
-    };
-    {
-        std::vector<std::thread> pool;
-        for (int t = 1; t < used; ++t) pool.emplace_back(worker, t);
-        worker(0);
-        for (auto& th : pool) th.join();
-    }
+    });
 
     // Merge in row order: the sums do not depend on the thread schedule.
     std::vector<double> total(texels * stride, 0.0);
@@ -518,6 +561,255 @@ Cubemap latLongToCubemap(const Image& latlong, int n, const glm::dmat3& rotation
                 }
             }
     return cube;
+}
+
+// ---------------------------------------------------------------- lat-long -> cubemap, as a matrix
+
+bool rotationAboutY(const glm::dmat3& rotation, double& degrees) {
+    const glm::dmat3& r = rotation;  // glm is column-major: r[column][row]
+    // rotationY(a): r[0][0] = r[2][2] = cos a, r[2][0] = -r[0][2] = sin a, r[1][1] = 1.
+    const double angle = std::atan2(r[2][0] - r[0][2], r[0][0] + r[2][2]);
+    if (!std::isfinite(angle)) return false;
+    const double c = std::cos(angle), s = std::sin(angle);
+    const double expected[3][3] = {{c, 0, -s}, {0, 1, 0}, {s, 0, c}};  // [column][row]
+    for (int col = 0; col < 3; ++col)
+        for (int row = 0; row < 3; ++row)
+            if (!(std::abs(r[col][row] - expected[col][row]) <= 1e-12)) return false;
+    degrees = angle * (180.0 / kPi);
+    return true;
+}
+
+LatLongCubemapFilter::LatLongCubemapFilter(int width, int height, int n)
+    : width_(width), height_(height), n_(n) {
+    if (width < 1 || height < 1 || width > kMaxLatLongSize || height > kMaxLatLongSize)
+        throw Error("lat-long filter", "lat-long size " + std::to_string(width) + " x " +
+                                           std::to_string(height) + " outside 1 .. " +
+                                           std::to_string(kMaxLatLongSize));
+    if (!isPowerOfTwo(n))
+        throw Error("environment", "cubemap size " + std::to_string(n) + " is not a power of two");
+    const size_t texels = size_t(kCubeFaces) * size_t(n) * size_t(n);
+    const LatLongCellSplitter splitter(width, height, n, glm::dmat3(1.0));
+
+    // Per row: (texel, column, area) with the pieces of one (texel, pixel) pair merged.
+    struct RowPiece {
+        std::uint32_t texel;
+        std::uint32_t x;
+        double area;
+    };
+    std::vector<std::vector<RowPiece>> rows(static_cast<size_t>(height));
+    struct Scratch {
+        LatLongCellSplitter::Scratch geometry;
+        std::vector<RowPiece> pieces;
+    };
+    forRowsInParallel<Scratch>(height, [&](Scratch& s, int y) {
+        s.pieces.clear();
+        splitter.row(s.geometry, y, [&](int x, size_t t, double area) {
+            s.pieces.push_back({std::uint32_t(t), std::uint32_t(x), area});
+        });
+        // Stable: equal pairs keep the splitter's order, so the merged areas (summed in
+        // that order) do not depend on the schedule.
+        std::stable_sort(s.pieces.begin(), s.pieces.end(), [](const RowPiece& a, const RowPiece& b) {
+            return a.texel != b.texel ? a.texel < b.texel : a.x < b.x;
+        });
+        std::vector<RowPiece>& out = rows[size_t(y)];
+        out.clear();
+        for (const RowPiece& p : s.pieces) {
+            if (!out.empty() && out.back().texel == p.texel && out.back().x == p.x)
+                out.back().area += p.area;
+            else
+                out.push_back(p);
+        }
+        out.shrink_to_fit();
+    });
+
+    // Texels that received no area (should not happen) take their nearest pixel, like
+    // latLongToCubemap.
+    std::vector<double> received(texels, 0.0);
+    for (const auto& r : rows)
+        for (const RowPiece& p : r) received[p.texel] += p.area;
+    std::vector<size_t> count(texels, 0);
+    for (const auto& r : rows)
+        for (const RowPiece& p : r)
+            if (received[p.texel] > 0.0) ++count[p.texel];
+    struct Fallback {
+        size_t texel;
+        int x, y;
+    };
+    std::vector<Fallback> fallbacks;
+    for (int f = 0; f < kCubeFaces; ++f)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                const size_t t = (size_t(f) * size_t(n) + size_t(j)) * size_t(n) + size_t(i);
+                if (received[t] > 0.0) continue;
+                const glm::dvec2 uv = directionToLatLong(texelDirection(n, f, i, j));
+                fallbacks.push_back({t, std::min(int(uv.x * width), width - 1),
+                                     std::min(int(uv.y * height), height - 1)});
+                count[t] = 1;
+            }
+
+    // CSR by texel; within a texel, entries in (row, column) order.
+    begin_.assign(texels + 1, 0);
+    size_t total = 0;
+    for (size_t t = 0; t < texels; ++t) {
+        begin_[t] = std::uint32_t(total);
+        total += count[t];
+        if (total > std::numeric_limits<std::uint32_t>::max())
+            throw Error("lat-long filter", "too many entries");
+    }
+    begin_[texels] = std::uint32_t(total);
+    entries_.resize(total);
+    std::vector<double> area(total, 0.0);
+    std::vector<std::uint32_t> fill(begin_.begin(), begin_.end() - 1);
+    for (int y = 0; y < height; ++y)
+        for (const RowPiece& p : rows[size_t(y)]) {
+            if (!(received[p.texel] > 0.0)) continue;
+            const std::uint32_t e = fill[p.texel]++;
+            entries_[e] = {std::uint16_t(p.x), std::uint16_t(y), 0.0f};
+            area[e] = p.area;
+        }
+    for (const Fallback& fb : fallbacks) {
+        const std::uint32_t e = fill[fb.texel]++;
+        entries_[e] = {std::uint16_t(fb.x), std::uint16_t(fb.y), 0.0f};
+        area[e] = 1.0;
+    }
+    for (size_t t = 0; t < texels; ++t) {
+        double sum = 0.0;
+        for (std::uint32_t e = begin_[t]; e < begin_[t + 1]; ++e) sum += area[e];
+        for (std::uint32_t e = begin_[t]; e < begin_[t + 1]; ++e)
+            entries_[e].weight = float(area[e] / sum);
+    }
+}
+
+size_t LatLongCubemapFilter::memoryBytes() const {
+    return sizeof(*this) + entries_.capacity() * sizeof(Entry) +
+           begin_.capacity() * sizeof(std::uint32_t);
+}
+
+Cubemap LatLongCubemapFilter::apply(const Image& latlong, double rotationYDegrees) const {
+    requireUsable(latlong, "environment");
+    if (latlong.width != width_ || latlong.height != height_)
+        throw Error("lat-long filter", "environment is " + std::to_string(latlong.width) + " x " +
+                                           std::to_string(latlong.height) + ", the filter was built for " +
+                                           std::to_string(width_) + " x " + std::to_string(height_));
+    if (!std::isfinite(rotationYDegrees))
+        throw Error("lat-long filter", "rotation angle is not finite");
+    const int W = width_, C = latlong.channels;
+
+    // rotationY(a) moves the content of longitude u to u - a / 360 (L'(d) = L(R^T d)),
+    // so the rotated map's column x holds the original's column x + a W / 360.
+    double shift = std::fmod(rotationYDegrees, 360.0) / 360.0 * W;  // (-W, W); fmod is exact
+    if (shift < 0.0) shift += W;                                      // [0, W]
+    int k = int(std::floor(shift));
+    double frac = shift - k;
+    if (frac < kIntegerShiftTolerance) {
+        frac = 0.0;
+    } else if (frac > 1.0 - kIntegerShiftTolerance) {
+        frac = 0.0;
+        ++k;
+    }
+    k %= W;
+    const double a0 = 1.0 - frac, a1 = frac;
+
+    Cubemap cube(n_, C);
+    float* out = cube.data().data();
+    const float* pixels = latlong.pixels.data();
+    const size_t rowStride = size_t(W) * size_t(C);
+    const size_t texels = cube.texelCount();
+
+    // Texel t = sum over its entries of weight * pixel (x + k, y), or of the blend of
+    // pixels x + k and x + k + 1 for a fractional shift; summed in double. The channel
+    // count and the blend are compile-time constants for RGB, the case that matters.
+    auto sumTexels = [&]<int kC, bool kBlend>(size_t tBegin, size_t tEnd) {
+        for (size_t t = tBegin; t < tEnd; ++t) {
+            double acc[kC] = {};
+            for (std::uint32_t e = begin_[t], end = begin_[t + 1]; e < end; ++e) {
+                const Entry en = entries_[e];
+                int x = int(en.x) + k;
+                if (x >= W) x -= W;
+                const float* row = pixels + size_t(en.y) * rowStride;
+                const float* p0 = row + size_t(x) * kC;
+                if constexpr (kBlend) {
+                    const int x1 = x + 1 < W ? x + 1 : 0;
+                    const float* p1 = row + size_t(x1) * kC;
+                    const double w0 = double(en.weight) * a0, w1 = double(en.weight) * a1;
+                    for (int c = 0; c < kC; ++c) acc[c] += w0 * double(p0[c]) + w1 * double(p1[c]);
+                } else {
+                    const double w = en.weight;
+                    for (int c = 0; c < kC; ++c) acc[c] += w * double(p0[c]);
+                }
+            }
+            for (int c = 0; c < kC; ++c) out[t * kC + size_t(c)] = float(acc[c]);
+        }
+    };
+    // Single-threaded: a few ms; two threads gave no consistent gain on the 2-core machine
+    // (docs/relight.md).
+    if (C == 3) {
+        if (frac == 0.0) sumTexels.template operator()<3, false>(0, texels);
+        else sumTexels.template operator()<3, true>(0, texels);
+        return cube;
+    }
+    // Any other channel count.
+    std::vector<double> acc(static_cast<size_t>(C));
+    for (size_t t = 0; t < texels; ++t) {
+        std::fill(acc.begin(), acc.end(), 0.0);
+        for (std::uint32_t e = begin_[t]; e < begin_[t + 1]; ++e) {
+            const Entry& en = entries_[e];
+            int x = int(en.x) + k;
+            if (x >= W) x -= W;
+            const int x1 = x + 1 < W ? x + 1 : 0;
+            const float* row = pixels + size_t(en.y) * rowStride;
+            const float* p0 = row + size_t(x) * size_t(C);
+            const float* p1 = row + size_t(x1) * size_t(C);
+            const double w0 = double(en.weight) * a0, w1 = double(en.weight) * a1;
+            for (int c = 0; c < C; ++c)
+                acc[size_t(c)] += frac == 0.0 ? w0 * double(p0[c]) : w0 * double(p0[c]) + w1 * double(p1[c]);
+        }
+        for (int c = 0; c < C; ++c) out[t * size_t(C) + size_t(c)] = float(acc[size_t(c)]);
+    }
+    return cube;
+}
+
+std::shared_ptr<const LatLongCubemapFilter> LatLongCubemapFilter::shared(int width, int height, int n) {
+    struct Slot {
+        int width, height, n;
+        std::mutex build;
+        std::shared_ptr<const LatLongCubemapFilter> filter;
+    };
+    static std::mutex mutex;
+    static std::vector<std::shared_ptr<Slot>> slots;  // most recently used first
+    constexpr size_t kKeep = 4;
+
+    std::shared_ptr<Slot> slot;
+    {
+        std::lock_guard<std::mutex> lock(mutex);
+        auto it = std::find_if(slots.begin(), slots.end(), [&](const std::shared_ptr<Slot>& s) {
+            return s->width == width && s->height == height && s->n == n;
+        });
+        if (it != slots.end()) {
+            slot = *it;
+            slots.erase(it);
+        } else {
+            slot = std::make_shared<Slot>();
+            slot->width = width;
+            slot->height = height;
+            slot->n = n;
+        }
+        slots.insert(slots.begin(), slot);
+        if (slots.size() > kKeep) slots.resize(kKeep);
+    }
+    // Built once, outside the cache lock: callers of other sizes are not held up, callers
+    // of the same size wait for it. A failed build (bad sizes) is dropped from the cache.
+    std::lock_guard<std::mutex> lock(slot->build);
+    if (!slot->filter) {
+        try {
+            slot->filter = std::make_shared<const LatLongCubemapFilter>(width, height, n);
+        } catch (...) {
+            std::lock_guard<std::mutex> cacheLock(mutex);  // never cache a failure
+            slots.erase(std::remove(slots.begin(), slots.end(), slot), slots.end());
+            throw;
+        }
+    }
+    return slot->filter;
 }
 
 // ---------------------------------------------------------------- cubemap -> images

@@ -23,7 +23,11 @@
 
 #include <glm/glm.hpp>
 
+#include <cstddef>
+#include <cstdint>
+#include <memory>
 #include <string>
+#include <vector>
 
 #include "common/cubemap.h"
 #include "common/image.h"
@@ -71,6 +75,11 @@ glm::dmat3 rotationY(double degrees);
 glm::dmat3 rotationZ(double degrees);
 glm::dmat3 rotationAxisAngle(const glm::dvec3& axis, double degrees);
 
+// True when `rotation` is a rotation about +Y, i.e. equals rotationY(degrees) entry by
+// entry within 1e-12 for the degrees it then stores (in [-180, 180]). Products of
+// rotationY matrices qualify; anything else leaves `degrees` untouched.
+bool rotationAboutY(const glm::dmat3& rotation, double& degrees);
+
 // Cubemap of face size n (power of two) with one channel per lat-long channel (RGB
 // for loadEnvironment's maps), of the environment rotated by `rotation`
 // (L'(d) = L(R^T d)). Area-correct: each texel holds the average of the
@@ -90,8 +99,73 @@ glm::dmat3 rotationAxisAngle(const glm::dvec3& axis, double degrees);
 // straddling cell, of relative order cell^2. Multithreaded over lat-long rows; the
 // result does not depend on the number of threads. Throws prt::Error for an empty or
 // inconsistent image or an n that is not a power of two.
+//
+// This is the reference implementation (60-170 ms for a 1024 x 512 map at N = 32..64 on
+// 2 cores). For rotations about +Y, LatLongCubemapFilter below gives the same cubemap at
+// whole-pixel angles, and a close one between them, in a few ms.
 Cubemap latLongToCubemap(const Image& latlong, int n,
                          const glm::dmat3& rotation = glm::dmat3(1.0));
+
+// latLongToCubemap's exact box filter for width x height lat-long maps and n x n faces,
+// stored as a sparse matrix (weights depend only on width, height and n, never on the
+// image), applied to environments turned by rotationY(degrees).
+//
+// A rotation about +Y by a whole number k of pixel widths (360 k / width degrees) is a
+// cyclic shift of the lat-long columns, and latLongToCubemap's sub-cells are aligned
+// with pixel columns, so apply(latlong, 360 k / width) equals
+// latLongToCubemap(latlong, n, rotationY(360 k / width)) up to rounding: the weights are
+// stored as float (~6e-8 relative each), so each texel agrees to ~1e-7 relative for a
+// non-negative map (measured 1.2e-7 on the eight maps of data/envmaps). The one other
+// difference: the rotated exact path's corner directions carry ~1e-16 of rounding, so
+// where a column border lies exactly on a texel border it leaves slivers of ~1e-14 of a
+// pixel's solid angle in the neighbouring texel, which this filter (built at identity)
+// does not; that shows only next to pixels ~1e9 times brighter (an absolute difference
+// of ~2e-14 of the brightest texel). For a fractional shift k + f (0 < f < 1)
+// apply returns (1 - f) apply(k) + f apply(k + 1): the exact box filter of the map
+// linearly interpolated in longitude between pixel centres. That keeps the integral over
+// the sphere exactly as latLongToCubemap does (~1e-6) but differs from the exact rotated
+// filter by a sub-pixel blur (docs/relight.md gives the size on the real maps). Shifts
+// within 1e-9 pixel of a whole number are taken as whole.
+//
+// Storage: per texel (CSR), the lat-long pixels it receives area from with their
+// normalised weights (area received / the texel's total), 8 bytes per entry: 1.25
+// entries per lat-long pixel at N = 32, 1.54 at N = 64 for 1024 x 512 (memoryBytes()).
+class LatLongCubemapFilter {
+public:
+    static constexpr int kMaxLatLongSize = 65535;          // pixel coordinates are 16-bit
+    static constexpr double kIntegerShiftTolerance = 1e-9;  // pixels
+
+    // Builds the filter (the cost of about 1.4 latLongToCubemap calls, multithreaded over
+    // rows; deterministic). Throws prt::Error for sizes outside 1 .. kMaxLatLongSize or an
+    // n that is not a power of two.
+    LatLongCubemapFilter(int width, int height, int n);
+
+    // Cubemap of face size n, one channel per lat-long channel, of `latlong` (width x
+    // height, any channel count) turned by rotationY(rotationYDegrees): see above.
+    // Single-threaded. Throws prt::Error for an inconsistent or empty image, a size other
+    // than the filter's, or a non-finite angle.
+    Cubemap apply(const Image& latlong, double rotationYDegrees = 0.0) const;
+
+    int width() const { return width_; }
+    int height() const { return height_; }
+    int size() const { return n_; }
+    size_t entryCount() const { return entries_.size(); }
+    size_t memoryBytes() const;
+
+    // The filter for (width, height, n) from a process-wide cache, built on first use.
+    // Thread-safe: concurrent callers for the same sizes wait for one build. The cache
+    // keeps the 4 most recently used filters (holders keep theirs alive).
+    static std::shared_ptr<const LatLongCubemapFilter> shared(int width, int height, int n);
+
+private:
+    struct Entry {
+        std::uint16_t x, y;  // lat-long pixel at rotation identity
+        float weight;        // its share of the texel's area (a texel's weights sum to 1)
+    };
+    int width_ = 0, height_ = 0, n_ = 0;
+    std::vector<std::uint32_t> begin_;  // 6 n^2 + 1 offsets into entries_
+    std::vector<Entry> entries_;
+};
 
 // Lat-long image width x width/2 (width even, >= 2) of the cubemap, bilinearly
 // sampled at pixel centres (Cubemap::sampleBilinear). For viewing and debugging.

@@ -29,6 +29,16 @@ struct LightVector {
 
 // From a lat-long environment (see envmap.h). keepTerms = 0 keeps every coefficient;
 // otherwise the largest keepTerms by RGB magnitude (Euclidean norm over channels).
+//
+// Resampling: when `rotation` is a rotation about +Y (rotationAboutY, which includes
+// the identity and any product of rotationY matrices) the cubemap comes from the
+// process-wide LatLongCubemapFilter::shared(width, height, n): the first call for a
+// (width, height, n) builds it (about 1.4 exact resamplings), later calls take a few ms.
+// For angles that are whole lat-long pixels (360 k / width degrees) the result equals
+// the exact latLongToCubemap to ~1e-7 relative; between them it is the exact filter of
+// the map linearly interpolated in longitude (envmap.h, docs/relight.md). Any other
+// rotation uses latLongToCubemap. For the exact filter at any angle, use
+// makeLightVector(latLongToCubemap(latlong, n, rotation), keepTerms).
 LightVector makeLightVector(const Image& latlong, int n, const glm::dmat3& rotation = glm::dmat3(1.0),
                             size_t keepTerms = 0);
 // From an RGB radiance cubemap (3 channels).

@@ -6,9 +6,12 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <memory>
 #include <numbers>
 #include <random>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "common/error.h"
 
@@ -404,6 +407,240 @@ TEST(Filtering, CubemapToLatLongReproducesSmoothMap) {
         }
     EXPECT_LT(worst, 0.03);
     EXPECT_THROW(prt::cubemapToLatLong(prt::latLongToCubemap(env, 4), 7), prt::Error);
+}
+
+// ---------------------------------------------------------------- rotation about +Y as a column shift
+
+namespace {
+
+// Largest |a - b| / (|b| + floor) over texels and channels, floor = floorFraction max |b|.
+//
+// Comparing with latLongToCubemap at rotationY(360 k / W), a small floor is needed: there
+// the rotated corner directions carry ~1e-16 of rounding, so where a pixel-column border
+// lies exactly on a texel border (e.g. the face centre lines) the exact path leaves
+// slivers of ~1e-14 of a pixel's solid angle in the neighbouring texel, which the filter
+// (built at identity) does not (measured: 2.4e-17 sr next to a 1.3e-3 sr piece). That is
+// visible only next to a pixel ~1e9 times brighter, as in highFrequencyMap (suns of
+// 2e5 beside pixels of 1e-5): an absolute difference of ~2e-14 of the brightest texel.
+double worstRelativeDifference(const Cubemap& a, const Cubemap& b, double floorFraction = 1e-7) {
+    EXPECT_EQ(a.size(), b.size());
+    EXPECT_EQ(a.channels(), b.channels());
+    if (a.data().size() != b.data().size()) return INFINITY;
+    double largest = 0.0;
+    for (float v : b.data()) largest = std::max(largest, double(std::abs(v)));
+    const double floor = floorFraction * largest;
+    double worst = 0.0;
+    for (size_t k = 0; k < a.data().size(); ++k)
+        worst = std::max(worst, std::abs(double(a.data()[k]) - double(b.data()[k])) /
+                                    (std::abs(double(b.data()[k])) + floor));
+    return worst;
+}
+
+// The filtered cubemap equals the exact rotated filter at whole-pixel angles.
+void expectWholePixelShiftsExact(const Image& env, int n, const std::vector<int>& shifts,
+                                 double tol, const std::string& what) {
+    const prt::LatLongCubemapFilter filter(env.width, env.height, n);
+    for (int k : shifts) {
+        const double degrees = 360.0 * k / env.width;
+        const double worst = worstRelativeDifference(filter.apply(env, degrees),
+                                                     prt::latLongToCubemap(env, n, prt::rotationY(degrees)));
+        EXPECT_LT(worst, tol) << what << ", shift " << k << " pixels (" << degrees << " degrees)";
+        std::printf("[ info ] %s N=%d shift %d px: worst relative texel difference %.2e\n",
+                    what.c_str(), n, k, worst);
+    }
+}
+
+}  // namespace
+
+TEST(Rotation, AboutYIsRecognisedWithItsAngle) {
+    double deg = 1234.0;
+    ASSERT_TRUE(prt::rotationAboutY(glm::dmat3(1.0), deg));
+    EXPECT_EQ(deg, 0.0);
+    for (double a : {37.5, -90.0, 90.0, 179.0, -0.001, 0.3515625}) {
+        ASSERT_TRUE(prt::rotationAboutY(prt::rotationY(a), deg)) << a;
+        EXPECT_NEAR(deg, a, 1e-12) << a;
+    }
+    ASSERT_TRUE(prt::rotationAboutY(prt::rotationY(180), deg));
+    EXPECT_EQ(std::abs(deg), 180.0);
+    // Products of rotationY matrices (turntable and spin frames) and the axis form.
+    ASSERT_TRUE(prt::rotationAboutY(prt::rotationY(-30) * prt::rotationY(100), deg));
+    EXPECT_NEAR(deg, 70.0, 1e-12);
+    ASSERT_TRUE(prt::rotationAboutY(prt::rotationAxisAngle({0, 3, 0}, 200), deg));
+    EXPECT_NEAR(deg, -160.0, 1e-12);
+    // Anything else is not, and leaves the angle alone.
+    deg = 5.0;
+    EXPECT_FALSE(prt::rotationAboutY(prt::rotationX(10), deg));
+    EXPECT_FALSE(prt::rotationAboutY(prt::rotationZ(0.001), deg));
+    EXPECT_FALSE(prt::rotationAboutY(prt::rotationAxisAngle({0, 1, 1e-6}, 40), deg));
+    EXPECT_FALSE(prt::rotationAboutY(prt::rotationY(40) * prt::rotationX(40), deg));
+    EXPECT_FALSE(prt::rotationAboutY(glm::dmat3(2.0), deg));  // not a rotation
+    EXPECT_FALSE(prt::rotationAboutY(glm::dmat3(-1.0), deg));
+    glm::dmat3 nan(1.0);
+    nan[0][0] = NAN;
+    EXPECT_FALSE(prt::rotationAboutY(nan, deg));
+    EXPECT_EQ(deg, 5.0);
+}
+
+TEST(LatLongFilter, WholePixelShiftsEqualExactRotationOfOnePixelSun) {
+    // One-pixel suns, one on the horizon straddling the -Z face's centre lines, one in
+    // a high row whose pixel straddles the +Y face's borders, one near the pole.
+    Image env = prt::sunEnvironment(256, {0.3, 0.05, -1}, {1000, 2000, 3000});
+    const Image sun2 = prt::sunEnvironment(256, {1, 1.2, 1}, {50, 0, 10});
+    const Image sun3 = prt::sunEnvironment(256, {0.01, 1, 0.02}, {0, 7, 0});
+    for (size_t k = 0; k < env.pixels.size(); ++k) env.pixels[k] += sun2.pixels[k] + sun3.pixels[k];
+    expectWholePixelShiftsExact(env, 16, {0, 1, 7, 32, 64, 100, 128, 200, 255}, 1e-6, "suns 256x128");
+    expectWholePixelShiftsExact(env, 64, {0, 3, 64, 129}, 1e-6, "suns 256x128");
+    // Where the sun goes: rotationY(90) takes the -Z region to -X (64 pixels).
+    const prt::LatLongCubemapFilter filter(256, 128, 16);
+    const Image minusZ = prt::sunEnvironment(256, {0.2, 0.1, -1}, {1, 1, 1});
+    const Cubemap turned = filter.apply(minusZ, 90.0);
+    const std::vector<double> perFace = [&] {
+        std::vector<double> e(6, 0.0);
+        for (int f = 0; f < 6; ++f)
+            for (int j = 0; j < 16; ++j)
+                for (int i = 0; i < 16; ++i) e[size_t(f)] += turned.texel(f, i, j)[0];
+        return e;
+    }();
+    EXPECT_EQ(std::max_element(perFace.begin(), perFace.end()) - perFace.begin(), 1);  // -X
+}
+
+TEST(LatLongFilter, WholePixelShiftsEqualExactRotationOnHighFrequencyMap) {
+    const Image env = highFrequencyMap(512, 21);
+    expectWholePixelShiftsExact(env, 32, {0, 1, 53, 128, 256, 511}, 1e-6, "synthetic 512x256");
+    const Image small = highFrequencyMap(64, 22);  // cube texels smaller than the pixels
+    expectWholePixelShiftsExact(small, 32, {0, 5, 16, 63}, 1e-6, "synthetic 64x32");
+}
+
+TEST(LatLongFilter, WholePixelShiftsEqualExactRotationOnForestIfPresent) {
+    const std::string path = std::string(PRT_SOURCE_DIR) + "/data/envmaps/forest.exr";
+    if (!fs::exists(path)) GTEST_SKIP() << path << " not present (run tools/fetch-data.sh)";
+    const Image env = prt::loadEnvironment(path, prt::NonFinitePolicy::ClampNegative);
+    // 107 pixels = 37.6 degrees of a 1024-wide map.
+    expectWholePixelShiftsExact(env, 32, {0, 107, 256, 1000}, 1e-6, "forest");
+}
+
+TEST(LatLongFilter, FractionalShiftIsTheInterpolatedMapAndKeepsTheIntegral) {
+    const Image env = highFrequencyMap(256, 31);
+    const int n = 16, W = env.width;
+    const prt::LatLongCubemapFilter filter(W, env.height, n);
+    for (double shift : {0.25, 17.5, 100.9, 255.6}) {
+        SCOPED_TRACE(shift);
+        const int k = int(std::floor(shift));
+        const double f = shift - k;
+        const double degrees = 360.0 * shift / W;
+        const Cubemap blended = filter.apply(env, degrees);
+        // (1 - f) cube(k) + f cube(k + 1), hence between the two at every texel.
+        const Cubemap c0 = filter.apply(env, 360.0 * k / W), c1 = filter.apply(env, 360.0 * (k + 1) / W);
+        Cubemap mix(n, 3);
+        for (size_t t = 0; t < mix.data().size(); ++t)
+            mix.data()[t] = float((1 - f) * c0.data()[t] + f * c1.data()[t]);
+        EXPECT_LT(worstRelativeDifference(blended, mix), 1e-6);
+        // ... which is the exact filter of the map linearly interpolated in longitude
+        // (column x of the interpolated map: (1 - f) L(x) + f L(x + 1)), turned by k pixels.
+        Image lerped(W, env.height, 3);
+        for (int y = 0; y < env.height; ++y)
+            for (int x = 0; x < W; ++x)
+                for (int c = 0; c < 3; ++c)
+                    lerped.at(x, y, c) = float((1 - f) * env.at(x, y, c) + f * env.at((x + 1) % W, y, c));
+        EXPECT_LT(worstRelativeDifference(
+                      blended, prt::latLongToCubemap(lerped, n, prt::rotationY(360.0 * k / W))),
+                  1e-6);
+        // The integral over the sphere is the map's (rotation about +Y only moves pixels
+        // within their rows), as for the exact filter.
+        expectIntegralPreserved(env, blended, 1e-5, "fractional shift");
+    }
+}
+
+TEST(LatLongFilter, FractionalShiftIsSubPixelOnSmoothMap) {
+    // Between whole pixels the filter differs from the exact rotated filter by much less
+    // than turning the environment by one more pixel changes the exact filter.
+    auto L = [](const glm::dvec3& d) { return glm::dvec3(2.0 + d.x, 2.0 + d.y * d.z, 2.0 - d.z * d.x); };
+    const Image env = latLongFrom(256, L);
+    const int n = 16;
+    const prt::LatLongCubemapFilter filter(256, 128, n);
+    auto maxAbsDifference = [](const Cubemap& a, const Cubemap& b) {
+        double m = 0.0;
+        for (size_t t = 0; t < a.data().size(); ++t)
+            m = std::max(m, std::abs(double(a.data()[t]) - double(b.data()[t])));
+        return m;
+    };
+    for (double degrees : {37.5, -123.4, 0.7}) {
+        const Cubemap exact = prt::latLongToCubemap(env, n, prt::rotationY(degrees));
+        const double error = maxAbsDifference(filter.apply(env, degrees), exact);
+        const double onePixel =
+            maxAbsDifference(prt::latLongToCubemap(env, n, prt::rotationY(degrees + 360.0 / 256)), exact);
+        EXPECT_LT(error, 0.25 * onePixel) << degrees;
+        EXPECT_LT(worstRelativeDifference(filter.apply(env, degrees), exact), 2e-3) << degrees;
+        std::printf("[ info ] smooth map, %g degrees: max difference %.2e, one more pixel of turn %.2e\n",
+                    degrees, error, onePixel);
+    }
+}
+
+TEST(LatLongFilter, FullTurnsAndConstantMaps) {
+    const Image env = highFrequencyMap(128, 41);
+    const prt::LatLongCubemapFilter filter(128, 64, 8);
+    const Cubemap zero = filter.apply(env, 0.0);
+    EXPECT_EQ(filter.apply(env, 360.0).data(), zero.data());
+    EXPECT_EQ(filter.apply(env, -360.0).data(), zero.data());
+    EXPECT_EQ(filter.apply(env, 720.0).data(), zero.data());
+    EXPECT_EQ(filter.apply(env, 360.0 + 90.0).data(), filter.apply(env, 90.0).data());
+    EXPECT_EQ(filter.apply(env, -270.0).data(), filter.apply(env, 90.0).data());
+    // A hair off a whole pixel is that pixel.
+    EXPECT_EQ(filter.apply(env, 360.0 * (5 + 1e-12) / 128).data(), filter.apply(env, 360.0 * 5 / 128).data());
+    EXPECT_EQ(filter.apply(env, 360.0 * (5 - 1e-12) / 128).data(), filter.apply(env, 360.0 * 5 / 128).data());
+    EXPECT_LT(worstRelativeDifference(zero, prt::latLongToCubemap(env, 8)), 1e-6);
+    // Weights of a texel sum to 1: a constant map gives a constant cubemap at any angle.
+    const Image cst = prt::constantEnvironment(128, {0.5f, 2.0f, 4.0f});
+    for (double degrees : {0.0, 33.3, 90.0}) {
+        const Cubemap c = filter.apply(cst, degrees);
+        for (size_t t = 0; t < c.texelCount(); ++t)
+            for (int ch = 0; ch < 3; ++ch)
+                EXPECT_NEAR(c.data()[3 * t + size_t(ch)], cst.at(0, 0, ch), 1e-6 * cst.at(0, 0, ch));
+    }
+    // Any channel count, like latLongToCubemap.
+    Image gray(128, 64, 1);
+    for (int y = 0; y < 64; ++y)
+        for (int x = 0; x < 128; ++x) gray.at(x, y, 0) = env.at(x, y, 1);
+    const Cubemap g = filter.apply(gray, 45.0);
+    ASSERT_EQ(g.channels(), 1);
+    EXPECT_LT(worstRelativeDifference(g, prt::latLongToCubemap(gray, 8, prt::rotationY(45.0))), 1e-6);
+}
+
+TEST(LatLongFilter, DeterministicValidatedAndShared) {
+    const Image env = highFrequencyMap(128, 51);
+    const prt::LatLongCubemapFilter a(128, 64, 16), b(128, 64, 16);
+    EXPECT_EQ(a.entryCount(), b.entryCount());
+    EXPECT_EQ(a.apply(env, 12.3).data(), b.apply(env, 12.3).data());
+    EXPECT_GE(a.entryCount(), size_t(128 * 64));  // every pixel lands somewhere
+    EXPECT_GT(a.memoryBytes(), a.entryCount() * 8);
+    EXPECT_EQ(a.width(), 128);
+    EXPECT_EQ(a.height(), 64);
+    EXPECT_EQ(a.size(), 16);
+
+    EXPECT_THROW(prt::LatLongCubemapFilter(128, 64, 12), prt::Error);
+    EXPECT_THROW(prt::LatLongCubemapFilter(0, 64, 16), prt::Error);
+    EXPECT_THROW(prt::LatLongCubemapFilter(70000, 35000, 16), prt::Error);
+    EXPECT_THROW(a.apply(highFrequencyMap(256, 1), 0.0), prt::Error);  // other size
+    EXPECT_THROW(a.apply(Image(), 0.0), prt::Error);
+    EXPECT_THROW(a.apply(env, NAN), prt::Error);
+    EXPECT_THROW(a.apply(env, INFINITY), prt::Error);
+    Image bad = env;
+    bad.pixels.pop_back();
+    EXPECT_THROW(a.apply(bad, 0.0), prt::Error);
+
+    // The shared cache: one filter per size, the same one from every thread.
+    std::vector<std::shared_ptr<const prt::LatLongCubemapFilter>> got(4);
+    std::vector<std::thread> threads;
+    for (size_t t = 0; t < got.size(); ++t)
+        threads.emplace_back([&got, t] { got[t] = prt::LatLongCubemapFilter::shared(64, 32, 8); });
+    for (auto& th : threads) th.join();
+    for (const auto& f : got) EXPECT_EQ(f.get(), got[0].get());
+    ASSERT_TRUE(got[0]);
+    EXPECT_EQ(got[0]->size(), 8);
+    EXPECT_NE(prt::LatLongCubemapFilter::shared(64, 32, 4).get(), got[0].get());
+    EXPECT_EQ(prt::LatLongCubemapFilter::shared(64, 32, 8).get(), got[0].get());
+    EXPECT_THROW(prt::LatLongCubemapFilter::shared(64, 32, 3), prt::Error);
+    EXPECT_THROW(prt::LatLongCubemapFilter::shared(64, 32, 3), prt::Error);  // not cached
 }
 
 // ---------------------------------------------------------------- cross layout

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <functional>
 #include <numeric>
@@ -109,6 +110,74 @@ TEST(LightVector, CubemapOverloadMatchesLatLongOverload) {
     EXPECT_EQ(a.rgb, b.rgb);
     EXPECT_EQ(a.keptTerms, b.keptTerms);
     EXPECT_EQ(a.relativeL2Error, b.relativeL2Error);
+}
+
+TEST(LightVector, AboutYMatchesExactFilterAtWholePixelAngles) {
+    // Rotations about +Y take the sparse filter (envmap.h); at whole-pixel angles it is
+    // the exact filter up to float weights.
+    const prt::Image env = randomEnvironment(128, 5);
+    const int n = 8;
+    for (int k : {0, 3, 32, 77, 127}) {
+        const double degrees = 360.0 * k / env.width;
+        const glm::dmat3 r = prt::rotationY(degrees);
+        const LightVector fast = prt::makeLightVector(env, n, r);
+        const LightVector exact = prt::makeLightVector(prt::latLongToCubemap(env, n, r));
+        ASSERT_EQ(fast.rgb.size(), exact.rgb.size());
+        const double tol = 1e-6 * maxAbs(exact.rgb);
+        for (size_t t = 0; t < fast.rgb.size(); ++t)
+            ASSERT_NEAR(fast.rgb[t], exact.rgb[t], tol) << "shift " << k << " coefficient " << t;
+    }
+    // A turntable frame: product of rotationY matrices, 45 + 11.25 degrees = 20 pixels.
+    const glm::dmat3 composed = prt::rotationY(-45.0) * prt::rotationY(101.25);
+    const LightVector fast = prt::makeLightVector(env, n, composed, 40);
+    const LightVector exact = prt::makeLightVector(prt::latLongToCubemap(env, n, prt::rotationY(56.25)), 40);
+    ASSERT_EQ(fast.rgb.size(), exact.rgb.size());
+    for (size_t t = 0; t < fast.rgb.size(); ++t) EXPECT_NEAR(fast.rgb[t], exact.rgb[t], 1e-6 * maxAbs(exact.rgb));
+    EXPECT_EQ(fast.keptTerms, exact.keptTerms);
+    EXPECT_NEAR(fast.relativeL2Error, exact.relativeL2Error, 1e-5);
+}
+
+TEST(LightVector, AboutYBetweenPixelsStaysCloseAndKeepsEnergy) {
+    // Between whole-pixel angles the light is the exact filter of the map interpolated
+    // in longitude: close to the exact rotated filter, with the map's integral over the
+    // sphere.
+    const prt::Image env = randomEnvironment(256, 9);
+    const int n = 8;
+    for (double degrees : {37.5, -100.1, 200.7}) {
+        const glm::dmat3 r = prt::rotationY(degrees);
+        const LightVector fast = prt::makeLightVector(env, n, r);
+        const LightVector exact = prt::makeLightVector(prt::latLongToCubemap(env, n, r));
+        double diff = 0.0, norm = 0.0;
+        for (size_t t = 0; t < fast.rgb.size(); ++t) {
+            diff += (double(fast.rgb[t]) - exact.rgb[t]) * (double(fast.rgb[t]) - exact.rgb[t]);
+            norm += double(exact.rgb[t]) * exact.rgb[t];
+        }
+        EXPECT_LT(std::sqrt(diff / norm), 2e-3) << degrees;
+        std::printf("[ info ] %g degrees: relative L2 difference from the exact filter %.2e\n", degrees,
+                    std::sqrt(diff / norm));
+        Cubemap radiance(n, 3);
+        radiance.data() = fast.rgb;
+        prt::haarInverse(radiance);
+        const std::vector<double> integral = radiance.integrate();
+        for (int c = 0; c < 3; ++c) {
+            const double expected = prt::latLongIntegral(env, c);
+            EXPECT_NEAR(integral[size_t(c)], expected, 1e-5 * expected) << degrees << " channel " << c;
+        }
+    }
+}
+
+TEST(LightVector, OtherRotationsUseTheExactFilter) {
+    const prt::Image env = randomEnvironment(64, 13);
+    for (const glm::dmat3& r : {prt::rotationX(30.0), prt::rotationZ(-12.0),
+                                prt::rotationAxisAngle(glm::dvec3(0, 1, 1e-6), 40.0),
+                                prt::rotationY(20.0) * prt::rotationX(5.0)}) {
+        const LightVector a = prt::makeLightVector(env, 8, r);
+        const LightVector b = prt::makeLightVector(prt::latLongToCubemap(env, 8, r));
+        EXPECT_EQ(a.rgb, b.rgb);
+    }
+    // Bad input is still reported by the exact path, whatever the rotation.
+    EXPECT_THROW(prt::makeLightVector(env, 12, prt::rotationY(10.0)), prt::Error);
+    EXPECT_THROW(prt::makeLightVector(prt::Image(), 8, prt::rotationY(10.0)), prt::Error);
 }
 
 TEST(LightVector, RejectsNonRgbInput) {
