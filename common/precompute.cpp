@@ -29,6 +29,12 @@ std::string fmt(double v) {
 }
 std::string fmt(const glm::dvec3& v) { return fmt(v.x) + "," + fmt(v.y) + "," + fmt(v.z); }
 
+std::string megabytes(size_t bytes) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.0f MB", double(bytes) / 1e6);
+    return buf;
+}
+
 uint64_t fnv1a(const std::string& text) {
     uint64_t h = 0xcbf29ce484222325ull;
     for (unsigned char c : text) {
@@ -204,7 +210,8 @@ std::string PrecomputeSummary::format() const {
     add("output            %s (%.2f MB)", outputPath.c_str(), fileBytes / 1e6);
     add("mesh              %zu vertices, %zu triangles, %.1f mm^2", vertices, triangles, totalAreaMm2);
     if (components.multipleScattering) {
-        add("samples           %zu (spacing %.3f mm)", samples, sampleSpacingMm);
+        add("samples           %zu (spacing %.3f mm), %s", samples, sampleSpacingMm,
+            formatDuration(samplesSeconds).c_str());
         add("pass 1            %s, %.3g rays, %.3g rays/s, retained energy %.4f",
             formatDuration(pass1Seconds).c_str(), double(raysTraced), pass1RaysPerSecond,
             sampleRetainedEnergy);
@@ -229,8 +236,18 @@ std::string PrecomputeSummary::format() const {
             ssMeanDepthMm, (unsigned long long)ssCappedDepths, (unsigned long long)ssFlippedNormals,
             (unsigned long long)ssOutsideSamples);
     }
-    add("total             %s, peak memory %.0f MB", formatDuration(totalSeconds).c_str(),
-        peakMemoryBytes / 1e6);
+    add("total             %s, peak memory %.0f MB (setup %s, write %s)",
+        formatDuration(totalSeconds).c_str(), peakMemoryBytes / 1e6,
+        formatDuration(setupSeconds).c_str(), formatDuration(writeSeconds).c_str());
+    // ru_maxrss only grows: each figure is the process's peak up to the end of that stage.
+    std::string peaks = "peak memory so far after setup " + megabytes(peakMemoryAfterSetupBytes);
+    if (components.multipleScattering)
+        peaks += ", samples " + megabytes(peakMemoryAfterSamplesBytes) + ", pass 1 " +
+                 megabytes(peakMemoryAfterPass1Bytes) + ", pass 2 " +
+                 megabytes(peakMemoryAfterPass2Bytes);
+    if (components.singleScattering)
+        peaks += ", single scattering " + megabytes(peakMemoryAfterSingleScatteringBytes);
+    o << "  " << peaks << '\n';
     return o.str();
 }
 
@@ -273,6 +290,8 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
 
     RayScene scene(mesh);
     const size_t coefficientCount = size_t(6) * settings.cubemapSize * settings.cubemapSize;
+    summary.setupSeconds = seconds(start);
+    summary.peakMemoryAfterSetupBytes = peakMemoryBytes();
 
     if (settings.components.multipleScattering) {
         // Samples: spacing about the mean free path l_u = 1 / sigma_t' (Jensen-Buhler).
@@ -283,11 +302,14 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
                 ? settings.sampleCount
                 : defaultSampleCount(summary.totalAreaMm2, spacing, settings.maxSamples);
         SampleSet samples;
+        const auto samplesStart = std::chrono::steady_clock::now();
         {
             Progress p("samples", sampleCount, "samples");
             samples = poissonDiskSamples(mesh, sampleCount, settings.seed);
             p.advance(sampleCount);
         }
+        summary.samplesSeconds = seconds(samplesStart);
+        summary.peakMemoryAfterSamplesBytes = peakMemoryBytes();
         summary.samples = samples.samples.size();
         summary.sampleSpacingMm = std::sqrt(2.0 * samples.areaPerSample / std::sqrt(3.0));
         derived.push_back({"samples", std::to_string(summary.samples)});
@@ -308,6 +330,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         summary.pass1Seconds = pass1.seconds;
         summary.pass1RaysPerSecond = pass1.seconds > 0 ? pass1.raysTraced / pass1.seconds : 0;
         summary.sampleRetainedEnergy = pass1.retainedEnergyFraction;
+        summary.peakMemoryAfterPass1Bytes = peakMemoryBytes();
 
         // Pass 2: hierarchical integration per vertex.
         SampleCloud cloud;
@@ -338,6 +361,8 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         for (const SparseVector& v : transport) ms.vectors.appendVertex(v.index, v.value);
         transport.clear();
         file.components.push_back(std::move(ms));
+        // After the copy into the file's arrays, which coexists with the per-vertex vectors.
+        summary.peakMemoryAfterPass2Bytes = peakMemoryBytes();
     }
 
     if (settings.components.singleScattering) {
@@ -406,11 +431,14 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         summary.ssMeanDepthMm =
             mesh.vertexCount() ? result.stats.depthSum / double(mesh.vertexCount()) : 0.0;
         summary.ssRetainedEnergy = result.retainedEnergyFraction;
+        summary.peakMemoryAfterSingleScatteringBytes = peakMemoryBytes();
     }
 
     // Derived values go before the digest (which stays the last parameter).
     file.parameters.insert(file.parameters.end() - 1, derived.begin(), derived.end());
+    const auto writeStart = std::chrono::steady_clock::now();
     saveTransportFile(settings.outputPath, file);
+    summary.writeSeconds = seconds(writeStart);
 
     summary.fileBytes = std::filesystem::file_size(settings.outputPath);
     summary.totalSeconds = seconds(start);

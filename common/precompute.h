@@ -78,6 +78,11 @@ struct PrecomputeSummary {
     size_t vertices = 0, triangles = 0, samples = 0;
     double totalAreaMm2 = 0, sampleSpacingMm = 0;
     uint64_t raysTraced = 0;          // pass 1
+    // Wall-clock seconds per stage: setup (mesh load, up-to-date check, scaling, the
+    // pass-1 ray scene), sample placement, pass 1, pass 2 (kd-tree build + per-vertex
+    // integration), phase SVD and single scattering (below), write (the transport
+    // file), total (everything).
+    double setupSeconds = 0, samplesSeconds = 0, writeSeconds = 0;
     double pass1Seconds = 0, pass2Seconds = 0, totalSeconds = 0;
     double pass1RaysPerSecond = 0;
     double sampleRetainedEnergy = 0;  // mean kept/total energy of pass-1 truncations
@@ -97,6 +102,13 @@ struct PrecomputeSummary {
     double ssMeanDepthMm = 0;         // mean d_m
     double ssRetainedEnergy = 0;      // mean kept/total energy of the per-vertex truncations
     size_t peakMemoryBytes = 0;       // of the process, at the end
+    // Peak resident set size of the process read at the end of each stage (getrusage
+    // ru_maxrss). It only ever grows, so each is the peak SO FAR (that stage and every
+    // earlier one, and earlier jobs of the same process), not the stage's own use; a
+    // stage that did not run has 0.
+    size_t peakMemoryAfterSetupBytes = 0, peakMemoryAfterSamplesBytes = 0;
+    size_t peakMemoryAfterPass1Bytes = 0, peakMemoryAfterPass2Bytes = 0;
+    size_t peakMemoryAfterSingleScatteringBytes = 0;
     size_t fileBytes = 0;
 
     std::string format() const;  // multi-line human-readable summary

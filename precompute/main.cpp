@@ -3,13 +3,21 @@
 // PrecomputeSettings and calls precomputeTransport().
 
 #include <CLI/CLI.hpp>
+#include <fcntl.h>
 #include <nlohmann/json.hpp>
 #include <tbb/global_control.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <optional>
+#include <thread>
 
 #include "common/bssrdf.h"
 #include "common/error.h"
@@ -142,7 +150,212 @@ PrecomputeSettings parseJob(const nlohmann::json& defaults, const nlohmann::json
     return finishSettings(raw, s);
 }
 
-int runJobFile(const std::string& path, bool force) {
+// ---------------------------------------------------------------------------
+// --summary-json: the job's PrecomputeSummary (every field), its settings, the
+// command and the machine's state, as JSON (docs/precompute.md, "Summary as JSON").
+// ---------------------------------------------------------------------------
+
+using Json = nlohmann::ordered_json;
+
+Json vec3(const glm::dvec3& v) { return Json::array({v.x, v.y, v.z}); }
+
+Json settingsJson(const PrecomputeSettings& s) {
+    Json j;
+    j["mesh"] = s.meshPath;
+    j["output"] = s.outputPath;
+    j["size_mm"] = s.scale.sizeMm ? Json(*s.scale.sizeMm) : Json(nullptr);
+    j["mm_per_unit"] = s.scale.mmPerUnit ? Json(*s.scale.mmPerUnit) : Json(nullptr);
+    j["material"] = s.material.name;
+    j["sigma_s_prime"] = vec3(s.material.sigmaSPrime);
+    j["sigma_a"] = vec3(s.material.sigmaA);
+    j["eta"] = s.material.eta;
+    j["g"] = s.material.g;
+    j["components"] = toString(s.components);
+    j["cubemap_size"] = s.cubemapSize;
+    j["supersample"] = s.supersample;
+    j["sample_coefficients"] = s.sampleCoefficients;
+    j["node_coefficients"] = s.nodeCoefficients;
+    j["coefficients"] = s.vertexCoefficients;
+    j["epsilon"] = s.epsilon;
+    j["samples_requested"] = s.sampleCount;            // 0: from the spacing
+    j["sample_spacing_mm_requested"] = s.sampleSpacingMm;  // 0: the mean free path
+    j["max_samples"] = s.maxSamples;
+    j["seed"] = s.seed;
+    j["phase_terms"] = s.phaseTerms;
+    j["phase_map_size"] = s.phaseMapSize;
+    j["path_samples"] = s.pathSamples;
+    j["ss_supersample"] = s.ssSupersample;
+    return j;
+}
+
+// Every field of the summary; fields of a stage that did not run are null. The
+// peak_memory_after_* values are ru_maxrss read at the end of each stage: the
+// process's peak so far (it only grows), not the stage's own use.
+Json summaryJson(const PrecomputeSummary& r) {
+    Json j;
+    j["output"] = r.outputPath;
+    j["skipped"] = r.skipped;
+    j["components"] = toString(r.components);
+    if (r.skipped) return j;  // nothing was computed
+    const bool ms = r.components.multipleScattering, ss = r.components.singleScattering;
+    const auto msOnly = [&](const Json& v) { return ms ? v : Json(nullptr); };
+    const auto ssOnly = [&](const Json& v) { return ss ? v : Json(nullptr); };
+    const double vertices = double(r.vertices);
+    const auto perVertex = [&](double v) { return vertices > 0 ? Json(v / vertices) : Json(nullptr); };
+    j["vertices"] = r.vertices;
+    j["triangles"] = r.triangles;
+    j["total_area_mm2"] = r.totalAreaMm2;
+    j["samples"] = msOnly(r.samples);
+    j["sample_spacing_mm"] = msOnly(r.sampleSpacingMm);
+    // Wall-clock seconds per stage.
+    j["setup_seconds"] = r.setupSeconds;
+    j["samples_seconds"] = msOnly(r.samplesSeconds);
+    j["pass1_seconds"] = msOnly(r.pass1Seconds);
+    j["pass2_seconds"] = msOnly(r.pass2Seconds);
+    j["phase_seconds"] = ssOnly(r.phaseSeconds);
+    j["ss_seconds"] = ssOnly(r.ssSeconds);
+    j["write_seconds"] = r.writeSeconds;
+    j["total_seconds"] = r.totalSeconds;
+    // Pass 1 and pass 2.
+    j["pass1_rays"] = msOnly(r.raysTraced);
+    j["pass1_rays_per_second"] = msOnly(r.pass1RaysPerSecond);
+    j["sample_retained_energy"] = msOnly(r.sampleRetainedEnergy);
+    j["mean_nodes_visited"] = msOnly(r.meanNodesVisited);
+    j["vertex_retained_energy"] = msOnly(r.vertexRetainedEnergy);
+    // Single scattering.
+    j["ss_terms"] = ssOnly(r.ssTerms);
+    j["ss_isotropic"] = ssOnly(r.ssIsotropic);
+    j["phase_rms_error"] = ssOnly(r.phaseRmsError);
+    j["ss_rays"] = ssOnly(r.ssRaysTraced);
+    j["ss_exit_rays"] = ssOnly(r.ssExitRays);
+    j["ss_occlusion_rays"] = ssOnly(r.ssOcclusionRays);
+    j["ss_culled_rays"] = ssOnly(r.ssCulledRays);
+    j["ss_escaped_rays"] = ssOnly(r.ssEscapedRays);
+    j["ss_reversed_hits"] = ssOnly(r.ssReversedHits);
+    j["ss_outside_samples"] = ssOnly(r.ssOutsideSamples);
+    j["ss_flipped_normals"] = ssOnly(r.ssFlippedNormals);
+    j["ss_capped_depths"] = ssOnly(r.ssCappedDepths);
+    j["ss_rays_per_second"] = ssOnly(r.ssRaysPerSecond);
+    j["ss_mean_depth_mm"] = ssOnly(r.ssMeanDepthMm);
+    j["ss_retained_energy"] = ssOnly(r.ssRetainedEnergy);
+    // Output and memory.
+    j["file_bytes"] = r.fileBytes;
+    j["peak_memory_bytes"] = r.peakMemoryBytes;
+    j["peak_memory_after_setup_bytes"] = r.peakMemoryAfterSetupBytes;
+    j["peak_memory_after_samples_bytes"] = msOnly(r.peakMemoryAfterSamplesBytes);
+    j["peak_memory_after_pass1_bytes"] = msOnly(r.peakMemoryAfterPass1Bytes);
+    j["peak_memory_after_pass2_bytes"] = msOnly(r.peakMemoryAfterPass2Bytes);
+    j["peak_memory_after_ss_bytes"] = ssOnly(r.peakMemoryAfterSingleScatteringBytes);
+    // Derived per-item figures (for tables and scaling plots).
+    j["pass1_seconds_per_sample"] =
+        ms && r.samples > 0 ? Json(r.pass1Seconds / double(r.samples)) : Json(nullptr);
+    j["pass2_seconds_per_vertex"] = ms ? perVertex(r.pass2Seconds) : Json(nullptr);
+    j["ss_seconds_per_vertex"] = ss ? perVertex(r.ssSeconds) : Json(nullptr);
+    j["ss_rays_per_vertex"] = ss ? perVertex(double(r.ssRaysTraced)) : Json(nullptr);
+    j["file_bytes_per_vertex"] = perVertex(double(r.fileBytes));
+    return j;
+}
+
+Json loadAverage() {
+    double l[3] = {0, 0, 0};
+    if (getloadavg(l, 3) != 3) return nullptr;
+    return Json::array({l[0], l[1], l[2]});
+}
+
+std::string utcNow() {
+    const std::time_t t = std::time(nullptr);
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+    return buf;
+}
+
+// The command line as one string, arguments with shell-special characters quoted.
+std::string commandLine(int argc, char** argv) {
+    std::string out;
+    for (int i = 0; i < argc; ++i) {
+        std::string a = argv[i];
+        if (a.empty() || a.find_first_of(" \t\n'\"\\$`*?[]{}()<>|&;#~!") != std::string::npos) {
+            std::string q = "'";
+            for (char c : a) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+            a = q + "'";
+        }
+        out += (i ? " " : "") + a;
+    }
+    return out;
+}
+
+// Fails early (before a long job) when the JSON could not be written at the end.
+void checkJsonPath(const std::string& path) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::is_directory(path, ec)) throw Error(path, "is a directory (--summary-json wants a file name)");
+    fs::path dir = fs::path(path).parent_path();
+    if (dir.empty()) dir = ".";
+    if (!fs::is_directory(dir, ec))
+        throw Error(path, "directory '" + dir.string() + "' does not exist (--summary-json)");
+    if (::access(dir.c_str(), W_OK) != 0)
+        throw Error(path, "directory '" + dir.string() + "' is not writable (--summary-json)");
+}
+
+// Written like the transport file: "<path>.tmp.<pid>", fsync, rename over `path`.
+void writeJsonAtomically(const std::string& path, const Json& doc) {
+    const std::string text = doc.dump(2) + "\n";
+    const std::string tmp = path + ".tmp." + std::to_string(long(::getpid()));
+    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd < 0) throw Error(path, "cannot create temporary file '" + tmp + "': " + std::strerror(errno));
+    const auto fail = [&](const std::string& what) {
+        const std::string reason = what + ": " + std::strerror(errno);
+        ::close(fd);
+        ::unlink(tmp.c_str());
+        throw Error(path, reason);
+    };
+    size_t done = 0;
+    while (done < text.size()) {
+        const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+        if (n < 0) {
+            if (errno == EINTR) continue;
+            fail("cannot write temporary file '" + tmp + "'");
+        }
+        done += size_t(n);
+    }
+    if (::fsync(fd) != 0) fail("cannot sync temporary file '" + tmp + "'");
+    if (::close(fd) != 0) {
+        const std::string reason = std::strerror(errno);
+        ::unlink(tmp.c_str());
+        throw Error(path, "cannot close temporary file '" + tmp + "': " + reason);
+    }
+    if (::rename(tmp.c_str(), path.c_str()) != 0) {
+        const std::string reason = std::strerror(errno);
+        ::unlink(tmp.c_str());
+        throw Error(path, "cannot rename '" + tmp + "' over it: " + reason);
+    }
+}
+
+// The document's common head: tool, command, time, machine.
+Json runJson(const std::string& command) {
+    Json j;
+    j["tool"] = "prt-precompute";
+    j["command"] = command;
+    j["time_utc"] = utcNow();
+    Json m;
+    m["hardware_threads"] = std::thread::hardware_concurrency();
+    m["threads"] = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+    m["load_average_start"] = loadAverage();  // 1, 5, 15 minutes
+    j["machine"] = m;
+    return j;
+}
+
+Json jobJson(const PrecomputeSettings& settings, const PrecomputeSummary& summary) {
+    Json j;
+    j["settings"] = settingsJson(settings);
+    j["summary"] = summaryJson(summary);
+    return j;
+}
+
+int runJobFile(const std::string& path, bool force, const std::string& summaryJsonPath,
+               const std::string& command) {
     std::ifstream in(path);
     if (!in) throw Error(path, "cannot open job file");
     nlohmann::json doc;
@@ -156,22 +369,43 @@ int runJobFile(const std::string& path, bool force) {
     const nlohmann::json defaults = doc.value("defaults", nlohmann::json::object());
     const auto& jobs = doc["jobs"];
     int failed = 0, skipped = 0, done = 0;
+    Json report = runJson(command);
+    report["job_file"] = path;
+    Json results = Json::array();
     for (size_t i = 0; i < jobs.size(); ++i) {
         const std::string where = path + ": job " + std::to_string(i + 1);
         std::fprintf(stderr, "== job %zu/%zu ==\n", i + 1, jobs.size());
+        Json result;
+        result["job"] = i + 1;
+        result["load_average_start"] = loadAverage();
         try {
             if (!jobs[i].is_object()) throw Error(where, "a job must be an object");
-            PrecomputeSummary summary = precomputeTransport(parseJob(defaults, jobs[i], where), force);
+            const PrecomputeSettings settings = parseJob(defaults, jobs[i], where);
+            result["settings"] = settingsJson(settings);
+            PrecomputeSummary summary = precomputeTransport(settings, force);
             std::printf("%s", summary.format().c_str());
             std::fflush(stdout);
+            result["summary"] = summaryJson(summary);
             (summary.skipped ? skipped : done)++;
         } catch (const std::exception& e) {
             std::fprintf(stderr, "prt-precompute: error: %s\n", e.what());
+            result["error"] = e.what();
             ++failed;
         }
+        result["load_average_end"] = loadAverage();
+        results.push_back(std::move(result));
     }
     std::printf("jobs: %d computed, %d up to date, %d failed (of %zu)\n", done, skipped, failed,
                 jobs.size());
+    if (!summaryJsonPath.empty()) {
+        report["machine"]["load_average_end"] = loadAverage();
+        report["computed"] = done;
+        report["up_to_date"] = skipped;
+        report["failed"] = failed;
+        report["jobs"] = std::move(results);
+        writeJsonAtomically(summaryJsonPath, report);
+        std::printf("summary: %s\n", summaryJsonPath.c_str());
+    }
     return failed ? 1 : 0;
 }
 
@@ -188,10 +422,13 @@ int main(int argc, char** argv) {
         RawOptions raw;
         PrecomputeSettings settings;
         addJobOptions(app, raw, settings);
-        std::string jobFile;
+        std::string jobFile, summaryJsonPath;
         bool force = false, quiet = false;
         int threads = 0;
         app.add_option("--jobs", jobFile, "JSON job file: {\"defaults\": {...}, \"jobs\": [{...}, ...]}");
+        app.add_option("--summary-json", summaryJsonPath,
+                       "Also write the summary (every field, settings, per-stage times and peak "
+                       "memory) as JSON to this file (atomically); with --jobs one document for all jobs");
         app.add_flag("-f,--force", force, "Recompute even when the output is up to date");
         app.add_option("-j,--threads", threads, "Worker threads (default: all cores)");
         app.add_flag("-q,--quiet", quiet, "No progress display");
@@ -206,11 +443,22 @@ int main(int argc, char** argv) {
         if (threads > 0)
             limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                           size_t(threads));
-        if (!jobFile.empty()) return runJobFile(jobFile, force);
+        if (!summaryJsonPath.empty()) checkJsonPath(summaryJsonPath);
+        const std::string command = commandLine(argc, argv);
+        if (!jobFile.empty()) return runJobFile(jobFile, force, summaryJsonPath, command);
         if (raw.mesh.empty()) throw Error("prt-precompute", "no mesh given (see --help)");
         if (raw.output.empty()) throw Error("--output", "no output path given (see --help)");
-        PrecomputeSummary summary = precomputeTransport(finishSettings(raw, settings), force);
+        const PrecomputeSettings job = finishSettings(raw, settings);
+        Json report = runJson(command);
+        PrecomputeSummary summary = precomputeTransport(job, force);
         std::printf("%s", summary.format().c_str());
+        if (!summaryJsonPath.empty()) {
+            report["machine"]["load_average_end"] = loadAverage();
+            const Json j = jobJson(job, summary);
+            for (auto it = j.begin(); it != j.end(); ++it) report[it.key()] = it.value();
+            writeJsonAtomically(summaryJsonPath, report);
+            std::printf("summary: %s\n", summaryJsonPath.c_str());
+        }
         return 0;
     });
 }

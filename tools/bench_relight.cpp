@@ -3,28 +3,44 @@
 // goal <= 1.5. Everything is measured in one run of this program, so the ratio holds
 // on a noisy machine; it is printed after the Google Benchmark table.
 //
-// Workload: a synthetic multiple-scattering component of 100,000 vertices x 128
-// coefficients (random distinct indices, sorted, over 6 x 32 x 32 = 6144 Haar
-// coefficients; random values), relit against a full (unapproximated) light vector.
+// Workloads (synthetic, random distinct indices, sorted, over 6 x 32 x 32 = 6144 Haar
+// coefficients; random values; relit against a full, unapproximated light vector):
+//   diffuse  one multiple-scattering component, 100,000 vertices x 128 coefficients
+//            (what an ms file or an isotropic ms,ss file sums into one diffuse vector);
+//   K = 4    the same diffuse component + 4 single-scattering term components (what
+//            prt-precompute --components ms,ss --g G --phase-terms 4 writes): the
+//            kernel with view terms, out.terms[0..3] besides out.diffuse.
 // Baselines: a multithreaded (TBB, all cores, like the relight) and a single-threaded
 // sum of a float array, once for a 1 GiB array (larger than any cache: the bandwidth
 // used for the ratio) and once for an array as large as the relight's stream; memcpy.
-// BM_RelightVsStream interleaves a 1 GiB sum and relights in every iteration, so its
-// ratios are the least sensitive to other load on the machine (see there).
+// BM_RelightVsStream/terms:0 and /terms:4 interleave a 1 GiB sum and relights in every
+// iteration, so their ratios are the least sensitive to other load on the machine (see
+// there). BM_LoadTransportFile times loadTransportFile of the diffuse workload saved
+// with saveTransportFile (every checksum verified), from the page cache and after
+// dropping the file from it.
 //
-// Usage: bench_relight [--vertices=V] [--coefficients=M] [--n=N] [google benchmark flags]
-// (defaults 100000, 128, 32).
+// Usage: bench_relight [--vertices=V] [--coefficients=M] [--n=N] [--tmp-dir=DIR]
+//                      [--summary-json=FILE] [google benchmark flags]
+// (defaults 100000, 128, 32, the system's temporary directory; --summary-json writes
+// the ratios, times per frame and load times as JSON for tools/bench.sh).
 
 #include <benchmark/benchmark.h>
+#include <fcntl.h>
+#include <nlohmann/json.hpp>
+#include <sys/mman.h>
+#include <sys/stat.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/task_arena.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <numeric>
@@ -46,43 +62,71 @@ namespace {
 size_t gVertices = 100000;
 size_t gCoefficients = 128;
 int gCubemapSize = 32;
+std::string gTmpDir;  // --tmp-dir; empty: the system's temporary directory
 
 struct Workload {
     prt::TransportFile file;
     prt::LightVector light;
     size_t streamBytes = 0;
+    int terms = 0;  // single-scattering term components besides the diffuse one
 };
 
-const Workload& workload() {
-    static const Workload w = [] {
-        Workload w;
-        w.file.cubemapSize = gCubemapSize;
-        w.file.mesh.vertexCount = gVertices;
-        prt::TransportComponent ms;
-        ms.kind = prt::ComponentKind::MultipleScattering;
-        const uint32_t count = 6 * gCubemapSize * gCubemapSize;
-        const size_t m = std::min<size_t>(gCoefficients, count);
-        ms.vectors.reserve(gVertices, gVertices * m);
-        std::mt19937 rng(1234);
-        std::uniform_real_distribution<float> value(-1.0f, 1.0f);
-        std::vector<uint32_t> all(count);
-        std::iota(all.begin(), all.end(), 0u);
-        std::vector<float> rgb(3 * m);
-        for (size_t v = 0; v < gVertices; ++v) {
-            // Partial Fisher-Yates: m distinct random indices (appendVertex sorts them).
-            for (size_t k = 0; k < m; ++k)
-                std::swap(all[k], all[k + std::uniform_int_distribution<size_t>(0, count - 1 - k)(rng)]);
-            for (float& x : rgb) x = value(rng);
-            ms.vectors.appendVertex(std::span<const uint32_t>(all.data(), m), rgb);
-        }
-        w.file.components.push_back(std::move(ms));
-        prt::Cubemap radiance(gCubemapSize, 3);
-        for (float& x : radiance.data()) x = std::abs(value(rng));
-        w.light = prt::makeLightVector(radiance);
-        w.streamBytes = prt::relightStreamBytes(w.file, {true, true});
-        return w;
-    }();
+// gVertices x gCoefficients random coefficients (distinct indices) of one component.
+prt::TransportComponent randomComponent(prt::ComponentKind kind, uint32_t term, uint32_t seed) {
+    prt::TransportComponent c;
+    c.kind = kind;
+    c.term = term;
+    const uint32_t count = 6 * gCubemapSize * gCubemapSize;
+    const size_t m = std::min<size_t>(gCoefficients, count);
+    c.vectors.reserve(gVertices, gVertices * m);
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> value(-1.0f, 1.0f);
+    std::vector<uint32_t> all(count);
+    std::iota(all.begin(), all.end(), 0u);
+    std::vector<float> rgb(3 * m);
+    for (size_t v = 0; v < gVertices; ++v) {
+        // Partial Fisher-Yates: m distinct random indices (appendVertex sorts them).
+        for (size_t k = 0; k < m; ++k)
+            std::swap(all[k], all[k + std::uniform_int_distribution<size_t>(0, count - 1 - k)(rng)]);
+        for (float& x : rgb) x = value(rng);
+        c.vectors.appendVertex(std::span<const uint32_t>(all.data(), m), rgb);
+    }
+    return c;
+}
+
+Workload makeWorkload(int terms) {
+    Workload w;
+    w.terms = terms;
+    w.file.cubemapSize = gCubemapSize;
+    w.file.mesh.vertexCount = gVertices;
+    // Seed 1234 for the diffuse component: the same data as before the K-term workload.
+    w.file.components.push_back(randomComponent(prt::ComponentKind::MultipleScattering, 0, 1234));
+    for (int k = 0; k < terms; ++k)
+        w.file.components.push_back(
+            randomComponent(prt::ComponentKind::SingleScatteringTerm, uint32_t(k), 5678 + uint32_t(k)));
+    std::mt19937 rng(1234);
+    std::uniform_real_distribution<float> value(-1.0f, 1.0f);
+    if (terms > 0) {  // a valid file has the h_k view maps (unused by the kernel)
+        prt::ViewMaps maps;
+        maps.size = 16;
+        maps.terms = terms;
+        maps.data.resize(size_t(terms) * 6 * 16 * 16);
+        for (float& x : maps.data) x = value(rng);
+        w.file.viewMaps = std::move(maps);
+    }
+    prt::Cubemap radiance(gCubemapSize, 3);
+    for (float& x : radiance.data()) x = std::abs(value(rng));
+    w.light = prt::makeLightVector(radiance);
+    w.streamBytes = prt::relightStreamBytes(w.file, {true, true});
     return w;
+}
+
+// terms = 0: the diffuse workload; 4: diffuse + K = 4 terms. Built on first use.
+const Workload& workload(int terms = 0) {
+    static std::map<int, Workload> built;
+    auto it = built.find(terms);
+    if (it == built.end()) it = built.emplace(terms, makeWorkload(terms)).first;
+    return it->second;
 }
 
 // range(0): layout (3 or 4 floats per light coefficient); range(1): kernel (0 baseline
@@ -214,9 +258,13 @@ double median(std::vector<double> v) {
 //   ratio_cold           mean cold relight time / (stream bytes / mean bandwidth);
 //   ratio_cold_median    median over iterations of the same ratio within one iteration
 //                        (matched pairs: the most robust to bursts of other load);
-//   ratio_warm_median    the same for the warm relight (against DRAM bandwidth).
+//   ratio_warm_median    the same for the warm relight (against DRAM bandwidth);
+//   cold_ms_median, warm_ms_median   median time per relight (= per frame);
+//   stream_MB            bytes one relight streams.
+// range(0): single-scattering terms besides the diffuse vector (0 or 4). With K = 4 the
+// stream is five times larger (~520 MB), more than any cache, so warm ~ cold.
 void BM_RelightVsStream(benchmark::State& state) {
-    const Workload& w = workload();
+    const Workload& w = workload(int(state.range(0)));
     const std::vector<float>& big = bandwidthArray(size_t(1) << 30);
     const double bigBytes = double(big.size() * sizeof(float));
     const double stream = double(w.streamBytes);
@@ -227,9 +275,11 @@ void BM_RelightVsStream(benchmark::State& state) {
         return std::chrono::duration<double>(b - a).count();
     };
     double sumBig = 0, sumCold = 0;
-    std::vector<double> coldRatios, warmRatios;
+    std::vector<double> coldRatios, warmRatios, coldTimes, warmTimes;
     coldRatios.reserve(100000);
     warmRatios.reserve(100000);
+    coldTimes.reserve(100000);
+    warmTimes.reserve(100000);
     for (auto _ : state) {
         const auto t0 = Clock::now();
         benchmark::DoNotOptimize(parallelSum(big));
@@ -248,6 +298,8 @@ void BM_RelightVsStream(benchmark::State& state) {
         sumCold += c;
         coldRatios.push_back(c / streamSeconds);
         warmRatios.push_back(wm / streamSeconds);
+        coldTimes.push_back(c);
+        warmTimes.push_back(wm);
         state.SetIterationTime(c);
     }
     const double n = double(state.iterations());
@@ -255,9 +307,117 @@ void BM_RelightVsStream(benchmark::State& state) {
     state.counters["ratio_cold"] = (sumCold / n) / (stream / (bigBytes * n / sumBig));
     state.counters["ratio_cold_median"] = median(coldRatios);
     state.counters["ratio_warm_median"] = median(warmRatios);
+    state.counters["cold_ms_median"] = 1e3 * median(coldTimes);
+    state.counters["warm_ms_median"] = 1e3 * median(warmTimes);
+    state.counters["stream_MB"] = stream / 1e6;
     state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(w.streamBytes));
+    state.SetLabel(w.terms == 0 ? "diffuse: 1 vector per vertex"
+                                : "1 diffuse + " + std::to_string(w.terms) + " term vectors per vertex");
 }
-BENCHMARK(BM_RelightVsStream)->UseManualTime()->Unit(benchmark::kMillisecond)->MinTime(3.0);
+BENCHMARK(BM_RelightVsStream)
+    ->ArgName("terms")
+    ->Arg(0)
+    ->Arg(4)
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(3.0);
+
+// ---------------------------------------------------------------------------
+// Transport-file load time: loadTransportFile (read + every checksum + every index
+// check) of the diffuse workload, saved once with saveTransportFile into --tmp-dir.
+// range(0) = 0: from the page cache (the file was just written or read); 1: "cold",
+// the file's pages dropped from the page cache before every load with
+// posix_fadvise(POSIX_FADV_DONTNEED) (no root needed; the pages are clean after the
+// save's fsync). Counter cached_fraction = fraction of the file's pages still in the
+// page cache right after the drop (mincore): 0 means the drop worked; on tmpfs it
+// cannot work (1). On a VM a "cold" read may still come from the host's cache.
+// ---------------------------------------------------------------------------
+
+// The diffuse workload saved once into --tmp-dir; removed at exit.
+struct LoadFile {
+    std::string path;
+    size_t bytes = 0;
+    LoadFile() {
+        namespace fs = std::filesystem;
+        const fs::path dir = gTmpDir.empty() ? fs::temp_directory_path() : fs::path(gTmpDir);
+        path = (dir / ("bench_relight_load." + std::to_string(long(::getpid())) + ".prt")).string();
+        prt::saveTransportFile(path, workload(0).file);
+        bytes = size_t(fs::file_size(path));
+    }
+    LoadFile(const LoadFile&) = delete;
+    LoadFile& operator=(const LoadFile&) = delete;
+    ~LoadFile() { std::remove(path.c_str()); }
+};
+
+const LoadFile& loadFile() {
+    static const LoadFile f;
+    return f;
+}
+
+// Fraction of the file's pages resident in the page cache (mincore), or -1.
+double residentFraction(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return -1;
+    struct stat st {};
+    double fraction = -1;
+    if (::fstat(fd, &st) == 0 && st.st_size > 0) {
+        void* p = ::mmap(nullptr, size_t(st.st_size), PROT_READ, MAP_SHARED, fd, 0);
+        if (p != MAP_FAILED) {
+            const size_t page = size_t(::sysconf(_SC_PAGESIZE));
+            std::vector<unsigned char> vec((size_t(st.st_size) + page - 1) / page);
+            if (::mincore(p, size_t(st.st_size), vec.data()) == 0) {
+                size_t resident = 0;
+                for (unsigned char c : vec) resident += c & 1;
+                fraction = double(resident) / double(vec.size());
+            }
+            ::munmap(p, size_t(st.st_size));
+        }
+    }
+    ::close(fd);
+    return fraction;
+}
+
+// Asks the kernel to drop the file's (clean) pages from the page cache.
+void dropFromPageCache(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return;
+    (void)::fdatasync(fd);
+    (void)::posix_fadvise(fd, 0, 0, POSIX_FADV_DONTNEED);
+    ::close(fd);
+}
+
+void BM_LoadTransportFile(benchmark::State& state) {
+    const bool cold = state.range(0) != 0;
+    const LoadFile& f = loadFile();
+    double cachedSum = 0;
+    if (!cold) {  // make sure it is in the page cache
+        benchmark::DoNotOptimize(prt::loadTransportFile(f.path).components.size());
+    }
+    for (auto _ : state) {
+        if (cold) {
+            state.PauseTiming();
+            dropFromPageCache(f.path);
+            cachedSum += residentFraction(f.path);
+            state.ResumeTiming();
+        }
+        auto file = std::make_unique<prt::TransportFile>(prt::loadTransportFile(f.path));
+        benchmark::DoNotOptimize(file->components.data());
+        state.PauseTiming();
+        file.reset();  // freeing the arrays is not part of the load
+        state.ResumeTiming();
+    }
+    state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(f.bytes));
+    state.counters["file_MB"] = double(f.bytes) / 1e6;
+    if (cold) state.counters["cached_fraction"] = cachedSum / double(state.iterations());
+    state.SetLabel(cold ? "dropped from the page cache before each load" : "from the page cache");
+}
+BENCHMARK(BM_LoadTransportFile)
+    ->ArgName("cold")
+    ->Arg(0)
+    ->Arg(1)
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(2.0);
 
 // memcpy of 256 MiB; bytes processed counts the bytes copied (the memory traffic is
 // twice that, read + write, plus write-allocate reads).
@@ -273,11 +433,13 @@ void BM_Memcpy(benchmark::State& state) {
 }
 BENCHMARK(BM_Memcpy)->UseRealTime()->Unit(benchmark::kMillisecond);
 
-// Console output plus the seconds per iteration of every run, for the ratio.
+// Console output plus the seconds per iteration and the counters of every run, for
+// the ratios and the summary.
 class RatioReporter : public benchmark::ConsoleReporter {
 public:
     std::map<std::string, double> seconds;  // best (smallest) real time per iteration
-    std::map<std::string, std::vector<double>> interleaved;  // BM_RelightVsStream's ratios, per run
+    // Counters of the last run of each benchmark.
+    std::map<std::string, std::map<std::string, double>> counters;
 
     void ReportRuns(const std::vector<Run>& runs) override {
         for (const Run& r : runs) {
@@ -285,14 +447,37 @@ public:
             const double s = r.real_accumulated_time / double(r.iterations);
             auto [it, inserted] = seconds.emplace(r.benchmark_name(), s);
             if (!inserted) it->second = std::min(it->second, s);
-            for (const char* key : {"ratio_cold", "ratio_cold_median", "ratio_warm_median"}) {
-                const auto it2 = r.counters.find(key);
-                if (it2 != r.counters.end()) interleaved[key].push_back(it2->second.value);
-            }
+            auto& c = counters[r.benchmark_name()];
+            for (const auto& [key, counter] : r.counters) c[key] = counter.value;
         }
         ConsoleReporter::ReportRuns(runs);
     }
+
+    // The first benchmark whose name starts with prefix (nullptr if none ran).
+    const std::map<std::string, double>* countersOf(const std::string& prefix) const {
+        for (const auto& [name, c] : counters)
+            if (name.rfind(prefix, 0) == 0) return &c;
+        return nullptr;
+    }
+    double secondsOf(const std::string& prefix) const {
+        for (const auto& [name, s] : seconds)
+            if (name.rfind(prefix, 0) == 0) return s;
+        return 0.0;
+    }
 };
+
+double counter(const std::map<std::string, double>* c, const char* key) {
+    if (!c) return 0.0;
+    const auto it = c->find(key);
+    return it == c->end() ? 0.0 : it->second;
+}
+
+bool parseString(const char* arg, const char* name, std::string& out) {
+    const size_t len = std::strlen(name);
+    if (std::strncmp(arg, name, len) != 0 || arg[len] != '=') return false;
+    out = arg + len + 1;
+    return true;
+}
 
 bool parseSize(const char* arg, const char* name, size_t& out) {
     const size_t len = std::strlen(name);
@@ -306,14 +491,21 @@ bool parseSize(const char* arg, const char* name, size_t& out) {
 int main(int argc, char** argv) {
     std::vector<char*> rest;
     size_t cubemapSize = size_t(gCubemapSize);
+    std::string summaryJson;
     for (int i = 0; i < argc; ++i)
         if (i == 0 || !(parseSize(argv[i], "--vertices", gVertices) ||
                         parseSize(argv[i], "--coefficients", gCoefficients) ||
-                        parseSize(argv[i], "--n", cubemapSize)))
+                        parseSize(argv[i], "--n", cubemapSize) ||
+                        parseString(argv[i], "--tmp-dir", gTmpDir) ||
+                        parseString(argv[i], "--summary-json", summaryJson)))
             rest.push_back(argv[i]);
     gCubemapSize = int(cubemapSize);
     if (gCubemapSize < 1 || gCubemapSize > 64 || (gCubemapSize & (gCubemapSize - 1)) != 0) {
         std::fprintf(stderr, "bench_relight: --n must be a power of two in 1..64\n");
+        return 1;
+    }
+    if (!gTmpDir.empty() && !std::filesystem::is_directory(gTmpDir)) {
+        std::fprintf(stderr, "bench_relight: --tmp-dir %s: not a directory\n", gTmpDir.c_str());
         return 1;
     }
     int restCount = int(rest.size());
@@ -321,17 +513,19 @@ int main(int argc, char** argv) {
     if (benchmark::ReportUnrecognizedArguments(restCount, rest.data())) return 1;
 
     const Workload& w = workload();
-    std::printf("relight workload: %zu vertices x %zu coefficients, N = %d, %.1f MB streamed per relight\n",
+    std::printf("relight workload: %zu vertices x %zu coefficients, N = %d, %.1f MB streamed per relight "
+                "(diffuse); K = 4 terms: 5 such vectors per vertex\n",
                 gVertices, gCoefficients, gCubemapSize, double(w.streamBytes) / 1e6);
 
     RatioReporter reporter;
-    benchmark::RunSpecifiedBenchmarks(&reporter);
+    try {
+        benchmark::RunSpecifiedBenchmarks(&reporter);
+    } catch (const std::exception& e) {  // e.g. the load benchmark cannot write its file
+        std::fprintf(stderr, "bench_relight: error: %s\n", e.what());
+        return 1;
+    }
 
-    const auto get = [&](const std::string& prefix) -> double {
-        for (const auto& [name, s] : reporter.seconds)
-            if (name.rfind(prefix, 0) == 0) return s;
-        return 0.0;
-    };
+    const auto get = [&](const std::string& prefix) { return reporter.secondsOf(prefix); };
     const double bigParallel = get("BM_StreamSum/bytes:1073741824/parallel:1");
     const double sameParallel = get("BM_StreamSum/bytes:0/parallel:1");
     const double bw = bigParallel > 0 ? double(size_t(1) << 30) / bigParallel : 0.0;
@@ -352,10 +546,65 @@ int main(int argc, char** argv) {
                         bwSame > 0 ? t / (double(w.streamBytes) / bwSame) : 0.0);
         }
     }
-    for (const auto& [key, values] : reporter.interleaved)
-        for (double r : values)
-            std::printf("BM_RelightVsStream (interleaved with 1 GiB sums): %s %.2f (goal <= 1.5)\n",
-                        key.c_str(), r);
+
+    nlohmann::ordered_json summary;
+    summary["workload"] = {{"vertices", gVertices}, {"coefficients", gCoefficients}, {"cubemap_size", gCubemapSize}};
+    if (bw > 0) summary["stream_sum_GBps"] = bw / 1e9;
+    for (int terms : {0, 4}) {
+        const auto* c = reporter.countersOf("BM_RelightVsStream/terms:" + std::to_string(terms) + "/");
+        if (!c) continue;
+        const char* name = terms == 0 ? "diffuse" : "k4";
+        std::printf("BM_RelightVsStream (interleaved with 1 GiB sums), %s (%.1f MB per frame): "
+                    "%.2f ms per frame cold (median), %.2f warm; ratio_cold %.2f, ratio_cold_median "
+                    "%.2f, ratio_warm_median %.2f (goal <= 1.5); %.2f GB/s DRAM\n",
+                    terms == 0 ? "diffuse only" : "1 diffuse + K = 4 terms", counter(c, "stream_MB"),
+                    counter(c, "cold_ms_median"), counter(c, "warm_ms_median"), counter(c, "ratio_cold"),
+                    counter(c, "ratio_cold_median"), counter(c, "ratio_warm_median"),
+                    counter(c, "dram_GBps"));
+        nlohmann::ordered_json r;
+        r["components"] = terms == 0 ? "1 diffuse vector" : "1 diffuse + 4 term vectors";
+        for (const char* key : {"stream_MB", "cold_ms_median", "warm_ms_median", "ratio_cold",
+                                "ratio_cold_median", "ratio_warm_median", "dram_GBps"})
+            r[key] = counter(c, key);
+        summary["relight"][name] = r;
+    }
+    for (int cold : {0, 1}) {
+        const std::string prefix = "BM_LoadTransportFile/cold:" + std::to_string(cold) + "/";
+        const auto* c = reporter.countersOf(prefix);
+        const double t = get(prefix);
+        if (!c || t <= 0) continue;
+        const double mb = counter(c, "file_MB");
+        std::printf("load %.1f MB transport file (%s): %.1f ms, %.0f MB/s", mb,
+                    cold ? "dropped from the page cache" : "page cache", 1e3 * t, mb / t);
+        if (cold)
+            std::printf(" (%.0f%% of its pages were still cached after the drop)",
+                        100.0 * counter(c, "cached_fraction"));
+        std::printf("\n");
+        nlohmann::ordered_json r;
+        r["file_MB"] = mb;
+        r["ms"] = 1e3 * t;  // best run
+        r["MBps"] = mb / t;
+        if (cold) r["cached_fraction"] = counter(c, "cached_fraction");
+        summary["load"][cold ? "cold" : "page_cache"] = r;
+    }
+    if (!summaryJson.empty()) {
+        const std::string tmp = summaryJson + ".tmp." + std::to_string(long(::getpid()));
+        {
+            std::ofstream out(tmp);
+            out << summary.dump(2) << "\n";
+            if (!out.flush()) {
+                std::fprintf(stderr, "bench_relight: cannot write %s\n", tmp.c_str());
+                std::remove(tmp.c_str());
+                return 1;
+            }
+        }
+        if (std::rename(tmp.c_str(), summaryJson.c_str()) != 0) {
+            std::fprintf(stderr, "bench_relight: cannot rename %s to %s\n", tmp.c_str(), summaryJson.c_str());
+            std::remove(tmp.c_str());
+            return 1;
+        }
+        std::printf("summary: %s\n", summaryJson.c_str());
+    }
     benchmark::Shutdown();
     return 0;
 }

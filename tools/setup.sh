@@ -1,6 +1,16 @@
 #!/usr/bin/env bash
 # Installs every Debian 12 package the project needs. Idempotent; runs as root or through sudo.
+# --plots also installs python3-matplotlib (Debian's) for tools/plot_scaling.py.
 set -euo pipefail
+
+plots=0
+for arg in "$@"; do
+  case "$arg" in
+    --plots) plots=1 ;;
+    -h|--help) echo "Usage: tools/setup.sh [--plots]  (--plots: also python3-matplotlib, for tools/scaling.sh)"; exit 0 ;;
+    *) echo "setup: unknown argument '$arg' (see --help)" >&2; exit 2 ;;
+  esac
+done
 
 packages=(
   build-essential cmake pkg-config git ca-certificates
@@ -21,6 +31,9 @@ packages=(
 
 # The npm client fetches the Stanford meshes; the machine image may ship its own Node.js.
 command -v npm >/dev/null 2>&1 || packages+=(npm)
+
+# Plots of tools/scaling.sh (tools/plot_scaling.py runs it with /usr/bin/python3).
+[ "$plots" = 0 ] || packages+=(python3 python3-matplotlib)
 
 missing=()
 for p in "${packages[@]}"; do

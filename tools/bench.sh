@@ -1,0 +1,112 @@
+#!/usr/bin/env bash
+# tools/bench.sh -- the benchmarks of SPEC section 8 in one run (docs/tools.md):
+#   1. bench_relight: relight time per frame / time to stream its bytes at the measured
+#      memory bandwidth, diffuse only and 1 diffuse + K = 4 terms (100,000 vertices x
+#      128 coefficients), interleaved with 1 GiB sums; transport-file load time;
+#   2. prt-bench-pass1: pass-1 occlusion rays/s / raw Embree rays/s (dragon res3);
+#   3. prt-precompute: multiple + isotropic single scattering of dragon res4 with
+#      --summary-json (pass 2 and single-scattering time per vertex, kd-tree nodes
+#      visited per vertex, peak memory after each pass, file size per vertex);
+#   4. prt-bench-relight-file: light vector and relight time per frame of that file.
+# Prints one Markdown table (with the command of each row) and writes it to
+# out/bench/summary.md; raw outputs are kept in out/bench/*.log and *.json.
+set -euo pipefail
+
+usage() {
+  cat <<'EOF'
+Usage: tools/bench.sh [--no-build] [--out DIR]
+
+Builds (Release, into $BUILD_DIR, default build/) the benchmark tools, runs every
+benchmark of SPEC section 8 and prints one Markdown table of the results, also
+written to DIR/summary.md (DIR default out/bench). Takes about 3 minutes on 2 cores
+plus the build. Needs the fetched data (tools/fetch-data.sh) and python3.
+
+  --no-build   use the binaries already in $BUILD_DIR
+  --out DIR    where logs, JSON and summary.md go (default out/bench)
+EOF
+}
+
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build=${BUILD_DIR:-$root/build}
+out=$root/out/bench
+do_build=1
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --no-build) do_build=0 ;;
+    --out) [ $# -ge 2 ] || { echo "bench: --out needs a directory" >&2; exit 2; }; out=$2; shift ;;
+    -h|--help) usage; exit 0 ;;
+    *) echo "bench: unknown argument '$1' (see --help)" >&2; exit 2 ;;
+  esac
+  shift
+done
+case "$build" in /*) ;; *) build=$PWD/$build ;; esac
+case "$out" in /*) ;; *) out=$PWD/$out ;; esac
+cd "$root"
+
+# --- inputs -----------------------------------------------------------------
+missing=()
+for f in data/meshes/dragon_vrip_res3.ply.gz data/meshes/dragon_vrip_res4.ply.gz data/envmaps/forest.exr; do
+  [ -f "$f" ] || missing+=("$f")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "bench: missing data: ${missing[*]}" >&2
+  echo "bench: run tools/fetch-data.sh first (it fetches and verifies the meshes and environments)" >&2
+  exit 1
+fi
+command -v python3 >/dev/null 2>&1 || { echo "bench: python3 is needed for the report (apt-get install python3)" >&2; exit 1; }
+
+# --- build ------------------------------------------------------------------
+targets=(bench_relight prt-bench-pass1 prt-precompute prt-bench-relight-file)
+if [ "$do_build" = 1 ]; then
+  echo "bench: building ${targets[*]} (Release) in $build"
+  cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake --build "$build" -j"$(nproc)" --target "${targets[@]}"
+fi
+# Commands are shown relative to the repository when the build is inside it.
+b=${build#"$root"/}
+bench_relight=$b/tools/bench_relight
+bench_pass1=$b/tools/prt-bench-pass1
+precompute=$b/precompute/prt-precompute
+bench_file=$b/tools/prt-bench-relight-file
+for exe in "$bench_relight" "$bench_pass1" "$precompute" "$bench_file"; do
+  [ -x "$exe" ] || { echo "bench: $exe not built (run without --no-build, or tools/build.sh)" >&2; exit 1; }
+done
+
+mkdir -p "$out"
+o=${out#"$root"/}
+: >"$out/commands.tsv"
+{
+  echo "date=$(date -u +%Y-%m-%dT%H:%M:%SZ)"
+  echo "cpu=$(grep -m1 'model name' /proc/cpuinfo 2>/dev/null | sed 's/.*: //')"
+  echo "threads=$(nproc)"
+  echo "memory_gib=$(awk '/MemTotal/ {printf "%.0f", $2 / 1048576}' /proc/meminfo 2>/dev/null)"
+  echo "commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet HEAD -- 2>/dev/null || echo '+changes')"
+  echo "load_start=$(cut -d' ' -f1-3 /proc/loadavg)"
+} >"$out/meta.txt"
+
+# run NAME CMD...: runs CMD from the repository root, output to $out/NAME.log.
+run() {
+  local name=$1; shift
+  local started=$SECONDS
+  # Arguments separated by \x1f, so the report can quote them for a shell.
+  { printf '%s\t' "$name"; printf '%s\x1f' "$@"; printf '\n'; } >>"$out/commands.tsv"
+  echo "bench: [$name] $(printf '%q ' "$@")"
+  if ! "$@" >"$out/$name.log" 2>&1; then
+    echo "bench: [$name] failed; last lines of $o/$name.log:" >&2
+    tail -n 20 "$out/$name.log" >&2
+    exit 1
+  fi
+  echo "bench: [$name] done in $((SECONDS - started)) s"
+}
+
+run relight "$bench_relight" '--benchmark_filter=RelightVsStream|LoadTransportFile' \
+  "--tmp-dir=$o" "--summary-json=$o/relight.json"
+run pass1 "$bench_pass1" data/meshes/dragon_vrip_res3.ply.gz --samples 2000
+rm -f "$out/precompute.json"
+run precompute "$precompute" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 --material Marble \
+  --components ms,ss -f -q --summary-json "$o/precompute.json" -o "$o/dragon4_ms_ss.prt"
+run relight_file "$bench_file" "$o/dragon4_ms_ss.prt" -e data/envmaps/forest.exr --json "$o/relight_file.json"
+echo "load_end=$(cut -d' ' -f1-3 /proc/loadavg)" >>"$out/meta.txt"
+rm -f "$out/dragon4_ms_ss.prt"
+
+python3 "$root/tools/bench_report.py" "$out"

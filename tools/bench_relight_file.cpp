@@ -1,0 +1,245 @@
+// prt-bench-relight-file: times one transport file's relight (docs/tools.md):
+// load time, the light vector (environment -> cubemap -> Haar) and the relight kernel
+// (relightVertices, every component of the file), each as the median of many runs:
+// back to back ("warm": a file smaller than the last-level cache is then read from
+// cache) and each after reading a 1 GiB array ("cold": from memory).
+// Used by tools/scaling.sh for the relight time per frame of every precomputed file.
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_reduce.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <random>
+#include <string>
+#include <unistd.h>
+#include <vector>
+
+#include "common/envmap.h"
+#include "common/error.h"
+#include "common/light.h"
+#include "common/relight.h"
+#include "common/transport_file.h"
+
+using namespace prt;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point t) {
+    return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+double median(std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// Reads `a` (all threads) so the transport data is evicted from the caches.
+float sumAll(const std::vector<float>& a) {
+    return tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, a.size(), size_t(1) << 16), 0.0f,
+        [&](const tbb::blocked_range<size_t>& r, float acc) {
+            for (size_t i = r.begin(); i < r.end(); ++i) acc += a[i];
+            return acc;
+        },
+        [](float x, float y) { return x + y; });
+}
+
+volatile float gSink = 0.0f;
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    return runMain("prt-bench-relight-file", [&]() -> int {
+        CLI::App app{
+            "prt-bench-relight-file: load time, light-vector time and relight-kernel time per frame of "
+            "one transport file (medians over many runs)"};
+        std::string path, envPath, jsonPath, components = "all";
+        int iterations = 50, lightIterations = 10, coldIterations = 10, threads = 0;
+        double minSeconds = 1.0;
+        size_t lightTerms = 0;
+        app.add_option("transport", path, "Transport file (.prt)")->required();
+        app.add_option("-e,--environment", envPath,
+                       "Lat-long environment for the light vector (without: a synthetic full light "
+                       "vector, and no light-vector time)");
+        app.add_option("--components", components, "Components to relight: ms, ss, ms,ss or all")
+            ->capture_default_str();
+        app.add_option("--light-terms", lightTerms, "Keep the largest L light coefficients (0: all)")
+            ->capture_default_str();
+        app.add_option("--iterations", iterations, "Relight runs (at least; see --min-seconds)")
+            ->capture_default_str();
+        app.add_option("--min-seconds", minSeconds, "Keep relighting until this much time has passed")
+            ->capture_default_str();
+        app.add_option("--light-iterations", lightIterations, "Light-vector runs (environment rotated)")
+            ->capture_default_str();
+        app.add_option("--cold-iterations", coldIterations,
+                       "Relight runs each after reading a 1 GiB array (caches flushed; 0: none)")
+            ->capture_default_str();
+        app.add_option("-j,--threads", threads, "Worker threads (default: all cores)");
+        app.add_option("--json", jsonPath, "Also write the results as JSON to this file");
+        try {
+            app.parse(argc, argv);
+        } catch (const CLI::ParseError& e) {
+            return app.exit(e);
+        }
+        if (iterations < 1) throw Error("--iterations", "must be >= 1");
+        if (lightIterations < 1) throw Error("--light-iterations", "must be >= 1");
+        if (coldIterations < 0) throw Error("--cold-iterations", "must be >= 0");
+        if (threads < 0) throw Error("--threads", "must be >= 0");
+        std::unique_ptr<tbb::global_control> limit;
+        if (threads > 0)
+            limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                          size_t(threads));
+
+        // Load (whatever the page cache holds: a file just written is cached).
+        auto t0 = Clock::now();
+        const TransportFile file = loadTransportFile(path);
+        const double loadSeconds = secondsSince(t0);
+        const double fileBytes = double(std::filesystem::file_size(path));
+
+        const ComponentSet asked = parseComponents(components);
+        ComponentSet set;
+        bool hasMs = false, hasSs = false;
+        int terms = 0;
+        for (const TransportComponent& c : file.components) {
+            hasMs = hasMs || c.kind == ComponentKind::MultipleScattering;
+            hasSs = hasSs || c.kind != ComponentKind::MultipleScattering;
+            terms += c.kind == ComponentKind::SingleScatteringTerm;
+        }
+        set.multipleScattering = asked.multipleScattering && hasMs;
+        set.singleScattering = asked.singleScattering && hasSs;
+        if (!set.multipleScattering && !set.singleScattering)
+            throw Error(path, "has none of the requested components (--components " + components + ")");
+        const int n = int(file.cubemapSize);
+        const size_t vertices = file.components.empty() ? 0 : file.components[0].vectors.vertexCount();
+        size_t coefficients = 0;
+        for (const TransportComponent& c : file.components) coefficients += c.vectors.coefficientCount();
+
+        // Light vector: from the environment (timed, rotated each run like an
+        // environment spin), or synthetic.
+        LightVector light;
+        std::vector<double> lightTimes;
+        if (!envPath.empty()) {
+            const Image env = loadEnvironment(envPath, NonFinitePolicy::ClampNegative);
+            for (int i = 0; i < lightIterations; ++i) {
+                t0 = Clock::now();
+                light = makeLightVector(env, n, rotationY(360.0 * i / lightIterations), lightTerms);
+                lightTimes.push_back(secondsSince(t0));
+            }
+            light = makeLightVector(env, n, glm::dmat3(1.0), lightTerms);
+        } else {
+            Cubemap radiance(n, 3);
+            std::mt19937 rng(1);
+            std::uniform_real_distribution<float> value(0.0f, 1.0f);
+            for (float& x : radiance.data()) x = value(rng);
+            light = makeLightVector(radiance, lightTerms);
+        }
+
+        // Relight: one warm-up (allocates the output), then timed runs.
+        VertexRadiance out;
+        relightVertices(file, light, set, out);
+        std::vector<double> times;
+        const auto start = Clock::now();
+        while (int(times.size()) < iterations || secondsSince(start) < minSeconds) {
+            t0 = Clock::now();
+            relightVertices(file, light, set, out);
+            times.push_back(secondsSince(t0));
+            if (times.size() >= 100000) break;
+        }
+        // Cold: each run after reading 1 GiB, so the transport data comes from memory
+        // even when it would fit in the last-level cache.
+        std::vector<double> coldTimes;
+        if (coldIterations > 0) {
+            std::vector<float> flush(size_t(1) << 28, 1.0f);  // 1 GiB
+            for (int i = 0; i < coldIterations; ++i) {
+                gSink = gSink + sumAll(flush);
+                t0 = Clock::now();
+                relightVertices(file, light, set, out);
+                coldTimes.push_back(secondsSince(t0));
+            }
+        }
+        const double coldMedian = median(coldTimes);
+        const double med = median(times);
+        const double best = *std::min_element(times.begin(), times.end());
+        double mean = 0;
+        for (double t : times) mean += t;
+        mean /= double(times.size());
+        const size_t stream = relightStreamBytes(file, set);
+        const int effectiveThreads =
+            int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+
+        std::printf("file          %s: %zu vertices, %zu components (%d view terms), N = %d, %.1f MB\n",
+                    path.c_str(), vertices, file.components.size(), terms, n, fileBytes / 1e6);
+        std::printf("load          %.1f ms (%.0f MB/s; as cached: a file just written is in the page cache)\n",
+                    1e3 * loadSeconds, fileBytes / 1e6 / loadSeconds);
+        if (!lightTimes.empty())
+            std::printf("light vector  %.2f ms median of %zu (%s -> 6x%dx%d -> Haar, %zu terms kept)\n",
+                        1e3 * median(lightTimes), lightTimes.size(), envPath.c_str(), n, n, light.keptTerms);
+        std::printf("relight       %.3f ms median of %zu (best %.3f, mean %.3f), %s, %d threads\n", 1e3 * med,
+                    times.size(), 1e3 * best, 1e3 * mean,
+                    set.multipleScattering && set.singleScattering ? "ms,ss"
+                    : set.multipleScattering                       ? "ms"
+                                                                   : "ss",
+                    effectiveThreads);
+        std::printf("stream        %.1f MB per relight, %.2f GB/s effective (median), %.1f ns per vertex\n",
+                    double(stream) / 1e6, double(stream) / med / 1e9,
+                    vertices ? 1e9 * med / double(vertices) : 0.0);
+        if (!coldTimes.empty())
+            std::printf("relight cold  %.3f ms median of %zu runs each after reading 1 GiB (%.2f GB/s effective)\n",
+                        1e3 * coldMedian, coldTimes.size(), double(stream) / coldMedian / 1e9);
+
+        if (!jsonPath.empty()) {
+            nlohmann::ordered_json j;
+            j["tool"] = "prt-bench-relight-file";
+            j["file"] = path;
+            j["environment"] = envPath.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(envPath);
+            j["vertices"] = vertices;
+            j["cubemap_size"] = n;
+            j["components"] = file.components.size();
+            j["view_terms"] = terms;
+            j["coefficients"] = coefficients;
+            j["file_bytes"] = fileBytes;
+            j["load_ms"] = 1e3 * loadSeconds;
+            j["load_MBps"] = fileBytes / 1e6 / loadSeconds;
+            j["light_ms_median"] =
+                lightTimes.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(1e3 * median(lightTimes));
+            j["light_terms"] = light.keptTerms;
+            j["relight_ms_median"] = 1e3 * med;
+            j["relight_ms_best"] = 1e3 * best;
+            j["relight_ms_mean"] = 1e3 * mean;
+            j["relight_runs"] = times.size();
+            j["relight_cold_ms_median"] = coldTimes.empty() ? nlohmann::ordered_json(nullptr)
+                                                            : nlohmann::ordered_json(1e3 * coldMedian);
+            j["relight_cold_runs"] = coldTimes.size();
+            j["stream_bytes"] = stream;
+            j["relight_GBps_effective"] = double(stream) / med / 1e9;
+            j["threads"] = effectiveThreads;
+            const std::string tmp = jsonPath + ".tmp." + std::to_string(long(::getpid()));
+            {
+                std::ofstream o(tmp);
+                o << j.dump(2) << "\n";
+                if (!o.flush()) {
+                    std::remove(tmp.c_str());
+                    throw Error(jsonPath, "cannot write");
+                }
+            }
+            if (std::rename(tmp.c_str(), jsonPath.c_str()) != 0) {
+                std::remove(tmp.c_str());
+                throw Error(jsonPath, "cannot rename the temporary file over it");
+            }
+        }
+        return 0;
+    });
+}

@@ -1,0 +1,165 @@
+#!/usr/bin/env python3
+"""Markdown table of a tools/bench.sh run (standard library only).
+
+Usage: tools/bench_report.py OUT_DIR
+
+Reads OUT_DIR/{meta.txt, commands.tsv, relight.json, pass1.log, precompute.json,
+relight_file.json}, prints one Markdown table with the command of each row and writes
+it to OUT_DIR/summary.md.
+"""
+
+import json
+import os
+import re
+import shlex
+import sys
+
+
+def load_json(path):
+    with open(path) as f:
+        return json.load(f)
+
+
+def fmt(v, digits=3):
+    """A number with `digits` significant digits, thousands separated when large."""
+    if v is None:
+        return "n/a"
+    if abs(v) >= 10 ** digits:
+        return f"{v:,.0f}"
+    return f"{v:.{digits}g}"
+
+
+def sci(v):
+    """Rates: 3 significant digits in scientific notation (5.12e+06)."""
+    return "n/a" if v is None else f"{v:.3g}"
+
+
+def mb(b):
+    return None if b is None else b / 1e6
+
+
+def main():
+    if len(sys.argv) != 2:
+        sys.exit(__doc__)
+    out = sys.argv[1]
+    meta = {}
+    with open(os.path.join(out, "meta.txt")) as f:
+        for line in f:
+            if "=" in line:
+                k, v = line.rstrip("\n").split("=", 1)
+                meta[k] = v
+    commands = {}
+    with open(os.path.join(out, "commands.tsv")) as f:
+        for line in f:
+            name, cmd = line.rstrip("\n").split("\t", 1)
+            # Arguments are separated by \x1f: quote them for a shell, and escape the
+            # pipes of a Markdown table cell (GitHub shows \| in a code span as |).
+            args = [a for a in cmd.split("\x1f") if a != ""] if "\x1f" in cmd else cmd.split()
+            commands[name] = shlex.join(args).replace("|", "\\|")
+    relight = load_json(os.path.join(out, "relight.json"))
+    pre = load_json(os.path.join(out, "precompute.json"))
+    s = pre["summary"]
+    rf = load_json(os.path.join(out, "relight_file.json"))
+    with open(os.path.join(out, "pass1.log")) as f:
+        pass1_log = f.read()
+
+    def grab(pattern):
+        m = re.search(pattern, pass1_log, re.M)
+        return float(m.group(1)) if m else None
+
+    pass1_ratio_packet = grab(r"^ratio\s+([0-9.]+) pass 1 / raw packet")
+    pass1_ratio_single = grab(r"pass 1 / raw packet, ([0-9.]+) pass 1 / raw single")
+    pass1_rate = grab(r"^pass 1\s+([0-9.e+]+) rays/s")
+    packet_rate = grab(r"^raw Embree packet\s+([0-9.e+]+) rays/s")
+    m = re.search(r"^samples\s+(\d+), cubemap (\S+), (\S+) sub-directions", pass1_log, re.M)
+    pass1_setup = f"{int(m.group(1)):,} samples, {m.group(2)}, {m.group(3)}" if m else ""
+    m = re.search(r"^mesh\s+(\S+) \((\d+) triangles", pass1_log, re.M)
+    pass1_mesh = f"{os.path.basename(m.group(1))}, {int(m.group(2)):,} triangles" if m else ""
+
+    rows = []
+
+    def row(what, measured, goal, cmd):
+        rows.append((what, measured, goal, f"`{commands[cmd]}`" if cmd else ""))
+
+    w = relight["workload"]
+    workload = f"{w['vertices']:,} vertices x {w['coefficients']} coefficients, 6x{w['cubemap_size']}x{w['cubemap_size']}"
+    for key, label in (("diffuse", "diffuse only (1 vector per vertex)"),
+                       ("k4", "1 diffuse + K = 4 single-scattering terms (5 vectors per vertex)")):
+        r = relight.get("relight", {}).get(key)
+        if not r:
+            continue
+        row(f"relight, {label}, {workload}, {fmt(r['stream_MB'])} MB per frame: time per frame",
+            f"{fmt(r['cold_ms_median'])} ms (median, caches flushed by a 1 GiB sum; "
+            f"right after: {fmt(r['warm_ms_median'])} ms)", "", "relight")
+        row(f"relight, {label}: time per frame / time to stream the same bytes at the measured bandwidth",
+            f"{r['ratio_cold_median']:.2f} (median of matched pairs; of means {r['ratio_cold']:.2f})",
+            "<= 1.5", "relight")
+    d = relight.get("relight", {}).get("diffuse") or relight.get("relight", {}).get("k4")
+    if d:
+        row("memory read bandwidth (1 GiB sum, all threads, interleaved with the relights)",
+            f"{d['dram_GBps']:.2f} GB/s", "", "relight")
+    load = relight.get("load", {})
+    if "page_cache" in load:
+        l = load["page_cache"]
+        row(f"transport file load (loadTransportFile, every checksum), {fmt(l['file_MB'])} MB, from the page cache",
+            f"{fmt(l['ms'])} ms ({fmt(l['MBps'])} MB/s)", "", "relight")
+    if "cold" in load:
+        l = load["cold"]
+        note = "" if l.get("cached_fraction", 0) < 0.01 else \
+            f"; {100 * l['cached_fraction']:.0f}% of pages still cached: drop ineffective"
+        row("transport file load, file dropped from the page cache first (posix_fadvise)",
+            f"{fmt(l['ms'])} ms ({fmt(l['MBps'])} MB/s{note})", "", "relight")
+
+    row(f"pass 1: achieved occlusion rays/s / raw Embree packet rays/s on the same rays ({pass1_mesh}, {pass1_setup})",
+        f"{pass1_ratio_packet:.3f}" if pass1_ratio_packet is not None else "n/a", ">= 0.8", "pass1")
+    row("pass 1 / raw single-ray Embree (rtcOccluded1) on the same rays",
+        f"{pass1_ratio_single:.3f}" if pass1_ratio_single is not None else "n/a", "", "pass1")
+    row("pass 1 rays/s (raw packet rays/s)", f"{sci(pass1_rate)} ({sci(packet_rate)})", "", "pass1")
+
+    v = s["vertices"]
+    mesh = os.path.basename(pre["settings"]["mesh"])
+    where = f"{mesh}, {v:,} vertices, {s['samples']:,} samples, 30 mm Marble, ms + isotropic ss"
+    row(f"precompute {where}: total (setup, samples, pass 1, pass 2, single scattering, write)",
+        f"{fmt(s['total_seconds'])} s ({fmt(s['setup_seconds'])}, {fmt(s['samples_seconds'])}, "
+        f"{fmt(s['pass1_seconds'])}, {fmt(s['pass2_seconds'])}, {fmt(s['ss_seconds'])}, "
+        f"{fmt(s['write_seconds'])} s)", "", "precompute")
+    row("pass 1 time per sample; rays/s",
+        f"{fmt(1e3 * s['pass1_seconds_per_sample'])} ms; {sci(s['pass1_rays_per_second'])}", "", "precompute")
+    row("pass 2 time per vertex; kd-tree nodes visited per vertex",
+        f"{fmt(1e6 * s['pass2_seconds_per_vertex'])} us; {fmt(s['mean_nodes_visited'])}", "", "precompute")
+    row("single scattering time per vertex; rays per vertex; rays/s",
+        f"{fmt(1e3 * s['ss_seconds_per_vertex'])} ms; {fmt(s['ss_rays_per_vertex'])}; "
+        f"{sci(s['ss_rays_per_second'])}", "", "precompute")
+    row("peak memory (process peak so far, ru_maxrss) after setup / samples / pass 1 / pass 2 / single scattering",
+        " / ".join(fmt(mb(s[k])) for k in (
+            "peak_memory_after_setup_bytes", "peak_memory_after_samples_bytes",
+            "peak_memory_after_pass1_bytes", "peak_memory_after_pass2_bytes",
+            "peak_memory_after_ss_bytes")) + " MB", "", "precompute")
+    row("file size per vertex (ms + isotropic ss: 2 components x 128 coefficients)",
+        f"{fmt(s['file_bytes_per_vertex'])} bytes ({fmt(mb(s['file_bytes']))} MB)", "", "precompute")
+    row(f"relight of that file (ms + ss, {rf['vertices']:,} vertices): time per frame; light vector (forest)",
+        f"{fmt(rf['relight_ms_median'])} ms ({fmt(rf['relight_GBps_effective'])} GB/s effective); "
+        f"{fmt(rf['light_ms_median'])} ms", "", "relight_file")
+
+    lines = [
+        f"Measured {meta.get('date', '?')} on {meta.get('cpu', '?')} ({meta.get('threads', '?')} threads, "
+        f"{meta.get('memory_gib', '?')} GiB), commit {meta.get('commit', '?')}; load average "
+        f"{meta.get('load_start', '?')} at the start, {meta.get('load_end', '?')} at the end.",
+        "",
+        "| what | measured | goal | command |",
+        "|---|---|---|---|",
+    ]
+    lines += [f"| {a} | {b} | {c} | {d} |" for a, b, c, d in rows]
+    text = "\n".join(lines) + "\n"
+    print()
+    print(text, end="")
+    path = os.path.join(out, "summary.md")
+    tmp = path + f".tmp.{os.getpid()}"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+    print(f"\nwrote {path}")
+
+
+if __name__ == "__main__":
+    main()

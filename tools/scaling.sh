@@ -1,0 +1,167 @@
+#!/usr/bin/env bash
+# tools/scaling.sh -- scaling curves of the precomputation and the relight (docs/tools.md).
+#
+# Runs prt-precompute (with --summary-json) and prt-bench-relight-file on series of
+# jobs, collects every JSON into out/scaling/json/, one CSV (out/scaling/scaling.csv)
+# and Markdown tables (out/scaling/tables.md), and draws log-log plots with fitted
+# slopes (docs/images/scaling_*.png; --quick: out/scaling/images/) when matplotlib is
+# installed (tools/setup.sh --plots).
+#
+# Series (full run; dragon at 30 mm, Marble, defaults unless stated):
+#   ms_mesh          multiple scattering: dragon res4, res3, res2, full (5K-437K vertices)
+#   ms_cubemap       cubemap 32, 64 (res3)
+#   ms_coefficients  coefficients kept per vertex 64, 128, 192, 256 (res3)
+#   ms_samples       --samples 5000, 10000, 20000, 40000 (+ the default 9,732) (res3)
+#   ss_mesh          isotropic single scattering (--components ss): res4, res3
+#   ss_path_samples  --path-samples 8, 16, 32 (res4)
+#   relight          relight time per frame of every file against its bytes
+set -euo pipefail
+
+usage() {
+  cat <<'EOF'
+Usage: tools/scaling.sh [--quick] [--no-build] [--keep] [--out DIR] [--plots DIR]
+
+Full run: about 15-20 minutes on 2 quiet cores (the single-scattering jobs take most of
+it). --quick: dragon res4 only with tiny variants (about 1-2 minutes), to test the
+chain; its plots go to DIR/images, not docs/images.
+
+  --quick       res4 + tiny variants only
+  --no-build    use the binaries already in $BUILD_DIR (default build/)
+  --keep        keep the transport files (DIR/prt/*.prt; the full set is ~1 GB)
+  --out DIR     output directory (default out/scaling)
+  --plots DIR   where the PNG plots go (default docs/images; --quick: DIR/images)
+EOF
+}
+
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build=${BUILD_DIR:-$root/build}
+out=$root/out/scaling
+plots=
+quick=0
+do_build=1
+keep=0
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --quick) quick=1 ;;
+    --no-build) do_build=0 ;;
+    --keep) keep=1 ;;
+    --out) [ $# -ge 2 ] || { echo "scaling: --out needs a directory" >&2; exit 2; }; out=$2; shift ;;
+    --plots) [ $# -ge 2 ] || { echo "scaling: --plots needs a directory" >&2; exit 2; }; plots=$2; shift ;;
+    -h|--help) usage; exit 0 ;;
+    *) echo "scaling: unknown argument '$1' (see --help)" >&2; exit 2 ;;
+  esac
+  shift
+done
+case "$build" in /*) ;; *) build=$PWD/$build ;; esac
+case "$out" in /*) ;; *) out=$PWD/$out ;; esac
+if [ -z "$plots" ]; then
+  if [ "$quick" = 1 ]; then plots=$out/images; else plots=$root/docs/images; fi
+fi
+case "$plots" in /*) ;; *) plots=$PWD/$plots ;; esac
+cd "$root"
+
+m=data/meshes
+env=data/envmaps/forest.exr
+# name | series (comma-separated) | mesh | extra prt-precompute options
+if [ "$quick" = 1 ]; then
+  runs=(
+    "ms_res4|ms_mesh,ms_cubemap,ms_coefficients,ms_samples|$m/dragon_vrip_res4.ply.gz|"
+    "ms_res4_n16|ms_cubemap|$m/dragon_vrip_res4.ply.gz|--cubemap-size 16"
+    "ms_res4_k64|ms_coefficients|$m/dragon_vrip_res4.ply.gz|-k 64"
+    "ms_res4_s2000|ms_samples|$m/dragon_vrip_res4.ply.gz|--samples 2000"
+    "ms_res4_s4000|ms_samples|$m/dragon_vrip_res4.ply.gz|--samples 4000"
+    "ss_res4_n16_p2|ss_mesh,ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --cubemap-size 16 --path-samples 2"
+    "ss_res4_n16_p4|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --cubemap-size 16 --path-samples 4"
+  )
+else
+  runs=(
+    "ms_res4|ms_mesh|$m/dragon_vrip_res4.ply.gz|"
+    "ms_res3|ms_mesh,ms_cubemap,ms_coefficients,ms_samples|$m/dragon_vrip_res3.ply.gz|"
+    "ms_res2|ms_mesh|$m/dragon_vrip_res2.ply.gz|"
+    "ms_full|ms_mesh|$m/dragon_vrip.ply.gz|"
+    "ms_res3_n64|ms_cubemap|$m/dragon_vrip_res3.ply.gz|--cubemap-size 64"
+    "ms_res3_k64|ms_coefficients|$m/dragon_vrip_res3.ply.gz|-k 64"
+    "ms_res3_k192|ms_coefficients|$m/dragon_vrip_res3.ply.gz|-k 192"
+    "ms_res3_k256|ms_coefficients|$m/dragon_vrip_res3.ply.gz|-k 256"
+    "ms_res3_s5000|ms_samples|$m/dragon_vrip_res3.ply.gz|--samples 5000"
+    "ms_res3_s10000|ms_samples|$m/dragon_vrip_res3.ply.gz|--samples 10000"
+    "ms_res3_s20000|ms_samples|$m/dragon_vrip_res3.ply.gz|--samples 20000"
+    "ms_res3_s40000|ms_samples|$m/dragon_vrip_res3.ply.gz|--samples 40000"
+    "ss_res4|ss_mesh,ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss"
+    "ss_res3|ss_mesh|$m/dragon_vrip_res3.ply.gz|--components ss"
+    "ss_res4_p8|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 8"
+    "ss_res4_p32|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 32"
+  )
+fi
+
+# --- inputs -----------------------------------------------------------------
+missing=()
+for r in "${runs[@]}"; do
+  IFS='|' read -r _ _ mesh _ <<<"$r"
+  [ -f "$mesh" ] || case " ${missing[*]-} " in *" $mesh "*) ;; *) missing+=("$mesh") ;; esac
+done
+[ -f "$env" ] || missing+=("$env")
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "scaling: missing data: ${missing[*]}" >&2
+  echo "scaling: run tools/fetch-data.sh first (it fetches and verifies the meshes and environments)" >&2
+  exit 1
+fi
+command -v python3 >/dev/null 2>&1 || { echo "scaling: python3 is needed for the tables (apt-get install python3)" >&2; exit 1; }
+# Debian's python3-matplotlib is installed for /usr/bin/python3 (another python3 may be first in PATH).
+py=python3
+for p in /usr/bin/python3 python3; do
+  if "$p" -c 'import matplotlib' >/dev/null 2>&1; then py=$p; break; fi
+done
+
+# --- build ------------------------------------------------------------------
+targets=(prt-precompute prt-bench-relight-file)
+if [ "$do_build" = 1 ]; then
+  echo "scaling: building ${targets[*]} (Release) in $build"
+  cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake --build "$build" -j"$(nproc)" --target "${targets[@]}"
+fi
+b=${build#"$root"/}
+precompute=$b/precompute/prt-precompute
+bench_file=$b/tools/prt-bench-relight-file
+for exe in "$precompute" "$bench_file"; do
+  [ -x "$exe" ] || { echo "scaling: $exe not built (run without --no-build, or tools/build.sh)" >&2; exit 1; }
+done
+
+# --- runs -------------------------------------------------------------------
+mkdir -p "$out/json" "$out/prt" "$out/logs"
+o=${out#"$root"/}
+manifest=$out/manifest.tsv
+printf 'name\tseries\tprecompute\trelight\n' >"$manifest"
+failed=0
+i=0
+start_all=$SECONDS
+for r in "${runs[@]}"; do
+  IFS='|' read -r name series mesh extra <<<"$r"
+  i=$((i + 1))
+  json=$o/json/$name.json
+  rjson=$o/json/$name.relight.json
+  prt=$o/prt/$name.prt
+  log=$out/logs/$name.log
+  rm -f "$json" "$rjson"
+  # shellcheck disable=SC2206
+  extra_args=($extra)
+  pre_cmd=("$precompute" "$mesh" --size-mm 30 --material Marble "${extra_args[@]}" -f -q
+           --summary-json "$json" -o "$prt")
+  rel_cmd=("$bench_file" "$prt" -e "$env" --json "$rjson")
+  printf '%s\t%s\t%s\t%s\n' "$name" "$series" "${pre_cmd[*]}" "${rel_cmd[*]}" >>"$manifest"
+  started=$SECONDS
+  printf 'scaling: [%d/%d] %s: %s\n' "$i" "${#runs[@]}" "$name" "${pre_cmd[*]}"
+  if "${pre_cmd[@]}" >"$log" 2>&1 && "${rel_cmd[@]}" >>"$log" 2>&1; then
+    printf 'scaling: [%d/%d] %s done in %d s\n' "$i" "${#runs[@]}" "$name" $((SECONDS - started))
+  else
+    echo "scaling: [$i/${#runs[@]}] $name FAILED; last lines of $log:" >&2
+    tail -n 10 "$log" >&2
+    failed=$((failed + 1))
+  fi
+  [ "$keep" = 1 ] || rm -f "$prt"
+done
+echo "scaling: ${#runs[@]} runs in $((SECONDS - start_all)) s, $failed failed"
+
+mkdir -p "$plots"
+"$py" "$root/tools/plot_scaling.py" --dir "$out" --plots "$plots"
+[ "$failed" = 0 ] || { echo "scaling: $failed run(s) failed (see $o/logs/)" >&2; exit 1; }
