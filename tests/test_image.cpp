@@ -256,10 +256,10 @@ TEST_F(ImageIoTest, ReadsRadianceHdr) {
 }
 
 TEST(Image, OutputPrefixDropsAnImageExtension) {
-    EXPECT_EQ(outputPrefix("out/frame.exr"), "out/frame");
-    EXPECT_EQ(outputPrefix("out/frame.PNG"), "out/frame");
-    EXPECT_EQ(outputPrefix("out/frame"), "out/frame");
-    EXPECT_EQ(outputPrefix("out/frame.tif"), "out/frame.tif");
-    EXPECT_EQ(outputPrefix(".exr"), ".exr");  // nothing would be left of the name
-    EXPECT_EQ(outputPrefix("a.exr"), "a");
+    EXPECT_EQ(prt::outputPrefix("out/frame.exr"), "out/frame");
+    EXPECT_EQ(prt::outputPrefix("out/frame.PNG"), "out/frame");
+    EXPECT_EQ(prt::outputPrefix("out/frame"), "out/frame");
+    EXPECT_EQ(prt::outputPrefix("out/frame.tif"), "out/frame.tif");
+    EXPECT_EQ(prt::outputPrefix(".exr"), ".exr");  // nothing would be left of the name
+    EXPECT_EQ(prt::outputPrefix("a.exr"), "a");
 }
