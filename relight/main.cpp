@@ -27,6 +27,7 @@
 #include "common/light.h"
 #include "common/progress.h"
 #include "common/relight.h"
+#include "common/camera_options.h"
 #include "common/render.h"
 #include "relight/view.h"
 
@@ -36,62 +37,6 @@ namespace {
 
 double msSince(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
-// Camera options shared by render and view.
-struct CameraOptions {
-    std::vector<double> eye, target, up{0.0, 1.0, 0.0};
-    double fov = 30.0;
-    int width = 512, height = 512;
-    double azimuth = 0.0, elevation = 15.0, fill = 0.9;
-};
-
-void addCameraOptions(CLI::App& app, CameraOptions& o) {
-    app.add_option("--eye", o.eye, "Camera position x,y,z in mm (object space after scaling); "
-                                   "default: framed automatically from --azimuth/--elevation")
-        ->expected(3)->delimiter(',')->group("Camera");
-    app.add_option("--target", o.target, "Point looked at x,y,z in mm (default: bounding-sphere centre)")
-        ->expected(3)->delimiter(',')->group("Camera");
-    app.add_option("--up", o.up, "Up vector x,y,z (roll)")->expected(3)->delimiter(',')
-        ->capture_default_str()->group("Camera");
-    app.add_option("--fov", o.fov, "Vertical field of view in degrees")->capture_default_str()->group("Camera");
-    app.add_option("-W,--width", o.width, "Image width in pixels")->capture_default_str()->group("Camera");
-    app.add_option("-H,--height", o.height, "Image height in pixels")->capture_default_str()->group("Camera");
-    app.add_option("--azimuth", o.azimuth,
-                   "Automatic framing: degrees about +Y, 0 = camera on +Z looking down -Z")
-        ->capture_default_str()->group("Camera");
-    app.add_option("--elevation", o.elevation, "Automatic framing: degrees above the horizontal")
-        ->capture_default_str()->group("Camera");
-    app.add_option("--fill", o.fill, "Automatic framing: fraction of the smaller image side the "
-                                     "bounding sphere fills")
-        ->capture_default_str()->group("Camera");
-}
-
-glm::dvec3 toVec(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
-
-Camera makeCamera(const CameraOptions& o, const RelightObject& object) {
-    if (!(o.fill > 0 && o.fill <= 1)) throw Error("--fill", "must be in (0, 1]");
-    if (!std::isfinite(o.azimuth) || !std::isfinite(o.elevation))
-        throw Error("camera", "azimuth and elevation must be finite");
-    const glm::dvec3 target = o.target.empty() ? object.sphereCentre : toVec(o.target);
-    Camera c;
-    if (o.eye.empty()) {
-        if (!(std::abs(o.elevation) < 90)) throw Error("--elevation", "must be in (-90, 90) degrees");
-        c = frameSphere(target, std::max(object.sphereRadius, 1e-6), o.azimuth, o.elevation, o.fov,
-                        o.width, o.height, o.fill);
-    } else {
-        c.eye = toVec(o.eye);
-        c.target = target;
-        c.fovY = o.fov;
-        c.width = o.width;
-        c.height = o.height;
-    }
-    c.up = toVec(o.up);
-    for (const glm::dvec3& v : {c.eye, c.target, c.up})
-        if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
-            throw Error("camera", "eye, target and up must be finite");
-    validateCamera(c);
-    return c;
 }
 
 // Lighting options shared by render and view.
@@ -207,7 +152,7 @@ int runRender(const RenderOptions& o) {
     const auto loadStart = std::chrono::steady_clock::now();
     const RelightObject object = loadRelightObject(o.mesh, o.transport);
     const ComponentSet components = selectComponents(o, o.transport, object.transport);
-    const Camera camera = makeCamera(o.camera, object);
+    const Camera camera = makeCamera(o.camera, object.sphereCentre, object.sphereRadius);
     const Image environment = loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
     const RayScene scene(object.mesh);
     const TranslucentShader shader(object.mesh, object.eta,
@@ -390,7 +335,7 @@ int runView(const ViewOptions& o) {
     setup.meshPath = o.mesh;
     setup.transportPath = o.transport;
     setup.components = selectComponents(o, o.transport, setup.object.transport);
-    setup.camera = makeCamera(o.camera, setup.object);
+    setup.camera = makeCamera(o.camera, setup.object.sphereCentre, setup.object.sphereRadius);
     std::printf("object: %zu vertices, %zu triangles, %.4g mm across, eta %.4g; cubemap 6x%ux%u; loaded in %.0f ms\n",
                 setup.object.mesh.vertexCount(), setup.object.mesh.triangleCount(),
                 double(setup.object.box.diagonal()), setup.object.eta, setup.object.transport.cubemapSize,

@@ -27,6 +27,7 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/image.h"
+#include "common/camera_options.h"
 #include "common/mesh.h"
 #include "common/progress.h"
 #include "common/raytrace.h"
@@ -43,35 +44,6 @@ double secondsSince(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Camera options: the same names, defaults and meaning as prt-relight render
-// (docs/relight.md, "Camera").
-struct CameraOptions {
-    std::vector<double> eye, target, up{0.0, 1.0, 0.0};
-    double fov = 30.0;
-    int width = 512, height = 512;
-    double azimuth = 0.0, elevation = 15.0, fill = 0.9;
-};
-
-void addCameraOptions(CLI::App& app, CameraOptions& o) {
-    app.add_option("--eye", o.eye, "Camera position x,y,z in mm (object space after scaling); "
-                                   "default: framed automatically from --azimuth/--elevation")
-        ->expected(3)->delimiter(',')->group("Camera");
-    app.add_option("--target", o.target, "Point looked at x,y,z in mm (default: bounding-sphere centre)")
-        ->expected(3)->delimiter(',')->group("Camera");
-    app.add_option("--up", o.up, "Up vector x,y,z (roll)")->expected(3)->delimiter(',')
-        ->capture_default_str()->group("Camera");
-    app.add_option("--fov", o.fov, "Vertical field of view in degrees")->capture_default_str()->group("Camera");
-    app.add_option("-W,--width", o.width, "Image width in pixels")->capture_default_str()->group("Camera");
-    app.add_option("-H,--height", o.height, "Image height in pixels")->capture_default_str()->group("Camera");
-    app.add_option("--azimuth", o.azimuth, "Automatic framing: degrees about +Y, 0 = camera on +Z looking down -Z")
-        ->capture_default_str()->group("Camera");
-    app.add_option("--elevation", o.elevation, "Automatic framing: degrees above the horizontal")
-        ->capture_default_str()->group("Camera");
-    app.add_option("--fill", o.fill, "Automatic framing: fraction of the smaller image side the bounding sphere fills")
-        ->capture_default_str()->group("Camera");
-}
-
-glm::dvec3 toVec(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
 
 // Bounding sphere exactly as prt-relight places it: the bounding-box centre and the
 // largest distance of a vertex from it.
@@ -85,30 +57,6 @@ void boundingSphere(const TriangleMesh& mesh, glm::dvec3& centre, double& radius
     radius = std::sqrt(r2);
 }
 
-Camera makeCamera(const CameraOptions& o, const glm::dvec3& sphereCentre, double sphereRadius) {
-    if (!(o.fill > 0 && o.fill <= 1)) throw Error("--fill", "must be in (0, 1]");
-    if (!std::isfinite(o.azimuth) || !std::isfinite(o.elevation))
-        throw Error("camera", "azimuth and elevation must be finite");
-    const glm::dvec3 target = o.target.empty() ? sphereCentre : toVec(o.target);
-    Camera c;
-    if (o.eye.empty()) {
-        if (!(std::abs(o.elevation) < 90)) throw Error("--elevation", "must be in (-90, 90) degrees");
-        c = frameSphere(target, std::max(sphereRadius, 1e-6), o.azimuth, o.elevation, o.fov, o.width, o.height,
-                        o.fill);
-    } else {
-        c.eye = toVec(o.eye);
-        c.target = target;
-        c.fovY = o.fov;
-        c.width = o.width;
-        c.height = o.height;
-    }
-    c.up = toVec(o.up);
-    for (const glm::dvec3& v : {c.eye, c.target, c.up})
-        if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
-            throw Error("camera", "eye, target and up must be finite");
-    validateCamera(c);
-    return c;
-}
 
 // --- transport file parameters ---------------------------------------------------
 

@@ -1,0 +1,60 @@
+#include "common/camera_options.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/error.h"
+
+namespace prt {
+
+namespace {
+glm::dvec3 toVec(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
+}  // namespace
+
+void addCameraOptions(CLI::App& app, CameraOptions& o) {
+    app.add_option("--eye", o.eye, "Camera position x,y,z in mm (object space after scaling); "
+                                   "default: framed automatically from --azimuth/--elevation")
+        ->expected(3)->delimiter(',')->group("Camera");
+    app.add_option("--target", o.target, "Point looked at x,y,z in mm (default: bounding-sphere centre)")
+        ->expected(3)->delimiter(',')->group("Camera");
+    app.add_option("--up", o.up, "Up vector x,y,z (roll)")->expected(3)->delimiter(',')
+        ->capture_default_str()->group("Camera");
+    app.add_option("--fov", o.fov, "Vertical field of view in degrees")->capture_default_str()->group("Camera");
+    app.add_option("-W,--width", o.width, "Image width in pixels")->capture_default_str()->group("Camera");
+    app.add_option("-H,--height", o.height, "Image height in pixels")->capture_default_str()->group("Camera");
+    app.add_option("--azimuth", o.azimuth,
+                   "Automatic framing: degrees about +Y, 0 = camera on +Z looking down -Z")
+        ->capture_default_str()->group("Camera");
+    app.add_option("--elevation", o.elevation, "Automatic framing: degrees above the horizontal")
+        ->capture_default_str()->group("Camera");
+    app.add_option("--fill", o.fill, "Automatic framing: fraction of the smaller image side the "
+                                     "bounding sphere fills")
+        ->capture_default_str()->group("Camera");
+}
+
+Camera makeCamera(const CameraOptions& o, const glm::dvec3& sphereCentre, double sphereRadius) {
+    if (!(o.fill > 0 && o.fill <= 1)) throw Error("--fill", "must be in (0, 1]");
+    if (!std::isfinite(o.azimuth) || !std::isfinite(o.elevation))
+        throw Error("camera", "azimuth and elevation must be finite");
+    const glm::dvec3 target = o.target.empty() ? sphereCentre : toVec(o.target);
+    Camera c;
+    if (o.eye.empty()) {
+        if (!(std::abs(o.elevation) < 90)) throw Error("--elevation", "must be in (-90, 90) degrees");
+        c = frameSphere(target, std::max(sphereRadius, 1e-6), o.azimuth, o.elevation, o.fov,
+                        o.width, o.height, o.fill);
+    } else {
+        c.eye = toVec(o.eye);
+        c.target = target;
+        c.fovY = o.fov;
+        c.width = o.width;
+        c.height = o.height;
+    }
+    c.up = toVec(o.up);
+    for (const glm::dvec3& v : {c.eye, c.target, c.up})
+        if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
+            throw Error("camera", "eye, target and up must be finite");
+    validateCamera(c);
+    return c;
+}
+
+}  // namespace prt

@@ -1,0 +1,57 @@
+// The shared camera options: parsing, automatic framing, explicit cameras, errors.
+
+#include <gtest/gtest.h>
+
+#include "common/camera_options.h"
+#include "common/error.h"
+
+using namespace prt;
+
+namespace {
+
+CameraOptions parse(std::vector<std::string> args) {
+    CLI::App app;
+    CameraOptions o;
+    addCameraOptions(app, o);
+    args.insert(args.begin(), "test");
+    std::vector<const char*> argv;
+    for (const std::string& a : args) argv.push_back(a.c_str());
+    app.parse(int(argv.size()), argv.data());
+    return o;
+}
+
+}  // namespace
+
+TEST(CameraOptions, DefaultsFrameTheBoundingSphere) {
+    const CameraOptions o = parse({});
+    const glm::dvec3 centre(1.0, 2.0, 3.0);
+    const Camera c = makeCamera(o, centre, 10.0);
+    const Camera expected = frameSphere(centre, 10.0, 0.0, 15.0, 30.0, 512, 512, 0.9);
+    EXPECT_NEAR(glm::length(c.eye - expected.eye), 0.0, 1e-9);
+    EXPECT_NEAR(glm::length(c.target - centre), 0.0, 1e-12);
+    EXPECT_EQ(c.width, 512);
+    EXPECT_EQ(c.height, 512);
+}
+
+TEST(CameraOptions, ExplicitEyeTargetAndSize) {
+    const CameraOptions o = parse({"--eye=0,0,50", "--target=0,1,0", "-W", "64", "-H", "32", "--fov", "40"});
+    const Camera c = makeCamera(o, glm::dvec3(9.0), 1.0);
+    EXPECT_EQ(c.eye, glm::dvec3(0, 0, 50));
+    EXPECT_EQ(c.target, glm::dvec3(0, 1, 0));
+    EXPECT_EQ(c.width, 64);
+    EXPECT_EQ(c.height, 32);
+    EXPECT_DOUBLE_EQ(c.fovY, 40.0);
+}
+
+TEST(CameraOptions, NonsenseIsRefusedNamingTheOption) {
+    CameraOptions o;
+    o.fill = 1.5;
+    EXPECT_THROW(makeCamera(o, glm::dvec3(0.0), 1.0), Error);
+    o = CameraOptions{};
+    o.elevation = 90.0;
+    EXPECT_THROW(makeCamera(o, glm::dvec3(0.0), 1.0), Error);
+    o = CameraOptions{};
+    o.width = 0;
+    EXPECT_THROW(makeCamera(o, glm::dvec3(0.0), 1.0), Error);
+    EXPECT_THROW(parse({"--eye=1,2"}), CLI::ParseError);
+}
