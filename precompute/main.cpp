@@ -21,7 +21,7 @@
 
 #include "common/bssrdf.h"
 #include "common/error.h"
-#include "common/precompute.h"
+#include "precompute/pipeline.h"
 #include "common/progress.h"
 
 using namespace prt;

@@ -24,11 +24,11 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/image.h"
-#include "common/light.h"
+#include "relight/light_vector.h"
 #include "common/progress.h"
-#include "common/relight.h"
+#include "relight/relight_kernel.h"
 #include "common/camera_options.h"
-#include "common/render.h"
+#include "relight/render.h"
 #include "relight/view.h"
 
 using namespace prt;

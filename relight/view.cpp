@@ -53,7 +53,7 @@
 
 #include "common/envmap.h"
 #include "common/error.h"
-#include "common/light.h"
+#include "relight/light_vector.h"
 #include "common/progress.h"
 
 #ifndef PRT_SOURCE_DIR

@@ -2,10 +2,10 @@
 // prt-relight view: the interactive viewer (docs/viewer.md).
 //
 // A GLFW window with an OpenGL 3.3+ core context and a Dear ImGui panel. The object
-// is the one prt-relight render draws (loadRelightObject, common/render.h), seen
+// is the one prt-relight render draws (loadRelightObject, relight/render.h), seen
 // through the same Camera (common/camera.h), lit the same way:
 //   - on the CPU, when the light changes (environment, rotation, light terms,
-//     components): light vector (common/light.h) + relight kernel (common/relight.h)
+//     components): light vector (relight/light_vector.h) + relight kernel (relight/relight_kernel.h)
 //     on a worker thread, so frames keep coming while a relight is in flight; the
 //     per-vertex results are double-buffered and uploaded when complete;
 //   - per pixel, every frame, in the fragment shader: F_t(eta, n . w_o), the view maps
@@ -25,8 +25,8 @@
 #include "common/camera.h"
 #include "common/error.h"
 #include "common/image.h"
-#include "common/relight.h"
-#include "common/render.h"
+#include "relight/relight_kernel.h"
+#include "relight/render.h"
 
 namespace prt {
 

@@ -1,4 +1,4 @@
-#include "common/reference.h"
+#include "tools/reference/reference.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -12,7 +12,7 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/raytrace.h"
-#include "common/render.h"
+#include "relight/render.h"
 #include "common/sampling.h"
 #include "common/shapes.h"
 

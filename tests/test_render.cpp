@@ -1,4 +1,4 @@
-#include "common/render.h"
+#include "relight/render.h"
 
 #include <gtest/gtest.h>
 
@@ -10,8 +10,8 @@
 #include "common/bssrdf.h"
 #include "common/envmap.h"
 #include "common/error.h"
-#include "common/light.h"
-#include "common/relight.h"
+#include "relight/light_vector.h"
+#include "relight/relight_kernel.h"
 #include "common/shapes.h"
 
 using namespace prt;

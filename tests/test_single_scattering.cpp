@@ -1,7 +1,7 @@
 // Tests of the single-scattering precomputation (Wang et al. 2005, Eqs. 4, 5, 10, 11)
 // and of its integration into the precompute pipeline.
 
-#include "common/single_scattering.h"
+#include "precompute/single_scattering.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -15,8 +15,8 @@
 #include "common/error.h"
 #include "common/haar.h"
 #include "common/mesh.h"
-#include "common/phase.h"
-#include "common/precompute.h"
+#include "precompute/phase_factoring.h"
+#include "precompute/pipeline.h"
 #include "common/progress.h"
 #include "common/shapes.h"
 #include "common/transport_file.h"

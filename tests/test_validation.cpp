@@ -6,14 +6,14 @@
 
 #include <filesystem>
 
-#include "common/compare.h"
+#include "tools/reference/compare.h"
 #include "common/envmap.h"
-#include "common/light.h"
-#include "common/precompute.h"
+#include "relight/light_vector.h"
+#include "precompute/pipeline.h"
 #include "common/progress.h"
-#include "common/reference.h"
-#include "common/relight.h"
-#include "common/render.h"
+#include "tools/reference/reference.h"
+#include "relight/relight_kernel.h"
+#include "relight/render.h"
 #include "common/sampling.h"
 #include "common/shapes.h"
 

@@ -30,7 +30,7 @@
 #include "common/bssrdf.h"
 #include "common/cubemap.h"
 #include "common/error.h"
-#include "common/phase.h"
+#include "precompute/phase_factoring.h"
 
 using namespace prt;
 

@@ -26,7 +26,7 @@
 //   * s_i'   = s_i |w_j . n_i| / sqrt(1 - (1/eta)^2 (1 - |w_j . n_i|^2))   (Eq. 5).
 //   * w_i'   = refractDirection(w_j, n_i, eta): the light's propagation direction
 //            after it entered at x_i, pointing INTO the medium; the light maps g_k of
-//            common/phase.h are indexed by it (see the conventions there).
+//            precompute/phase_factoring.h are indexed by it (see the conventions there).
 //   * V      1 when the ray from x_i (offset outward) toward w_j hits nothing.
 // The integral over s uses N deterministic importance samples (Wang Sec. 3)
 //     s_i = -ln(1 - lambda xi_i) / |sigma_t|,  xi_i = (i - 0.5) / N,
@@ -55,7 +55,7 @@
 #include "common/bssrdf.h"
 #include "common/cubemap.h"
 #include "common/haar.h"
-#include "common/irradiance.h"
+#include "precompute/irradiance_transport.h"
 #include "common/raytrace.h"
 
 namespace prt {

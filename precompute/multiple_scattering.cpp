@@ -1,4 +1,4 @@
-#include "common/hierarchy.h"
+#include "precompute/multiple_scattering.h"
 
 #include "common/error.h"
 

@@ -1,4 +1,4 @@
-#include "common/phase.h"
+#include "precompute/phase_factoring.h"
 
 #include <gtest/gtest.h>
 

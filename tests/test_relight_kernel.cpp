@@ -1,4 +1,4 @@
-#include "common/relight.h"
+#include "relight/relight_kernel.h"
 
 #include <gtest/gtest.h>
 #include <tbb/task_arena.h>
@@ -17,7 +17,7 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/haar.h"
-#include "common/light.h"
+#include "relight/light_vector.h"
 
 namespace {
 

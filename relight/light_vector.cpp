@@ -1,4 +1,4 @@
-#include "common/light.h"
+#include "relight/light_vector.h"
 
 #include <cmath>
 #include <memory>

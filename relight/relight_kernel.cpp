@@ -1,4 +1,4 @@
-#include "common/relight.h"
+#include "relight/relight_kernel.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>

@@ -53,8 +53,8 @@
 #include <emmintrin.h>
 #endif
 
-#include "common/light.h"
-#include "common/relight.h"
+#include "relight/light_vector.h"
+#include "relight/relight_kernel.h"
 #include "common/transport_file.h"
 
 namespace {

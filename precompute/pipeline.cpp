@@ -1,4 +1,4 @@
-#include "common/precompute.h"
+#include "precompute/pipeline.h"
 
 #include <sys/resource.h>
 
@@ -10,13 +10,13 @@
 #include <sstream>
 
 #include "common/error.h"
-#include "common/hierarchy.h"
-#include "common/irradiance.h"
-#include "common/phase.h"
+#include "precompute/multiple_scattering.h"
+#include "precompute/irradiance_transport.h"
+#include "precompute/phase_factoring.h"
 #include "common/progress.h"
 #include "common/raytrace.h"
 #include "common/sampling.h"
-#include "common/single_scattering.h"
+#include "precompute/single_scattering.h"
 
 namespace prt {
 
@@ -133,7 +133,7 @@ void validateSettings(const PrecomputeSettings& s) {
     if (s.maxSamples < 1) throw Error("--max-samples", "must be at least 1");
     if (!s.components.multipleScattering && !s.components.singleScattering)
         throw Error("--components", "select at least one of ms, ss");
-    // M <= 32: the phase table is (6 M^2)^2 doubles (common/phase.h).
+    // M <= 32: the phase table is (6 M^2)^2 doubles (precompute/phase_factoring.h).
     if (!isPowerOfTwo(s.phaseMapSize) || s.phaseMapSize > 32)
         throw Error("--phase-map-size", "must be a power of two between 1 and 32, got " +
                                             std::to_string(s.phaseMapSize));
@@ -366,7 +366,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
     }
 
     if (settings.components.singleScattering) {
-        // Phase: isotropic for g = 0, else the K-term SVD of HG(g) (common/phase.h).
+        // Phase: isotropic for g = 0, else the K-term SVD of HG(g) (precompute/phase_factoring.h).
         std::optional<PhaseFactorization> phase;
         if (settings.material.g != 0.0) {
             const auto phaseStart = std::chrono::steady_clock::now();

@@ -20,7 +20,7 @@
 #include "common/image.h"
 #include "common/mesh.h"
 #include "common/raytrace.h"
-#include "common/relight.h"
+#include "relight/relight_kernel.h"
 #include "common/transport_file.h"
 
 namespace prt {

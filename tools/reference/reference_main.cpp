@@ -3,7 +3,7 @@
 // cubemap, no wavelets, no hierarchy, no truncation: per-sample irradiance by Monte
 // Carlo from the full-resolution lat-long map with Embree visibility, then the dipole
 // summed over all samples for every pixel; single scattering by Monte Carlo along
-// the refracted view ray with the exact phase function (common/reference.h).
+// the refracted view ray with the exact phase function (tools/reference/reference.h).
 //
 // The transport file is read only for its header and parameters (mesh fingerprint,
 // mm per unit, material and g, sample count and seed, components), never for its
@@ -31,8 +31,8 @@
 #include "common/mesh.h"
 #include "common/progress.h"
 #include "common/raytrace.h"
-#include "common/reference.h"
-#include "common/render.h"
+#include "tools/reference/reference.h"
+#include "relight/render.h"
 #include "common/sampling.h"
 #include "common/transport_file.h"
 

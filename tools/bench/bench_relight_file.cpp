@@ -25,8 +25,8 @@
 
 #include "common/envmap.h"
 #include "common/error.h"
-#include "common/light.h"
-#include "common/relight.h"
+#include "relight/light_vector.h"
+#include "relight/relight_kernel.h"
 #include "common/transport_file.h"
 
 using namespace prt;

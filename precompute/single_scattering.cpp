@@ -1,4 +1,4 @@
-#include "common/single_scattering.h"
+#include "precompute/single_scattering.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
@@ -11,7 +11,7 @@
 
 #include "common/error.h"
 #include "common/mesh.h"
-#include "common/phase.h"
+#include "precompute/phase_factoring.h"
 #include "common/progress.h"
 
 namespace prt {

@@ -1,6 +1,6 @@
 // End-to-end tests of the precomputation pipeline (mesh file -> transport file).
 
-#include "common/precompute.h"
+#include "precompute/pipeline.h"
 
 #include <gtest/gtest.h>
 

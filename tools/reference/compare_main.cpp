@@ -10,7 +10,7 @@
 #include <cstdio>
 #include <optional>
 
-#include "common/compare.h"
+#include "tools/reference/compare.h"
 #include "common/error.h"
 #include "common/image.h"
 

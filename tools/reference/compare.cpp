@@ -1,4 +1,4 @@
-#include "common/compare.h"
+#include "tools/reference/compare.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "common/reference.h"
+#include "tools/reference/reference.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>

@@ -45,7 +45,7 @@
 #include "common/image.h"
 #include "common/mesh.h"
 #include "common/raytrace.h"
-#include "common/render.h"
+#include "relight/render.h"
 #include "common/sampling.h"
 
 namespace prt {

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "common/light.h"
+#include "relight/light_vector.h"
 #include "common/transport_file.h"
 
 namespace prt {

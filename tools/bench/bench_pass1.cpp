@@ -11,7 +11,7 @@
 
 #include "common/bssrdf.h"
 #include "common/error.h"
-#include "common/irradiance.h"
+#include "precompute/irradiance_transport.h"
 #include "common/mesh.h"
 #include "common/progress.h"
 #include "common/raytrace.h"

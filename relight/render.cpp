@@ -1,4 +1,4 @@
-#include "common/render.h"
+#include "relight/render.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>

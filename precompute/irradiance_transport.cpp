@@ -1,4 +1,4 @@
-#include "common/irradiance.h"
+#include "precompute/irradiance_transport.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
