@@ -1,6 +1,21 @@
 #pragma once
-// The project's triangle mesh: a plain, in-memory indexed triangle list. OpenMesh is
-// used only inside mesh.cpp (file reading and writing); nothing here exposes it.
+// The project's triangle mesh: a plain, in-memory indexed triangle list, and what works
+// on it (bounds, bounding sphere, areas, normals, volume, topology, physical scale,
+// centring, fingerprint). No file I/O here: reading and writing files (loadMesh,
+// saveMesh, MeshReport) is common/mesh_io.h, which includes this header. Nothing here
+// exposes OpenMesh.
+//
+// Contract:
+// - Frame: positions are in the mesh's own (object) frame; nothing here moves it
+//   except centreAtOrigin (translation) and scaleToPhysical (scaling about the origin).
+// - Units: whatever unit the file uses until scaleToPhysical() is applied; after it,
+//   millimetres. Areas and volumes are in those units squared / cubed.
+// - Preconditions: every triangle index is < positions.size() (loadMesh guarantees
+//   it; the functions here do not check it). normals, when present, has one entry per
+//   position. Areas, normals, volume and the sphere radius are computed in double
+//   precision and returned in the declared type; bounds are float.
+// - Errors: only scaleToPhysical throws (prt::Error, common/error.h, on bad scale
+//   input); everything else never throws and accepts an empty mesh (see each function).
 //
 // Conventions (docs/conventions.md):
 // - Triangles are counter-clockwise seen from outside, so the geometric normal
@@ -12,8 +27,6 @@
 //   (area weighting is only first-order accurate on an irregular icosphere: 2e-2 at
 //   level 2) and flat on planar regions. A vertex whose sum is zero (no incident
 //   triangle, or cancelling ones) gets +Y (0, 1, 0).
-// - Lengths are in whatever unit the file uses until scaleToPhysical() is applied;
-//   after it they are millimetres.
 
 #include <glm/glm.hpp>
 
@@ -46,6 +59,17 @@ struct Bounds {
 
 // Bounding box of all positions.
 Bounds bounds(const TriangleMesh& mesh);
+
+// Bounding sphere as the renderers frame the object: centre = the bounding-box centre
+// (bounds(mesh).centre(), computed in float, then widened to double), radius = the
+// largest distance of a vertex from that centre (double precision). Not the minimal
+// enclosing sphere. An empty mesh gives centre (0, 0, 0) and radius 0 (bounds() of an
+// empty mesh is lo = hi = 0 and there is no vertex to measure).
+struct BoundingSphere {
+    glm::dvec3 centre;
+    double radius;
+};
+BoundingSphere boundingSphere(const TriangleMesh& mesh);
 
 // Area of triangle f (computed in double precision).
 float faceArea(const TriangleMesh& mesh, size_t f);
@@ -83,61 +107,6 @@ struct MeshTopology {
     bool closed() const { return boundaryEdges == 0 && nonManifoldEdges == 0; }
 };
 MeshTopology analyseTopology(const TriangleMesh& mesh, bool weldCoincident = true);
-
-// What loadMesh found and did. All counts refer to one call.
-struct MeshReport {
-    std::string format;               // "obj", "ply", "off" or "stl"
-    bool compressed = false;          // the file was gzip-compressed
-    size_t fileVertices = 0;          // vertices the reader produced (STL: after OpenMesh
-                                      // merged identical corners, see loadMesh)
-    size_t fileFaces = 0;             // face records in the file, any number of corners
-    size_t polygonsTriangulated = 0;  // face records with more than 3 corners
-    size_t inputTriangles = 0;        // triangles after triangulation, counting a face
-                                      // record the reader itself dropped as one
-    size_t degenerateFaces = 0;       // triangles dropped: < 3 distinct vertices or zero area
-    size_t removedFaces = 0;          // all input triangles not in the result; today
-                                      // exactly the degenerate ones
-    size_t unreferencedVertices = 0;  // vertices used by no kept triangle (removed)
-    // Topology of the result, analyseTopology(mesh, /*weldCoincident=*/true):
-    size_t boundaryEdges = 0;
-    size_t nonManifoldEdges = 0;
-    size_t inconsistentEdges = 0;
-    long long eulerCharacteristic = 0;
-    // The result:
-    size_t vertices = 0;
-    size_t triangles = 0;
-};
-
-// Loads a mesh: .obj, .ply (ascii or binary), .off or .stl (ascii or binary), each
-// optionally gzip-compressed (name ending in .gz; a file with gzip magic is also
-// decompressed). Compressed data is decompressed into a temporary file (removed
-// again) that OpenMesh reads. Polygons are triangulated (ear clipping in the
-// polygon's plane; fan for polygons of more than 256 corners or when clipping fails).
-//
-// Vertices keep the file's order (deterministic). Exceptions: OpenMesh's STL reader
-// merges corners with identical positions, numbering them in order of first
-// appearance; vertices used by no kept triangle are removed, the others keeping their
-// relative order. Normals are computed (computeVertexNormals); normals in the file
-// are ignored.
-//
-// Throws prt::Error(path, reason) for: a missing or unreadable file, an unknown
-// extension, corrupt gzip data, a parse failure or truncated file, a face index out of
-// range, a NaN or infinite coordinate (anywhere in the file), a mesh without faces,
-// and a mesh whose faces are all degenerate. Survives with a prt::warn (one line per
-// kind, with counts): degenerate faces (dropped), unreferenced vertices (dropped),
-// boundary edges, non-manifold edges and inconsistently oriented neighbours (kept).
-// A triangle is degenerate when two of its corners are the same vertex or its area is
-// at most 1e-12 * (bounding-box diagonal)^2. Topology counts weld coincident vertices.
-TriangleMesh loadMesh(const std::string& path, MeshReport* report = nullptr);
-
-// Writes .ply (binary little-endian), .off (ascii) or .stl (binary) through OpenMesh,
-// and .obj directly (OpenMesh's OBJ writer uses fixed-point notation, which loses
-// small coordinates). Text formats use 9 significant digits, so float positions
-// survive exactly. Positions and
-// triangles only; written to a temporary file in the same directory, then renamed.
-// Every triangle is written as it is (non-manifold meshes included).
-// Throws prt::Error(path, reason) on an unknown extension or a failed write.
-void saveMesh(const TriangleMesh& mesh, const std::string& path);
 
 // Physical size. Exactly one of the two must be set, finite and positive:
 //   sizeMm:    the bounding-box diagonal becomes this many millimetres;

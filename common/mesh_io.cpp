@@ -1,0 +1,958 @@
+// Mesh files (common/mesh_io.h): loadMesh (pre-scan, OpenMesh reader into a polygon
+// soup, triangulation, clean-up, report) and saveMesh (OpenMesh writers, own OBJ
+// writer). The in-memory mesh and its geometry are mesh.cpp.
+#include "common/mesh_io.h"
+
+#include "common/error.h"
+
+#include <OpenMesh/Core/IO/IOManager.hh>
+#include <OpenMesh/Core/IO/Options.hh>
+#include <OpenMesh/Core/IO/exporter/BaseExporter.hh>
+#include <OpenMesh/Core/IO/importer/BaseImporter.hh>
+#include <OpenMesh/Core/Mesh/BaseKernel.hh>
+#include <OpenMesh/Core/System/omstream.hh>
+
+#include <zlib.h>
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <mutex>
+#include <string_view>
+#include <system_error>
+
+namespace prt {
+
+// ---------------------------------------------------------------------------------
+// Loading: helpers
+// ---------------------------------------------------------------------------------
+
+namespace {
+
+enum class Format { Obj, Ply, Off, Stl };
+
+std::string lower(std::string s) {
+    for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return s;
+}
+
+std::string formatName(Format f) {
+    switch (f) {
+        case Format::Obj: return "obj";
+        case Format::Ply: return "ply";
+        case Format::Off: return "off";
+        case Format::Stl: return "stl";
+    }
+    return "?";
+}
+
+// Format from the file name; `gz` is set when the name ends in .gz.
+Format formatOf(const std::string& path, bool& gz, const char* verb) {
+    std::string name = lower(std::filesystem::path(path).filename().string());
+    gz = false;
+    if (name.size() > 3 && name.ends_with(".gz")) {
+        gz = true;
+        name.resize(name.size() - 3);
+    }
+    const auto dot = name.rfind('.');
+    const std::string ext = dot == std::string::npos ? std::string() : name.substr(dot + 1);
+    if (ext == "obj") return Format::Obj;
+    if (ext == "ply") return Format::Ply;
+    if (ext == "off") return Format::Off;
+    if (ext == "stl") return Format::Stl;
+    throw Error(path, std::string("cannot ") + verb + " a mesh with extension '" +
+                          (ext.empty() ? std::string() : "." + ext) +
+                          "' (supported: .obj .ply .off .stl" +
+                          (std::string(verb) == "load" ? ", each optionally .gz" : "") + ")");
+}
+
+// Whole file, decompressed if it is gzip data (zlib reads plain files unchanged).
+std::string readFileBytes(const std::string& path, bool& wasCompressed) {
+    gzFile file = gzopen(path.c_str(), "rb");
+    if (!file) throw Error(path, std::string("cannot open: ") + std::strerror(errno));
+    std::string data;
+    std::array<char, 1 << 16> chunk;
+    for (;;) {
+        const int n = gzread(file, chunk.data(), unsigned(chunk.size()));
+        if (n < 0) {
+            int code = 0;
+            const std::string msg = gzerror(file, &code);
+            gzclose(file);
+            throw Error(path, "corrupt compressed data: " + msg);
+        }
+        if (n == 0) break;
+        data.append(chunk.data(), size_t(n));
+    }
+    wasCompressed = gzdirect(file) == 0;
+    const int rc = gzclose(file);
+    if (rc == Z_BUF_ERROR) throw Error(path, "compressed data ends unexpectedly (truncated .gz)");
+    if (rc != Z_OK) throw Error(path, "error while reading the file");
+    return data;
+}
+
+// A file created with mkstemps, removed on destruction.
+class TempFile {
+public:
+    // Errors name `subject` (the file the caller is loading or saving).
+    TempFile(const std::string& subject, const std::filesystem::path& dir, const std::string& stem,
+             const std::string& suffix) {
+        std::string templ = (dir / (stem + "XXXXXX" + suffix)).string();
+        std::vector<char> buf(templ.begin(), templ.end());
+        buf.push_back('\0');
+        const int fd = mkstemps(buf.data(), int(suffix.size()));
+        if (fd < 0)
+            throw Error(subject, "cannot create temporary file " + templ + ": " + std::strerror(errno));
+        ::close(fd);
+        path_ = buf.data();
+    }
+    ~TempFile() {
+        if (!path_.empty()) {
+            std::error_code ec;
+            std::filesystem::remove(path_, ec);
+        }
+    }
+    TempFile(const TempFile&) = delete;
+    TempFile& operator=(const TempFile&) = delete;
+    const std::string& path() const { return path_; }
+    void release() { path_.clear(); }
+
+private:
+    std::string path_;
+};
+
+// OpenMesh's I/O is a process-wide singleton with global message streams; all our
+// calls into it are serialised.
+std::mutex& openMeshMutex() {
+    static std::mutex m;
+    return m;
+}
+
+// Silences OpenMesh's omerr/omlog message streams for the lifetime of the object
+// (restoring their previous state), so a failed read does not spill reader messages
+// onto stderr next to our own one-line error. (Capturing the text instead would need
+// mostream::disconnect(), which leaks the target it removes.) Hold openMeshMutex().
+class OpenMeshQuiet {
+public:
+    OpenMeshQuiet() : errWasEnabled_(::omerr().is_enabled()), logWasEnabled_(::omlog().is_enabled()) {
+        ::omerr().disable();
+        ::omlog().disable();
+    }
+    ~OpenMeshQuiet() {
+        ::omerr().flush();
+        ::omlog().flush();
+        if (errWasEnabled_) ::omerr().enable();
+        if (logWasEnabled_) ::omlog().enable();
+    }
+    OpenMeshQuiet(const OpenMeshQuiet&) = delete;
+    OpenMeshQuiet& operator=(const OpenMeshQuiet&) = delete;
+
+private:
+    bool errWasEnabled_;
+    bool logWasEnabled_;
+};
+
+// ---- pre-scan of the file bytes -----------------------------------------------------
+// OpenMesh's text readers parse numbers with iostreams, which stop at "nan"/"inf" and
+// then silently skip the vertex (OBJ) or read zeros for the rest of the file (PLY,
+// OFF). The pre-scan checks every vertex coordinate of the text formats itself (with a
+// line number in the message) and learns the record counts the file declares, so that
+// truncation and faces the reader drops on its own can be detected.
+
+struct ScanResult {
+    std::optional<size_t> vertices;  // vertex records the reader must produce
+    std::optional<size_t> faces;     // face records in the file
+    bool readerDropsDegenerate = false;  // reader silently skips faces with < 3 distinct corners
+};
+
+bool isSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f' || c == '\v'; }
+
+// Walks whitespace-separated tokens, tracking line numbers.
+class Tokens {
+public:
+    Tokens(std::string_view data, size_t offset, size_t firstLine)
+        : data_(data), pos_(offset), line_(firstLine) {}
+
+    bool next(std::string_view& token) {
+        while (pos_ < data_.size() && isSpace(data_[pos_])) {
+            if (data_[pos_] == '\n') ++line_;
+            ++pos_;
+        }
+        if (pos_ >= data_.size()) return false;
+        const size_t b = pos_;
+        while (pos_ < data_.size() && !isSpace(data_[pos_])) ++pos_;
+        token = data_.substr(b, pos_ - b);
+        return true;
+    }
+    void skipLine() {
+        while (pos_ < data_.size() && data_[pos_] != '\n') ++pos_;
+    }
+    size_t line() const { return line_; }
+
+private:
+    std::string_view data_;
+    size_t pos_;
+    size_t line_;
+};
+
+// Splits a buffer into lines (without the newline), numbering them from 1.
+class Lines {
+public:
+    explicit Lines(std::string_view data) : data_(data) {}
+    bool next(std::string_view& line) {
+        if (pos_ >= data_.size()) return false;
+        size_t e = data_.find('\n', pos_);
+        if (e == std::string_view::npos) e = data_.size();
+        line = data_.substr(pos_, e - pos_);
+        pos_ = e + 1;
+        ++number_;
+        return true;
+    }
+    size_t number() const { return number_; }
+    size_t offset() const { return pos_; }
+
+private:
+    std::string_view data_;
+    size_t pos_ = 0;
+    size_t number_ = 0;
+};
+
+std::vector<std::string_view> split(std::string_view line) {
+    std::vector<std::string_view> out;
+    size_t i = 0;
+    while (i < line.size()) {
+        while (i < line.size() && isSpace(line[i])) ++i;
+        const size_t b = i;
+        while (i < line.size() && !isSpace(line[i])) ++i;
+        if (i > b) out.push_back(line.substr(b, i - b));
+    }
+    return out;
+}
+
+std::string shown(std::string_view token) {
+    std::string s(token.substr(0, 40));
+    return "'" + s + (token.size() > 40 ? "...'" : "'");
+}
+
+// Throws unless token is a finite number.
+void checkCoordinate(const std::string& path, size_t line, std::string_view token) {
+    std::string_view t = token;
+    if (!t.empty() && t.front() == '+') t.remove_prefix(1);
+    double value = 0.0;
+    const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), value);
+    const std::string where = "line " + std::to_string(line) + ": ";
+    if (ec == std::errc::invalid_argument || end != t.data() + t.size())
+        throw Error(path, where + "cannot parse vertex coordinate " + shown(token));
+    if (ec == std::errc::result_out_of_range) {
+        // Overflow is non-finite; underflow (a tiny number) is fine.
+        const double v = std::strtod(std::string(t).c_str(), nullptr);
+        if (std::isinf(v))
+            throw Error(path, where + "vertex coordinate " + shown(token) +
+                                  " overflows (NaN/Inf coordinates are not allowed)");
+        return;
+    }
+    if (!std::isfinite(value))
+        throw Error(path, where + "non-finite vertex coordinate " + shown(token) +
+                              " (NaN/Inf coordinates are not allowed)");
+}
+
+bool parseCount(std::string_view token, size_t& out) {
+    const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), out);
+    return ec == std::errc() && end == token.data() + token.size();
+}
+
+ScanResult scanObj(const std::string& path, std::string_view data) {
+    ScanResult r;
+    r.readerDropsDegenerate = true;
+    size_t v = 0, f = 0;
+    Lines lines(data);
+    std::string_view line;
+    while (lines.next(line)) {
+        const auto tok = split(line);
+        if (tok.empty() || tok[0].front() == '#') continue;
+        if (tok[0] == "v") {
+            if (tok.size() < 4)
+                throw Error(path, "line " + std::to_string(lines.number()) +
+                                      ": vertex needs three coordinates");
+            for (int k = 1; k <= 3; ++k) checkCoordinate(path, lines.number(), tok[size_t(k)]);
+            ++v;
+        } else if (tok[0] == "f") {
+            ++f;
+        }
+    }
+    r.vertices = v;
+    r.faces = f;
+    return r;
+}
+
+struct PlyProperty {
+    std::string name;
+    bool list = false;
+};
+struct PlyElement {
+    std::string name;
+    size_t count = 0;
+    std::vector<PlyProperty> properties;
+};
+
+ScanResult scanPly(const std::string& path, std::string_view data) {
+    Lines lines(data);
+    std::string_view line;
+    if (!lines.next(line) || split(line).empty() || split(line)[0] != "ply")
+        throw Error(path, "not a PLY file (it does not start with 'ply')");
+    bool ascii = false, sawFormat = false, sawEnd = false;
+    std::vector<PlyElement> elements;
+    while (lines.next(line)) {
+        const auto tok = split(line);
+        if (tok.empty()) continue;
+        const std::string where = "PLY header line " + std::to_string(lines.number()) + ": ";
+        if (tok[0] == "end_header") {
+            sawEnd = true;
+            break;
+        }
+        if (tok[0] == "format") {
+            if (tok.size() < 2) throw Error(path, where + "incomplete format line");
+            sawFormat = true;
+            ascii = tok[1] == "ascii";
+            if (!ascii && tok[1] != "binary_little_endian" && tok[1] != "binary_big_endian")
+                throw Error(path, where + "unknown format " + shown(tok[1]));
+        } else if (tok[0] == "element") {
+            PlyElement e;
+            if (tok.size() < 3 || !parseCount(tok[2], e.count))
+                throw Error(path, where + "malformed element line");
+            e.name = std::string(tok[1]);
+            elements.push_back(std::move(e));
+        } else if (tok[0] == "property") {
+            if (elements.empty()) throw Error(path, where + "property before any element");
+            PlyProperty p;
+            p.list = tok.size() > 1 && tok[1] == "list";
+            if (tok.size() < (p.list ? 5u : 3u)) throw Error(path, where + "malformed property line");
+            p.name = std::string(tok.back());
+            elements.back().properties.push_back(std::move(p));
+        }
+    }
+    if (!sawFormat || !sawEnd) throw Error(path, "malformed PLY header (no format or end_header)");
+
+    ScanResult r;
+    size_t vertexCount = 0, faceCount = 0;
+    for (const auto& e : elements) {
+        if (e.name == "vertex") vertexCount = e.count;
+        if (e.name == "face") faceCount = e.count;
+    }
+    r.vertices = vertexCount;
+    r.faces = faceCount;
+    if (!ascii) return r;
+
+    // ASCII body: walk the elements up to and including the vertices.
+    Tokens tokens(data, lines.offset(), lines.number() + 1);
+    std::string_view token;
+    for (const auto& e : elements) {
+        const bool isVertex = e.name == "vertex";
+        for (size_t i = 0; i < e.count; ++i)
+            for (const auto& p : e.properties) {
+                auto need = [&]() {
+                    if (!tokens.next(token))
+                        throw Error(path, "file ends inside " + e.name + " " + std::to_string(i) +
+                                              " of " + std::to_string(e.count) + " (truncated)");
+                };
+                need();
+                if (p.list) {
+                    size_t n = 0;
+                    if (!parseCount(token, n))
+                        throw Error(path, "line " + std::to_string(tokens.line()) +
+                                              ": cannot parse list length " + shown(token));
+                    for (size_t k = 0; k < n; ++k) need();
+                } else if (isVertex && (p.name == "x" || p.name == "y" || p.name == "z")) {
+                    checkCoordinate(path, tokens.line(), token);
+                }
+            }
+        if (isVertex) break;
+    }
+    return r;
+}
+
+ScanResult scanOff(const std::string& path, std::string_view data) {
+    ScanResult r;
+    Lines lines(data);
+    std::string_view header;
+    lines.next(header);
+    const auto head = split(header);
+    if (head.empty() || head[0].find("OFF") == std::string_view::npos)
+        throw Error(path, "not an OFF file (the first line has no 'OFF' keyword)");
+    const bool binary = head.size() > 1 && head[1] == "BINARY";
+    if (!binary && head.size() > 1)
+        throw Error(path, "counts on the OFF header line are not supported; put them on the next line");
+    if (binary) {
+        const size_t at = lines.offset();
+        if (data.size() < at + 12) throw Error(path, "binary OFF file ends inside its counts");
+        uint32_t counts[2];
+        std::memcpy(counts, data.data() + at, sizeof counts);
+        r.vertices = counts[0];
+        r.faces = counts[1];
+        return r;
+    }
+    Tokens tokens(data, lines.offset(), 2);
+    std::string_view token;
+    size_t counts[3] = {0, 0, 0};
+    for (size_t& c : counts)
+        if (!tokens.next(token) || !parseCount(token, c))
+            throw Error(path, "line " + std::to_string(tokens.line()) +
+                                  ": expected the vertex, face and edge counts (comments "
+                                  "before the counts are not supported)");
+    tokens.skipLine();
+    for (size_t i = 0; i < counts[0]; ++i) {
+        for (int k = 0; k < 3; ++k) {
+            if (!tokens.next(token))
+                throw Error(path, "file ends inside vertex " + std::to_string(i) + " of " +
+                                      std::to_string(counts[0]) + " (truncated)");
+            checkCoordinate(path, tokens.line(), token);
+        }
+        tokens.skipLine();
+    }
+    r.vertices = counts[0];
+    r.faces = counts[1];
+    return r;
+}
+
+bool stlIsBinary(std::string_view data) {
+    if (data.size() < 84) return false;
+    uint32_t n = 0;
+    std::memcpy(&n, data.data() + 80, 4);
+    return 84 + uint64_t(n) * 50 == data.size();
+}
+
+ScanResult scanStl(const std::string& path, std::string_view data) {
+    ScanResult r;
+    r.readerDropsDegenerate = true;  // and it merges identical corners
+    if (stlIsBinary(data)) {
+        uint32_t n = 0;
+        std::memcpy(&n, data.data() + 80, 4);
+        r.faces = n;
+        return r;
+    }
+    // ASCII: like OpenMesh, a line containing "outer" starts a triangle whose three
+    // vertices are the next three lines.
+    size_t faces = 0;
+    Lines lines(data);
+    std::string_view line;
+    while (lines.next(line)) {
+        if (line.find("outer") == std::string_view::npos && line.find("OUTER") == std::string_view::npos)
+            continue;
+        ++faces;
+        for (int k = 0; k < 3; ++k) {
+            if (!lines.next(line))
+                throw Error(path, "file ends inside facet " + std::to_string(faces) + " (truncated)");
+            const auto tok = split(line);
+            if (tok.size() < 4)
+                throw Error(path, "line " + std::to_string(lines.number()) +
+                                      ": expected 'vertex x y z'");
+            for (int c = 1; c <= 3; ++c) checkCoordinate(path, lines.number(), tok[size_t(c)]);
+        }
+    }
+    r.faces = faces;
+    return r;
+}
+
+ScanResult scan(Format format, const std::string& path, std::string_view data) {
+    switch (format) {
+        case Format::Obj: return scanObj(path, data);
+        case Format::Ply: return scanPly(path, data);
+        case Format::Off: return scanOff(path, data);
+        case Format::Stl: return scanStl(path, data);
+    }
+    return {};
+}
+
+// ---- OpenMesh importer collecting a polygon soup ------------------------------------
+
+struct Soup {
+    std::vector<glm::vec3> positions;
+    std::vector<int> corners;          // vertex indices as the reader gave them
+    std::vector<size_t> faceStart{0};  // face f is corners[faceStart[f], faceStart[f + 1])
+    size_t faceCount() const { return faceStart.size() - 1; }
+};
+
+// Receives vertices and faces from any OpenMesh reader without building a halfedge
+// structure, so nothing the file contains is refused (non-manifold edges, repeated
+// corners) and the vertex order is exactly the reader's.
+class SoupImporter : public OpenMesh::IO::BaseImporter {
+public:
+    SoupImporter(Soup& soup, size_t reserveLimit) : soup_(soup), reserveLimit_(reserveLimit) {}
+
+    OpenMesh::VertexHandle add_vertex(const OpenMesh::Vec3f& p) override {
+        soup_.positions.emplace_back(p[0], p[1], p[2]);
+        return OpenMesh::VertexHandle(int(soup_.positions.size() - 1));
+    }
+    OpenMesh::VertexHandle add_vertex(const OpenMesh::Vec3d& p) override {
+        soup_.positions.emplace_back(float(p[0]), float(p[1]), float(p[2]));
+        return OpenMesh::VertexHandle(int(soup_.positions.size() - 1));
+    }
+    OpenMesh::VertexHandle add_vertex() override {
+        soup_.positions.emplace_back(0.0f);
+        return OpenMesh::VertexHandle(int(soup_.positions.size() - 1));
+    }
+    void set_point(OpenMesh::VertexHandle vh, const OpenMesh::Vec3f& p) override {
+        if (vh.is_valid() && size_t(vh.idx()) < soup_.positions.size())
+            soup_.positions[size_t(vh.idx())] = glm::vec3(p[0], p[1], p[2]);
+    }
+    OpenMesh::FaceHandle add_face(const VHandles& corners) override {
+        for (const auto& vh : corners) soup_.corners.push_back(vh.idx());
+        soup_.faceStart.push_back(soup_.corners.size());
+        return OpenMesh::FaceHandle(int(soup_.faceCount() - 1));
+    }
+    size_t n_vertices() const override { return soup_.positions.size(); }
+    size_t n_faces() const override { return soup_.faceCount(); }
+    size_t n_edges() const override { return 0; }
+    void reserve(unsigned int nV, unsigned int, unsigned int nF) override {
+        soup_.positions.reserve(std::min<size_t>(nV, reserveLimit_));
+        soup_.faceStart.reserve(std::min<size_t>(size_t(nF) + 1, reserveLimit_));
+        soup_.corners.reserve(std::min<size_t>(size_t(nF) * 3, reserveLimit_));
+    }
+
+    // Everything else a reader may hand over is ignored.
+    OpenMesh::HalfedgeHandle add_edge(OpenMesh::VertexHandle, OpenMesh::VertexHandle) override {
+        return OpenMesh::HalfedgeHandle();
+    }
+    OpenMesh::FaceHandle add_face(OpenMesh::HalfedgeHandle) override { return OpenMesh::FaceHandle(); }
+    void add_face_texcoords(OpenMesh::FaceHandle, OpenMesh::VertexHandle,
+                            const std::vector<OpenMesh::Vec2f>&) override {}
+    void add_face_texcoords(OpenMesh::FaceHandle, OpenMesh::VertexHandle,
+                            const std::vector<OpenMesh::Vec3f>&) override {}
+    void set_face_texindex(OpenMesh::FaceHandle, int) override {}
+    void set_halfedge(OpenMesh::VertexHandle, OpenMesh::HalfedgeHandle) override {}
+    void set_normal(OpenMesh::VertexHandle, const OpenMesh::Vec3f&) override {}
+    void set_normal(OpenMesh::VertexHandle, const OpenMesh::Vec3d&) override {}
+    void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec3uc&) override {}
+    void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec4uc&) override {}
+    void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec3f&) override {}
+    void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec4f&) override {}
+    void set_texcoord(OpenMesh::VertexHandle, const OpenMesh::Vec2f&) override {}
+    void set_status(OpenMesh::VertexHandle, const OpenMesh::Attributes::StatusInfo&) override {}
+    void set_next(OpenMesh::HalfedgeHandle, OpenMesh::HalfedgeHandle) override {}
+    void set_face(OpenMesh::HalfedgeHandle, OpenMesh::FaceHandle) override {}
+    void request_face_texcoords2D() override {}
+    void set_texcoord(OpenMesh::HalfedgeHandle, const OpenMesh::Vec2f&) override {}
+    void set_texcoord(OpenMesh::VertexHandle, const OpenMesh::Vec3f&) override {}
+    void set_texcoord(OpenMesh::HalfedgeHandle, const OpenMesh::Vec3f&) override {}
+    void set_status(OpenMesh::HalfedgeHandle, const OpenMesh::Attributes::StatusInfo&) override {}
+    void set_color(OpenMesh::EdgeHandle, const OpenMesh::Vec3uc&) override {}
+    void set_color(OpenMesh::EdgeHandle, const OpenMesh::Vec4uc&) override {}
+    void set_color(OpenMesh::EdgeHandle, const OpenMesh::Vec3f&) override {}
+    void set_color(OpenMesh::EdgeHandle, const OpenMesh::Vec4f&) override {}
+    void set_status(OpenMesh::EdgeHandle, const OpenMesh::Attributes::StatusInfo&) override {}
+    void set_normal(OpenMesh::FaceHandle, const OpenMesh::Vec3f&) override {}
+    void set_normal(OpenMesh::FaceHandle, const OpenMesh::Vec3d&) override {}
+    void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec3uc&) override {}
+    void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec4uc&) override {}
+    void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec3f&) override {}
+    void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec4f&) override {}
+    void set_status(OpenMesh::FaceHandle, const OpenMesh::Attributes::StatusInfo&) override {}
+    void add_texture_information(int, std::string) override {}
+
+private:
+    Soup& soup_;
+    size_t reserveLimit_;
+};
+
+// ---- triangulation ------------------------------------------------------------------
+
+// Splits polygon `poly` (vertex indices, >= 4 distinct consecutive corners) into
+// triangles with the same orientation: ear clipping in the plane of the polygon's
+// Newell normal; a fan when the polygon is huge, has no area, or clipping gets stuck.
+void triangulatePolygon(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& poly,
+                        std::vector<glm::uvec3>& out) {
+    const size_t n = poly.size();
+    auto fan = [&](const std::vector<uint32_t>& p) {
+        for (size_t i = 1; i + 1 < p.size(); ++i) out.emplace_back(p[0], p[i], p[i + 1]);
+    };
+    glm::dvec3 normal(0.0);
+    for (size_t i = 0; i < n; ++i) {
+        const glm::dvec3 a(positions[poly[i]]), b(positions[poly[(i + 1) % n]]);
+        normal += glm::dvec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
+    }
+    if (n > 256 || !(glm::length(normal) > 0.0)) {
+        fan(poly);
+        return;
+    }
+    // Project onto the coordinate plane most perpendicular to the normal, flipping one
+    // axis if needed so that the polygon runs counter-clockwise in 2D.
+    int axis = 0;
+    for (int a = 1; a < 3; ++a)
+        if (std::abs(normal[a]) > std::abs(normal[axis])) axis = a;
+    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+    const double flip = normal[axis] > 0.0 ? 1.0 : -1.0;
+    std::vector<glm::dvec2> q(n);
+    for (size_t i = 0; i < n; ++i) q[i] = glm::dvec2(positions[poly[i]][u], flip * positions[poly[i]][v]);
+
+    auto cross2 = [](glm::dvec2 a, glm::dvec2 b, glm::dvec2 c) {
+        return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+    };
+    std::vector<size_t> ring(n);
+    for (size_t i = 0; i < n; ++i) ring[i] = i;
+    while (ring.size() > 3) {
+        const size_t m = ring.size();
+        bool clipped = false;
+        for (size_t k = 0; k < m && !clipped; ++k) {
+            const size_t ia = ring[(k + m - 1) % m], ib = ring[k], ic = ring[(k + 1) % m];
+            if (!(cross2(q[ia], q[ib], q[ic]) > 0.0)) continue;  // reflex or flat corner
+            bool inside = false;
+            for (size_t j = 0; j < m && !inside; ++j) {
+                const size_t ip = ring[j];
+                if (ip == ia || ip == ib || ip == ic) continue;
+                inside = cross2(q[ia], q[ib], q[ip]) >= 0.0 && cross2(q[ib], q[ic], q[ip]) >= 0.0 &&
+                         cross2(q[ic], q[ia], q[ip]) >= 0.0;
+            }
+            if (inside) continue;
+            out.emplace_back(poly[ia], poly[ib], poly[ic]);
+            ring.erase(ring.begin() + std::ptrdiff_t(k));
+            clipped = true;
+        }
+        if (!clipped) {
+            std::vector<uint32_t> rest;
+            for (size_t i : ring) rest.push_back(poly[i]);
+            fan(rest);
+            return;
+        }
+    }
+    out.emplace_back(poly[ring[0]], poly[ring[1]], poly[ring[2]]);
+}
+
+std::string plural(size_t n, const char* one, const char* many) {
+    return std::to_string(n) + " " + (n == 1 ? one : many);
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------
+// loadMesh
+// ---------------------------------------------------------------------------------
+
+TriangleMesh loadMesh(const std::string& path, MeshReport* report) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (!fs::exists(path, ec)) throw Error(path, "no such file");
+    if (!fs::is_regular_file(path, ec)) throw Error(path, "not a regular file");
+
+    bool gzName = false;
+    const Format format = formatOf(path, gzName, "load");
+    bool compressed = false;
+    const std::string data = readFileBytes(path, compressed);
+    if (data.empty()) throw Error(path, compressed ? "decompresses to nothing" : "file is empty");
+
+    MeshReport rep;
+    rep.format = formatName(format);
+    rep.compressed = compressed;
+
+    const ScanResult expected = scan(format, path, data);
+
+    Soup soup;
+    {
+        std::lock_guard lock(openMeshMutex());
+        std::optional<TempFile> temp;
+        std::string readPath = path;
+        if (compressed) {
+            temp.emplace(path, fs::temp_directory_path(), "prt-mesh-", "." + formatName(format));
+            std::FILE* out = std::fopen(temp->path().c_str(), "wb");
+            bool written = out != nullptr;
+            if (out) {
+                written = std::fwrite(data.data(), 1, data.size(), out) == data.size();
+                written = (std::fclose(out) == 0) && written;
+            }
+            if (!written) throw Error(path, "cannot write the decompressed data to " + temp->path());
+            readPath = temp->path();
+        }
+        OpenMeshQuiet quiet;
+        SoupImporter importer(soup, data.size() / 4 + 16);
+        OpenMesh::IO::Options options;  // positions and faces only
+        bool ok = false;
+        try {
+            ok = OpenMesh::IO::IOManager().read(readPath, importer, options);
+        } catch (const std::exception& e) {
+            throw Error(path, std::string("OpenMesh failed while reading: ") + e.what());
+        }
+        if (!ok)
+            throw Error(path, "cannot be parsed as " + formatName(format) +
+                                  " (corrupt, truncated or unsupported file)");
+    }
+
+    // Record counts against what the file declares.
+    if (expected.vertices && soup.positions.size() != *expected.vertices)
+        throw Error(path, "the file declares " + std::to_string(*expected.vertices) +
+                              " vertices but " + std::to_string(soup.positions.size()) +
+                              " could be read (truncated or malformed)");
+    size_t droppedByReader = 0;
+    if (expected.faces && soup.faceCount() != *expected.faces) {
+        if (soup.faceCount() < *expected.faces && expected.readerDropsDegenerate)
+            droppedByReader = *expected.faces - soup.faceCount();
+        else
+            throw Error(path, "the file declares " + std::to_string(*expected.faces) + " faces but " +
+                                  std::to_string(soup.faceCount()) + " could be read (truncated or malformed)");
+    }
+    rep.fileVertices = soup.positions.size();
+    rep.fileFaces = soup.faceCount() + droppedByReader;
+
+    for (size_t v = 0; v < soup.positions.size(); ++v) {
+        const glm::vec3 p = soup.positions[v];
+        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+            throw Error(path, "vertex " + std::to_string(v) +
+                                  " has a non-finite coordinate (NaN/Inf coordinates are not allowed)");
+    }
+    const size_t nv = soup.positions.size();
+    for (size_t f = 0; f < soup.faceCount(); ++f)
+        for (size_t c = soup.faceStart[f]; c < soup.faceStart[f + 1]; ++c)
+            if (soup.corners[c] < 0 || size_t(soup.corners[c]) >= nv)
+                throw Error(path, "face " + std::to_string(f) + " refers to vertex " +
+                                      std::to_string(soup.corners[c]) + " but the file has " +
+                                      plural(nv, "vertex", "vertices"));
+    if (rep.fileFaces == 0)
+        throw Error(path, nv == 0 ? "contains no vertices and no faces (empty mesh)"
+                                  : "contains " + plural(nv, "vertex", "vertices") +
+                                        " but no faces (empty mesh)");
+
+    // Triangulate; a record with fewer than three distinct consecutive corners is one
+    // degenerate input triangle.
+    std::vector<glm::uvec3> tris;
+    tris.reserve(soup.corners.size() / 3 + 1);
+    size_t degenerate = droppedByReader;
+    std::vector<uint32_t> poly;
+    for (size_t f = 0; f < soup.faceCount(); ++f) {
+        poly.clear();
+        for (size_t c = soup.faceStart[f]; c < soup.faceStart[f + 1]; ++c) {
+            const auto idx = uint32_t(soup.corners[c]);
+            if (poly.empty() || poly.back() != idx) poly.push_back(idx);
+        }
+        while (poly.size() > 1 && poly.front() == poly.back()) poly.pop_back();
+        if (poly.size() == 3) {
+            tris.emplace_back(poly[0], poly[1], poly[2]);
+        } else if (poly.size() > 3) {
+            ++rep.polygonsTriangulated;
+            triangulatePolygon(soup.positions, poly, tris);
+        } else {
+            ++degenerate;
+        }
+    }
+    rep.inputTriangles = tris.size() + degenerate;
+
+    // Drop degenerate triangles.
+    TriangleMesh mesh;
+    mesh.positions = std::move(soup.positions);
+    {
+        const double diag = double(bounds(mesh).diagonal());
+        const double limit = 2.0 * 1e-12 * diag * diag;  // on |cross| = 2 * area
+        std::vector<glm::uvec3> kept;
+        kept.reserve(tris.size());
+        for (const auto& t : tris) {
+            if (t.x == t.y || t.y == t.z || t.x == t.z) {
+                ++degenerate;
+                continue;
+            }
+            const glm::dvec3 p0(mesh.positions[t.x]), p1(mesh.positions[t.y]), p2(mesh.positions[t.z]);
+            if (glm::length(glm::cross(p1 - p0, p2 - p0)) <= limit) {
+                ++degenerate;
+                continue;
+            }
+            kept.push_back(t);
+        }
+        mesh.triangles = std::move(kept);
+    }
+    rep.degenerateFaces = degenerate;
+    rep.removedFaces = degenerate;
+    if (mesh.triangles.empty())
+        throw Error(path, "all " + plural(rep.inputTriangles, "face is", "faces are") +
+                              " degenerate (zero area); nothing is left");
+
+    // Remove vertices no kept triangle uses, keeping the others' relative order.
+    {
+        std::vector<uint32_t> remap(mesh.positions.size(), std::numeric_limits<uint32_t>::max());
+        for (const auto& t : mesh.triangles)
+            for (int k = 0; k < 3; ++k) remap[t[k]] = 0;
+        uint32_t next = 0;
+        std::vector<glm::vec3> kept;
+        kept.reserve(mesh.positions.size());
+        for (size_t v = 0; v < remap.size(); ++v)
+            if (remap[v] == 0) {
+                remap[v] = next++;
+                kept.push_back(mesh.positions[v]);
+            }
+        rep.unreferencedVertices = mesh.positions.size() - kept.size();
+        if (rep.unreferencedVertices > 0) {
+            mesh.positions = std::move(kept);
+            for (auto& t : mesh.triangles) t = glm::uvec3(remap[t.x], remap[t.y], remap[t.z]);
+        }
+    }
+    computeVertexNormals(mesh);
+
+    const MeshTopology topo = analyseTopology(mesh, true);
+    rep.boundaryEdges = topo.boundaryEdges;
+    rep.nonManifoldEdges = topo.nonManifoldEdges;
+    rep.inconsistentEdges = topo.inconsistentEdges;
+    rep.eulerCharacteristic = topo.eulerCharacteristic();
+    rep.vertices = mesh.positions.size();
+    rep.triangles = mesh.triangles.size();
+
+    if (rep.degenerateFaces > 0)
+        warn(path + ": dropped " + plural(rep.degenerateFaces, "degenerate face", "degenerate faces") +
+             " (zero area or repeated vertex) of " + std::to_string(rep.inputTriangles));
+    if (rep.unreferencedVertices > 0)
+        warn(path + ": removed " + plural(rep.unreferencedVertices, "vertex", "vertices") +
+             " not used by any face");
+    if (rep.nonManifoldEdges > 0)
+        warn(path + ": " + plural(rep.nonManifoldEdges, "non-manifold edge", "non-manifold edges") +
+             " (shared by three or more faces); kept");
+    if (rep.boundaryEdges > 0)
+        warn(path + ": " + plural(rep.boundaryEdges, "boundary edge", "boundary edges") +
+             " (the surface is not closed); kept");
+    if (rep.inconsistentEdges > 0)
+        warn(path + ": " + plural(rep.inconsistentEdges, "edge joins", "edges join") +
+             " faces of opposite orientation; kept");
+
+    if (report) *report = rep;
+    return mesh;
+}
+
+// ---------------------------------------------------------------------------------
+// saveMesh
+// ---------------------------------------------------------------------------------
+
+namespace {
+
+// Hands a TriangleMesh to OpenMesh's writers: positions and triangles, nothing else.
+// The (empty) kernel is there because the PLY writer asks it for custom properties.
+class MeshExporter : public OpenMesh::IO::BaseExporter {
+public:
+    explicit MeshExporter(const TriangleMesh& mesh) : mesh_(mesh) {}
+
+    OpenMesh::Vec3f point(OpenMesh::VertexHandle vh) const override {
+        const glm::vec3& p = mesh_.positions[size_t(vh.idx())];
+        return OpenMesh::Vec3f(p.x, p.y, p.z);
+    }
+    OpenMesh::Vec3d pointd(OpenMesh::VertexHandle vh) const override {
+        const glm::vec3& p = mesh_.positions[size_t(vh.idx())];
+        return OpenMesh::Vec3d(p.x, p.y, p.z);
+    }
+    bool is_point_double() const override { return false; }
+    unsigned int get_vhandles(OpenMesh::FaceHandle fh, std::vector<OpenMesh::VertexHandle>& out) const override {
+        const glm::uvec3& t = mesh_.triangles[size_t(fh.idx())];
+        out.assign({OpenMesh::VertexHandle(int(t.x)), OpenMesh::VertexHandle(int(t.y)),
+                    OpenMesh::VertexHandle(int(t.z))});
+        return 3;
+    }
+    OpenMesh::Vec3f normal(OpenMesh::FaceHandle fh) const override {
+        const glm::vec3 n = faceNormal(mesh_, size_t(fh.idx()));
+        return OpenMesh::Vec3f(n.x, n.y, n.z);
+    }
+    OpenMesh::Vec3d normald(OpenMesh::FaceHandle fh) const override {
+        const glm::vec3 n = faceNormal(mesh_, size_t(fh.idx()));
+        return OpenMesh::Vec3d(n.x, n.y, n.z);
+    }
+    const OpenMesh::BaseKernel* kernel() override { return &kernel_; }
+    size_t n_vertices() const override { return mesh_.positions.size(); }
+    size_t n_faces() const override { return mesh_.triangles.size(); }
+    size_t n_edges() const override { return 0; }
+    bool is_triangle_mesh() const override { return true; }
+
+    // Attributes we do not write.
+    OpenMesh::Vec3f normal(OpenMesh::VertexHandle) const override { return OpenMesh::Vec3f(0, 0, 0); }
+    OpenMesh::Vec3d normald(OpenMesh::VertexHandle) const override { return OpenMesh::Vec3d(0, 0, 0); }
+    bool is_normal_double() const override { return false; }
+    OpenMesh::Vec3uc color(OpenMesh::VertexHandle) const override { return OpenMesh::Vec3uc(0, 0, 0); }
+    OpenMesh::Vec4uc colorA(OpenMesh::VertexHandle) const override { return OpenMesh::Vec4uc(0, 0, 0, 0); }
+    OpenMesh::Vec3ui colori(OpenMesh::VertexHandle) const override { return OpenMesh::Vec3ui(0, 0, 0); }
+    OpenMesh::Vec4ui colorAi(OpenMesh::VertexHandle) const override { return OpenMesh::Vec4ui(0, 0, 0, 0); }
+    OpenMesh::Vec3f colorf(OpenMesh::VertexHandle) const override { return OpenMesh::Vec3f(0, 0, 0); }
+    OpenMesh::Vec4f colorAf(OpenMesh::VertexHandle) const override { return OpenMesh::Vec4f(0, 0, 0, 0); }
+    OpenMesh::Vec2f texcoord(OpenMesh::VertexHandle) const override { return OpenMesh::Vec2f(0, 0); }
+    OpenMesh::Vec2f texcoord(OpenMesh::HalfedgeHandle) const override { return OpenMesh::Vec2f(0, 0); }
+    OpenMesh::Attributes::StatusInfo status(OpenMesh::VertexHandle) const override { return {}; }
+    OpenMesh::HalfedgeHandle getHeh(OpenMesh::FaceHandle, OpenMesh::VertexHandle) const override {
+        return OpenMesh::HalfedgeHandle();
+    }
+    unsigned int get_face_texcoords(std::vector<OpenMesh::Vec2f>& out) const override {
+        out.clear();
+        return 0;
+    }
+    OpenMesh::Vec3uc color(OpenMesh::FaceHandle) const override { return OpenMesh::Vec3uc(0, 0, 0); }
+    OpenMesh::Vec4uc colorA(OpenMesh::FaceHandle) const override { return OpenMesh::Vec4uc(0, 0, 0, 0); }
+    OpenMesh::Vec3ui colori(OpenMesh::FaceHandle) const override { return OpenMesh::Vec3ui(0, 0, 0); }
+    OpenMesh::Vec4ui colorAi(OpenMesh::FaceHandle) const override { return OpenMesh::Vec4ui(0, 0, 0, 0); }
+    OpenMesh::Vec3f colorf(OpenMesh::FaceHandle) const override { return OpenMesh::Vec3f(0, 0, 0); }
+    OpenMesh::Vec4f colorAf(OpenMesh::FaceHandle) const override { return OpenMesh::Vec4f(0, 0, 0, 0); }
+    OpenMesh::Attributes::StatusInfo status(OpenMesh::FaceHandle) const override { return {}; }
+    OpenMesh::Vec3uc color(OpenMesh::EdgeHandle) const override { return OpenMesh::Vec3uc(0, 0, 0); }
+    OpenMesh::Vec4uc colorA(OpenMesh::EdgeHandle) const override { return OpenMesh::Vec4uc(0, 0, 0, 0); }
+    OpenMesh::Vec3ui colori(OpenMesh::EdgeHandle) const override { return OpenMesh::Vec3ui(0, 0, 0); }
+    OpenMesh::Vec4ui colorAi(OpenMesh::EdgeHandle) const override { return OpenMesh::Vec4ui(0, 0, 0, 0); }
+    OpenMesh::Vec3f colorf(OpenMesh::EdgeHandle) const override { return OpenMesh::Vec3f(0, 0, 0); }
+    OpenMesh::Vec4f colorAf(OpenMesh::EdgeHandle) const override { return OpenMesh::Vec4f(0, 0, 0, 0); }
+    OpenMesh::Attributes::StatusInfo status(OpenMesh::EdgeHandle) const override { return {}; }
+    int get_halfedge_id(OpenMesh::VertexHandle) override { return -1; }
+    int get_halfedge_id(OpenMesh::FaceHandle) override { return -1; }
+    int get_next_halfedge_id(OpenMesh::HalfedgeHandle) override { return -1; }
+    int get_to_vertex_id(OpenMesh::HalfedgeHandle) override { return -1; }
+    int get_face_id(OpenMesh::HalfedgeHandle) override { return -1; }
+    OpenMesh::Attributes::StatusInfo status(OpenMesh::HalfedgeHandle) const override { return {}; }
+
+private:
+    const TriangleMesh& mesh_;
+    OpenMesh::BaseKernel kernel_;
+};
+
+}  // namespace
+
+void saveMesh(const TriangleMesh& mesh, const std::string& path) {
+    namespace fs = std::filesystem;
+    bool gz = false;
+    const Format format = formatOf(path, gz, "save");
+    if (gz) throw Error(path, "saving compressed (.gz) meshes is not supported");
+    for (const auto& t : mesh.triangles)
+        if (t.x >= mesh.positions.size() || t.y >= mesh.positions.size() || t.z >= mesh.positions.size())
+            throw Error(path, "cannot save: a triangle refers to a vertex that does not exist");
+
+    const fs::path target(path);
+    const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+    OpenMesh::IO::Options options;
+    if (format == Format::Ply) options = OpenMesh::IO::Options(OpenMesh::IO::Options::Binary | OpenMesh::IO::Options::LSB);
+    if (format == Format::Stl) options = OpenMesh::IO::Options(OpenMesh::IO::Options::Binary);
+
+    std::lock_guard lock(openMeshMutex());
+    TempFile temp(path, dir, "." + target.filename().string() + ".tmp-", "." + formatName(format));
+    if (format == Format::Obj) {
+        // Written directly: OpenMesh's OBJ writer prints coordinates in fixed-point
+        // notation, which loses small values (1e-17 becomes 0).
+        std::FILE* out = std::fopen(temp.path().c_str(), "w");
+        if (!out) throw Error(path, std::string("cannot write: ") + std::strerror(errno));
+        bool ok = std::fprintf(out, "# %zu vertices, %zu triangles\n", mesh.positions.size(),
+                               mesh.triangles.size()) > 0;
+        for (const auto& p : mesh.positions)
+            ok = ok && std::fprintf(out, "v %.9g %.9g %.9g\n", double(p.x), double(p.y), double(p.z)) > 0;
+        for (const auto& t : mesh.triangles)
+            ok = ok && std::fprintf(out, "f %u %u %u\n", t.x + 1, t.y + 1, t.z + 1) > 0;
+        ok = (std::fclose(out) == 0) && ok;
+        if (!ok) throw Error(path, "error while writing the mesh");
+    } else {
+        OpenMeshQuiet quiet;
+        MeshExporter exporter(mesh);
+        bool ok = false;
+        try {
+            ok = OpenMesh::IO::IOManager().write(temp.path(), exporter, options, 9);
+        } catch (const std::exception& e) {
+            throw Error(path, std::string("OpenMesh failed while writing: ") + e.what());
+        }
+        if (!ok) throw Error(path, "cannot write the mesh (OpenMesh's writer failed)");
+    }
+    ::chmod(temp.path().c_str(), 0644);
+    std::error_code ec;
+    fs::rename(temp.path(), target, ec);
+    if (ec) throw Error(path, "cannot move the written file into place: " + ec.message());
+    temp.release();
+}
+
+}  // namespace prt
