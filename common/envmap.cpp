@@ -14,12 +14,12 @@
 #include <vector>
 
 #include "common/error.h"
+#include "common/util.h"
 
 namespace prt {
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 // cos(a) - cos(b) without cancellation for nearby a, b.

@@ -1,6 +1,9 @@
 #include <cctype>
 #include "common/image.h"
 
+#include "common/atomic_file.h"
+#include "common/util.h"
+
 #include <OpenImageIO/imageio.h>
 #include <unistd.h>
 
@@ -62,44 +65,20 @@ void checkWritable(const std::string& path, const Image& image) {
 }
 
 // Writes `data` (described by dataType, spec's layout) through OpenImageIO's
-// `formatName` writer to a temporary file next to `path`, then renames it over
-// `path`. Cleans up and throws prt::Error(path, ...) on any failure.
-void writeAtomically(const std::string& path, const char* formatName, const OIIO::ImageSpec& spec,
-                     OIIO::TypeDesc dataType, const void* data) {
-    const fs::path target(path);
-    fs::path dir = target.parent_path();
-    if (dir.empty()) dir = ".";
-    std::error_code ec;
-    if (!fs::is_directory(dir, ec))
-        throw Error(path, "directory '" + dir.string() + "' does not exist");
-    if (!target.has_filename()) throw Error(path, "not a file name");
-
-    static std::atomic<unsigned> counter{0};
-    const fs::path temp =
-        dir / (target.stem().string() + ".tmp" + std::to_string(long(::getpid())) + "-" +
-               std::to_string(counter.fetch_add(1)) + target.extension().string());
-
-    auto fail = [&](const std::string& reason) {
-        std::error_code ignored;
-        fs::remove(temp, ignored);
-        throw Error(path, reason);
-    };
-
-    {
+// `formatName` writer, all or nothing (writeAtomically).
+void writeImageAtomically(const std::string& path, const char* formatName, const OIIO::ImageSpec& spec,
+                          OIIO::TypeDesc dataType, const void* data) {
+    writeAtomically(path, [&](const std::string& temp) {
         auto out = OIIO::ImageOutput::create(formatName);
-        if (!out) throw Error(path, "no " + std::string(formatName) + " writer: " +
-                                        oneLine(OIIO::geterror()));
-        if (!out->open(temp.string(), spec)) fail("cannot create: " + oneLine(out->geterror()));
+        if (!out) throw Error(path, "no " + std::string(formatName) + " writer: " + oneLine(OIIO::geterror()));
+        if (!out->open(temp, spec)) throw Error(path, "cannot create: " + oneLine(out->geterror()));
         if (!out->write_image(dataType, data)) {
             const std::string reason = oneLine(out->geterror());
             out->close();
-            fail("write failed: " + reason);
+            throw Error(path, "write failed: " + reason);
         }
-        if (!out->close()) fail("write failed: " + oneLine(out->geterror()));
-    }
-
-    fs::rename(temp, target, ec);
-    if (ec) fail("cannot replace with the new file: " + ec.message());
+        if (!out->close()) throw Error(path, "write failed: " + oneLine(out->geterror()));
+    });
 }
 
 }  // namespace
@@ -143,7 +122,7 @@ void writeExr(const std::string& path, const Image& image, ExrPixelType pixelTyp
         spec.alpha_channel = 1;
     }
     spec.attribute("compression", "zip");
-    writeAtomically(path, "openexr", spec, OIIO::TypeDesc::FLOAT, image.pixels.data());
+    writeImageAtomically(path, "openexr", spec, OIIO::TypeDesc::FLOAT, image.pixels.data());
 }
 
 void writePng(const std::string& path, const Image& image, double exposureStops) {
@@ -167,13 +146,12 @@ void writePng(const std::string& path, const Image& image, double exposureStops)
 
     OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
     spec.attribute("oiio:ColorSpace", "sRGB");
-    writeAtomically(path, "png", spec, OIIO::TypeDesc::UINT8, rgb.data());
+    writeImageAtomically(path, "png", spec, OIIO::TypeDesc::UINT8, rgb.data());
 }
 
 std::string outputPrefix(const std::string& path) {
     if (path.size() > 4) {
-        std::string ext = path.substr(path.size() - 4);
-        for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+        const std::string ext = toLower(path.substr(path.size() - 4));
         if (ext == ".exr" || ext == ".png") return path.substr(0, path.size() - 4);
     }
     return path;

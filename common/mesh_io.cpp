@@ -4,6 +4,8 @@
 #include "common/mesh_io.h"
 
 #include "common/error.h"
+#include "common/atomic_file.h"
+#include "common/util.h"
 
 #include <OpenMesh/Core/IO/IOManager.hh>
 #include <OpenMesh/Core/IO/Options.hh>
@@ -40,10 +42,6 @@ namespace {
 
 enum class Format { Obj, Ply, Off, Stl };
 
-std::string lower(std::string s) {
-    for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return s;
-}
 
 std::string formatName(Format f) {
     switch (f) {
@@ -57,7 +55,7 @@ std::string formatName(Format f) {
 
 // Format from the file name; `gz` is set when the name ends in .gz.
 Format formatOf(const std::string& path, bool& gz, const char* verb) {
-    std::string name = lower(std::filesystem::path(path).filename().string());
+    std::string name = toLower(std::filesystem::path(path).filename().string());
     gz = false;
     if (name.size() > 3 && name.ends_with(".gz")) {
         gz = true;
@@ -908,7 +906,6 @@ private:
 }  // namespace
 
 void saveMesh(const TriangleMesh& mesh, const std::string& path) {
-    namespace fs = std::filesystem;
     bool gz = false;
     const Format format = formatOf(path, gz, "save");
     if (gz) throw Error(path, "saving compressed (.gz) meshes is not supported");
@@ -916,43 +913,37 @@ void saveMesh(const TriangleMesh& mesh, const std::string& path) {
         if (t.x >= mesh.positions.size() || t.y >= mesh.positions.size() || t.z >= mesh.positions.size())
             throw Error(path, "cannot save: a triangle refers to a vertex that does not exist");
 
-    const fs::path target(path);
-    const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
     OpenMesh::IO::Options options;
     if (format == Format::Ply) options = OpenMesh::IO::Options(OpenMesh::IO::Options::Binary | OpenMesh::IO::Options::LSB);
     if (format == Format::Stl) options = OpenMesh::IO::Options(OpenMesh::IO::Options::Binary);
 
     std::lock_guard lock(openMeshMutex());
-    TempFile temp(path, dir, "." + target.filename().string() + ".tmp-", "." + formatName(format));
-    if (format == Format::Obj) {
-        // Written directly: OpenMesh's OBJ writer prints coordinates in fixed-point
-        // notation, which loses small values (1e-17 becomes 0).
-        std::FILE* out = std::fopen(temp.path().c_str(), "w");
-        if (!out) throw Error(path, std::string("cannot write: ") + std::strerror(errno));
-        bool ok = std::fprintf(out, "# %zu vertices, %zu triangles\n", mesh.positions.size(),
-                               mesh.triangles.size()) > 0;
-        for (const auto& p : mesh.positions)
-            ok = ok && std::fprintf(out, "v %.9g %.9g %.9g\n", double(p.x), double(p.y), double(p.z)) > 0;
-        for (const auto& t : mesh.triangles)
-            ok = ok && std::fprintf(out, "f %u %u %u\n", t.x + 1, t.y + 1, t.z + 1) > 0;
-        ok = (std::fclose(out) == 0) && ok;
-        if (!ok) throw Error(path, "error while writing the mesh");
-    } else {
-        OpenMeshQuiet quiet;
-        MeshExporter exporter(mesh);
-        bool ok = false;
-        try {
-            ok = OpenMesh::IO::IOManager().write(temp.path(), exporter, options, 9);
-        } catch (const std::exception& e) {
-            throw Error(path, std::string("OpenMesh failed while writing: ") + e.what());
+    writeAtomically(path, [&](const std::string& temp) {
+        if (format == Format::Obj) {
+            // Written directly: OpenMesh's OBJ writer prints coordinates in fixed-point
+            // notation, which loses small values (1e-17 becomes 0).
+            std::FILE* out = std::fopen(temp.c_str(), "w");
+            if (!out) throw Error(path, std::string("cannot write: ") + std::strerror(errno));
+            bool ok = std::fprintf(out, "# %zu vertices, %zu triangles\n", mesh.positions.size(),
+                                   mesh.triangles.size()) > 0;
+            for (const auto& p : mesh.positions)
+                ok = ok && std::fprintf(out, "v %.9g %.9g %.9g\n", double(p.x), double(p.y), double(p.z)) > 0;
+            for (const auto& t : mesh.triangles)
+                ok = ok && std::fprintf(out, "f %u %u %u\n", t.x + 1, t.y + 1, t.z + 1) > 0;
+            ok = (std::fclose(out) == 0) && ok;
+            if (!ok) throw Error(path, "error while writing the mesh");
+        } else {
+            OpenMeshQuiet quiet;
+            MeshExporter exporter(mesh);
+            bool ok = false;
+            try {
+                ok = OpenMesh::IO::IOManager().write(temp, exporter, options, 9);
+            } catch (const std::exception& e) {
+                throw Error(path, std::string("OpenMesh failed while writing: ") + e.what());
+            }
+            if (!ok) throw Error(path, "cannot write the mesh (OpenMesh's writer failed)");
         }
-        if (!ok) throw Error(path, "cannot write the mesh (OpenMesh's writer failed)");
-    }
-    ::chmod(temp.path().c_str(), 0644);
-    std::error_code ec;
-    fs::rename(temp.path(), target, ec);
-    if (ec) throw Error(path, "cannot move the written file into place: " + ec.message());
-    temp.release();
+    });
 }
 
 }  // namespace prt

@@ -3,6 +3,8 @@
 
 #include "common/transport_file.h"
 
+#include "common/atomic_file.h"
+
 #include "common/error.h"
 
 #include <fcntl.h>
@@ -504,30 +506,6 @@ void writeFile(FileWriter& w, const TransportFile& f) {
     w.flush();
 }
 
-// Removes the temporary file unless the save committed.
-class TempFileGuard {
-public:
-    explicit TempFileGuard(std::string path) : path_(std::move(path)) {}
-    ~TempFileGuard() {
-        if (fd_ >= 0) ::close(fd_);
-        if (!committed_) ::unlink(path_.c_str());
-    }
-    TempFileGuard(const TempFileGuard&) = delete;
-    TempFileGuard& operator=(const TempFileGuard&) = delete;
-
-    void setFd(int fd) { fd_ = fd; }
-    int closeFd() {
-        const int result = ::close(fd_);
-        fd_ = -1;
-        return result;
-    }
-    void commit() { committed_ = true; }
-
-private:
-    std::string path_;
-    int fd_ = -1;
-    bool committed_ = false;
-};
 
 // ---------------------------------------------------------------------------------
 // Reading
@@ -1085,31 +1063,20 @@ void saveTransportFile(const std::string& path, const TransportFile& file) {
     if (std::filesystem::is_directory(path, ec))
         throw Error(path, "is a directory; cannot write a transport file there");
 
-    const std::string tmpPath = path + ".tmp." + std::to_string(long(::getpid()));
-    TempFileGuard guard(tmpPath);
-    const int fd = ::open(tmpPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-    if (fd < 0)
-        throw Error(path, "cannot create temporary file '" + tmpPath + "': " + std::strerror(errno));
-    guard.setFd(fd);
-
-    FileWriter writer(fd, path, tmpPath);
-    writeFile(writer, file);
-    if (::fsync(fd) != 0)
-        throw Error(path, "cannot sync temporary file '" + tmpPath + "': " + std::strerror(errno));
-    if (guard.closeFd() != 0)
-        throw Error(path, "cannot close temporary file '" + tmpPath + "': " + std::strerror(errno));
-    if (::rename(tmpPath.c_str(), path.c_str()) != 0)
-        throw Error(path, "cannot rename '" + tmpPath + "' over it: " + std::strerror(errno));
-    guard.commit();
-
-    // Make the rename itself durable (best effort: some file systems refuse).
-    std::string dir = std::filesystem::path(path).parent_path().string();
-    if (dir.empty()) dir = ".";
-    const int dirFd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (dirFd >= 0) {
-        (void)::fsync(dirFd);
-        ::close(dirFd);
-    }
+    writeAtomically(path, [&](const std::string& tmpPath) {
+        const int fd = ::open(tmpPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+        if (fd < 0)
+            throw Error(path, "cannot create temporary file '" + tmpPath + "': " + std::strerror(errno));
+        try {
+            FileWriter writer(fd, path, tmpPath);
+            writeFile(writer, file);
+        } catch (...) {
+            ::close(fd);
+            throw;
+        }
+        if (::close(fd) != 0)
+            throw Error(path, "cannot close temporary file '" + tmpPath + "': " + std::strerror(errno));
+    });
 }
 
 TransportFile loadTransportFile(const std::string& path) { return loadImpl(path, nullptr); }

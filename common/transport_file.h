@@ -129,11 +129,10 @@ struct TransportFile {
 
 // Writes `file` to `path` atomically: validates it (one vertex count everywhere,
 // equal to mesh.vertexCount; indices < 6 N^2 and increasing; view maps present iff
-// term components exist, one term component per view-map term; finite values), writes
-// "<path>.tmp.<pid>", fsyncs, renames over `path` and fsyncs the directory. On any
-// failure the temporary file is removed, an existing file at `path` is untouched and
-// prt::Error(path, reason) is thrown. Concurrent saves to the same path from one
-// process are not supported (they share the temporary name).
+// term components exist, one term component per view-map term; finite values), then
+// writes through writeAtomically (common/atomic_file.h): on any failure an existing
+// file at `path` is untouched, no temporary file is left and prt::Error(path, reason)
+// is thrown.
 void saveTransportFile(const std::string& path, const TransportFile& file);
 
 // Reads and verifies the whole file (every section's checksum, every count and

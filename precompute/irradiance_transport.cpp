@@ -11,6 +11,7 @@
 #include "common/cubemap.h"
 #include "common/error.h"
 #include "common/progress.h"
+#include "common/util.h"
 
 namespace prt {
 
@@ -105,7 +106,7 @@ IrradianceResult computeIrradianceTransport(const RayScene* scene, const SampleS
     tbb::combinable<ThreadState> states;
     const RayScene* visScene = options.visibility ? scene : nullptr;
 
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch start;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 16), [&](const tbb::blocked_range<size_t>& r) {
         ThreadState& st = states.local();
         st.scratch.dense.resize(texels);
@@ -121,7 +122,7 @@ IrradianceResult computeIrradianceTransport(const RayScene* scene, const SampleS
         if (progress) progress->advance(r.size());
     });
     result.seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        start.seconds();
     states.combine_each([&](const ThreadState& st) { result.raysTraced += st.rays; });
     double sum = 0;
     for (double v : retained) sum += v;

@@ -19,6 +19,7 @@
 #include <optional>
 #include <thread>
 
+#include "common/atomic_file.h"
 #include "common/bssrdf.h"
 #include "common/error.h"
 #include "precompute/pipeline.h"
@@ -91,7 +92,7 @@ void addJobOptions(CLI::App& app, RawOptions& raw, PrecomputeSettings& s) {
 PrecomputeSettings finishSettings(const RawOptions& raw, PrecomputeSettings s) {
     s.meshPath = raw.mesh;
     s.outputPath = raw.output;
-    s.components = parsePrecomputeComponents(raw.components);
+    s.components = parseScatteringComponents(raw.components);
     if (raw.sizeMm && raw.mmPerUnit)
         throw Error("--size-mm", "give either --size-mm or --mm-per-unit, not both");
     if (raw.mmPerUnit) s.scale.mmPerUnit = raw.mmPerUnit;
@@ -288,50 +289,14 @@ std::string commandLine(int argc, char** argv) {
 
 // Fails early (before a long job) when the JSON could not be written at the end.
 void checkJsonPath(const std::string& path) {
-    namespace fs = std::filesystem;
-    std::error_code ec;
-    if (fs::is_directory(path, ec)) throw Error(path, "is a directory (--summary-json wants a file name)");
-    fs::path dir = fs::path(path).parent_path();
-    if (dir.empty()) dir = ".";
-    if (!fs::is_directory(dir, ec))
-        throw Error(path, "directory '" + dir.string() + "' does not exist (--summary-json)");
-    if (::access(dir.c_str(), W_OK) != 0)
-        throw Error(path, "directory '" + dir.string() + "' is not writable (--summary-json)");
+    try {
+        checkOutputPath(path);
+    } catch (const Error& e) {
+        throw Error(path, e.reason() + " (--summary-json)");
+    }
 }
 
-// Written like the transport file: "<path>.tmp.<pid>", fsync, rename over `path`.
-void writeJsonAtomically(const std::string& path, const Json& doc) {
-    const std::string text = doc.dump(2) + "\n";
-    const std::string tmp = path + ".tmp." + std::to_string(long(::getpid()));
-    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-    if (fd < 0) throw Error(path, "cannot create temporary file '" + tmp + "': " + std::strerror(errno));
-    const auto fail = [&](const std::string& what) {
-        const std::string reason = what + ": " + std::strerror(errno);
-        ::close(fd);
-        ::unlink(tmp.c_str());
-        throw Error(path, reason);
-    };
-    size_t done = 0;
-    while (done < text.size()) {
-        const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
-        if (n < 0) {
-            if (errno == EINTR) continue;
-            fail("cannot write temporary file '" + tmp + "'");
-        }
-        done += size_t(n);
-    }
-    if (::fsync(fd) != 0) fail("cannot sync temporary file '" + tmp + "'");
-    if (::close(fd) != 0) {
-        const std::string reason = std::strerror(errno);
-        ::unlink(tmp.c_str());
-        throw Error(path, "cannot close temporary file '" + tmp + "': " + reason);
-    }
-    if (::rename(tmp.c_str(), path.c_str()) != 0) {
-        const std::string reason = std::strerror(errno);
-        ::unlink(tmp.c_str());
-        throw Error(path, "cannot rename '" + tmp + "' over it: " + reason);
-    }
-}
+void writeJsonAtomically(const std::string& path, const Json& doc) { writeFileAtomically(path, doc.dump(2) + "\n"); }
 
 // The document's common head: tool, command, time, machine.
 Json runJson(const std::string& command) {

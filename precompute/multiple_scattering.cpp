@@ -1,6 +1,7 @@
 #include "precompute/multiple_scattering.h"
 
 #include "common/error.h"
+#include "common/util.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -19,16 +20,12 @@ namespace prt {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // Subtrees with at most this many samples are built sequentially.
 constexpr uint32_t kParallelCutoff = 2048;
 
 using Entry = SampleTree::Entry;
 
-double secondsSince(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 bool isLeafNode(uint32_t count, int depth, const HierarchyOptions& o) {
     return count <= uint32_t(o.leafSize) || depth >= o.maxDepth;
@@ -263,7 +260,7 @@ struct SumBuilder {
 }  // namespace
 
 SampleTree::SampleTree(SampleCloud cloud, const HierarchyOptions& options) {
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch start;
     validateCloud(cloud, options);
     const uint32_t n = uint32_t(cloud.positions.size());
 
@@ -328,7 +325,7 @@ SampleTree::SampleTree(SampleCloud cloud, const HierarchyOptions& options) {
     }
     nodeEntries_.resize(used);
     nodeEntries_.shrink_to_fit();
-    buildSeconds_ = secondsSince(start);
+    buildSeconds_ = start.seconds();
 }
 
 SparseVector SampleTree::nodeSumVector(size_t node) const {
@@ -446,7 +443,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                                                       size_t coefficientCount,
                                                       MultipleScatteringStats* stats,
                                                       Progress* progress) {
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch start;
     const Dipoles dipoles(material);
     if (!(options.epsilon >= 0.0) || !std::isfinite(options.epsilon)) {
         throw Error("epsilon", "must be finite and >= 0");
@@ -534,7 +531,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
         stats->meanNodesUsed = used / nv;
         stats->meanSamplesUsed = samples / nv;
         stats->retainedEnergyFraction = vertices.empty() ? 1.0 : retained / nv;
-        stats->seconds = secondsSince(start);
+        stats->seconds = start.seconds();
         stats->treeBytes = tree.bytes();
     }
     return result;

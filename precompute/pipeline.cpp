@@ -16,18 +16,15 @@
 #include "common/progress.h"
 #include "common/raytrace.h"
 #include "common/sampling.h"
+#include "common/mesh_io.h"
 #include "precompute/single_scattering.h"
+#include "common/util.h"
 
 namespace prt {
 
 namespace {
 
-std::string fmt(double v) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.9g", v);
-    return buf;
-}
-std::string fmt(const glm::dvec3& v) { return fmt(v.x) + "," + fmt(v.y) + "," + fmt(v.z); }
+std::string fmt(double v) { return formatParameter(v); }
 
 std::string megabytes(size_t bytes) {
     char buf[32];
@@ -58,9 +55,6 @@ std::string inputDigest(const std::vector<std::pair<std::string, std::string>>& 
     return hex(fnv1a(text));
 }
 
-double seconds(std::chrono::steady_clock::time_point since) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
 
 // Single-scattering options the pipeline does not expose (recorded in the file).
 SingleScatteringOptions singleScatteringOptions(const PrecomputeSettings& s) {
@@ -73,34 +67,6 @@ SingleScatteringOptions singleScatteringOptions(const PrecomputeSettings& s) {
 }
 
 }  // namespace
-
-PrecomputeComponents parsePrecomputeComponents(const std::string& text) {
-    PrecomputeComponents c{false, false};
-    if (text == "all") return {true, true};
-    size_t pos = 0;
-    while (true) {
-        const size_t comma = text.find(',', pos);
-        const std::string name = text.substr(pos, comma == std::string::npos ? std::string::npos
-                                                                              : comma - pos);
-        bool* flag = name == "ms" ? &c.multipleScattering
-                     : name == "ss" ? &c.singleScattering
-                                    : nullptr;
-        if (!flag)
-            throw Error("--components", "expected ms, ss, ms,ss or all, got \"" + text + "\"");
-        if (*flag) throw Error("--components", "\"" + name + "\" given twice in \"" + text + "\"");
-        *flag = true;
-        if (comma == std::string::npos) break;
-        pos = comma + 1;
-    }
-    return c;
-}
-
-std::string toString(const PrecomputeComponents& c) {
-    if (c.multipleScattering && c.singleScattering) return "ms,ss";
-    if (c.singleScattering) return "ss";
-    if (c.multipleScattering) return "ms";
-    return "";
-}
 
 size_t peakMemoryBytes() {
     rusage usage{};
@@ -156,11 +122,10 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
         {"mesh_hash", hex(mesh.positionHash)},
         {"size_mm", s.scale.sizeMm ? fmt(*s.scale.sizeMm) : ""},
         {"mm_per_unit_requested", s.scale.mmPerUnit ? fmt(*s.scale.mmPerUnit) : ""},
-        {"material", s.material.name},
-        {"sigma_s_prime", fmt(s.material.sigmaSPrime)},
-        {"sigma_a", fmt(s.material.sigmaA)},
-        {"eta", fmt(s.material.eta)},
-        {"g", fmt(s.material.g)},
+    };
+    const ParameterList material = materialParameters(s.material);
+    p.insert(p.end(), material.begin(), material.end());
+    const ParameterList passes = {
         {"components", toString(s.components)},
         {"cubemap_size", std::to_string(s.cubemapSize)},
         {"supersample", std::to_string(s.supersample)},
@@ -174,6 +139,7 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
         {"seed", std::to_string(s.seed)},
         {"ms_normalisation", "T_d/pi (radiance = F_t(w_o) * dot(vector, light))"},
     };
+    p.insert(p.end(), passes.begin(), passes.end());
     if (s.components.singleScattering) {
         const SingleScatteringOptions o = singleScatteringOptions(s);
         const bool isotropic = s.material.g == 0.0;
@@ -252,7 +218,7 @@ std::string PrecomputeSummary::format() const {
 }
 
 PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool force) {
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch start;
     validateSettings(settings);
     PrecomputeSummary summary;
     summary.outputPath = settings.outputPath;
@@ -290,7 +256,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
 
     RayScene scene(mesh);
     const size_t coefficientCount = size_t(6) * settings.cubemapSize * settings.cubemapSize;
-    summary.setupSeconds = seconds(start);
+    summary.setupSeconds = start.seconds();
     summary.peakMemoryAfterSetupBytes = peakMemoryBytes();
 
     if (settings.components.multipleScattering) {
@@ -302,13 +268,13 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
                 ? settings.sampleCount
                 : defaultSampleCount(summary.totalAreaMm2, spacing, settings.maxSamples);
         SampleSet samples;
-        const auto samplesStart = std::chrono::steady_clock::now();
+        const Stopwatch samplesStart;
         {
             Progress p("samples", sampleCount, "samples");
             samples = poissonDiskSamples(mesh, sampleCount, settings.seed);
             p.advance(sampleCount);
         }
-        summary.samplesSeconds = seconds(samplesStart);
+        summary.samplesSeconds = samplesStart.seconds();
         summary.peakMemoryAfterSamplesBytes = peakMemoryBytes();
         summary.samples = samples.samples.size();
         summary.sampleSpacingMm = std::sqrt(2.0 * samples.areaPerSample / std::sqrt(3.0));
@@ -344,14 +310,14 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         hierarchy.vertexCoefficients = settings.vertexCoefficients;
         std::vector<SparseVector> transport;
         MultipleScatteringStats stats;
-        const auto pass2Start = std::chrono::steady_clock::now();
+        const Stopwatch pass2Start;
         {
             SampleTree tree(std::move(cloud), hierarchy);
             Progress p("pass 2 (multiple scattering)", mesh.vertexCount(), "vertices");
             transport = multipleScatteringTransport(tree, mesh.positions, settings.material,
                                                     hierarchy, coefficientCount, &stats, &p);
         }
-        summary.pass2Seconds = seconds(pass2Start);
+        summary.pass2Seconds = pass2Start.seconds();
         summary.meanNodesVisited = stats.meanNodesVisited;
         summary.vertexRetainedEnergy = stats.retainedEnergyFraction;
 
@@ -369,10 +335,10 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         // Phase: isotropic for g = 0, else the K-term SVD of HG(g) (precompute/phase_factoring.h).
         std::optional<PhaseFactorization> phase;
         if (settings.material.g != 0.0) {
-            const auto phaseStart = std::chrono::steady_clock::now();
+            const Stopwatch phaseStart;
             phase = factorPhaseFunction(settings.material.g, settings.phaseTerms,
                                         settings.phaseMapSize);
-            summary.phaseSeconds = seconds(phaseStart);
+            summary.phaseSeconds = phaseStart.seconds();
             summary.phaseRmsError = phaseApproximationError(*phase, settings.phaseTerms);
             derived.push_back({"phase_rms_error", fmt(summary.phaseRmsError)});
         }
@@ -436,12 +402,12 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
 
     // Derived values go before the digest (which stays the last parameter).
     file.parameters.insert(file.parameters.end() - 1, derived.begin(), derived.end());
-    const auto writeStart = std::chrono::steady_clock::now();
+    const Stopwatch writeStart;
     saveTransportFile(settings.outputPath, file);
-    summary.writeSeconds = seconds(writeStart);
+    summary.writeSeconds = writeStart.seconds();
 
     summary.fileBytes = std::filesystem::file_size(settings.outputPath);
-    summary.totalSeconds = seconds(start);
+    summary.totalSeconds = start.seconds();
     summary.peakMemoryBytes = peakMemoryBytes();
     return summary;
 }

@@ -22,20 +22,9 @@
 #include "common/bssrdf.h"
 #include "common/mesh.h"
 #include "common/transport_file.h"
+#include "common/transport_params.h"
 
 namespace prt {
-
-// Which transport components to compute.
-struct PrecomputeComponents {
-    bool multipleScattering = true;   // "ms": dipole diffusion, stored as T_d / pi
-    bool singleScattering = false;    // "ss": Wang Eqs. 10-11 (isotropic or K terms)
-    bool operator==(const PrecomputeComponents&) const = default;
-};
-// "ms", "ss", "ms,ss" (either order; "all" = both). Throws prt::Error("--components",
-// ...) for anything else (unknown, repeated or empty names).
-PrecomputeComponents parsePrecomputeComponents(const std::string& text);
-// "ms", "ss" or "ms,ss".
-std::string toString(const PrecomputeComponents& c);
 
 struct PrecomputeSettings {
     std::string meshPath;
@@ -53,7 +42,7 @@ struct PrecomputeSettings {
     size_t maxSamples = 300000;   // cap on the automatic count
     uint64_t seed = 1;
     // Single scattering (used when components.singleScattering).
-    PrecomputeComponents components;  // default: multiple scattering only
+    ScatteringComponents components;  // default: multiple scattering only
     int phaseTerms = 4;           // K of the SVD-factored HG phase when g != 0 (g = 0: isotropic)
     int phaseMapSize = 16;        // M of the 6 x M x M light / view maps
     int pathSamples = 16;         // deterministic samples along -n_o
@@ -74,7 +63,7 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
 struct PrecomputeSummary {
     std::string outputPath;
     bool skipped = false;  // output already up to date
-    PrecomputeComponents components;
+    ScatteringComponents components;
     size_t vertices = 0, triangles = 0, samples = 0;
     double totalAreaMm2 = 0, sampleSpacingMm = 0;
     uint64_t raysTraced = 0;          // pass 1

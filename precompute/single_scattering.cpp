@@ -13,6 +13,7 @@
 #include "common/mesh.h"
 #include "precompute/phase_factoring.h"
 #include "common/progress.h"
+#include "common/util.h"
 
 namespace prt {
 
@@ -196,7 +197,7 @@ float SingleScatteringContext::fresnel(float cosTheta) const {
 
 void SingleScatteringContext::lightMapValues(const glm::vec3& a, float* out) const {
     if (isotropic_) {
-        out[0] = float(1.0 / (4.0 * M_PI));
+        out[0] = float(1.0 / (4.0 * kPi));
         return;
     }
     // Cubemap::sampleBilinear for all K channels at once (one face lookup).
@@ -491,7 +492,7 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
     std::vector<double> retained(kBlock, 1.0);
     double retainedSum = 0.0;
 
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch start;
     for (size_t base = 0; base < vertices; base += kBlock) {
         const size_t end = std::min(vertices, base + kBlock);
         tbb::parallel_for(tbb::blocked_range<size_t>(base, end, 1),
@@ -512,7 +513,7 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
         }
     }
     result.seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        start.seconds();
     states.combine_each([&](const ThreadState& st) { result.stats.add(st.stats); });
     result.retainedEnergyFraction = vertices ? retainedSum / double(vertices) : 1.0;
     return result;

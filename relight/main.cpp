@@ -30,14 +30,12 @@
 #include "common/camera_options.h"
 #include "relight/render.h"
 #include "relight/view.h"
+#include "common/util.h"
 
 using namespace prt;
 
 namespace {
 
-double msSince(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // Lighting options shared by render and view.
 struct LightingOptions {
@@ -109,27 +107,6 @@ void addRenderOptions(CLI::App& app, RenderOptions& o) {
     app.add_option("-j,--threads", o.threads, "Worker threads (default: all cores)");
 }
 
-// Which components to evaluate: the request intersected with what the file has; an
-// explicit request for a component the file lacks is an error.
-ComponentSet selectComponents(const LightingOptions& o, const std::string& transportPath,
-                              const TransportFile& file) {
-    const ComponentSet asked = parseComponents(o.components);
-    const bool explicitRequest = o.components != "all";
-    const bool hasMs = file.find(ComponentKind::MultipleScattering) != nullptr;
-    bool hasSs = file.find(ComponentKind::SingleScatteringIsotropic) != nullptr;
-    for (const TransportComponent& c : file.components)
-        hasSs = hasSs || c.kind == ComponentKind::SingleScatteringTerm;
-    if (explicitRequest && asked.multipleScattering && !hasMs)
-        throw Error(transportPath, "has no multiple-scattering component (asked for by --components)");
-    if (explicitRequest && asked.singleScattering && !hasSs)
-        throw Error(transportPath, "has no single-scattering component (asked for by --components)");
-    ComponentSet s;
-    s.multipleScattering = asked.multipleScattering && hasMs;
-    s.singleScattering = asked.singleScattering && hasSs;
-    if (!s.multipleScattering && !s.singleScattering)
-        throw Error(transportPath, "has none of the requested components");
-    return s;
-}
 
 std::string frameName(const std::string& prefix, int frame, int frames) {
     if (frames <= 0) return prefix;
@@ -149,9 +126,10 @@ int runRender(const RenderOptions& o) {
     const std::string output = outputPrefix(o.output);
     if (output.empty()) throw Error("--output", "empty prefix");
 
-    const auto loadStart = std::chrono::steady_clock::now();
+    const Stopwatch loadStart;
     const RelightObject object = loadRelightObject(o.mesh, o.transport);
-    const ComponentSet components = selectComponents(o, o.transport, object.transport);
+    const ScatteringComponents components =
+        selectComponents(o.components, componentsOf(object.transport), o.transport);
     const Camera camera = makeCamera(o.camera, object.sphereCentre, object.sphereRadius);
     const Image environment = loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
     const RayScene scene(object.mesh);
@@ -161,7 +139,7 @@ int runRender(const RenderOptions& o) {
                                        : nullptr);
     Image prefiltered;
     if (o.specular) prefiltered = prefilterEnvironment(environment, specularBlurFactor(o.specularBlur, environment));
-    const double loadMs = msSince(loadStart);
+    const double loadMs = loadStart.milliseconds();
 
     const std::filesystem::path parent = std::filesystem::path(output).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);
@@ -187,7 +165,7 @@ int runRender(const RenderOptions& o) {
     VertexRadiance radiance;
     double totalLight = 0, totalRelight = 0, totalRays = 0, totalShade = 0, totalWrite = 0;
     std::vector<std::string> written;
-    const auto runStart = std::chrono::steady_clock::now();
+    const Stopwatch runStart;
 
     for (int f = 0; f < count; ++f) {
         const double angle = frames > 0 ? 360.0 * f / frames : 0.0;
@@ -202,35 +180,35 @@ int runRender(const RenderOptions& o) {
             rotation = rotationY(angle) * baseRotation;
         }
 
-        auto t0 = std::chrono::steady_clock::now();
+        Stopwatch t0;
         const LightVector light =
             makeLightVector(environment, int(object.transport.cubemapSize), rotation, o.lightTerms);
-        const double lightMs = msSince(t0);
+        const double lightMs = t0.milliseconds();
 
-        t0 = std::chrono::steady_clock::now();
+        t0.restart();
         relightVertices(object.transport, light, components, radiance);
-        const double relightMs = msSince(t0);
+        const double relightMs = t0.milliseconds();
 
-        t0 = std::chrono::steady_clock::now();
+        t0.restart();
         if (!haveGBuffer || o.turntable > 0) {
             gbuffer = traceGBuffer(scene, object.mesh, frameCamera);
             haveGBuffer = true;
         }
-        const double raysMs = msSince(t0);
+        const double raysMs = t0.milliseconds();
 
-        t0 = std::chrono::steady_clock::now();
+        t0.restart();
         const Image image = compose(gbuffer, environment, rotation, [&](const GBufferPixel& p) {
             glm::vec3 L = shader.shade(p, radiance);
             if (o.specular) L += specularReflection(p, object.eta, prefiltered, rotation);
             return L;
         });
-        const double shadeMs = msSince(t0);
+        const double shadeMs = t0.milliseconds();
 
-        t0 = std::chrono::steady_clock::now();
+        t0.restart();
         const std::string base = frameName(output, f, frames);
         writeExr(base + ".exr", image);
         writePng(base + ".png", image, o.exposure);
-        const double writeMs = msSince(t0);
+        const double writeMs = t0.milliseconds();
         written.push_back(base);
 
         totalLight += lightMs;
@@ -248,7 +226,7 @@ int runRender(const RenderOptions& o) {
         std::fflush(stdout);
     }
 
-    const double totalMs = msSince(runStart);
+    const double totalMs = runStart.milliseconds();
     std::printf("done: %d frame%s in %s (mean per frame: light %.1f ms, relight %.1f ms, rays %.1f ms, "
                 "shading %.1f ms, write %.1f ms)\n",
                 count, count == 1 ? "" : "s", formatDuration(totalMs / 1000.0).c_str(), totalLight / count,
@@ -330,16 +308,16 @@ int runView(const ViewOptions& o) {
     ViewerSetup setup;
     setup.environments = findEnvironments(o.environments);
 
-    const auto loadStart = std::chrono::steady_clock::now();
+    const Stopwatch loadStart;
     setup.object = loadRelightObject(o.mesh, o.transport);
     setup.meshPath = o.mesh;
     setup.transportPath = o.transport;
-    setup.components = selectComponents(o, o.transport, setup.object.transport);
+    setup.components = selectComponents(o.components, componentsOf(setup.object.transport), o.transport);
     setup.camera = makeCamera(o.camera, setup.object.sphereCentre, setup.object.sphereRadius);
     std::printf("object: %zu vertices, %zu triangles, %.4g mm across, eta %.4g; cubemap 6x%ux%u; loaded in %.0f ms\n",
                 setup.object.mesh.vertexCount(), setup.object.mesh.triangleCount(),
                 double(setup.object.box.diagonal()), setup.object.eta, setup.object.transport.cubemapSize,
-                setup.object.transport.cubemapSize, msSince(loadStart));
+                setup.object.transport.cubemapSize, loadStart.milliseconds());
     std::fflush(stdout);
     setup.envRotation = o.envRotation;
     setup.exposure = o.exposure;

@@ -66,7 +66,7 @@ struct Plan {
     std::vector<Job> terms;
 };
 
-Plan makePlan(const TransportFile& file, const ComponentSet& set) {
+Plan makePlan(const TransportFile& file, const ScatteringComponents& set) {
     Plan plan;
     plan.vertexCount = file.components.empty() ? size_t(file.mesh.vertexCount)
                                                : file.components.front().vectors.vertexCount();
@@ -358,7 +358,7 @@ bool useAvx2(RelightIsa isa) {
 
 template <int Stride>
 void relightFast(const TransportFile& file, const LightVector& light,
-                 const ComponentSet& components, VertexRadiance& out, RelightIsa isa) {
+                 const ScatteringComponents& components, VertexRadiance& out, RelightIsa isa) {
     checkLight(file, light);
     const Plan plan = makePlan(file, components);
     for (const Job& j : plan.diffuse) checkArrays(*j.component);
@@ -418,30 +418,6 @@ void relightFast(const TransportFile& file, const LightVector& light,
 
 }  // namespace
 
-ComponentSet parseComponents(const std::string& text) {
-    const std::string expected = " (expected ms, ss, ms,ss or all)";
-    if (text == "all") return {true, true};
-    ComponentSet set{false, false};
-    size_t start = 0;
-    while (true) {
-        const size_t comma = text.find(',', start);
-        const std::string token =
-            text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-        if (token == "ms")
-            set.multipleScattering = true;
-        else if (token == "ss")
-            set.singleScattering = true;
-        else
-            throw Error("--components",
-                        (token.empty() ? "empty component name in '" + text + "'"
-                                       : "unknown component '" + token + "'") +
-                            expected);
-        if (comma == std::string::npos) break;
-        start = comma + 1;
-    }
-    return set;
-}
-
 bool relightIsaSupported(RelightIsa isa) {
     switch (isa) {
         case RelightIsa::Best:
@@ -457,12 +433,12 @@ bool relightIsaSupported(RelightIsa isa) {
 }
 
 void relightVertices(const TransportFile& file, const LightVector& light,
-                     const ComponentSet& components, VertexRadiance& out) {
+                     const ScatteringComponents& components, VertexRadiance& out) {
     relightVertices(file, light, components, out, RelightOptions{});
 }
 
 void relightVertices(const TransportFile& file, const LightVector& light,
-                     const ComponentSet& components, VertexRadiance& out,
+                     const ScatteringComponents& components, VertexRadiance& out,
                      const RelightOptions& options) {
     if (options.layout == RelightLayout::Rgb3)
         relightFast<3>(file, light, components, out, options.isa);
@@ -471,7 +447,7 @@ void relightVertices(const TransportFile& file, const LightVector& light,
 }
 
 void relightVerticesReference(const TransportFile& file, const LightVector& light,
-                              const ComponentSet& components, VertexRadiance& out) {
+                              const ScatteringComponents& components, VertexRadiance& out) {
     checkLight(file, light);
     const Plan plan = makePlan(file, components);
     const size_t vertices = plan.vertexCount;
@@ -504,7 +480,7 @@ void relightVerticesReference(const TransportFile& file, const LightVector& ligh
     for (size_t v = 0; v < vertices; ++v) out.diffuse[v] = glm::vec3(diffuse[v]);
 }
 
-size_t relightStreamBytes(const TransportFile& file, const ComponentSet& components) {
+size_t relightStreamBytes(const TransportFile& file, const ScatteringComponents& components) {
     size_t bytes = 0;
     for (const TransportComponent& c : file.components) {
         const bool selected = c.kind == ComponentKind::MultipleScattering

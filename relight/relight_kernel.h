@@ -19,17 +19,9 @@
 
 #include "relight/light_vector.h"
 #include "common/transport_file.h"
+#include "common/transport_params.h"
 
 namespace prt {
-
-// Which components to evaluate.
-struct ComponentSet {
-    bool multipleScattering = true;
-    bool singleScattering = true;  // isotropic and K-term single scattering
-};
-// Parses "ms", "ss", "ms,ss" (also "ss,ms") / "all"; throws prt::Error("--components", ...)
-// otherwise (unknown or empty names, upper case, spaces).
-ComponentSet parseComponents(const std::string& text);
 
 struct VertexRadiance {
     std::vector<glm::vec3> diffuse;             // one per vertex
@@ -62,7 +54,7 @@ struct VertexRadiance {
 // against 6 N^2, so a corrupt in-memory file raises prt::Error instead of reading out
 // of bounds. Components with different vertex counts or a duplicated term are refused.
 void relightVertices(const TransportFile& file, const LightVector& light,
-                     const ComponentSet& components, VertexRadiance& out);
+                     const ScatteringComponents& components, VertexRadiance& out);
 
 // Variants of the fast path, for tests and benchmarks (relightVertices above uses the
 // defaults).
@@ -85,15 +77,15 @@ struct RelightOptions {
 bool relightIsaSupported(RelightIsa isa);
 // Throws prt::Error("relight", ...) for an unsupported isa.
 void relightVertices(const TransportFile& file, const LightVector& light,
-                     const ComponentSet& components, VertexRadiance& out,
+                     const ScatteringComponents& components, VertexRadiance& out,
                      const RelightOptions& options);
 
 // The slow obvious version (dequantize each vertex, dot in double), kept for tests.
 void relightVerticesReference(const TransportFile& file, const LightVector& light,
-                              const ComponentSet& components, VertexRadiance& out);
+                              const ScatteringComponents& components, VertexRadiance& out);
 
 // Bytes the fast path streams for one evaluation (offsets, indices, values, scales of
 // the selected components): the numerator of the bandwidth ratio in SPEC section 8.
-size_t relightStreamBytes(const TransportFile& file, const ComponentSet& components);
+size_t relightStreamBytes(const TransportFile& file, const ScatteringComponents& components);
 
 }  // namespace prt

@@ -11,6 +11,7 @@
 #include "common/bssrdf.h"
 #include "common/envmap.h"
 #include "common/error.h"
+#include "common/mesh_io.h"
 
 namespace prt {
 
@@ -145,26 +146,11 @@ RelightObject loadRelightObject(const std::string& meshPath, const std::string& 
     const MeshFingerprint fingerprint{o.mesh.vertexCount(), meshFingerprint(o.mesh)};
     o.transport = loadTransportFile(transportPath, fingerprint);
     scaleToPhysical(o.mesh, MeshScale{.sizeMm = std::nullopt, .mmPerUnit = o.transport.mmPerUnit});
-    if (o.transport.hasParameter("eta")) {
-        const std::string text = o.transport.parameter("eta");
-        try {
-            size_t used = 0;
-            o.eta = std::stod(text, &used);
-            if (used != text.size()) throw std::invalid_argument(text);
-        } catch (const std::exception&) {
-            throw Error(transportPath, "parameter eta is not a number: '" + text + "'");
-        }
-        if (!(o.eta >= kMinEta && o.eta <= kMaxEta))
-            throw Error(transportPath, "parameter eta = " + text + " is outside [0.5, 2.5]");
-    }
+    o.eta = readTransportParameters(o.transport.parameters, transportPath).eta.value_or(1.3);
     o.box = bounds(o.mesh);
-    o.sphereCentre = glm::dvec3(o.box.centre());
-    double r2 = 0;
-    for (const glm::vec3& p : o.mesh.positions) {
-        const glm::dvec3 d = glm::dvec3(p) - o.sphereCentre;
-        r2 = std::max(r2, glm::dot(d, d));
-    }
-    o.sphereRadius = std::sqrt(r2);
+    const BoundingSphere sphere = boundingSphere(o.mesh);
+    o.sphereCentre = sphere.centre;
+    o.sphereRadius = sphere.radius;
     return o;
 }
 

@@ -43,6 +43,7 @@
 #include "common/mesh.h"
 #include "common/shapes.h"
 #include "common/transport_file.h"
+#include "common/mesh_io.h"
 
 #include <algorithm>
 

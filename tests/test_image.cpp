@@ -170,8 +170,7 @@ TEST_F(ImageIoTest, NoTemporaryFilesAfterSuccess) {
 }
 
 TEST_F(ImageIoTest, FailedWriteIntoDirectoryTargetLeavesNothingBehind) {
-    // The target is a (non-empty) directory: the temporary file is written completely,
-    // the final rename fails, the temporary must be removed and the directory kept.
+    // The target is a (non-empty) directory: refused, nothing written, the directory kept.
     fs::create_directories(dir_ / "target.exr");
     std::ofstream(dir_ / "target.exr" / "keep.txt") << "keep";
     const Image img = randomImage(8, 8, 3, 0.0f, 1.0f, 2u);

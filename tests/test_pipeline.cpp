@@ -14,6 +14,7 @@
 #include "common/haar.h"
 #include "common/progress.h"
 #include "common/shapes.h"
+#include "common/mesh_io.h"
 
 using namespace prt;
 namespace fs = std::filesystem;

@@ -22,7 +22,7 @@
 namespace {
 
 using prt::ComponentKind;
-using prt::ComponentSet;
+using prt::ScatteringComponents;
 using prt::Cubemap;
 using prt::LightVector;
 using prt::TransportComponent;
@@ -379,7 +379,7 @@ struct Expected {
     std::vector<std::vector<glm::dvec3>> terms, termsAbs;  // by term index
 };
 
-Expected expectedRadiance(const TransportFile& file, const LightVector& light, const ComponentSet& set) {
+Expected expectedRadiance(const TransportFile& file, const LightVector& light, const ScatteringComponents& set) {
     const size_t vertices = file.mesh.vertexCount;
     Expected e;
     e.diffuse.assign(vertices, glm::dvec3(0.0));
@@ -458,9 +458,9 @@ std::string variantName(const prt::RelightOptions& o) {
            (o.layout == prt::RelightLayout::Rgb3 ? " rgb3" : " rgb4");
 }
 
-const ComponentSet kSets[] = {{true, true}, {true, false}, {false, true}, {false, false}};
+const ScatteringComponents kSets[] = {{true, true}, {true, false}, {false, true}, {false, false}};
 
-std::string setName(const ComponentSet& s) {
+std::string setName(const ScatteringComponents& s) {
     return std::string(s.multipleScattering ? "ms" : "-") + "," + (s.singleScattering ? "ss" : "-");
 }
 
@@ -472,7 +472,7 @@ TEST(Relight, FastKernelMatchesReferenceOnRandomFiles) {
     uint32_t seed = 100;
     for (const FileSpec& spec : specs) {
         const TransportFile file = randomFile(n, 2100, spec, seed++);
-        for (const ComponentSet& set : kSets) {
+        for (const ScatteringComponents& set : kSets) {
             const std::string what = "file ms=" + std::to_string(spec.ms) + " iso=" +
                                      std::to_string(spec.iso) + " K=" + std::to_string(spec.terms) +
                                      ", set " + setName(set);
@@ -510,7 +510,7 @@ TEST(Relight, ResultIsIndependentOfThreadCountAndReusesOutput) {
     const uint32_t n = 16;
     const LightVector light = prt::makeLightVector(randomCubemap(int(n), 4));
     const TransportFile file = randomFile(n, 5000, {true, true, 4}, 77, 128);
-    const ComponentSet all{true, true};
+    const ScatteringComponents all{true, true};
     // (More threads than cores would only be refused by TBB's market on a small machine.)
     for (const prt::RelightOptions& options : variants()) {
         SCOPED_TRACE(variantName(options));
@@ -665,27 +665,6 @@ TEST(Relight, VariantsAreAvailable) {
                                           out, {prt::RelightLayout::Rgb4, prt::RelightIsa::Avx2Fma}),
                      prt::Error);
         GTEST_SKIP() << "no AVX2 + FMA: only the baseline kernel is tested";
-    }
-}
-
-TEST(Relight, ParseComponents) {
-    const auto check = [](const std::string& text, bool ms, bool ss) {
-        const ComponentSet s = prt::parseComponents(text);
-        EXPECT_EQ(s.multipleScattering, ms) << text;
-        EXPECT_EQ(s.singleScattering, ss) << text;
-    };
-    check("ms", true, false);
-    check("ss", false, true);
-    check("ms,ss", true, true);
-    check("ss,ms", true, true);
-    check("all", true, true);
-    for (const char* bad : {"", "MS", "ms,", ",ss", "ms,,ss", "ms ss", "specular", "all,ms"}) {
-        try {
-            prt::parseComponents(bad);
-            ADD_FAILURE() << "accepted '" << bad << "'";
-        } catch (const prt::Error& e) {
-            EXPECT_EQ(e.subject(), "--components") << bad;
-        }
     }
 }
 

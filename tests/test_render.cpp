@@ -13,6 +13,7 @@
 #include "relight/light_vector.h"
 #include "relight/relight_kernel.h"
 #include "common/shapes.h"
+#include "common/mesh_io.h"
 
 using namespace prt;
 
@@ -527,7 +528,7 @@ TEST(RenderEndToEnd, ConstantEnvironmentGivesFresnelTimesClosedFormDot) {
     const Image env = constantEnvironment(64, cst);
     const LightVector light = makeLightVector(env, n, rotationY(33.0));
     VertexRadiance rad;
-    relightVertices(object.transport, light, ComponentSet{}, rad);
+    relightVertices(object.transport, light, ScatteringComponents::all(), rad);
     ASSERT_EQ(rad.diffuse.size(), object.mesh.vertexCount());
 
     const RayScene scene(object.mesh);

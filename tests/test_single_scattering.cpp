@@ -20,6 +20,7 @@
 #include "common/progress.h"
 #include "common/shapes.h"
 #include "common/transport_file.h"
+#include "common/mesh_io.h"
 
 using namespace prt;
 namespace fs = std::filesystem;
@@ -372,7 +373,7 @@ TEST(SingleScattering, PipelineFileMatchesTheHalfSpaceClosedForm) {
     s.material = m;
     s.cubemapSize = 8;
     s.vertexCoefficients = 6 * 8 * 8;
-    s.components = parsePrecomputeComponents("ss");
+    s.components = parseScatteringComponents("ss");
     Progress::setEnabled(false);
     const PrecomputeSummary summary = precomputeTransport(s, true);
     EXPECT_EQ(summary.ssTerms, 1);
@@ -646,19 +647,6 @@ TEST(SingleScattering, ResultDoesNotDependOnTheThreadCount) {
 // Pipeline
 // ---------------------------------------------------------------------------------
 
-TEST(SingleScatteringPipeline, ComponentsOption) {
-    EXPECT_EQ(parsePrecomputeComponents("ms"), (PrecomputeComponents{true, false}));
-    EXPECT_EQ(parsePrecomputeComponents("ss"), (PrecomputeComponents{false, true}));
-    EXPECT_EQ(parsePrecomputeComponents("ms,ss"), (PrecomputeComponents{true, true}));
-    EXPECT_EQ(parsePrecomputeComponents("ss,ms"), (PrecomputeComponents{true, true}));
-    EXPECT_EQ(parsePrecomputeComponents("all"), (PrecomputeComponents{true, true}));
-    for (const char* bad : {"", "ms,", ",ss", "MS", "ms,ms", "xs", "ms ss", "ms;ss"})
-        EXPECT_THROW(parsePrecomputeComponents(bad), Error) << bad;
-    EXPECT_EQ(toString(PrecomputeComponents{true, true}), "ms,ss");
-    EXPECT_EQ(toString(PrecomputeComponents{false, true}), "ss");
-    EXPECT_EQ(toString(PrecomputeComponents{}), "ms");  // the default
-}
-
 TEST(SingleScatteringPipeline, ParametersAndDigest) {
     PrecomputeSettings s;
     s.meshPath = "x.obj";
@@ -775,7 +763,7 @@ TEST(SingleScatteringPipeline, AnisotropicFileHasKTermsAndViewMaps) {
     s.cubemapSize = 8;
     s.vertexCoefficients = 32;
     s.phaseTerms = 3;
-    s.components = parsePrecomputeComponents("ss");
+    s.components = parseScatteringComponents("ss");
     Progress::setEnabled(false);
     const PrecomputeSummary sum = precomputeTransport(s, true);
     EXPECT_EQ(sum.ssTerms, 3);

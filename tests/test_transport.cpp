@@ -230,7 +230,7 @@ protected:
     std::vector<std::string> tempFiles() const {
         std::vector<std::string> out;
         for (const auto& e : fs::directory_iterator(dir_))
-            if (contains(e.path().filename().string(), ".tmp.")) out.push_back(e.path().string());
+            if (contains(e.path().filename().string(), ".tmp")) out.push_back(e.path().string());
         return out;
     }
     fs::path dir_;
@@ -783,7 +783,7 @@ TEST_F(TransportTest, FailedSavesLeaveTheOldFileAndNoTempFiles) {
     // 1. The directory does not exist.
     const std::string nowhere = path("no/such/dir/out");
     EXPECT_TRUE(contains(errorOf([&] { saveTransportFile(nowhere, newFile); }),
-                         "cannot create temporary file"));
+                         "does not exist"));
     EXPECT_FALSE(fs::exists(path("no")));
 
     // 2. The path is a (non-empty) directory.
@@ -843,10 +843,14 @@ TEST_F(TransportTest, SuccessfulSaveReplacesAtomically) {
     EXPECT_EQ(loadTransportFile(p), b);
     EXPECT_TRUE(tempFiles().empty());
 
-    // A stale temporary file from a crashed run with our pid is simply overwritten.
-    writeBytes(p + ".tmp." + std::to_string(::getpid()), Bytes(100, 0xab));
+    // A stale temporary file of a crashed run does not disturb the next save (and is
+    // not taken for the target).
+    const std::string stale = path("swap.tmp" + std::to_string(::getpid()) + "-0");
+    writeBytes(stale, Bytes(100, 0xab));
     saveTransportFile(p, a);
     EXPECT_EQ(readBytes(p), aBytes);
+    EXPECT_EQ(readBytes(stale), Bytes(100, 0xab));
+    fs::remove(stale);
     EXPECT_TRUE(tempFiles().empty());
 }
 

@@ -16,6 +16,7 @@
 #include "relight/render.h"
 #include "common/sampling.h"
 #include "common/shapes.h"
+#include "common/mesh_io.h"
 
 using namespace prt;
 namespace fs = std::filesystem;
@@ -63,7 +64,7 @@ Scene makeScene(bool keepEverything, bool singleScattering = false, double g = 0
     if (keepEverything) p.sampleCoefficients = p.nodeCoefficients = p.vertexCoefficients = 6 * 16 * 16;
     p.sampleSpacingMm = 0.25;
     if (singleScattering) {
-        p.components = parsePrecomputeComponents("ss");
+        p.components = parseScatteringComponents("ss");
         p.material.g = g;
         p.phaseTerms = 4;
     }
@@ -74,7 +75,7 @@ Scene makeScene(bool keepEverything, bool singleScattering = false, double g = 0
 Image renderPrecomputed(const RelightObject& object, const GBuffer& g, const Scene& s) {
     const LightVector light = makeLightVector(s.environment, int(object.transport.cubemapSize), s.rotation);
     VertexRadiance radiance;
-    relightVertices(object.transport, light, ComponentSet{}, radiance);
+    relightVertices(object.transport, light, ScatteringComponents::all(), radiance);
     const TranslucentShader shader(object.mesh, object.eta,
                                    object.transport.viewMaps ? &*object.transport.viewMaps : nullptr);
     return compose(g, s.environment, s.rotation,

@@ -31,23 +31,13 @@
 #include "common/cubemap.h"
 #include "common/error.h"
 #include "precompute/phase_factoring.h"
+#include "common/util.h"
 
 using namespace prt;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
-// Wall-clock and process CPU time (the machine may be shared; Eigen runs single-threaded
-// here, so CPU time is what an idle machine would take).
-struct Stopwatch {
-    std::chrono::steady_clock::time_point wall = std::chrono::steady_clock::now();
-    std::clock_t cpu = std::clock();
-    double wallSeconds() const {
-        return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall).count();
-    }
-    double cpuSeconds() const { return double(std::clock() - cpu) / CLOCKS_PER_SEC; }
-};
 
 // Relative RMS error of the continuous K-term approximation on the sphere: the HG
 // kernel has eigenvalues g^l (multiplicity 2l + 1), so the singular values are |g|^l
@@ -232,7 +222,7 @@ int main(int argc, char** argv) {
             row.g = g;
             Stopwatch factorWatch;
             const PhaseFactorization f = factorPhaseFunction(g, maxTerms, mapSize, solver);
-            row.factorSeconds = factorWatch.wallSeconds();
+            row.factorSeconds = factorWatch.seconds();
             row.factorCpu = factorWatch.cpuSeconds();
             for (int k : terms) {
                 row.tableError.push_back(phaseApproximationError(f, k));
@@ -272,7 +262,7 @@ int main(int argc, char** argv) {
                 squaredError[next] += (interpolated - exact) * (interpolated - exact);
             }
             for (double e : squaredError) row.sampledError.push_back(std::sqrt(e / squaredReference));
-            row.sampleSeconds = sampleWatch.wallSeconds();
+            row.sampleSeconds = sampleWatch.seconds();
             row.sampleCpu = sampleWatch.cpuSeconds();
             std::fprintf(stderr, "g = %+.2f: factor %.2f s (CPU %.2f s), %d pairs %.2f s (CPU %.2f s)\n", g,
                          row.factorSeconds, row.factorCpu, samples, row.sampleSeconds, row.sampleCpu);
@@ -285,10 +275,10 @@ int main(int argc, char** argv) {
             const double g = gs.front();
             Stopwatch eigWatch;
             const PhaseFactorization eig = factorPhaseFunction(g, maxTerms, mapSize, PhaseSolver::SymmetricEigen);
-            const double eigSeconds = eigWatch.wallSeconds(), eigCpu = eigWatch.cpuSeconds();
+            const double eigSeconds = eigWatch.seconds(), eigCpu = eigWatch.cpuSeconds();
             Stopwatch svdWatch;
             const PhaseFactorization svd = factorPhaseFunction(g, maxTerms, mapSize, PhaseSolver::BdcSvd);
-            const double svdSeconds = svdWatch.wallSeconds(), svdCpu = svdWatch.cpuSeconds();
+            const double svdSeconds = svdWatch.seconds(), svdCpu = svdWatch.cpuSeconds();
             double maxSingular = 0.0;
             for (size_t k = 0; k < eig.singularValues.size(); ++k)
                 maxSingular = std::max(maxSingular, std::abs(eig.singularValues[k] - svd.singularValues[k]));

@@ -16,6 +16,7 @@
 #include "common/progress.h"
 #include "common/raytrace.h"
 #include "common/sampling.h"
+#include "common/mesh_io.h"
 
 using namespace prt;
 

@@ -53,6 +53,8 @@
 #include <emmintrin.h>
 #endif
 
+#include "common/atomic_file.h"
+#include "common/error.h"
 #include "relight/light_vector.h"
 #include "relight/relight_kernel.h"
 #include "common/transport_file.h"
@@ -588,19 +590,10 @@ int main(int argc, char** argv) {
         summary["load"][cold ? "cold" : "page_cache"] = r;
     }
     if (!summaryJson.empty()) {
-        const std::string tmp = summaryJson + ".tmp." + std::to_string(long(::getpid()));
-        {
-            std::ofstream out(tmp);
-            out << summary.dump(2) << "\n";
-            if (!out.flush()) {
-                std::fprintf(stderr, "bench_relight: cannot write %s\n", tmp.c_str());
-                std::remove(tmp.c_str());
-                return 1;
-            }
-        }
-        if (std::rename(tmp.c_str(), summaryJson.c_str()) != 0) {
-            std::fprintf(stderr, "bench_relight: cannot rename %s to %s\n", tmp.c_str(), summaryJson.c_str());
-            std::remove(tmp.c_str());
+        try {
+            prt::writeFileAtomically(summaryJson, summary.dump(2) + "\n");
+        } catch (const prt::Error& e) {
+            std::fprintf(stderr, "bench_relight: error: %s\n", e.what());
             return 1;
         }
         std::printf("summary: %s\n", summaryJson.c_str());

@@ -23,6 +23,7 @@
 #include <unistd.h>
 #include <vector>
 
+#include "common/atomic_file.h"
 #include "common/envmap.h"
 #include "common/error.h"
 #include "relight/light_vector.h"
@@ -109,19 +110,11 @@ int main(int argc, char** argv) {
         const double loadSeconds = secondsSince(t0);
         const double fileBytes = double(std::filesystem::file_size(path));
 
-        const ComponentSet asked = parseComponents(components);
-        ComponentSet set;
-        bool hasMs = false, hasSs = false;
-        int terms = 0;
-        for (const TransportComponent& c : file.components) {
-            hasMs = hasMs || c.kind == ComponentKind::MultipleScattering;
-            hasSs = hasSs || c.kind != ComponentKind::MultipleScattering;
-            terms += c.kind == ComponentKind::SingleScatteringTerm;
-        }
-        set.multipleScattering = asked.multipleScattering && hasMs;
-        set.singleScattering = asked.singleScattering && hasSs;
-        if (!set.multipleScattering && !set.singleScattering)
+        const ScatteringComponents set = parseScatteringComponents(components) & componentsOf(file);
+        if (!set.any())
             throw Error(path, "has none of the requested components (--components " + components + ")");
+        int terms = 0;
+        for (const TransportComponent& c : file.components) terms += c.kind == ComponentKind::SingleScatteringTerm;
         const int n = int(file.cubemapSize);
         const size_t vertices = file.components.empty() ? 0 : file.components[0].vectors.vertexCount();
         size_t coefficients = 0;
@@ -226,19 +219,7 @@ int main(int argc, char** argv) {
             j["stream_bytes"] = stream;
             j["relight_GBps_effective"] = double(stream) / med / 1e9;
             j["threads"] = effectiveThreads;
-            const std::string tmp = jsonPath + ".tmp." + std::to_string(long(::getpid()));
-            {
-                std::ofstream o(tmp);
-                o << j.dump(2) << "\n";
-                if (!o.flush()) {
-                    std::remove(tmp.c_str());
-                    throw Error(jsonPath, "cannot write");
-                }
-            }
-            if (std::rename(tmp.c_str(), jsonPath.c_str()) != 0) {
-                std::remove(tmp.c_str());
-                throw Error(jsonPath, "cannot rename the temporary file over it");
-            }
+            writeFileAtomically(jsonPath, j.dump(2) + "\n");
         }
         return 0;
     });

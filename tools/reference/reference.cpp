@@ -12,12 +12,12 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/progress.h"
+#include "common/util.h"
 
 namespace prt {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // Counter-based random numbers: SplitMix64 (Steele, Lea and Flood 2014) over a state
 // seeded from (seed, stream), so every point owns an independent reproducible stream.
@@ -60,9 +60,6 @@ double median(std::vector<double> v) {
     return v[mid];
 }
 
-double seconds(std::chrono::steady_clock::time_point since) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
 
 }  // namespace
 
@@ -251,7 +248,7 @@ IrradianceEstimate estimateIrradiance(const EnvironmentSampler& env, const RaySc
 SampleIrradiance computeSampleIrradiance(const EnvironmentSampler& env, const RayScene* scene,
                                          const SampleSet& samples, double eta,
                                          const IrradianceEstimatorOptions& options, Progress* progress) {
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch start;
     const size_t n = samples.samples.size();
     SampleIrradiance out;
     out.value.assign(n, glm::dvec3(0.0));
@@ -277,7 +274,7 @@ SampleIrradiance computeSampleIrradiance(const EnvironmentSampler& env, const Ra
             relative.push_back(std::sqrt(out.variance[i].x + out.variance[i].y + out.variance[i].z) / v);
     }
     out.medianRelativeStandardError = median(std::move(relative));
-    out.seconds = seconds(start);
+    out.seconds = start.seconds();
     return out;
 }
 
@@ -582,7 +579,7 @@ void frameStatistics(ReferenceFrame& frame, const std::vector<uint8_t>& object, 
 
 ReferenceFrame renderReference(const GBuffer& g, const std::vector<const ReferenceComponent*>& components,
                                const Image& background, const glm::dmat3& envRotation, Progress* progress) {
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch start;
     if (g.width < 1 || g.height < 1 || g.pixels.size() != size_t(g.width) * g.height)
         throw Error("reference", "inconsistent G-buffer");
     ReferenceFrame frame;
@@ -619,7 +616,7 @@ ReferenceFrame renderReference(const GBuffer& g, const std::vector<const Referen
     std::vector<uint8_t> object(g.pixels.size());
     for (size_t i = 0; i < g.pixels.size(); ++i) object[i] = g.pixels[i].hit ? 1 : 0;
     frameStatistics(frame, object, value, variance);
-    frame.seconds = seconds(start);
+    frame.seconds = start.seconds();
     return frame;
 }
 

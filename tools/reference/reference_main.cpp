@@ -35,125 +35,28 @@
 #include "relight/render.h"
 #include "common/sampling.h"
 #include "common/transport_file.h"
+#include "common/mesh_io.h"
+#include "common/util.h"
 
 using namespace prt;
 
 namespace {
 
-double secondsSince(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 
-// Bounding sphere exactly as prt-relight places it: the bounding-box centre and the
-// largest distance of a vertex from it.
-void boundingSphere(const TriangleMesh& mesh, glm::dvec3& centre, double& radius) {
-    centre = glm::dvec3(bounds(mesh).centre());
-    double r2 = 0;
-    for (const glm::vec3& p : mesh.positions) {
-        const glm::dvec3 d = glm::dvec3(p) - centre;
-        r2 = std::max(r2, glm::dot(d, d));
-    }
-    radius = std::sqrt(r2);
-}
 
 
-// --- transport file parameters ---------------------------------------------------
-
-std::string requireParameter(const TransportFileInfo& info, const std::string& path, const std::string& key,
-                             const std::string& override) {
-    if (!info.hasParameter(key))
-        throw Error(path, "has no parameter '" + key + "'" +
-                              (override.empty() ? std::string() : "; give " + override + " explicitly"));
-    return info.parameter(key);
-}
-
-double parseNumber(const std::string& text, const std::string& path, const std::string& key) {
-    try {
-        size_t used = 0;
-        const double v = std::stod(text, &used);
-        if (used == text.size() && std::isfinite(v)) return v;
-    } catch (const std::exception&) {
-    }
-    throw Error(path, "parameter " + key + " is not a number: '" + text + "'");
-}
-
-uint64_t parseCount(const std::string& text, const std::string& path, const std::string& key) {
-    try {
-        size_t used = 0;
-        const unsigned long long v = std::stoull(text, &used);
-        if (used == text.size() && !text.empty() && text[0] != '-') return v;
-    } catch (const std::exception&) {
-    }
-    throw Error(path, "parameter " + key + " is not a non-negative integer: '" + text + "'");
-}
-
-glm::dvec3 parseRgb(const std::string& text, const std::string& path, const std::string& key) {
-    std::vector<double> v;
-    std::stringstream in(text);
-    std::string item;
-    while (std::getline(in, item, ',')) v.push_back(parseNumber(item, path, key));
-    if (v.size() != 3) throw Error(path, "parameter " + key + " is not three comma-separated numbers: '" + text + "'");
-    return {v[0], v[1], v[2]};
-}
-
-// The material the transport file was made with: its stored coefficients (the exact
-// values, whatever the name), eta and g.
-Material materialFromParameters(const TransportFileInfo& info, const std::string& path) {
-    const std::string hint = "--material";
-    Material m = customMaterial(parseRgb(requireParameter(info, path, "sigma_s_prime", hint), path, "sigma_s_prime"),
-                                parseRgb(requireParameter(info, path, "sigma_a", hint), path, "sigma_a"),
-                                parseNumber(requireParameter(info, path, "eta", hint), path, "eta"),
-                                info.hasParameter("g") ? parseNumber(info.parameter("g"), path, "g") : 0.0);
-    if (info.hasParameter("material") && !info.parameter("material").empty()) m.name = info.parameter("material");
-    return m;
+// A parameter the reference needs from the transport file unless given explicitly.
+template <typename T>
+T require(const std::optional<T>& value, const std::string& path, const std::string& key, const std::string& option) {
+    if (!value) throw Error(path, "has no parameter '" + key + "'; give " + option + " explicitly");
+    return *value;
 }
 
 std::string formatRgb(const glm::dvec3& v) {
     char buf[128];
     std::snprintf(buf, sizeof buf, "%.4g, %.4g, %.4g", v.x, v.y, v.z);
     return buf;
-}
-
-// --- components ----------------------------------------------------------------------
-
-struct Components {
-    bool ms = false, ss = false;
-};
-
-std::vector<std::string> splitList(const std::string& text) {
-    std::vector<std::string> out;
-    std::stringstream in(text);
-    std::string item;
-    while (std::getline(in, item, ',')) {
-        const size_t a = item.find_first_not_of(" \t"), b = item.find_last_not_of(" \t");
-        out.push_back(a == std::string::npos ? std::string() : item.substr(a, b - a + 1));
-    }
-    return out;
-}
-
-// "ms", "ss", "ms,ss", "ss,ms" or "all" (the same spellings as prt-relight render).
-Components parseComponents(const std::string& text) {
-    Components c;
-    for (const std::string& item : splitList(text)) {
-        if (item == "ms") c.ms = true;
-        else if (item == "ss") c.ss = true;
-        else if (item == "all") c.ms = c.ss = true;
-        else throw Error("--components", "unknown component '" + item + "'; use ms, ss, ms,ss or all");
-    }
-    if (!c.ms && !c.ss) throw Error("--components", "no component selected");
-    return c;
-}
-
-// Whether the transport file has single scattering: a single-scattering section, or
-// an "ss..." entry in its "components" parameter.
-bool fileHasSingleScattering(const TransportFileInfo& info) {
-    for (const TransportFileInfo::Component& c : info.components)
-        if (c.kind != ComponentKind::MultipleScattering) return true;
-    if (info.hasParameter("components"))
-        for (const std::string& item : splitList(info.parameter("components")))
-            if (item.rfind("ss", 0) == 0) return true;
-    return false;
 }
 
 SingleScatteringPath parsePath(const std::string& text) {
@@ -190,7 +93,7 @@ struct Options {
 };
 
 int run(const Options& o) {
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch start;
     if (o.threads < 0) throw Error("--threads", "must be >= 0");
     std::unique_ptr<tbb::global_control> limit;
     if (o.threads > 0)
@@ -218,36 +121,39 @@ int run(const Options& o) {
     }
     scaleToPhysical(mesh, MeshScale{.sizeMm = std::nullopt, .mmPerUnit = info.mmPerUnit});
 
+    const TransportParameters params = readTransportParameters(info.parameters, o.transport);
     Material material;
     if (o.material.empty()) {
-        material = materialFromParameters(info, o.transport);
+        material = require(params.material, o.transport, "sigma_s_prime, sigma_a or eta", "--material");
     } else {
         material = materialByName(o.material);
         warn("--material " + material.name + " overrides the transport file's material (" +
-             info.parameter("material") + "): the reference no longer matches the file");
+             (params.material ? params.material->name : std::string("none")) +
+             "): the reference no longer matches the file");
     }
     if (o.g) {
         material.g = *o.g;
         validateMaterial(material);
         warn("--g overrides the phase asymmetry (sigma_s' kept): single scattering no longer matches the file");
     }
-    const Components components = o.components.empty()
-                                      ? Components{true, fileHasSingleScattering(info)}
-                                      : parseComponents(o.components);
-    if (o.perVertex && !components.ms) warn("--per-vertex applies to multiple scattering only; ignored");
+    // Default: multiple scattering, plus single scattering when the file has it.
+    const ScatteringComponents components =
+        o.components.empty()
+            ? ScatteringComponents{true, componentsOf(info).singleScattering ||
+                                             params.components.value_or(ScatteringComponents::none()).singleScattering}
+            : parseScatteringComponents(o.components);
+    if (o.perVertex && !components.multipleScattering) warn("--per-vertex applies to multiple scattering only; ignored");
     SingleScatteringReferenceOptions ssOptions = o.ss;
     ssOptions.path = parsePath(o.ssPath);
     ssOptions.seed = o.irradiance.seed;
-    if (components.ss) {
+    if (components.singleScattering) {
         if (ssOptions.pathSamples < 1) throw Error("--ss-samples", "must be at least 1");
         if (ssOptions.lightSamples < 1) throw Error("--ss-light-samples", "must be at least 1");
         if (!(ssOptions.environmentFraction >= 0 && ssOptions.environmentFraction <= 1))
             throw Error("--ss-env-fraction", "must be in [0, 1]");
     }
-    glm::dvec3 sphereCentre;
-    double sphereRadius;
-    boundingSphere(mesh, sphereCentre, sphereRadius);
-    const Camera camera = makeCamera(o.camera, sphereCentre, sphereRadius);
+    const BoundingSphere sphere = boundingSphere(mesh);  // as prt-relight places it
+    const Camera camera = makeCamera(o.camera, sphere.centre, sphere.radius);
     const Image environment = loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
     const glm::dmat3 rotation = rotationY(o.envRotation);
     const EnvironmentSampler sampler(environment, rotation);
@@ -260,9 +166,9 @@ int run(const Options& o) {
     std::printf("material: %s, sigma_s' %s /mm, sigma_a %s /mm, eta %.4g, g %.4g (sigma_s %s /mm)\n",
                 material.name.c_str(), formatRgb(material.sigmaSPrime).c_str(), formatRgb(material.sigmaA).c_str(),
                 material.eta, material.g, formatRgb(material.sigmaS()).c_str());
-    std::printf("components: %s%s%s\n", components.ms ? "multiple scattering" : "",
-                components.ms && components.ss ? " + " : "",
-                components.ss ? (std::string("single scattering (") + toString(ssOptions.path) + " path)").c_str()
+    std::printf("components: %s%s%s\n", components.multipleScattering ? "multiple scattering" : "",
+                components.multipleScattering && components.singleScattering ? " + " : "",
+                components.singleScattering ? (std::string("single scattering (") + toString(ssOptions.path) + " path)").c_str()
                               : "");
     std::printf("camera: eye (%.4g, %.4g, %.4g) target (%.4g, %.4g, %.4g) fov %.4g, %dx%d\n", camera.eye.x,
                 camera.eye.y, camera.eye.z, camera.target.x, camera.target.y, camera.target.z, camera.fovY,
@@ -270,20 +176,19 @@ int run(const Options& o) {
     std::fflush(stdout);
 
     const RayScene scene(mesh);
-    const auto raysStart = std::chrono::steady_clock::now();
+    const Stopwatch raysStart;
     const GBuffer gbuffer = traceGBuffer(scene, mesh, camera);
-    const double raysSeconds = secondsSince(raysStart);
+    const double raysSeconds = raysStart.seconds();
 
     std::vector<ReferenceFrame> parts;
     std::vector<std::string> partNames;
 
-    if (components.ms) {
+    if (components.multipleScattering) {
         // Samples, exactly as prt-precompute placed them (same mesh, count and seed).
         const size_t sampleCount =
-            o.samples ? *o.samples : size_t(parseCount(requireParameter(info, o.transport, "samples", "--samples"),
-                                                       o.transport, "samples"));
+            o.samples ? *o.samples : size_t(require(params.samples, o.transport, "samples", "--samples"));
         const uint64_t seed =
-            o.seed ? *o.seed : parseCount(requireParameter(info, o.transport, "seed", "--seed"), o.transport, "seed");
+            o.seed ? *o.seed : require(params.seed, o.transport, "seed", "--seed");
         if (sampleCount < 1) throw Error("--samples", "must be at least 1");
         SampleSet samples;
         {
@@ -293,11 +198,11 @@ int run(const Options& o) {
         }
 
         // Cross-check: with the file's count and seed the samples must be the file's.
-        if (!o.samples && !o.seed && info.hasParameter("sample_area_mm2")) {
-            const double fileArea = parseNumber(info.parameter("sample_area_mm2"), o.transport, "sample_area_mm2");
+        if (!o.samples && !o.seed && params.sampleAreaMm2) {
+            const double fileArea = *params.sampleAreaMm2;
             if (!(std::abs(fileArea - samples.areaPerSample) <= 1e-6 * fileArea))
                 warn("sample area " + std::to_string(samples.areaPerSample) +
-                     " mm^2 differs from the transport file's " + info.parameter("sample_area_mm2") +
+                     " mm^2 differs from the transport file's " + formatParameter(fileArea) +
                      " mm^2: the samples are not the ones it was computed from");
         }
 
@@ -319,10 +224,10 @@ int run(const Options& o) {
 
         double vertexSeconds = 0;
         if (o.perVertex) {
-            const auto t0 = std::chrono::steady_clock::now();
+            const Stopwatch t0;
             Progress p("multiple scattering at vertices", mesh.vertexCount(), "vertices");
             ms.evaluateAtVertices(mesh, &p);
-            vertexSeconds = secondsSince(t0);
+            vertexSeconds = t0.seconds();
         }
         {
             Progress p(o.perVertex ? "multiple scattering (interpolated)" : "multiple scattering per pixel",
@@ -352,7 +257,7 @@ int run(const Options& o) {
         std::fflush(stdout);
     }
 
-    if (components.ss) {
+    if (components.singleScattering) {
         SingleScatteringReference ss(material, mesh, scene, sampler, ssOptions);
         {
             Progress p(std::string("single scattering (") + toString(ssOptions.path) + " path)",
@@ -389,7 +294,7 @@ int run(const Options& o) {
     printNoise("total", frame);
     std::printf("wrote %s.exr and %s.png%s%s%s; total %s\n", output.c_str(), output.c_str(),
                 o.noiseImage.empty() ? "" : " and ", o.noiseImage.c_str(),
-                o.componentImages ? " and per-component images" : "", formatDuration(secondsSince(start)).c_str());
+                o.componentImages ? " and per-component images" : "", formatDuration(start.seconds()).c_str());
     return 0;
 }
 

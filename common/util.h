@@ -1,0 +1,40 @@
+#pragma once
+// Small helpers that several modules need, in one place: the constant pi, ASCII
+// lowercasing, and a wall-clock stopwatch for the per-stage times the tools report.
+
+#include <chrono>
+#include <ctime>
+#include <numbers>
+#include <string>
+
+namespace prt {
+
+inline constexpr double kPi = std::numbers::pi;
+
+// ASCII lowercase (file extensions, material names, option values); other bytes
+// are left as they are.
+std::string toLower(std::string s);
+
+// Wall-clock time since construction or the last restart(), on the steady clock
+// (never goes backwards when the system clock is set), and the process's CPU time
+// over the same span (all threads: on a shared machine, CPU time of a single-threaded
+// stage is what an idle machine would take).
+class Stopwatch {
+public:
+    Stopwatch() { restart(); }
+    void restart() {
+        start_ = std::chrono::steady_clock::now();
+        cpuStart_ = std::clock();
+    }
+    double seconds() const {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    }
+    double milliseconds() const { return 1e3 * seconds(); }
+    double cpuSeconds() const { return double(std::clock() - cpuStart_) / CLOCKS_PER_SEC; }
+
+private:
+    std::chrono::steady_clock::time_point start_;
+    std::clock_t cpuStart_ = 0;
+};
+
+}  // namespace prt
