@@ -24,6 +24,7 @@
 #include "common/error.h"
 #include "precompute/pipeline.h"
 #include "common/progress.h"
+#include "common/options.h"
 
 using namespace prt;
 
@@ -395,7 +396,7 @@ int main(int argc, char** argv) {
                        "Also write the summary (every field, settings, per-stage times and peak "
                        "memory) as JSON to this file (atomically); with --jobs one document for all jobs");
         app.add_flag("-f,--force", force, "Recompute even when the output is up to date");
-        app.add_option("-j,--threads", threads, "Worker threads (default: all cores)");
+        addThreadsOption(app, threads);
         app.add_flag("-q,--quiet", quiet, "No progress display");
         try {
             app.parse(argc, argv);
@@ -403,11 +404,7 @@ int main(int argc, char** argv) {
             return app.exit(e);
         }
         if (quiet) Progress::setEnabled(false);
-        if (threads < 0) throw Error("--threads", "must be >= 0");
-        std::unique_ptr<tbb::global_control> limit;
-        if (threads > 0)
-            limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                          size_t(threads));
+        const ThreadLimit limit(threads);
         if (!summaryJsonPath.empty()) checkJsonPath(summaryJsonPath);
         const std::string command = commandLine(argc, argv);
         if (!jobFile.empty()) return runJobFile(jobFile, force, summaryJsonPath, command);

@@ -27,7 +27,7 @@
 #include "relight/light_vector.h"
 #include "common/progress.h"
 #include "relight/relight_kernel.h"
-#include "common/camera_options.h"
+#include "common/options.h"
 #include "relight/render.h"
 #include "relight/view.h"
 #include "common/util.h"
@@ -104,7 +104,7 @@ void addRenderOptions(CLI::App& app, RenderOptions& o) {
                                 "Render N frames of the environment turning 360 degrees about +Y")
                      ->group("Sequences");
     tt->excludes(spin);
-    app.add_option("-j,--threads", o.threads, "Worker threads (default: all cores)");
+    addThreadsOption(app, o.threads);
 }
 
 
@@ -116,11 +116,7 @@ std::string frameName(const std::string& prefix, int frame, int frames) {
 }
 
 int runRender(const RenderOptions& o) {
-    if (o.threads < 0) throw Error("--threads", "must be >= 0");
-    std::unique_ptr<tbb::global_control> limit;
-    if (o.threads > 0)
-        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                      size_t(o.threads));
+    const ThreadLimit limit(o.threads);
     if (o.turntable < 0 || o.envSpin < 0) throw Error("--turntable/--env-spin", "frame count must be >= 0");
     checkLightingOptions(o);
     const std::string output = outputPrefix(o.output);
@@ -283,18 +279,14 @@ void addViewOptions(CLI::App& app, ViewOptions& o) {
     app.add_flag("--no-vsync", o.noVsync, "Do not wait for vertical sync (measure frame rates)")
         ->group("Scripting");
     app.add_flag("--hide-panel", o.hidePanel, "Start with the panel hidden (H toggles it)")->group("Scripting");
-    app.add_option("-j,--threads", o.threads, "Worker threads of the relight (default: all cores)");
+    addThreadsOption(app, o.threads, "Worker threads of the relight (default: all cores)");
 }
 
 int runView(const ViewOptions& o) {
 #ifndef PRT_HAVE_VIEWER
     throw Error("view", "this prt-relight was built without the viewer (configure with -DPRT_BUILD_VIEWER=ON)");
 #else
-    if (o.threads < 0) throw Error("--threads", "must be >= 0");
-    std::unique_ptr<tbb::global_control> limit;
-    if (o.threads > 0)
-        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                      size_t(o.threads));
+    const ThreadLimit limit(o.threads);
     checkLightingOptions(o);
     if (o.frames < 0) throw Error("--frames", "must be >= 0");
     if (!o.screenshots.empty() && o.frames == 0)

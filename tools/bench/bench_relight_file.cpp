@@ -29,6 +29,7 @@
 #include "relight/light_vector.h"
 #include "relight/relight_kernel.h"
 #include "common/transport_file.h"
+#include "common/options.h"
 
 using namespace prt;
 
@@ -88,7 +89,7 @@ int main(int argc, char** argv) {
         app.add_option("--cold-iterations", coldIterations,
                        "Relight runs each after reading a 1 GiB array (caches flushed; 0: none)")
             ->capture_default_str();
-        app.add_option("-j,--threads", threads, "Worker threads (default: all cores)");
+        addThreadsOption(app, threads);
         app.add_option("--json", jsonPath, "Also write the results as JSON to this file");
         try {
             app.parse(argc, argv);
@@ -98,11 +99,7 @@ int main(int argc, char** argv) {
         if (iterations < 1) throw Error("--iterations", "must be >= 1");
         if (lightIterations < 1) throw Error("--light-iterations", "must be >= 1");
         if (coldIterations < 0) throw Error("--cold-iterations", "must be >= 0");
-        if (threads < 0) throw Error("--threads", "must be >= 0");
-        std::unique_ptr<tbb::global_control> limit;
-        if (threads > 0)
-            limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                          size_t(threads));
+        const ThreadLimit limit(threads);
 
         // Load (whatever the page cache holds: a file just written is cached).
         auto t0 = Clock::now();

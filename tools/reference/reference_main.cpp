@@ -27,7 +27,7 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/image.h"
-#include "common/camera_options.h"
+#include "common/options.h"
 #include "common/mesh.h"
 #include "common/progress.h"
 #include "common/raytrace.h"
@@ -94,10 +94,7 @@ struct Options {
 
 int run(const Options& o) {
     const Stopwatch start;
-    if (o.threads < 0) throw Error("--threads", "must be >= 0");
-    std::unique_ptr<tbb::global_control> limit;
-    if (o.threads > 0)
-        limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(o.threads));
+    const ThreadLimit limit(o.threads);
     if (!std::isfinite(o.envRotation)) throw Error("--env-rotation", "must be finite");
     if (!std::isfinite(o.exposure)) throw Error("--exposure", "must be finite");
     const std::string output = outputPrefix(o.output);
@@ -374,7 +371,7 @@ int main(int argc, char** argv) {
                      "Sum at the mesh vertices and interpolate barycentrically (as the precomputed renderer "
                      "does) instead of summing at every pixel's hit point")
             ->group("Reference");
-        app.add_option("-j,--threads", o.threads, "Worker threads (default: all cores)");
+        addThreadsOption(app, o.threads);
         try {
             app.parse(argc, argv);
         } catch (const CLI::ParseError& e) {

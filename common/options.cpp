@@ -1,4 +1,6 @@
-#include "common/camera_options.h"
+#include "common/options.h"
+
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
@@ -56,5 +58,17 @@ Camera makeCamera(const CameraOptions& o, const glm::dvec3& sphereCentre, double
     validateCamera(c);
     return c;
 }
+
+void addThreadsOption(CLI::App& app, int& threads, const std::string& help) {
+    app.add_option("-j,--threads", threads, help);
+}
+
+ThreadLimit::ThreadLimit(int threads) {
+    if (threads < 0) throw Error("--threads", "must be >= 0");
+    if (threads > 0)
+        control_ = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(threads));
+}
+
+ThreadLimit::~ThreadLimit() = default;
 
 }  // namespace prt

@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "common/camera_options.h"
+#include "common/options.h"
 #include "common/error.h"
 
 using namespace prt;
@@ -54,4 +54,30 @@ TEST(CameraOptions, NonsenseIsRefusedNamingTheOption) {
     o.width = 0;
     EXPECT_THROW(makeCamera(o, glm::dvec3(0.0), 1.0), Error);
     EXPECT_THROW(parse({"--eye=1,2"}), CLI::ParseError);
+}
+
+TEST(ThreadsOption, LimitsTbbWhileItLivesAndRefusesNegativeCounts) {
+    const size_t before = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+    {
+        const prt::ThreadLimit one(1);
+        EXPECT_EQ(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism), 1u);
+    }
+    EXPECT_EQ(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism), before);
+    {
+        const prt::ThreadLimit none(0);  // 0 = all cores: no limit
+        EXPECT_EQ(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism), before);
+    }
+    try {
+        prt::ThreadLimit bad(-2);
+        ADD_FAILURE() << "accepted -2 threads";
+    } catch (const prt::Error& e) {
+        EXPECT_EQ(e.subject(), "--threads");
+    }
+
+    CLI::App app;
+    int threads = 0;
+    prt::addThreadsOption(app, threads);
+    const char* argv[] = {"tool", "-j", "3"};
+    app.parse(3, argv);
+    EXPECT_EQ(threads, 3);
 }

@@ -1,11 +1,16 @@
 #pragma once
-// The camera options every rendering tool takes (prt-relight render and view,
-// prt-reference): the same names, defaults and meaning everywhere (docs/relight.md,
-// "Camera"). Lengths in mm, in the object's space after scaling; angles in degrees.
+// Option groups that several command-line tools share, so each option has one name,
+// default and meaning everywhere:
+// - the camera (prt-relight render and view, prt-reference; docs/relight.md, "Camera"):
+//   lengths in mm, in the object's space after scaling; angles in degrees;
+// - -j/--threads (every tool with a parallel stage).
 
 #include <CLI/CLI.hpp>
+#include <tbb/global_control.h>
 #include <glm/glm.hpp>
 
+#include <memory>
+#include <string>
 #include <vector>
 
 #include "common/camera.h"
@@ -27,5 +32,21 @@ void addCameraOptions(CLI::App& app, CameraOptions& o);
 // from --azimuth/--elevation so it fills --fill of the smaller image side. Throws
 // prt::Error naming the option for non-finite or out-of-range values.
 Camera makeCamera(const CameraOptions& o, const glm::dvec3& sphereCentre, double sphereRadius);
+
+// Declares -j,--threads bound to `threads` (0 = all cores).
+void addThreadsOption(CLI::App& app, int& threads, const std::string& help = "Worker threads (default: all cores)");
+
+// Limits every TBB-parallel stage to `threads` workers while it lives (0 = no limit).
+// Throws prt::Error("--threads", ...) for a negative count.
+class ThreadLimit {
+public:
+    explicit ThreadLimit(int threads);
+    ~ThreadLimit();
+    ThreadLimit(const ThreadLimit&) = delete;
+    ThreadLimit& operator=(const ThreadLimit&) = delete;
+
+private:
+    std::unique_ptr<tbb::global_control> control_;
+};
 
 }  // namespace prt
