@@ -87,7 +87,7 @@
 // area-weighted centroid cancels the linear term for the area-weighted part of E);
 // the remainder is of order epsilon times the relative curvature of R_d and, R_d
 // being convex in the distance, it is mostly a systematic UNDERestimate. Measured by
-// tests/test_hierarchy.cpp (ErrorShrinksAsEpsilonShrinks: 10,000 samples on an 8 mm
+// tests/test_multiple_scattering.cpp (ErrorShrinksAsEpsilonShrinks: 10,000 samples on an 8 mm
 // sphere, Skin1 and Marble, relative RMS error of the vertex vectors against the
 // brute-force sum; FlatDiskMatchesTotalDiffuseReflectance: the closed form on a
 // plane):
