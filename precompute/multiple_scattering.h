@@ -46,9 +46,8 @@
 // copy is truncated. With exactNodeSums = false the parent merges its children's
 // TRUNCATED sums instead (Wang's "clustering" read literally; the truncation error
 // compounds up the tree, and it is hardly faster). Both are built in parallel with
-// TBB and give results independent of the number of threads. Measured: 300,000
-// samples x 128 coefficients build in 1.3 s of CPU time either way (131,071 nodes;
-// 146 MB of nodes and node sums plus 315 MB of sample data).
+// TBB and give results independent of the number of threads (build times and
+// memory: docs/performance.md, "Pass 2 design measurements").
 //
 // Storage is compact: nodes are one contiguous array in depth-first (pre-order)
 // layout (left child = node + 1), node sums and sample vectors live in two pools of
@@ -73,10 +72,8 @@
 // vertices of a thread reuse the node sums in cache: 1.4x faster than random order
 // in TimingReport); results are returned in the caller's order. Contributions are
 // accumulated into a dense per-thread RGB accumulator of coefficientCount x 3
-// DOUBLES (147 KB for a 6x32x32 cubemap, well inside L2). Measured against a float
-// accumulator: no difference in speed (the scattered additions are bound by reading
-// the node sums), but the epsilon = 0 result matches the brute force to 1e-7
-// instead of 7e-6 of the terms' absolute sum. Per vertex the accumulator is rounded
+// DOUBLES (147 KB for a 6x32x32 cubemap, well inside L2): as fast as floats, and the
+// epsilon = 0 result matches the brute force ~70x closer (docs/performance.md). Per vertex the accumulator is rounded
 // to float, truncated to vertexCoefficients entries (haar.h truncateLargest), and
 // cleared with one fill of the whole block (a few us, ~2% of a vertex's time);
 // tracking touched entries would put a test on every one of the ~10^5 scattered
@@ -86,23 +83,12 @@
 // the node's angular size s / d ~ sqrt(A_node) / d <= sqrt(epsilon) (the
 // area-weighted centroid cancels the linear term for the area-weighted part of E);
 // the remainder is of order epsilon times the relative curvature of R_d and, R_d
-// being convex in the distance, it is mostly a systematic UNDERestimate. Measured by
-// tests/test_multiple_scattering.cpp (ErrorShrinksAsEpsilonShrinks: 10,000 samples on an 8 mm
-// sphere, Skin1 and Marble, relative RMS error of the vertex vectors against the
-// brute-force sum; FlatDiskMatchesTotalDiffuseReflectance: the closed form on a
-// plane):
-//     epsilon   sphere RMS error     flat-disk bias   nodes visited (10k / 21k samples)
-//     0.2       1.5-2.0 %            3.2 %            255 / 285
-//     0.1       0.6-0.8 %            1.1 %            444 / 516
-//     0.05      0.24-0.31 %          0.40 %           761 / 897
-//     0.02      0.05-0.07 %          0.09 %           1457 / 1766
-// 0.05 keeps the hierarchy's error, bias included, below 0.5% (under the 8-bit
-// display step 1/255) for about 1.7x the work of 0.1, whose 1.1% darkening of flat
-// regions is not negligible next to a reference render. Halving epsilon roughly
-// halves the error (or better) and costs 1.7-2x the traversal time. Measured cost at
-// 0.05 (TimingReport, 100,000 samples x 128 coefficients, 6x32x32, 2 threads):
-// ~1,140 nodes visited, 506 node sums + 384 samples used, ~290 us of CPU time per
-// vertex.
+// being convex in the distance, it is mostly a systematic UNDERestimate. The error
+// and cost against epsilon (tests/test_multiple_scattering.cpp ErrorShrinksAsEpsilonShrinks,
+// FlatDiskMatchesTotalDiffuseReflectance, TimingReport) are tabulated in
+// docs/performance.md, "Pass 2 design measurements": 0.05 keeps the hierarchy's
+// error, bias included, below 0.5% (under the 8-bit display step) for about 1.7x
+// the work of 0.1.
 //
 // Thread safety: a built SampleTree is immutable; any number of threads may traverse
 // it. Results are deterministic: every vertex is computed independently by the same
