@@ -22,6 +22,16 @@
 // read back (PNG from the RGBA8 target, EXR from the float one) and blitted to the
 // window. All float textures are RGBA32F (the fast texel-fetch path of software
 // rasterisers such as llvmpipe).
+//
+// The shaders are in relight/shaders/, embedded at build time (shaders/embed.cmake) as
+// prt::shaders::k<Name>: fullscreen.vert draws the full-screen triangle,
+// visibility.vert/.frag the geometry pass, shade_common.glsl + shade.frag the shading
+// pass. Every function of the last two ports one of common/ exactly (float instead of
+// double): rayDirection = cameraRayDirection at the pixel centre, latLongRadiance =
+// environmentRadiance, fresnelReflectance / refractDirection = bssrdf.cpp, faceUV =
+// directionToFaceUV, viewMap = Cubemap::sampleBilinear, encodeSrgb = writePng's clamp
+// + linearToSrgb. The GL helpers are in relight/gl_util.h, the relight worker (light
+// vector + relight kernel off the UI thread) in relight/relight_worker.h.
 
 #include "relight/view.h"
 
@@ -38,22 +48,22 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <condition_variable>
 #include <cstdio>
 #include <cstring>
 #include <exception>
 #include <filesystem>
 #include <iterator>
 #include <mutex>
-#include <optional>
 #include <string>
-#include <thread>
 #include <utility>
 #include <vector>
 
 #include "common/envmap.h"
 #include "common/error.h"
+#include "relight/gl_util.h"
 #include "relight/light_vector.h"
+#include "relight/relight_worker.h"
+#include "relight/shaders/shaders.h"
 #include "common/progress.h"
 
 #ifndef PRT_SOURCE_DIR
@@ -103,460 +113,6 @@ std::string takeGlfwError() {
     glfwLastError.clear();
     return e;
 }
-
-// ---------------------------------------------------------------------------
-// Shaders. Every function below ports one of common/ exactly (float instead of
-// double): rayDirection = cameraRayDirection at the pixel centre, latLongRadiance =
-// environmentRadiance, fresnelReflectance / refractDirection = bssrdf.cpp,
-// faceUV = directionToFaceUV, viewMap = Cubemap::sampleBilinear, encodeSrgb =
-// writePng's clamp + linearToSrgb.
-// ---------------------------------------------------------------------------
-
-const char* kFullscreenVertex = R"(#version 330 core
-void main() {
-    vec2 p = vec2(gl_VertexID == 1 ? 3.0 : -1.0, gl_VertexID == 2 ? 3.0 : -1.0);
-    gl_Position = vec4(p, 0.0, 1.0);
-}
-)";
-
-// Geometry pass: which triangle each pixel sees.
-const char* kVisibilityVertex = R"(#version 330 core
-layout(location = 0) in vec3 aPosition;
-uniform mat4 uViewProjection;
-void main() { gl_Position = uViewProjection * vec4(aPosition, 1.0); }
-)";
-const char* kVisibilityFragment = R"(#version 330 core
-out uint triangleId;
-void main() { triangleId = uint(gl_PrimitiveID) + 1u; }
-)";
-
-const char* kCommonFragment = R"(
-const float kPi = 3.14159265358979323846;
-uniform vec3 uEye;                   // camera position, mm
-uniform vec3 uForward, uRight, uUp;  // camera basis (camera.cpp)
-uniform float uTanHalf;              // tan(fovY / 2)
-uniform vec2 uViewSize;              // width, height in pixels
-uniform mat3 uEnvRotationT;          // R^T: the environment is L(R^T d)
-uniform float uScale;                // 2^exposure
-layout(location = 0) out vec4 displayColor;  // tone-mapped, sRGB-encoded (RGBA8 target or window)
-layout(location = 1) out vec4 linearColor;   // radiance, alpha 1 on the object (RGBA32F target)
-
-// writePng: scale, clamp to [0, 1] (negatives and NaN -> 0), exact sRGB encoding; the
-// 8-bit target rounds to the nearest of 256 levels.
-float encodeSrgb(float v) {
-    if (!(v > 0.0)) v = 0.0;
-    if (v > 1.0) v = 1.0;
-    return v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
-}
-void writeColor(vec3 L, float alpha) {
-    vec3 c = L * uScale;
-    displayColor = vec4(encodeSrgb(c.r), encodeSrgb(c.g), encodeSrgb(c.b), 1.0);
-    linearColor = vec4(L, alpha);
-}
-
-// cameraRayDirection at the centre of this pixel; pixel rows count from the top.
-vec3 rayDirection() {
-    float aspect = uViewSize.x / uViewSize.y;
-    float px = gl_FragCoord.x;
-    float py = uViewSize.y - gl_FragCoord.y;
-    float sx = (2.0 * px / uViewSize.x - 1.0) * uTanHalf * aspect;
-    float sy = (1.0 - 2.0 * py / uViewSize.y) * uTanHalf;
-    return normalize(uForward + sx * uRight + sy * uUp);
-}
-
-// environmentRadiance: lat-long map (row 0 = top = +Y), rotated, bilinear between
-// pixel centres, u wraps, v clamps.
-vec3 latLongRadiance(sampler2D map, vec3 d) {
-    vec3 l = uEnvRotationT * d;
-    float len = length(l);
-    if (!(len > 0.0)) return vec3(0.0);
-    ivec2 size = textureSize(map, 0);
-    float cy = clamp(l.y / len, -1.0, 1.0);
-    float u = 0.5 + atan(l.x, -l.z) / (2.0 * kPi);
-    if (u >= 1.0) u -= 1.0;
-    if (u < 0.0) u += 1.0;
-    float v = acos(cy) / kPi;
-    float x = u * float(size.x) - 0.5;
-    float y = clamp(v * float(size.y) - 0.5, 0.0, float(size.y - 1));
-    float xf = floor(x);
-    float fx = x - xf;
-    int x0 = int(xf);
-    if (x0 < 0) x0 += size.x;
-    if (x0 >= size.x) x0 -= size.x;
-    int x1 = x0 + 1 == size.x ? 0 : x0 + 1;
-    int y0 = int(y);
-    int y1 = min(y0 + 1, size.y - 1);
-    float fy = y - float(y0);
-    vec3 top = (1.0 - fx) * texelFetch(map, ivec2(x0, y0), 0).rgb + fx * texelFetch(map, ivec2(x1, y0), 0).rgb;
-    vec3 bottom = (1.0 - fx) * texelFetch(map, ivec2(x0, y1), 0).rgb + fx * texelFetch(map, ivec2(x1, y1), 0).rgb;
-    return (1.0 - fy) * top + fy * bottom;
-}
-)";
-
-const char* kShadeFragment = R"(
-uniform usampler2D uVisibility; // R32UI: triangle index + 1 seen by the pixel, 0 = none
-uniform sampler2D uEnvironment; // the lat-long map; GL_LINEAR, s repeats, t clamps
-uniform int uRowWidth;         // texels per row of the per-vertex and per-triangle textures
-uniform sampler2D uPositions;  // RGBA32F, vertex v at (v % uRowWidth, v / uRowWidth), mm
-uniform sampler2D uNormals;    // RGBA32F, unit vertex normals, same layout
-uniform usampler2D uTriangles; // RGBA32UI, triangle t's vertex indices at (t % uRowWidth, t / uRowWidth)
-uniform sampler2D uRadiance;   // RGBA32F; slot s (0 = diffuse, 1 + k = term k) starts at row s * uSlotRows
-uniform int uSlotRows;
-uniform int uTermCount;        // K used (0: no view-dependent single scattering)
-uniform sampler2D uViewMaps;   // R32F, N x 6NK: texel (i, (k * 6 + face) * N + j) = h_k
-uniform int uViewMapSize;
-uniform float uEta;
-uniform bool uSpecular;
-uniform sampler2D uPrefiltered;
-
-ivec3 gTriangle;
-vec3 gBarycentric;
-
-ivec2 at(int i) { return ivec2(i % uRowWidth, i / uRowWidth); }
-vec3 radianceAt(int slot, int v) {
-    return texelFetch(uRadiance, ivec2(v % uRowWidth, slot * uSlotRows + v / uRowWidth), 0).rgb;
-}
-vec3 interpolated(int slot) {
-    return gBarycentric.x * radianceAt(slot, gTriangle.x) + gBarycentric.y * radianceAt(slot, gTriangle.y) +
-           gBarycentric.z * radianceAt(slot, gTriangle.z);
-}
-
-// Barycentrics (1 - u - v, u, v) of the point where the ray eye + s d meets triangle
-// `triangle` (Moller-Trumbore), clamped into the triangle.
-void findTriangle(int triangle, vec3 d) {
-    gTriangle = ivec3(texelFetch(uTriangles, at(triangle), 0).xyz);
-    vec3 p0 = texelFetch(uPositions, at(gTriangle.x), 0).xyz;
-    vec3 e1 = texelFetch(uPositions, at(gTriangle.y), 0).xyz - p0;
-    vec3 e2 = texelFetch(uPositions, at(gTriangle.z), 0).xyz - p0;
-    vec3 pv = cross(d, e2);
-    float det = dot(e1, pv);
-    vec3 tv = uEye - p0;
-    float u = dot(tv, pv) / det, v = dot(d, cross(tv, e1)) / det;
-    vec3 b = max(vec3(1.0 - u - v, u, v), vec3(0.0));
-    float sum = b.x + b.y + b.z;
-    gBarycentric = sum > 0.0 && !isinf(sum) ? b / sum : vec3(1.0 / 3.0);
-}
-
-// fresnelReflectance (bssrdf.cpp): exact unpolarised dielectric reflectance.
-float fresnelReflectance(float eta, float cosThetaI) {
-    if (eta == 1.0) return 0.0;
-    float ci = min(abs(cosThetaI), 1.0);
-    float sin2t = (1.0 - ci * ci) / (eta * eta);
-    if (sin2t >= 1.0) return 1.0;
-    float ct = sqrt(1.0 - sin2t);
-    float rs = (ci - eta * ct) / (ci + eta * ct);
-    float rp = (eta * ci - ct) / (eta * ci + ct);
-    return 0.5 * (rs * rs + rp * rp);
-}
-
-// refractDirection (bssrdf.cpp): w away from the surface outside, result into the medium.
-bool refractDirection(vec3 w, vec3 n, float eta, out vec3 wt) {
-    wt = vec3(0.0);
-    float lw = length(w), ln = length(n);
-    if (!(lw > 0.0) || !(ln > 0.0)) return false;
-    vec3 wi = w / lw;
-    vec3 nn = n / ln;
-    float ci = dot(wi, nn);
-    if (ci < 0.0) return false;
-    float c = min(ci, 1.0);
-    float sin2t = (1.0 - c * c) / (eta * eta);
-    if (sin2t >= 1.0) return false;
-    float ct = sqrt(1.0 - sin2t);
-    wt = normalize(-wi / eta + (c / eta - ct) * nn);
-    return true;
-}
-
-// directionToFaceUV (cubemap.cpp), ties to X before Y before Z.
-void faceUV(vec3 d, out int face, out float s, out float t) {
-    float ax = abs(d.x), ay = abs(d.y), az = abs(d.z);
-    float sc, tc, ma;
-    if (ax >= ay && ax >= az) {
-        ma = ax;
-        if (d.x >= 0.0) { face = 0; sc = -d.z; tc = -d.y; } else { face = 1; sc = d.z; tc = -d.y; }
-    } else if (ay >= az) {
-        ma = ay;
-        if (d.y >= 0.0) { face = 2; sc = d.x; tc = d.z; } else { face = 3; sc = d.x; tc = -d.z; }
-    } else {
-        ma = az;
-        if (d.z >= 0.0) { face = 4; sc = d.x; tc = -d.y; } else { face = 5; sc = -d.x; tc = -d.y; }
-    }
-    s = 0.5 * (sc / ma + 1.0);
-    t = 0.5 * (tc / ma + 1.0);
-}
-
-// Cubemap::sampleBilinear of view map k: between texel centres of d's face, clamped
-// at the face border.
-float viewMap(int k, vec3 d) {
-    int face;
-    float s, t;
-    faceUV(d, face, s, t);
-    int n = uViewMapSize;
-    float x = clamp(s * float(n) - 0.5, 0.0, float(n - 1));
-    float y = clamp(t * float(n) - 0.5, 0.0, float(n - 1));
-    int i0 = int(x), j0 = int(y);
-    int i1 = min(i0 + 1, n - 1), j1 = min(j0 + 1, n - 1);
-    float fx = x - float(i0), fy = y - float(j0);
-    int row = (k * 6 + face) * n;
-    float top = (1.0 - fx) * texelFetch(uViewMaps, ivec2(i0, row + j0), 0).r +
-                fx * texelFetch(uViewMaps, ivec2(i1, row + j0), 0).r;
-    float bottom = (1.0 - fx) * texelFetch(uViewMaps, ivec2(i0, row + j1), 0).r +
-                   fx * texelFetch(uViewMaps, ivec2(i1, row + j1), 0).r;
-    return (1.0 - fy) * top + fy * bottom;
-}
-
-// The background: the same lookup as latLongRadiance with the texture unit's bilinear
-// filter, which has the same convention (texel centres, u wraps, v clamps) and is
-// several times faster on software rasterisers; it may round the weights (to 8 bits on
-// many GPUs), which is invisible in a display and outside the compared object pixels.
-vec3 background(vec3 d) {
-    vec3 l = uEnvRotationT * d;
-    float u = 0.5 + atan(l.x, -l.z) / (2.0 * kPi);
-    float v = acos(clamp(l.y / length(l), -1.0, 1.0)) / kPi;
-    return texture(uEnvironment, vec2(u, v)).rgb;
-}
-
-// TranslucentShader::shade (+ specularReflection when uSpecular) on object pixels.
-void main() {
-    vec3 d = rayDirection();
-    uint id = texelFetch(uVisibility, ivec2(gl_FragCoord.xy), 0).r;
-    if (id == 0u) {
-        writeColor(background(d), 0.0);
-        return;
-    }
-    findTriangle(int(id - 1u), d);
-    vec3 wo = -d;
-    vec3 s = gBarycentric.x * texelFetch(uNormals, at(gTriangle.x), 0).xyz +
-             gBarycentric.y * texelFetch(uNormals, at(gTriangle.y), 0).xyz +
-             gBarycentric.z * texelFetch(uNormals, at(gTriangle.z), 0).xyz;
-    float len = length(s);
-    vec3 n = len > 1e-12 ? s / len : vec3(0.0);
-    float cosO = dot(n, wo);
-    vec3 L = vec3(0.0);
-    if (cosO > 0.0) {  // else F_t(eta, 0) = 0: black, as the offline renderer
-        float fr = fresnelReflectance(uEta, cosO);
-        vec3 sum = interpolated(0);
-        if (uTermCount > 0) {
-            vec3 wt;
-            if (refractDirection(wo, n, uEta, wt))
-                for (int k = 0; k < uTermCount; ++k) sum += viewMap(k, wt) * interpolated(k + 1);
-        }
-        L = (1.0 - fr) * sum;
-        if (uSpecular) L += fr * latLongRadiance(uPrefiltered, 2.0 * cosO * n - wo);
-    }
-    writeColor(L, 1.0);
-}
-)";
-
-GLuint compileShader(GLenum type, const std::vector<const char*>& sources, const char* name) {
-    const GLuint s = glCreateShader(type);
-    glShaderSource(s, GLsizei(sources.size()), sources.data(), nullptr);
-    glCompileShader(s);
-    GLint ok = 0;
-    glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
-    if (!ok) {
-        GLint length = 0;
-        glGetShaderiv(s, GL_INFO_LOG_LENGTH, &length);
-        std::string log(size_t(std::max(length, 1)), '\0');
-        glGetShaderInfoLog(s, length, nullptr, log.data());
-        glDeleteShader(s);
-        throw Error("OpenGL", std::string("shader ") + name + " does not compile: " + log.c_str());
-    }
-    return s;
-}
-
-GLuint linkProgram(const std::vector<const char*>& vertex, const std::vector<const char*>& fragment,
-                   const char* name) {
-    const GLuint vs = compileShader(GL_VERTEX_SHADER, vertex, name);
-    const GLuint fs = compileShader(GL_FRAGMENT_SHADER, fragment, name);
-    const GLuint p = glCreateProgram();
-    glAttachShader(p, vs);
-    glAttachShader(p, fs);
-    glLinkProgram(p);
-    glDeleteShader(vs);
-    glDeleteShader(fs);
-    GLint ok = 0;
-    glGetProgramiv(p, GL_LINK_STATUS, &ok);
-    if (!ok) {
-        GLint length = 0;
-        glGetProgramiv(p, GL_INFO_LOG_LENGTH, &length);
-        std::string log(size_t(std::max(length, 1)), '\0');
-        glGetProgramInfoLog(p, length, nullptr, log.data());
-        glDeleteProgram(p);
-        throw Error("OpenGL", std::string("program ") + name + " does not link: " + log.c_str());
-    }
-    return p;
-}
-
-void checkGl(const char* where) {
-    const GLenum e = glGetError();
-    if (e != GL_NO_ERROR) {
-        char buf[32];
-        std::snprintf(buf, sizeof buf, "0x%04x", unsigned(e));
-        throw Error("OpenGL", std::string("error ") + buf + " after " + where);
-    }
-}
-
-// A 2D texture of `rows` x width texels; data may be null.
-GLuint makeTexture(GLint internalFormat, int width, int height, GLenum format, GLenum type, const void* data) {
-    GLuint t = 0;
-    glGenTextures(1, &t);
-    glBindTexture(GL_TEXTURE_2D, t);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, 0);
-    glTexImage2D(GL_TEXTURE_2D, 0, internalFormat, width, height, 0, format, type, data);
-    return t;
-}
-
-// Uploads `count` items (of `components` values each) into rows [firstRow, ...) of a
-// texture `rowWidth` texels wide, item i at (i % rowWidth, firstRow + i / rowWidth).
-template <class T>
-void uploadRows(GLuint texture, int rowWidth, int firstRow, size_t count, GLenum format, GLenum type,
-                const T* data, int components) {
-    if (count == 0) return;
-    glBindTexture(GL_TEXTURE_2D, texture);
-    const size_t full = count / size_t(rowWidth), rest = count % size_t(rowWidth);
-    if (full > 0)
-        glTexSubImage2D(GL_TEXTURE_2D, 0, 0, firstRow, rowWidth, GLsizei(full), format, type, data);
-    if (rest > 0)
-        glTexSubImage2D(GL_TEXTURE_2D, 0, 0, firstRow + int(full), GLsizei(rest), 1, format, type,
-                        data + full * size_t(rowWidth) * size_t(components));
-}
-
-// ---------------------------------------------------------------------------
-// The relight worker: light vector + relight kernel off the UI thread
-// ---------------------------------------------------------------------------
-
-struct LightRequest {
-    int environment = 0;
-    double rotation = 0.0;  // degrees about +Y
-    size_t lightTerms = 0;
-    bool multipleScattering = true, singleScattering = true;
-    uint64_t id = 0;
-
-    bool sameLight(const LightRequest& o) const {
-        return environment == o.environment && rotation == o.rotation && lightTerms == o.lightTerms &&
-               multipleScattering == o.multipleScattering && singleScattering == o.singleScattering;
-    }
-};
-
-struct LightResult {
-    LightRequest request;
-    VertexRadiance radiance;
-    // What the GPU gets: diffuse then each term, one RGBA (A unused) per vertex, so
-    // (1 + K) V entries (K = 0 without view-dependent single scattering).
-    std::vector<glm::vec4> packed;
-    size_t keptTerms = 0, coefficients = 0;
-    double relativeL2Error = 0.0;
-    double lightMs = 0.0, relightMs = 0.0;
-};
-
-// One worker thread. submit() replaces any request not yet started (the latest light
-// wins); take() hands over the newest finished result. Results are triple-buffered by
-// swapping vectors (work -> ready -> the caller's), so nothing is reallocated once the
-// sizes are reached.
-class RelightWorker {
-public:
-    RelightWorker(const TransportFile& file, const std::vector<Image>& environments)
-        : file_(file), environments_(environments), thread_([this] { run(); }) {}
-    ~RelightWorker() {
-        {
-            std::lock_guard<std::mutex> lock(mutex_);
-            stop_ = true;
-        }
-        cv_.notify_all();
-        thread_.join();
-    }
-    RelightWorker(const RelightWorker&) = delete;
-    RelightWorker& operator=(const RelightWorker&) = delete;
-
-    void submit(const LightRequest& r) {
-        {
-            std::lock_guard<std::mutex> lock(mutex_);
-            pending_ = r;
-        }
-        cv_.notify_all();
-    }
-    // A request queued or running.
-    bool busy() const {
-        std::lock_guard<std::mutex> lock(mutex_);
-        return pending_.has_value() || running_;
-    }
-    // Swaps the newest finished result into `out`; throws the worker's error, if any.
-    bool take(LightResult& out) {
-        std::lock_guard<std::mutex> lock(mutex_);
-        if (!error_.empty()) throw Error("relight", error_);
-        if (!haveReady_) return false;
-        std::swap(out, ready_);
-        haveReady_ = false;
-        return true;
-    }
-
-private:
-    void run() {
-        for (;;) {
-            LightRequest r;
-            {
-                std::unique_lock<std::mutex> lock(mutex_);
-                cv_.wait(lock, [&] { return stop_ || pending_.has_value(); });
-                if (stop_) return;
-                r = *pending_;
-                pending_.reset();
-                running_ = true;
-            }
-            try {
-                compute(r, work_);
-                std::lock_guard<std::mutex> lock(mutex_);
-                std::swap(work_, ready_);
-                haveReady_ = true;
-                running_ = false;
-            } catch (const std::exception& e) {
-                std::lock_guard<std::mutex> lock(mutex_);
-                error_ = e.what();
-                running_ = false;
-                return;
-            }
-        }
-    }
-
-    void compute(const LightRequest& r, LightResult& out) {
-        out.request = r;
-        auto t0 = Clock::now();
-        const LightVector light = makeLightVector(environments_[size_t(r.environment)],
-                                                  int(file_.cubemapSize), rotationY(r.rotation), r.lightTerms);
-        out.lightMs = msSince(t0);
-        out.keptTerms = light.keptTerms;
-        out.coefficients = light.coefficientCount();
-        out.relativeL2Error = light.relativeL2Error;
-        t0 = Clock::now();
-        ComponentSet c;
-        c.multipleScattering = r.multipleScattering;
-        c.singleScattering = r.singleScattering;
-        relightVertices(file_, light, c, out.radiance);
-        const size_t V = out.radiance.diffuse.size();
-        const int terms = file_.viewMaps ? std::min<int>(file_.viewMaps->terms, int(out.radiance.terms.size())) : 0;
-        out.packed.resize((1 + size_t(terms)) * V);
-        for (int k = 0; k <= terms; ++k) {
-            const std::vector<glm::vec3>& src = k == 0 ? out.radiance.diffuse : out.radiance.terms[size_t(k - 1)];
-            if (src.size() != V) throw Error("relight", "inconsistent vertex counts");
-            glm::vec4* dst = &out.packed[size_t(k) * V];
-            for (size_t v = 0; v < V; ++v) dst[v] = glm::vec4(src[v], 0.0f);
-        }
-        out.relightMs = msSince(t0);
-    }
-
-    const TransportFile& file_;
-    const std::vector<Image>& environments_;
-    mutable std::mutex mutex_;
-    std::condition_variable cv_;
-    std::optional<LightRequest> pending_;
-    bool running_ = false, stop_ = false, haveReady_ = false;
-    std::string error_;
-    LightResult work_, ready_;
-    std::thread thread_;  // last: started once everything above exists
-};
 
 // ---------------------------------------------------------------------------
 // Statistics
@@ -834,8 +390,8 @@ void Viewer::createResources() {
     prefilteredTextures_.assign(environments_.size(), 0);
 
     glGenVertexArrays(1, &vao_);
-    visibilityProgram_ = linkProgram({kVisibilityVertex}, {kVisibilityFragment}, "visibility");
-    shadeProgram_ = linkProgram({kFullscreenVertex}, {"#version 330 core\n", kCommonFragment, kShadeFragment}, "shading");
+    visibilityProgram_ = linkProgram({shaders::kVisibilityVert}, {shaders::kVisibilityFrag}, "visibility");
+    shadeProgram_ = linkProgram({shaders::kFullscreenVert}, {shaders::kShadeCommon, shaders::kShadeFrag}, "shading");
     checkGl("creating the mesh buffers, textures and shaders");
     createTargets(s_.camera.width, s_.camera.height);
 }

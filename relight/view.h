@@ -34,7 +34,7 @@ struct ViewerSetup {
     RelightObject object;              // loaded and checked (loadRelightObject)
     std::string meshPath, transportPath;
     Camera camera;                     // initial camera (also the "reset" camera)
-    ComponentSet components;           // initially enabled (what the file has, as asked)
+    ScatteringComponents components;   // initially enabled (what the file has, as asked)
     std::vector<std::string> environments;  // lat-long maps, shown in this order
     double envRotation = 0.0;          // degrees about +Y (rotationY), like --env-rotation
     double exposure = 0.0;             // stops

@@ -1,0 +1,152 @@
+
+uniform usampler2D uVisibility; // R32UI: triangle index + 1 seen by the pixel, 0 = none
+uniform sampler2D uEnvironment; // the lat-long map; GL_LINEAR, s repeats, t clamps
+uniform int uRowWidth;         // texels per row of the per-vertex and per-triangle textures
+uniform sampler2D uPositions;  // RGBA32F, vertex v at (v % uRowWidth, v / uRowWidth), mm
+uniform sampler2D uNormals;    // RGBA32F, unit vertex normals, same layout
+uniform usampler2D uTriangles; // RGBA32UI, triangle t's vertex indices at (t % uRowWidth, t / uRowWidth)
+uniform sampler2D uRadiance;   // RGBA32F; slot s (0 = diffuse, 1 + k = term k) starts at row s * uSlotRows
+uniform int uSlotRows;
+uniform int uTermCount;        // K used (0: no view-dependent single scattering)
+uniform sampler2D uViewMaps;   // R32F, N x 6NK: texel (i, (k * 6 + face) * N + j) = h_k
+uniform int uViewMapSize;
+uniform float uEta;
+uniform bool uSpecular;
+uniform sampler2D uPrefiltered;
+
+ivec3 gTriangle;
+vec3 gBarycentric;
+
+ivec2 at(int i) { return ivec2(i % uRowWidth, i / uRowWidth); }
+vec3 radianceAt(int slot, int v) {
+    return texelFetch(uRadiance, ivec2(v % uRowWidth, slot * uSlotRows + v / uRowWidth), 0).rgb;
+}
+vec3 interpolated(int slot) {
+    return gBarycentric.x * radianceAt(slot, gTriangle.x) + gBarycentric.y * radianceAt(slot, gTriangle.y) +
+           gBarycentric.z * radianceAt(slot, gTriangle.z);
+}
+
+// Barycentrics (1 - u - v, u, v) of the point where the ray eye + s d meets triangle
+// `triangle` (Moller-Trumbore), clamped into the triangle.
+void findTriangle(int triangle, vec3 d) {
+    gTriangle = ivec3(texelFetch(uTriangles, at(triangle), 0).xyz);
+    vec3 p0 = texelFetch(uPositions, at(gTriangle.x), 0).xyz;
+    vec3 e1 = texelFetch(uPositions, at(gTriangle.y), 0).xyz - p0;
+    vec3 e2 = texelFetch(uPositions, at(gTriangle.z), 0).xyz - p0;
+    vec3 pv = cross(d, e2);
+    float det = dot(e1, pv);
+    vec3 tv = uEye - p0;
+    float u = dot(tv, pv) / det, v = dot(d, cross(tv, e1)) / det;
+    vec3 b = max(vec3(1.0 - u - v, u, v), vec3(0.0));
+    float sum = b.x + b.y + b.z;
+    gBarycentric = sum > 0.0 && !isinf(sum) ? b / sum : vec3(1.0 / 3.0);
+}
+
+// fresnelReflectance (bssrdf.cpp): exact unpolarised dielectric reflectance.
+float fresnelReflectance(float eta, float cosThetaI) {
+    if (eta == 1.0) return 0.0;
+    float ci = min(abs(cosThetaI), 1.0);
+    float sin2t = (1.0 - ci * ci) / (eta * eta);
+    if (sin2t >= 1.0) return 1.0;
+    float ct = sqrt(1.0 - sin2t);
+    float rs = (ci - eta * ct) / (ci + eta * ct);
+    float rp = (eta * ci - ct) / (eta * ci + ct);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// refractDirection (bssrdf.cpp): w away from the surface outside, result into the medium.
+bool refractDirection(vec3 w, vec3 n, float eta, out vec3 wt) {
+    wt = vec3(0.0);
+    float lw = length(w), ln = length(n);
+    if (!(lw > 0.0) || !(ln > 0.0)) return false;
+    vec3 wi = w / lw;
+    vec3 nn = n / ln;
+    float ci = dot(wi, nn);
+    if (ci < 0.0) return false;
+    float c = min(ci, 1.0);
+    float sin2t = (1.0 - c * c) / (eta * eta);
+    if (sin2t >= 1.0) return false;
+    float ct = sqrt(1.0 - sin2t);
+    wt = normalize(-wi / eta + (c / eta - ct) * nn);
+    return true;
+}
+
+// directionToFaceUV (cubemap.cpp), ties to X before Y before Z.
+void faceUV(vec3 d, out int face, out float s, out float t) {
+    float ax = abs(d.x), ay = abs(d.y), az = abs(d.z);
+    float sc, tc, ma;
+    if (ax >= ay && ax >= az) {
+        ma = ax;
+        if (d.x >= 0.0) { face = 0; sc = -d.z; tc = -d.y; } else { face = 1; sc = d.z; tc = -d.y; }
+    } else if (ay >= az) {
+        ma = ay;
+        if (d.y >= 0.0) { face = 2; sc = d.x; tc = d.z; } else { face = 3; sc = d.x; tc = -d.z; }
+    } else {
+        ma = az;
+        if (d.z >= 0.0) { face = 4; sc = d.x; tc = -d.y; } else { face = 5; sc = -d.x; tc = -d.y; }
+    }
+    s = 0.5 * (sc / ma + 1.0);
+    t = 0.5 * (tc / ma + 1.0);
+}
+
+// Cubemap::sampleBilinear of view map k: between texel centres of d's face, clamped
+// at the face border.
+float viewMap(int k, vec3 d) {
+    int face;
+    float s, t;
+    faceUV(d, face, s, t);
+    int n = uViewMapSize;
+    float x = clamp(s * float(n) - 0.5, 0.0, float(n - 1));
+    float y = clamp(t * float(n) - 0.5, 0.0, float(n - 1));
+    int i0 = int(x), j0 = int(y);
+    int i1 = min(i0 + 1, n - 1), j1 = min(j0 + 1, n - 1);
+    float fx = x - float(i0), fy = y - float(j0);
+    int row = (k * 6 + face) * n;
+    float top = (1.0 - fx) * texelFetch(uViewMaps, ivec2(i0, row + j0), 0).r +
+                fx * texelFetch(uViewMaps, ivec2(i1, row + j0), 0).r;
+    float bottom = (1.0 - fx) * texelFetch(uViewMaps, ivec2(i0, row + j1), 0).r +
+                   fx * texelFetch(uViewMaps, ivec2(i1, row + j1), 0).r;
+    return (1.0 - fy) * top + fy * bottom;
+}
+
+// The background: the same lookup as latLongRadiance with the texture unit's bilinear
+// filter, which has the same convention (texel centres, u wraps, v clamps) and is
+// several times faster on software rasterisers; it may round the weights (to 8 bits on
+// many GPUs), which is invisible in a display and outside the compared object pixels.
+vec3 background(vec3 d) {
+    vec3 l = uEnvRotationT * d;
+    float u = 0.5 + atan(l.x, -l.z) / (2.0 * kPi);
+    float v = acos(clamp(l.y / length(l), -1.0, 1.0)) / kPi;
+    return texture(uEnvironment, vec2(u, v)).rgb;
+}
+
+// TranslucentShader::shade (+ specularReflection when uSpecular) on object pixels.
+void main() {
+    vec3 d = rayDirection();
+    uint id = texelFetch(uVisibility, ivec2(gl_FragCoord.xy), 0).r;
+    if (id == 0u) {
+        writeColor(background(d), 0.0);
+        return;
+    }
+    findTriangle(int(id - 1u), d);
+    vec3 wo = -d;
+    vec3 s = gBarycentric.x * texelFetch(uNormals, at(gTriangle.x), 0).xyz +
+             gBarycentric.y * texelFetch(uNormals, at(gTriangle.y), 0).xyz +
+             gBarycentric.z * texelFetch(uNormals, at(gTriangle.z), 0).xyz;
+    float len = length(s);
+    vec3 n = len > 1e-12 ? s / len : vec3(0.0);
+    float cosO = dot(n, wo);
+    vec3 L = vec3(0.0);
+    if (cosO > 0.0) {  // else F_t(eta, 0) = 0: black, as the offline renderer
+        float fr = fresnelReflectance(uEta, cosO);
+        vec3 sum = interpolated(0);
+        if (uTermCount > 0) {
+            vec3 wt;
+            if (refractDirection(wo, n, uEta, wt))
+                for (int k = 0; k < uTermCount; ++k) sum += viewMap(k, wt) * interpolated(k + 1);
+        }
+        L = (1.0 - fr) * sum;
+        if (uSpecular) L += fr * latLongRadiance(uPrefiltered, 2.0 * cosO * n - wo);
+    }
+    writeColor(L, 1.0);
+}
