@@ -6,7 +6,7 @@
 
 #include <filesystem>
 
-#include "tools/reference/compare.h"
+#include "common/image_compare.h"
 #include "common/envmap.h"
 #include "relight/light_vector.h"
 #include "precompute/pipeline.h"

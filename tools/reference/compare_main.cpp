@@ -10,7 +10,7 @@
 #include <cstdio>
 #include <optional>
 
-#include "tools/reference/compare.h"
+#include "common/image_compare.h"
 #include "common/error.h"
 #include "common/image.h"
 

@@ -1,4 +1,4 @@
-#include "tools/reference/compare.h"
+#include "common/image_compare.h"
 
 #include <algorithm>
 #include <cmath>
