@@ -15,11 +15,14 @@
 
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "tests/test_support.h"
 
 namespace fs = std::filesystem;
 using prt::Error;
 
 namespace {
+
+using prt::test::errorOf;
 
 class AtomicFileTest : public ::testing::Test {
 protected:
@@ -43,14 +46,6 @@ protected:
     fs::path dir_;
 };
 
-std::string errorOf(const std::function<void()>& f) {
-    try {
-        f();
-    } catch (const Error& e) {
-        return e.what();
-    }
-    return "";
-}
 
 }  // namespace
 

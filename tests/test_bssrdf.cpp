@@ -6,6 +6,7 @@
 
 #include "common/bssrdf.h"
 #include "common/error.h"
+#include "tests/test_support.h"
 
 #include <gtest/gtest.h>
 
@@ -16,6 +17,8 @@
 #include <vector>
 
 namespace {
+
+using prt::test::expectErrorSubject;
 
 using prt::DipoleChannel;
 using prt::Material;
@@ -54,15 +57,6 @@ double farRadius(const DipoleChannel& d) {
     return std::min(algebraic, 80.0 / d.sigmaTr + 100.0 * d.zv);
 }
 
-// Expects fn to throw prt::Error whose subject is `subject`.
-void expectErrorSubject(const std::function<void()>& fn, const std::string& subject) {
-    try {
-        fn();
-        ADD_FAILURE() << "expected prt::Error about " << subject;
-    } catch (const prt::Error& e) {
-        EXPECT_EQ(e.subject(), subject) << e.what();
-    }
-}
 
 // ---------------------------------------------------------------------------
 // Fresnel

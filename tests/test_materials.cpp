@@ -4,6 +4,7 @@
 #include "common/materials.h"
 #include "common/bssrdf.h"
 #include "common/error.h"
+#include "tests/test_support.h"
 
 #include <gtest/gtest.h>
 
@@ -14,18 +15,11 @@
 
 namespace {
 
+using prt::test::expectErrorSubject;
+
 using prt::DipoleChannel;
 using prt::Material;
 
-// Expects fn to throw prt::Error whose subject is `subject`.
-void expectErrorSubject(const std::function<void()>& fn, const std::string& subject) {
-    try {
-        fn();
-        ADD_FAILURE() << "expected prt::Error about " << subject;
-    } catch (const prt::Error& e) {
-        EXPECT_EQ(e.subject(), subject) << e.what();
-    }
-}
 
 // ---------------------------------------------------------------------------
 // Material table

@@ -4,6 +4,7 @@
 
 #include "common/error.h"
 #include "common/transport_file.h"
+#include "tests/test_support.h"
 
 #include <gtest/gtest.h>
 #include <sys/resource.h>
@@ -30,6 +31,8 @@ namespace fs = std::filesystem;
 using namespace prt;
 
 namespace {
+
+using prt::test::errorOf;
 
 // ---- helpers --------------------------------------------------------------------
 
@@ -102,22 +105,6 @@ void fixChecksum(Bytes& b, const Sec& s) {
     putLe32(&b[s.crcAt], uint32_t(crc));
 }
 
-// Runs f and returns the prt::Error message; records a failure for anything else.
-template <class F>
-std::string errorOf(F&& f) {
-    try {
-        f();
-    } catch (const Error& e) {
-        return e.what();
-    } catch (const std::bad_alloc&) {
-        ADD_FAILURE() << "std::bad_alloc instead of prt::Error";
-        return "<bad_alloc>";
-    } catch (const std::exception& e) {
-        ADD_FAILURE() << "non-prt exception: " << e.what();
-        return "<other exception>";
-    }
-    return "<no error>";
-}
 
 bool contains(const std::string& s, const std::string& part) {
     return s.find(part) != std::string::npos;

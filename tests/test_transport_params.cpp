@@ -6,19 +6,14 @@
 
 #include "common/error.h"
 #include "common/transport_params.h"
+#include "tests/test_support.h"
 
 using namespace prt;
 
 namespace {
 
-std::string errorOf(const std::function<void()>& f) {
-    try {
-        f();
-    } catch (const Error& e) {
-        return e.what();
-    }
-    return "";
-}
+using prt::test::errorOf;
+
 
 TransportFile fileWith(std::initializer_list<ComponentKind> kinds) {
     TransportFile f;
