@@ -210,13 +210,13 @@ struct Candidate {
 
 }  // namespace
 
-SparseVector truncateLargest(const float* dense, size_t count, int channels, size_t K,
+SparseVector truncateLargest(const float* dense, size_t count, int channels, size_t keep,
                              const float* weights) {
     checkChannels(channels, "truncateLargest");
     if (count > size_t(UINT32_MAX) + 1) throw Error("haar", "truncateLargest: too many entries");
     SparseVector result;
     result.channels = channels;
-    if (K == 0 || count == 0) return result;
+    if (keep == 0 || count == 0) return result;
 
     thread_local std::vector<Candidate> candidates;
     candidates.clear();
@@ -229,13 +229,13 @@ SparseVector truncateLargest(const float* dense, size_t count, int channels, siz
         if (weights) e *= double(weights[idx]) * double(weights[idx]);
         if (e > 0.0) candidates.push_back({e, uint32_t(idx)});  // also drops NaN keys
     }
-    if (candidates.size() > K) {
+    if (candidates.size() > keep) {
         const auto larger = [](const Candidate& x, const Candidate& y) {
             return x.key > y.key || (x.key == y.key && x.index < y.index);
         };
-        std::nth_element(candidates.begin(), candidates.begin() + std::ptrdiff_t(K),
+        std::nth_element(candidates.begin(), candidates.begin() + std::ptrdiff_t(keep),
                          candidates.end(), larger);
-        candidates.resize(K);
+        candidates.resize(keep);
         std::sort(candidates.begin(), candidates.end(),
                   [](const Candidate& x, const Candidate& y) { return x.index < y.index; });
     }

@@ -72,16 +72,16 @@ struct SparseVector {
     bool empty() const { return index.empty(); }
 };
 
-// Non-linear approximation: keeps the K entries of largest magnitude from the dense
+// Non-linear approximation: keeps the `keep` entries of largest magnitude from the dense
 // vector `dense` of `count` entries of `channels` floats each (count * channels floats).
 // The magnitude of entry idx is its Euclidean norm over the channels, ||v_idx||
 // (|v_idx| for one channel), multiplied by weights[idx] when weights is given (e.g.
 // the solid angle or area of a coefficient's support; weights must be >= 0).
 // Ties are broken by lower index. Entries of zero magnitude (all channels zero, or
-// weight zero) are never kept, so K >= the number of such non-zeros keeps them all.
+// weight zero) are never kept, so keep >= the number of such non-zeros keeps them all.
 // O(count) selection (nth_element), then the kept indices are sorted ascending.
 // Kept values are the original, unweighted values.
-SparseVector truncateLargest(const float* dense, size_t count, int channels, size_t K,
+SparseVector truncateLargest(const float* dense, size_t count, int channels, size_t keep,
                              const float* weights = nullptr);
 
 // All entries with at least one non-zero channel.

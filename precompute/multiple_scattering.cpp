@@ -40,14 +40,14 @@ uint32_t subtreeSize(uint32_t count, int depth, const HierarchyOptions& o) {
     return 1 + subtreeSize(left, depth + 1, o) + subtreeSize(count - left, depth + 1, o);
 }
 
-// Keeps the K entries of largest |value| (ties: lower index), drops zeros, writes
+// Keeps the keep entries of largest |value| (ties: lower index), drops zeros, writes
 // them in increasing index order to out; returns how many were written.
 // `in` must be sorted by index.
-uint32_t truncateEntries(const std::vector<Entry>& in, size_t K, Entry* out) {
+uint32_t truncateEntries(const std::vector<Entry>& in, size_t keep, Entry* out) {
     // Drop exact zeros first (they are never kept, as in haar.h truncateLargest).
     size_t nonZero = 0;
     for (const Entry& e : in) nonZero += e.value != 0.0f;
-    if (nonZero <= K) {
+    if (nonZero <= keep) {
         uint32_t n = 0;
         for (const Entry& e : in) {
             if (e.value != 0.0f) out[n++] = e;
@@ -64,11 +64,11 @@ uint32_t truncateEntries(const std::vector<Entry>& in, size_t K, Entry* out) {
         const float mb = std::fabs(b.value);
         return ma > mb || (ma == mb && a.index < b.index);
     };
-    std::nth_element(scratch.begin(), scratch.begin() + std::ptrdiff_t(K), scratch.end(), larger);
-    std::sort(scratch.begin(), scratch.begin() + std::ptrdiff_t(K),
+    std::nth_element(scratch.begin(), scratch.begin() + std::ptrdiff_t(keep), scratch.end(), larger);
+    std::sort(scratch.begin(), scratch.begin() + std::ptrdiff_t(keep),
               [](const Entry& a, const Entry& b) { return a.index < b.index; });
-    std::copy_n(scratch.begin(), K, out);
-    return uint32_t(K);
+    std::copy_n(scratch.begin(), keep, out);
+    return uint32_t(keep);
 }
 
 // Sum of two index-sorted sparse vectors (a first, then b: a fixed summation order).
@@ -303,7 +303,7 @@ SampleTree::SampleTree(SampleCloud cloud, const HierarchyOptions& options) {
     });
     for (uint32_t m : maxIndex) coefficientBound_ = std::max(coefficientBound_, size_t(m));
 
-    // 3. Node sums: capacity min(K, entries of the node's samples) per node, filled in
+    // 3. Node sums: capacity min(nodeCoefficients, entries of the node's samples) per node, filled in
     //    parallel, then compacted in place (offsets only move down in pre-order).
     uint64_t capacity = 0;
     for (Node& node : nodes_) {

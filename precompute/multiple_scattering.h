@@ -18,9 +18,9 @@
 // so that the renderer evaluates Wang's relighting equation
 //     L_d(x_o, w_o) = F_t(eta, w_o) * (V_o . L)
 // with only the Fresnel transmittance of the view direction left to apply. The
-// vector is truncated to the K largest coefficients, the magnitude of an entry being
-// the Euclidean norm of its three channels (haar.h truncateLargest), and has
-// channels = 3.
+// vector is truncated to its vertexCoefficients largest coefficients, the magnitude
+// of an entry being the Euclidean norm of its three channels (haar.h
+// truncateLargest), and has channels = 3.
 //
 // THE TREE (SampleTree). A kd-tree over the samples: a node is split at the median
 // (std::nth_element) along the longest axis of its bounding box, until it holds at
