@@ -16,10 +16,10 @@ glm::dvec3 toVec(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
 void addCameraOptions(CLI::App& app, CameraOptions& o) {
     app.add_option("--eye", o.eye, "Camera position x,y,z in mm (object space after scaling); "
                                    "default: framed automatically from --azimuth/--elevation")
-        ->expected(3)->delimiter(',')->group("Camera");
+        ->expected(3)->delimiter(',')->allow_extra_args(false)->group("Camera");
     app.add_option("--target", o.target, "Point looked at x,y,z in mm (default: bounding-sphere centre)")
-        ->expected(3)->delimiter(',')->group("Camera");
-    app.add_option("--up", o.up, "Up vector x,y,z (roll)")->expected(3)->delimiter(',')
+        ->expected(3)->delimiter(',')->allow_extra_args(false)->group("Camera");
+    app.add_option("--up", o.up, "Up vector x,y,z (roll)")->expected(3)->delimiter(',')->allow_extra_args(false)
         ->capture_default_str()->group("Camera");
     app.add_option("--fov", o.fov, "Vertical field of view in degrees")->capture_default_str()->group("Camera");
     app.add_option("-W,--width", o.width, "Image width in pixels")->capture_default_str()->group("Camera");

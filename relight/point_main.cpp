@@ -213,9 +213,9 @@ int main(int argc, char** argv) {
                        "Potato Skimmilk Skin1 Skin2 Spectralon Wholemilk")
             ->capture_default_str()->group("Object");
         app.add_option("--sigma-a", o.sigmaA, "Custom absorption R,G,B in mm^-1 (with --sigma-s-prime)")
-            ->expected(3)->delimiter(',')->group("Object");
+            ->expected(3)->delimiter(',')->allow_extra_args(false)->group("Object");
         app.add_option("--sigma-s-prime", o.sigmaSPrime, "Custom reduced scattering R,G,B in mm^-1")
-            ->expected(3)->delimiter(',')->group("Object");
+            ->expected(3)->delimiter(',')->allow_extra_args(false)->group("Object");
         app.add_option("--eta", o.eta, "Relative index of refraction (default 1.3)")->group("Object");
         app.add_option("--samples", o.samples,
                        "Irradiance samples: faces (one per face at its centroid with the face area, Keng's choice) "

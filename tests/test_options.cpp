@@ -81,3 +81,16 @@ TEST(ThreadsOption, LimitsTbbWhileItLivesAndRefusesNegativeCounts) {
     app.parse(3, argv);
     EXPECT_EQ(threads, 3);
 }
+
+TEST(CameraOptions, AVectorOptionDoesNotSwallowTheNextPositional) {
+    CLI::App app;
+    prt::CameraOptions o;
+    prt::addCameraOptions(app, o);
+    std::string mesh;
+    app.add_option("mesh", mesh);
+    const char* argv[] = {"tool", "--eye", "1,2,3", "--up", "0,0,1", "bunny.off"};
+    app.parse(6, argv);
+    EXPECT_EQ(o.eye, (std::vector<double>{1, 2, 3}));
+    EXPECT_EQ(o.up, (std::vector<double>{0, 0, 1}));
+    EXPECT_EQ(mesh, "bunny.off");
+}

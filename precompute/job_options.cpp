@@ -1,0 +1,149 @@
+#include "precompute/job_options.h"
+
+#include <algorithm>
+#include <fstream>
+
+#include "common/error.h"
+
+namespace prt {
+
+namespace {
+
+// A JSON value as the text of a command-line argument.
+std::string argumentText(const nlohmann::json& v, const std::string& where) {
+    if (v.is_string()) return v.get<std::string>();
+    if (v.is_number() || v.is_boolean()) return v.dump();
+    if (v.is_array()) {
+        std::string out;
+        for (const auto& e : v) out += (out.empty() ? "" : ",") + argumentText(e, where);
+        return out;
+    }
+    throw Error(where, "values must be strings, numbers or arrays of numbers");
+}
+
+}  // namespace
+
+
+void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
+    app.add_option("mesh", raw.mesh, "Mesh file (.obj .ply .off .stl, optionally .gz)");
+    app.add_option("-o,--output", raw.output, "Transport file to write (written atomically)");
+    app.add_option("--size-mm", raw.sizeMm, "Scale the mesh so its bounding-box diagonal is this many mm");
+    app.add_option("--mm-per-unit", raw.mmPerUnit, "Millimetres per mesh-file unit (instead of --size-mm)");
+    app.add_option("-m,--material", raw.material,
+                   "Measured material (Jensen et al. 2001): Apple Chicken1 Chicken2 Cream Ketchup Marble "
+                   "Potato Skimmilk Skin1 Skin2 Spectralon Wholemilk")
+        ->capture_default_str();
+    app.add_option("--sigma-a", raw.sigmaA, "Custom absorption R G B in mm^-1 (with --sigma-s-prime)")
+        ->expected(3)->delimiter(',')->allow_extra_args(false);
+    app.add_option("--sigma-s-prime", raw.sigmaSPrime, "Custom reduced scattering R G B in mm^-1")
+        ->expected(3)->delimiter(',')->allow_extra_args(false);
+    app.add_option_function<double>("--eta", [&](double v) { raw.eta = v; raw.etaSet = true; },
+                                    "Relative index of refraction (default 1.3)");
+    app.add_option("--g", raw.g, "Henyey-Greenstein asymmetry (> 0 forward)")->capture_default_str();
+    app.add_option("--cubemap-size", s.cubemapSize, "Lighting cubemap face size N (power of two, <= 64)")
+        ->capture_default_str();
+    app.add_option("--supersample", s.supersample, "s x s stratified directions per texel in pass 1")
+        ->capture_default_str();
+    app.add_option("--sample-coefficients", s.sampleCoefficients, "Haar terms kept per sample (pass 1)")
+        ->capture_default_str();
+    app.add_option("--node-coefficients", s.nodeCoefficients, "Haar terms kept per kd-tree node (pass 2)")
+        ->capture_default_str();
+    app.add_option("-k,--coefficients", s.vertexCoefficients, "Haar terms kept per vertex")
+        ->capture_default_str();
+    app.add_option("--epsilon", s.epsilon, "kd-tree threshold on A_node / r^2 (0 = exact sum)")
+        ->capture_default_str();
+    app.add_option("--samples", s.sampleCount, "Number of surface samples (default: from the spacing)");
+    app.add_option("--sample-spacing", s.sampleSpacingMm,
+                   "Sample spacing in mm (default: the material's mean free path 1/sigma_t')");
+    app.add_option("--max-samples", s.maxSamples, "Cap on the automatic sample count")->capture_default_str();
+    app.add_option("--seed", s.seed, "Seed of the sample placement")->capture_default_str();
+    app.add_option("--components", raw.components,
+                   "Components to compute: ms (multiple scattering), ss (single scattering) or ms,ss")
+        ->capture_default_str();
+    app.add_option("--phase-terms", s.phaseTerms,
+                   "Single scattering with g != 0: K terms of the SVD-factored HG phase function")
+        ->capture_default_str();
+    app.add_option("--phase-map-size", s.phaseMapSize,
+                   "Face size M of the 6 x M x M phase light/view maps")
+        ->capture_default_str();
+    app.add_option("--path-samples", s.pathSamples,
+                   "Single scattering: deterministic importance samples along the inward normal")
+        ->capture_default_str();
+    app.add_option("--ss-supersample", s.ssSupersample,
+                   "Single scattering: s x s sub-directions per texel")
+        ->capture_default_str();
+}
+
+PrecomputeSettings settingsFromOptions(const JobOptions& raw, PrecomputeSettings s) {
+    s.meshPath = raw.mesh;
+    s.outputPath = raw.output;
+    s.components = parseScatteringComponents(raw.components);
+    if (raw.sizeMm && raw.mmPerUnit)
+        throw Error("--size-mm", "give either --size-mm or --mm-per-unit, not both");
+    if (raw.mmPerUnit) s.scale.mmPerUnit = raw.mmPerUnit;
+    else s.scale.sizeMm = raw.sizeMm.value_or(30.0);
+    if (raw.sigmaA.empty() != raw.sigmaSPrime.empty())
+        throw Error("--sigma-a", "a custom material needs both --sigma-a and --sigma-s-prime");
+    if (!raw.sigmaA.empty()) {
+        s.material = customMaterial({raw.sigmaSPrime[0], raw.sigmaSPrime[1], raw.sigmaSPrime[2]},
+                                    {raw.sigmaA[0], raw.sigmaA[1], raw.sigmaA[2]}, raw.eta, raw.g);
+    } else {
+        s.material = materialByName(raw.material);
+        if (raw.etaSet) s.material.eta = raw.eta;
+        s.material.g = raw.g;
+        validateMaterial(s.material);
+    }
+    return s;
+}
+
+// Parses one job (defaults merged with the job's own keys) with the same options
+// as the command line: key "size-mm" (or "size_mm") is the option --size-mm.
+PrecomputeSettings parseJob(const nlohmann::json& defaults, const nlohmann::json& job,
+                            const std::string& where) {
+    std::vector<std::string> args;
+    nlohmann::json merged = defaults;
+    for (auto it = job.begin(); it != job.end(); ++it) merged[it.key()] = it.value();
+    for (auto it = merged.begin(); it != merged.end(); ++it) {
+        std::string key = it.key();
+        std::replace(key.begin(), key.end(), '_', '-');
+        if (key == "mesh") continue;
+        args.push_back("--" + key);
+        args.push_back(argumentText(it.value(), where + ": " + it.key()));
+    }
+    // The positional mesh goes first: after a 3-value option (--sigma-a) CLI11 would
+    // take it as a fourth value.
+    if (merged.contains("mesh")) args.insert(args.begin(), argumentText(merged["mesh"], where + ": mesh"));
+    CLI::App app;
+    JobOptions raw;
+    PrecomputeSettings s;
+    addJobOptions(app, raw, s);
+    std::vector<std::string> reversed(args.rbegin(), args.rend());
+    try {
+        app.parse(reversed);
+    } catch (const CLI::ParseError& e) {
+        throw Error(where, e.what());
+    }
+    return settingsFromOptions(raw, s);
+}
+
+JobFile loadJobFile(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw Error(path, "cannot open job file");
+    nlohmann::json doc;
+    try {
+        doc = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::exception& e) {
+        throw Error(path, std::string("not valid JSON: ") + e.what());
+    }
+    if (!doc.is_object() || !doc.contains("jobs") || !doc["jobs"].is_array())
+        throw Error(path, "expected an object with a \"jobs\" array");
+    JobFile f;
+    if (doc.contains("defaults")) {
+        if (!doc["defaults"].is_object()) throw Error(path, "\"defaults\" must be an object");
+        f.defaults = doc["defaults"];
+    }
+    f.jobs = doc["jobs"];
+    return f;
+}
+
+}  // namespace prt

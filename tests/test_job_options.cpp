@@ -1,0 +1,110 @@
+// Job options: a JSON job parses exactly like the same options on the command line.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "precompute/job_options.h"
+#include "tests/test_support.h"
+
+using namespace prt;
+using prt::test::errorOf;
+
+namespace {
+
+PrecomputeSettings fromCommandLine(std::vector<std::string> args) {
+    CLI::App app;
+    JobOptions raw;
+    PrecomputeSettings s;
+    addJobOptions(app, raw, s);
+    std::reverse(args.begin(), args.end());
+    app.parse(args);
+    return settingsFromOptions(raw, s);
+}
+
+bool sameSettings(const PrecomputeSettings& a, const PrecomputeSettings& b) {
+    return a.meshPath == b.meshPath && a.outputPath == b.outputPath && a.scale.sizeMm == b.scale.sizeMm &&
+           a.scale.mmPerUnit == b.scale.mmPerUnit && a.material.name == b.material.name &&
+           a.material.sigmaA == b.material.sigmaA && a.material.sigmaSPrime == b.material.sigmaSPrime &&
+           a.material.eta == b.material.eta && a.material.g == b.material.g && a.cubemapSize == b.cubemapSize &&
+           a.vertexCoefficients == b.vertexCoefficients && a.epsilon == b.epsilon && a.seed == b.seed &&
+           a.components == b.components && a.phaseTerms == b.phaseTerms;
+}
+
+}  // namespace
+
+TEST(JobOptions, AJsonJobEqualsTheCommandLine) {
+    const nlohmann::json defaults = {{"material", "Skin1"}, {"cubemap-size", 16}, {"size_mm", 20}};
+    const nlohmann::json job = {{"mesh", "m.obj"},       {"output", "o.prt"}, {"cubemap-size", 64},
+                                {"components", "ms,ss"}, {"g", 0.25},         {"epsilon", 0.02}};
+    const PrecomputeSettings fromJson = parseJob(defaults, job, "jobs.json: job 1");
+    const PrecomputeSettings fromCli =
+        fromCommandLine({"m.obj", "--output", "o.prt", "--material", "Skin1", "--cubemap-size", "64",
+                         "--size-mm", "20", "--components", "ms,ss", "--g", "0.25", "--epsilon", "0.02"});
+    EXPECT_TRUE(sameSettings(fromJson, fromCli));
+    EXPECT_EQ(fromJson.cubemapSize, 64);  // the job's key overrides the default
+    EXPECT_EQ(*fromJson.scale.sizeMm, 20.0);
+    EXPECT_EQ(fromJson.material.name, "Skin1");
+    EXPECT_EQ(fromJson.components, ScatteringComponents::all());
+}
+
+TEST(JobOptions, ArraysBecomeCommaListsForCustomMaterials) {
+    const PrecomputeSettings s = parseJob(
+        {}, {{"mesh", "m.obj"}, {"output", "o"}, {"sigma-a", {0.1, 0.2, 0.3}}, {"sigma-s-prime", {1, 2, 3}}}, "j");
+    EXPECT_EQ(s.material.name, "custom");
+    EXPECT_EQ(s.material.sigmaA, glm::dvec3(0.1, 0.2, 0.3));
+    EXPECT_EQ(s.material.sigmaSPrime, glm::dvec3(1, 2, 3));
+}
+
+TEST(JobOptions, DefaultsAndContradictions) {
+    const PrecomputeSettings s = fromCommandLine({"m.obj", "-o", "o"});
+    EXPECT_EQ(*s.scale.sizeMm, 30.0);  // the documented default scale
+    EXPECT_FALSE(s.scale.mmPerUnit);
+    EXPECT_EQ(s.material.name, "Marble");
+    EXPECT_EQ(s.components, (ScatteringComponents{true, false}));
+
+    EXPECT_NE(errorOf([] { fromCommandLine({"m", "--size-mm", "3", "--mm-per-unit", "1"}); }).find("not both"),
+              std::string::npos);
+    EXPECT_NE(errorOf([] { fromCommandLine({"m", "--sigma-a", "1,1,1"}); }).find("needs both"), std::string::npos);
+    EXPECT_NE(errorOf([] { fromCommandLine({"m", "--material", "Jade"}); }).find("unknown material"),
+              std::string::npos);
+    EXPECT_NE(errorOf([] { fromCommandLine({"m", "--eta", "9"}); }).find("eta"), std::string::npos);
+}
+
+TEST(JobOptions, BadJobsNameWhereTheyAre) {
+    const std::string unknown = errorOf([] { parseJob({}, {{"mesh", "m"}, {"colour", "red"}}, "jobs.json: job 3"); });
+    EXPECT_EQ(unknown.rfind("jobs.json: job 3: ", 0), 0u) << unknown;
+    const std::string badValue =
+        errorOf([] { parseJob({}, {{"mesh", "m"}, {"seed", {{"a", 1}}}}, "jobs.json: job 1"); });
+    EXPECT_NE(badValue.find("strings, numbers or arrays"), std::string::npos) << badValue;
+}
+
+TEST(JobOptions, JobFileShapeIsChecked) {
+    const auto dir = std::filesystem::temp_directory_path() / ("prt_jobs_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir);
+    const auto write = [&](const std::string& name, const std::string& text) {
+        std::ofstream((dir / name).string()) << text;
+        return (dir / name).string();
+    };
+    const JobFile f = loadJobFile(write("ok.json", R"({"defaults": {"material": "Ketchup"}, "jobs": [{}, {}]})"));
+    EXPECT_EQ(f.jobs.size(), 2u);
+    EXPECT_EQ(f.defaults["material"], "Ketchup");
+    EXPECT_TRUE(loadJobFile(write("nodefaults.json", R"({"jobs": []})")).defaults.is_object());
+    EXPECT_NE(errorOf([&] { loadJobFile(write("a.json", "{")); }).find("not valid JSON"), std::string::npos);
+    EXPECT_NE(errorOf([&] { loadJobFile(write("b.json", "[]")); }).find("\"jobs\" array"), std::string::npos);
+    EXPECT_NE(errorOf([&] { loadJobFile(write("c.json", R"({"jobs": [], "defaults": 3})")); }).find("defaults"),
+              std::string::npos);
+    EXPECT_NE(errorOf([&] { loadJobFile((dir / "missing.json").string()); }).find("cannot open"), std::string::npos);
+    std::filesystem::remove_all(dir);
+}
+
+TEST(JobOptions, ACustomMaterialDoesNotSwallowTheMesh) {
+    // The command line with the mesh after a 3-value option (CLI11 used to take the
+    // mesh as a fourth value).
+    const PrecomputeSettings s =
+        fromCommandLine({"--sigma-a", "0.1,0.1,0.1", "--sigma-s-prime", "1,1,1", "m.obj", "-o", "o"});
+    EXPECT_EQ(s.meshPath, "m.obj");
+    EXPECT_EQ(s.material.sigmaA, glm::dvec3(0.1));
+}
