@@ -95,19 +95,26 @@ Cubemap::Cubemap(int size, int channels) : size_(size), channels_(channels) {
     data_.assign(texelCount() * size_t(channels), 0.0f);
 }
 
-float Cubemap::sampleBilinear(const glm::dvec3& d, int c) const {
+BilinearTaps bilinearTaps(int n, const glm::dvec3& d) {
     int face;
     double s, t;
     directionToFaceUV(d, face, s, t);
     // Continuous texel coordinates whose integers are texel centres.
-    const double x = std::clamp(s * size_ - 0.5, 0.0, double(size_ - 1));
-    const double y = std::clamp(t * size_ - 0.5, 0.0, double(size_ - 1));
+    const double x = std::clamp(s * n - 0.5, 0.0, double(n - 1));
+    const double y = std::clamp(t * n - 0.5, 0.0, double(n - 1));
     const int i0 = int(x), j0 = int(y);
-    const int i1 = std::min(i0 + 1, size_ - 1), j1 = std::min(j0 + 1, size_ - 1);
+    const int i1 = std::min(i0 + 1, n - 1), j1 = std::min(j0 + 1, n - 1);
     const double fx = x - i0, fy = y - j0;
-    const double top = (1 - fx) * texel(face, i0, j0)[c] + fx * texel(face, i1, j0)[c];
-    const double bottom = (1 - fx) * texel(face, i0, j1)[c] + fx * texel(face, i1, j1)[c];
-    return float((1 - fy) * top + fy * bottom);
+    auto index = [&](int i, int j) { return (size_t(face) * n + j) * n + i; };
+    return {{index(i0, j0), index(i1, j0), index(i0, j1), index(i1, j1)},
+            {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy}};
+}
+
+float Cubemap::sampleBilinear(const glm::dvec3& d, int c) const {
+    const BilinearTaps taps = bilinearTaps(size_, d);
+    double v = 0.0;
+    for (int k = 0; k < 4; ++k) v += taps.weight[k] * data_[taps.texel[k] * channels_ + c];
+    return float(v);
 }
 
 std::vector<double> Cubemap::integrate() const {

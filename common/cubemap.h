@@ -16,6 +16,8 @@
 
 #include <glm/glm.hpp>
 
+#include <array>
+
 #include <cstddef>
 #include <vector>
 
@@ -45,6 +47,17 @@ double texelSolidAngle(int n, int i, int j);
 double faceRegionSolidAngle(double s0, double t0, double s1, double t1);
 
 bool isPowerOfTwo(int n);
+
+// The four texels of an n x n-face cubemap around direction d, for bilinear
+// interpolation between texel centres ((i + 0.5) / n) on the face d falls on, clamped
+// at the face border (no filtering across faces): flat texel indices
+// (face * n + j) * n + i and weights (>= 0, summing to 1), in the order
+// (i0, j0), (i1, j0), (i0, j1), (i1, j1).
+struct BilinearTaps {
+    std::array<size_t, 4> texel;
+    std::array<double, 4> weight;
+};
+BilinearTaps bilinearTaps(int n, const glm::dvec3& d);
 
 // Dense cubemap with `channels` floats per texel, stored [face][j][i][channel].
 class Cubemap {

@@ -201,21 +201,14 @@ void SingleScatteringContext::lightMapValues(const glm::vec3& a, float* out) con
         return;
     }
     // Cubemap::sampleBilinear for all K channels at once (one face lookup).
-    int face;
-    double s, t;
-    directionToFaceUV(glm::dvec3(a), face, s, t);
-    const int m = lightMaps_.size();
-    const double x = std::clamp(s * m - 0.5, 0.0, double(m - 1));
-    const double y = std::clamp(t * m - 0.5, 0.0, double(m - 1));
-    const int i0 = int(x), j0 = int(y);
-    const int i1 = std::min(i0 + 1, m - 1), j1 = std::min(j0 + 1, m - 1);
-    const float fx = float(x - i0), fy = float(y - j0);
-    const float w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy, w11 = fx * fy;
-    const float* p00 = lightMaps_.texel(face, i0, j0);
-    const float* p10 = lightMaps_.texel(face, i1, j0);
-    const float* p01 = lightMaps_.texel(face, i0, j1);
-    const float* p11 = lightMaps_.texel(face, i1, j1);
-    for (int k = 0; k < terms_; ++k) out[k] = w00 * p00[k] + w10 * p10[k] + w01 * p01[k] + w11 * p11[k];
+    const BilinearTaps taps = bilinearTaps(lightMaps_.size(), glm::dvec3(a));
+    const float* p[4];
+    float w[4];
+    for (int q = 0; q < 4; ++q) {
+        p[q] = lightMaps_.data().data() + taps.texel[q] * size_t(terms_);
+        w[q] = float(taps.weight[q]);
+    }
+    for (int k = 0; k < terms_; ++k) out[k] = w[0] * p[0][k] + w[1] * p[1][k] + w[2] * p[2][k] + w[3] * p[3][k];
 }
 
 // ---------------------------------------------------------------------------------

@@ -117,3 +117,22 @@ TEST(Cubemap, BilinearReproducesLinearFunctionInsideAFace) {
     // Clamped at the border.
     EXPECT_FLOAT_EQ(c.sampleBilinear(faceUVToDirection(1, 0.0, 0.0), 0), 100);
 }
+
+TEST(Cubemap, BilinearTapsAreTheTexelsAroundADirection) {
+    const int n = 8;
+    for (int face = 0; face < 6; ++face)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                // At a texel centre all weight is on that texel.
+                const glm::dvec3 d = prt::texelDirection(n, face, i, j);
+                const prt::BilinearTaps taps = prt::bilinearTaps(n, d);
+                double sum = 0.0, onCentre = 0.0;
+                for (int k = 0; k < 4; ++k) {
+                    EXPECT_GE(taps.weight[k], 0.0);
+                    sum += taps.weight[k];
+                    if (taps.texel[k] == (size_t(face) * n + j) * n + i) onCentre += taps.weight[k];
+                }
+                EXPECT_NEAR(sum, 1.0, 1e-12);
+                EXPECT_NEAR(onCentre, 1.0, 1e-9);
+            }
+}

@@ -56,26 +56,6 @@ double analyticError(double g, int terms) {
     return std::sqrt(std::max(0.0, total - head) / total);
 }
 
-// The four texels and weights Cubemap::sampleBilinear blends for direction d (the
-// same clamping at the face border), as flat texel indices.
-struct Taps {
-    std::array<size_t, 4> texel;
-    std::array<double, 4> weight;
-};
-
-Taps bilinearTaps(int n, const glm::dvec3& d) {
-    int face;
-    double s, t;
-    directionToFaceUV(d, face, s, t);
-    const double x = std::clamp(s * n - 0.5, 0.0, double(n - 1));
-    const double y = std::clamp(t * n - 0.5, 0.0, double(n - 1));
-    const int i0 = int(x), j0 = int(y);
-    const int i1 = std::min(i0 + 1, n - 1), j1 = std::min(j0 + 1, n - 1);
-    const double fx = x - i0, fy = y - j0;
-    auto index = [&](int i, int j) { return (size_t(face) * n + j) * n + i; };
-    return {{index(i0, j0), index(i1, j0), index(i0, j1), index(i1, j1)},
-            {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy}};
-}
 
 glm::dvec3 uniformDirection(std::mt19937_64& rng) {
     std::uniform_real_distribution<double> uniform(0.0, 1.0);
@@ -197,7 +177,7 @@ int main(int argc, char** argv) {
         std::mt19937_64 rng(seed);
         const size_t pairs = static_cast<size_t>(samples);
         std::vector<glm::dvec3> as(pairs), bs(pairs);
-        std::vector<Taps> aTaps(pairs), bTaps(pairs);
+        std::vector<BilinearTaps> aTaps(pairs), bTaps(pairs);
         for (int i = 0; i < samples; ++i) {
             as[size_t(i)] = uniformDirection(rng);
             bs[size_t(i)] = uniformDirection(rng);
@@ -251,8 +231,8 @@ int main(int argc, char** argv) {
                     squaredError[next++] += e * e;
                 }
                 // All terms: bilinear interpolation of P[a][b] = HG(dot(a, -b)) at texel centres.
-                const Taps& ta = aTaps[size_t(i)];
-                const Taps& tb = bTaps[size_t(i)];
+                const BilinearTaps& ta = aTaps[size_t(i)];
+                const BilinearTaps& tb = bTaps[size_t(i)];
                 double interpolated = 0.0;
                 for (int x = 0; x < 4; ++x)
                     for (int y = 0; y < 4; ++y)
