@@ -59,6 +59,26 @@ Camera makeCamera(const CameraOptions& o, const glm::dvec3& sphereCentre, double
     return c;
 }
 
+std::optional<int> parseCommandLine(CLI::App& app, int argc, char** argv, const std::string& program) {
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        std::string reason = e.what();
+        for (char& c : reason)
+            if (c == '\n' || c == '\r') c = ' ';
+        while (!reason.empty() && reason.back() == ' ') reason.pop_back();
+        std::string hint = program;
+        for (const CLI::App* sub : app.get_subcommands())
+            if (sub->parsed()) hint += " " + sub->get_name();
+        throw Error("", reason + " (see " + hint + " --help)");
+    }
+    return std::nullopt;
+}
+
 void addThreadsOption(CLI::App& app, int& threads, const std::string& help) {
     app.add_option("-j,--threads", threads, help);
 }

@@ -3,13 +3,15 @@
 // default and meaning everywhere:
 // - the camera (prt-relight render and view, prt-reference; docs/relight.md, "Camera"):
 //   lengths in mm, in the object's space after scaling; angles in degrees;
-// - -j/--threads (every tool with a parallel stage).
+// - -j/--threads (every tool with a parallel stage);
+// and the one way every tool parses its command line (parseCommandLine).
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
 #include <glm/glm.hpp>
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -32,6 +34,13 @@ void addCameraOptions(CLI::App& app, CameraOptions& o);
 // from --azimuth/--elevation so it fills --fill of the smaller image side. Throws
 // prt::Error naming the option for non-finite or out-of-range values.
 Camera makeCamera(const CameraOptions& o, const glm::dvec3& sphereCentre, double sphereRadius);
+
+// Parses the command line. --help / --help-all print the help and give exit code 0;
+// any other usage error (unknown option, missing or malformed value, missing
+// positional) is thrown as one line, prt::Error("", "<CLI11's reason> (see <program>
+// [subcommand] --help)"), which runMain prints as "<program>: error: ..." with exit
+// code 1 like every other error. Returns nullopt when the tool should run.
+std::optional<int> parseCommandLine(CLI::App& app, int argc, char** argv, const std::string& program);
 
 // Declares -j,--threads bound to `threads` (0 = all cores).
 void addThreadsOption(CLI::App& app, int& threads, const std::string& help = "Worker threads (default: all cores)");

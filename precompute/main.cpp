@@ -88,11 +88,7 @@ int main(int argc, char** argv) {
         app.add_flag("-f,--force", force, "Recompute even when the output is up to date");
         addThreadsOption(app, threads);
         app.add_flag("-q,--quiet", quiet, "No progress display");
-        try {
-            app.parse(argc, argv);
-        } catch (const CLI::ParseError& e) {
-            return app.exit(e);
-        }
+        if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-precompute")) return *exitCode;
         if (quiet) Progress::setEnabled(false);
         const ThreadLimit limit(threads);
         if (!summaryJsonPath.empty()) checkJsonPath(summaryJsonPath);

@@ -9,6 +9,7 @@
 #include <optional>
 #include <sstream>
 
+#include "common/atomic_file.h"
 #include "common/error.h"
 #include "precompute/multiple_scattering.h"
 #include "precompute/irradiance_transport.h"
@@ -220,6 +221,7 @@ std::string PrecomputeSummary::format() const {
 PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool force) {
     const Stopwatch start;
     validateSettings(settings);
+    checkOutputPath(settings.outputPath);  // now, not after an hour of passes
     PrecomputeSummary summary;
     summary.outputPath = settings.outputPath;
     summary.components = settings.components;

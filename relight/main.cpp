@@ -352,17 +352,7 @@ int main(int argc, char** argv) {
                     "toggles, light terms; scriptable with --frames/--screenshot (docs/viewer.md)");
         addViewOptions(*viewCmd, view);
 
-        try {
-            app.parse(argc, argv);
-        } catch (const CLI::CallForHelp& e) {
-            return app.exit(e);
-        } catch (const CLI::CallForAllHelp& e) {
-            return app.exit(e);
-        } catch (const CLI::ParseError& e) {
-            // Usage errors are one line and exit code 1, like every other error.
-            const char* sub = viewCmd->parsed() ? "view" : "render";
-            throw Error("", std::string(e.what()) + " (see prt-relight " + sub + " --help)");
-        }
+        if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-relight")) return *exitCode;
         if (renderCmd->parsed()) return runRender(render);
         if (viewCmd->parsed()) return runView(view);
         return 1;

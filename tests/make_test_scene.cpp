@@ -44,6 +44,7 @@
 #include "common/shapes.h"
 #include "common/transport_file.h"
 #include "common/mesh_io.h"
+#include "common/options.h"
 
 #include <algorithm>
 
@@ -212,11 +213,7 @@ int main(int argc, char** argv) {
                              "Allowed coverage mismatches (default: 0.1% of the object pixels + 2)");
         agreeCmd->add_option("--max-levels", maxLevels, "Allowed PNG difference in levels of 255")
             ->capture_default_str();
-        try {
-            app.parse(argc, argv);
-        } catch (const CLI::ParseError& e) {
-            return app.exit(e) == 0 ? 0 : 1;
-        }
+        if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-make-test-scene")) return *exitCode;
         if (scene->parsed()) return makeScene(dir);
         return agree(view, render, masked, maxMismatch, maxLevels);
     });

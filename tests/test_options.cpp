@@ -94,3 +94,32 @@ TEST(CameraOptions, AVectorOptionDoesNotSwallowTheNextPositional) {
     EXPECT_EQ(o.up, (std::vector<double>{0, 0, 1}));
     EXPECT_EQ(mesh, "bunny.off");
 }
+
+TEST(CommandLine, UsageErrorsAreOneLineErrorsAndHelpIsNot) {
+    const auto run = [](std::vector<const char*> args) -> std::string {
+        CLI::App app{"test tool"};
+        double size = 0;
+        std::string mesh;
+        app.add_option("--size-mm", size);
+        app.add_subcommand("render", "a subcommand")->add_option("mesh", mesh)->required();
+        args.insert(args.begin(), "tool");
+        try {
+            const auto code = prt::parseCommandLine(app, int(args.size()), const_cast<char**>(args.data()), "prt-x");
+            return code ? "exit " + std::to_string(*code) : "run";
+        } catch (const prt::Error& e) {
+            return e.what();
+        }
+    };
+    EXPECT_EQ(run({"render", "m.obj"}), "run");
+    EXPECT_EQ(run({"--help"}), "exit 0");
+    const auto expectOneLine = [&](std::vector<const char*> args, const std::string& hint) {
+        const std::string e = run(args);
+        EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+        EXPECT_NE(e.find("(see " + hint + " --help)"), std::string::npos) << e;
+    };
+    expectOneLine({"--bogus"}, "prt-x");
+    expectOneLine({"--size-mm"}, "prt-x");
+    expectOneLine({"--size-mm", "abc"}, "prt-x");
+    expectOneLine({"render", "m.obj", "--bogus"}, "prt-x render");
+    expectOneLine({"render"}, "prt-x render");
+}

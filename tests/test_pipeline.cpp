@@ -166,3 +166,19 @@ TEST(Precompute, RejectsNonsenseSettings) {
                  }()),
                  Error);
 }
+
+TEST(Precompute, AnUnwritableOutputIsRefusedBeforeAnyWork) {
+    PrecomputeSettings s;
+    s.meshPath = "/nonexistent/mesh.obj";  // never reached: the output is checked first
+    s.outputPath = (tempDir() / "no" / "such" / "dir" / "out.prt").string();
+    s.scale.sizeMm = 30;
+    s.material = materialByName("Marble");
+    try {
+        precomputeTransport(s);
+        ADD_FAILURE() << "accepted an output in a missing directory";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.subject(), s.outputPath) << e.what();
+        EXPECT_NE(std::string(e.what()).find("does not exist"), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(fs::exists(tempDir() / "no"));
+}

@@ -12,6 +12,7 @@
 #include "common/error.h"
 #include "common/haar.h"
 #include "common/image.h"
+#include "common/options.h"
 
 using namespace prt;
 
@@ -34,11 +35,7 @@ int main(int argc, char** argv) {
                      "in real maps, are always set to 0 with a warning)");
         app.add_option("-o,--out", out, "Output prefix: <out>.exr, <out>.png, <out>_full.exr, <out>_full.png")
             ->capture_default_str();
-        try {
-            app.parse(argc, argv);
-        } catch (const CLI::ParseError& e) {
-            return app.exit(e);
-        }
+        if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-envcheck")) return *exitCode;
         if (!isPowerOfTwo(size)) throw Error("--size", "must be a power of two");
         const size_t coefficients = size_t(6) * size * size;
         if (terms < 1 || terms > coefficients)

@@ -32,6 +32,7 @@
 #include "common/error.h"
 #include "precompute/phase_factoring.h"
 #include "common/util.h"
+#include "common/options.h"
 
 using namespace prt;
 
@@ -150,11 +151,7 @@ int main(int argc, char** argv) {
         app.add_flag("--compare-solvers", compareSolvers,
                      "Also time BDCSVD on the first g and compare singular values and reconstructions");
         app.add_option("--markdown", markdownPath, "Also write the tables as Markdown to this file");
-        try {
-            app.parse(argc, argv);
-        } catch (const CLI::ParseError& e) {
-            return app.exit(e) == 0 ? 0 : 1;
-        }
+        if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-phase-table")) return *exitCode;
         PhaseSolver solver;
         if (solverName == "symmetric-eigen") solver = PhaseSolver::SymmetricEigen;
         else if (solverName == "bdcsvd") solver = PhaseSolver::BdcSvd;

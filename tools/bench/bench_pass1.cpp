@@ -17,6 +17,7 @@
 #include "common/raytrace.h"
 #include "common/sampling.h"
 #include "common/mesh_io.h"
+#include "common/options.h"
 
 using namespace prt;
 
@@ -84,11 +85,7 @@ int main(int argc, char** argv) {
         app.add_option("--samples", count, "Samples to trace (a Poisson subset of the mesh)")->capture_default_str();
         app.add_option("--cubemap-size", cubemapSize, "Cubemap face size")->capture_default_str();
         app.add_option("--supersample", supersample, "Sub-directions per texel side")->capture_default_str();
-        try {
-            app.parse(argc, argv);
-        } catch (const CLI::ParseError& e) {
-            return app.exit(e);
-        }
+        if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-bench-pass1")) return *exitCode;
         Progress::setEnabled(false);
         TriangleMesh mesh = loadMesh(meshPath);
         scaleToPhysical(mesh, MeshScale{.sizeMm = sizeMm, .mmPerUnit = std::nullopt});

@@ -91,11 +91,7 @@ int main(int argc, char** argv) {
             ->capture_default_str();
         addThreadsOption(app, threads);
         app.add_option("--json", jsonPath, "Also write the results as JSON to this file");
-        try {
-            app.parse(argc, argv);
-        } catch (const CLI::ParseError& e) {
-            return app.exit(e);
-        }
+        if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-bench-relight-file")) return *exitCode;
         if (iterations < 1) throw Error("--iterations", "must be >= 1");
         if (lightIterations < 1) throw Error("--light-iterations", "must be >= 1");
         if (coldIterations < 0) throw Error("--cold-iterations", "must be >= 0");

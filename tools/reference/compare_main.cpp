@@ -13,6 +13,7 @@
 #include "common/image_compare.h"
 #include "common/error.h"
 #include "common/image.h"
+#include "common/options.h"
 
 using namespace prt;
 
@@ -33,11 +34,7 @@ int main(int argc, char** argv) {
         app.add_option("--rel-floor", options.relativeFloor,
                        "Max relative error divides by max(|reference|, this x peak)")
             ->capture_default_str();
-        try {
-            app.parse(argc, argv);
-        } catch (const CLI::ParseError& e) {
-            return app.exit(e) == 0 ? 0 : 1;
-        }
+        if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-compare")) return *exitCode;
         if (maxRelRmse && !(*maxRelRmse >= 0.0)) throw Error("--max-rel-rmse", "must be >= 0");
 
         const Image test = readImage(testPath);

@@ -372,11 +372,7 @@ int main(int argc, char** argv) {
                      "does) instead of summing at every pixel's hit point")
             ->group("Reference");
         addThreadsOption(app, o.threads);
-        try {
-            app.parse(argc, argv);
-        } catch (const CLI::ParseError& e) {
-            return app.exit(e) == 0 ? 0 : 1;
-        }
+        if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-reference")) return *exitCode;
         return run(o);
     });
 }
