@@ -35,6 +35,15 @@ void addCameraOptions(CLI::App& app, CameraOptions& o) {
 }
 
 Camera makeCamera(const CameraOptions& o, const glm::dvec3& sphereCentre, double sphereRadius) {
+    // The image and lens first: framing divides by them.
+    constexpr int kMaxSide = 16384;
+    if (o.width < 1 || o.width > kMaxSide)
+        throw Error("-W", "image width must be between 1 and " + std::to_string(kMaxSide) + " pixels, got " +
+                              std::to_string(o.width));
+    if (o.height < 1 || o.height > kMaxSide)
+        throw Error("-H", "image height must be between 1 and " + std::to_string(kMaxSide) + " pixels, got " +
+                              std::to_string(o.height));
+    if (!(o.fov > 0 && o.fov < 180)) throw Error("--fov", "must be in (0, 180) degrees");
     if (!(o.fill > 0 && o.fill <= 1)) throw Error("--fill", "must be in (0, 1]");
     if (!std::isfinite(o.azimuth) || !std::isfinite(o.elevation))
         throw Error("camera", "azimuth and elevation must be finite");

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "common/options.h"
 #include "common/error.h"
 
@@ -50,9 +52,24 @@ TEST(CameraOptions, NonsenseIsRefusedNamingTheOption) {
     o = CameraOptions{};
     o.elevation = 90.0;
     EXPECT_THROW(makeCamera(o, glm::dvec3(0.0), 1.0), Error);
-    o = CameraOptions{};
-    o.width = 0;
-    EXPECT_THROW(makeCamera(o, glm::dvec3(0.0), 1.0), Error);
+    // Each refusal names the option the user gave (-W 0 used to surface as
+    // "eye, target and up must be finite" from the framing's division by zero).
+    const auto subjectOf = [](void (*change)(CameraOptions&)) {
+        CameraOptions t;
+        change(t);
+        try {
+            makeCamera(t, glm::dvec3(0.0), 1.0);
+        } catch (const Error& e) {
+            return e.subject();
+        }
+        return std::string("<accepted>");
+    };
+    EXPECT_EQ(subjectOf([](CameraOptions& t) { t.width = 0; }), "-W");
+    EXPECT_EQ(subjectOf([](CameraOptions& t) { t.height = -5; }), "-H");
+    EXPECT_EQ(subjectOf([](CameraOptions& t) { t.width = 100000; }), "-W");
+    EXPECT_EQ(subjectOf([](CameraOptions& t) { t.fov = 0; }), "--fov");
+    EXPECT_EQ(subjectOf([](CameraOptions& t) { t.fov = 180; }), "--fov");
+    EXPECT_EQ(subjectOf([](CameraOptions& t) { t.fov = NAN; }), "--fov");
     EXPECT_THROW(parse({"--eye=1,2"}), CLI::ParseError);
 }
 
