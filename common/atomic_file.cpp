@@ -1,6 +1,7 @@
 #include "common/atomic_file.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -43,8 +44,32 @@ void checkOutputPath(const std::string& path) {
     if (fs::is_directory(target, ec)) throw Error(path, "is a directory");
 }
 
+size_t removeStaleTemporaries(const std::string& path) {
+    const fs::path target(path);
+    const std::string targetName = target.filename().string();
+    const std::string prefix = target.stem().string() + ".tmp";
+    size_t removed = 0;
+    std::error_code ec;
+    for (fs::directory_iterator it(directoryOf(target), ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        if (!isTemporaryFor(name, targetName)) continue;
+        // "<stem>.tmp<pid>-<n><ext>": the pid runs from the prefix to the dash.
+        const size_t dash = name.find('-', prefix.size());
+        if (dash == std::string::npos || dash == prefix.size()) continue;
+        const std::string digits = name.substr(prefix.size(), dash - prefix.size());
+        if (digits.find_first_not_of("0123456789") != std::string::npos || digits.size() > 9) continue;
+        const long pid = std::stol(digits);
+        if (pid == long(::getpid())) continue;                       // ours: maybe in flight
+        if (::kill(pid_t(pid), 0) == 0 || errno != ESRCH) continue;  // alive (or not ours to judge)
+        std::error_code removeError;
+        if (fs::remove(it->path(), removeError)) ++removed;
+    }
+    return removed;
+}
+
 void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write) {
     checkOutputPath(path);
+    removeStaleTemporaries(path);
     const fs::path target(path);
     const fs::path dir = directoryOf(target);
     static std::atomic<unsigned> counter{0};

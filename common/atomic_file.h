@@ -10,6 +10,10 @@
 // directory is fsynced (best effort: some file systems refuse). If the writer throws,
 // or any step fails, the temporary file is removed, the target is untouched and a
 // prt::Error(path, reason) is thrown (the writer's own prt::Error passes through).
+//
+// A process killed mid-write (SIGKILL, power loss) leaves its temporary file behind;
+// the next writeAtomically of the same target removes such leftovers of processes that
+// no longer run (the pid is in the name), so a killed and re-run job leaves nothing.
 
 #include <functional>
 #include <string>
@@ -30,5 +34,9 @@ void writeFileAtomically(const std::string& path, std::string_view bytes);
 // Whether `name` (a file name, no directory) has the shape of writeAtomically's
 // temporary files for target `targetName` (tests, clean-up).
 bool isTemporaryFor(const std::string& name, const std::string& targetName);
+
+// Removes the temporary files of `path` left by processes that are no longer running;
+// returns how many. (writeAtomically calls it; exposed for tests and tools.)
+size_t removeStaleTemporaries(const std::string& path);
 
 }  // namespace prt

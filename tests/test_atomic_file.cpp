@@ -128,3 +128,19 @@ TEST_F(AtomicFileTest, OutputPathsAreCheckedUpFront) {
     // The error names the file.
     EXPECT_EQ(errorOf([&] { prt::checkOutputPath(path("no/x")); }).rfind(path("no/x"), 0), 0u);
 }
+
+TEST_F(AtomicFileTest, LeftoversOfDeadProcessesAreRemovedOthersKept) {
+    const std::string p = path("out.prt");
+    // A pid that cannot be running (above the kernel's pid_max of 2^22).
+    const std::string dead = "out.tmp999999999-0.prt";
+    const std::string mine = "out.tmp" + std::to_string(::getpid()) + "-77.prt";  // in flight here
+    const std::string alive = "out.tmp1-0.prt";                                   // init is running
+    const std::string other = "other.tmp999999999-0.prt";                         // another target's
+    for (const std::string& n : {dead, mine, alive, other}) std::ofstream(path(n)) << "x";
+    prt::writeFileAtomically(p, "new");
+    EXPECT_EQ(read(p), "new");
+    std::vector<std::string> expected = {alive, other, mine, "out.prt"};
+    std::sort(expected.begin(), expected.end());
+    EXPECT_EQ(entries(), expected);
+    EXPECT_EQ(prt::removeStaleTemporaries(p), 0u);
+}
