@@ -664,4 +664,82 @@ ReferenceFrame sumReferenceFrames(const std::vector<const ReferenceFrame*>& part
     return out;
 }
 
+// ---------------------------------------------------------------------------
+// The reference's own sample set
+// ---------------------------------------------------------------------------
+
+double referenceSampleSpacing(const Material& m, double fraction) {
+    validateMaterial(m);
+    if (!(fraction > 0.0 && fraction <= 10.0)) throw Error("spacing fraction", "must be in (0, 10]");
+    double widest = 0.0;  // max over channels of sigma_t' + sigma_tr (1 / the narrowest width)
+    for (int c = 0; c < 3; ++c) widest = std::max(widest, m.sigmaTPrime()[c] + m.sigmaTr()[c]);
+    return fraction / widest;
+}
+
+uint64_t referenceSampleSeed(uint64_t precomputeSeed, int level, std::optional<uint64_t> userSeed) {
+    // SplitMix64 finaliser of (base + level): distinct, well-mixed seeds per level.
+    uint64_t z = (userSeed ? *userSeed : kReferenceSampleSeed) + 0x9e3779b97f4a7c15ull * uint64_t(level + 1);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    z ^= z >> 31;
+    if (level == 0 && userSeed) z = *userSeed;  // the user's seed as given for the render itself
+    if (z == precomputeSeed) z = z + 0x632be59bd9b4e019ull;
+    return z;
+}
+
+size_t referenceIrradianceDirections(size_t samples) {
+    const double d = std::ceil(kReferenceRayBudget / double(std::max<size_t>(samples, 1)));
+    return size_t(std::clamp(d, 64.0, 2048.0));
+}
+
+ReferenceSamplePlan planReferenceSamples(const Material& m, double totalAreaMm2, uint64_t precomputeSeed,
+                                         size_t maxSamples, double fraction, std::optional<uint64_t> userSeed) {
+    ReferenceSamplePlan plan;
+    plan.spacingMm = referenceSampleSpacing(m, fraction);
+    const size_t wanted = defaultSampleCount(totalAreaMm2, plan.spacingMm, std::numeric_limits<size_t>::max());
+    plan.count = std::min(wanted, maxSamples);
+    plan.capped = plan.count < wanted;
+    plan.cappedSpacingMm =
+        plan.capped ? std::sqrt(2.0 * totalAreaMm2 / (std::sqrt(3.0) * double(plan.count))) : plan.spacingMm;
+    plan.seed = referenceSampleSeed(precomputeSeed, 0, userSeed);
+    return plan;
+}
+
+DiscretisationEstimate estimateDiscretisationError(const ReferenceFrame& full, const ReferenceFrame& half) {
+    const Image &a = full.image, &b = half.image;
+    if (a.width != b.width || a.height != b.height || a.channels != 4 || b.channels != 4 ||
+        full.standardError.width != a.width || half.standardError.width != b.width)
+        throw Error("reference", "convergence frames differ in size");
+    DiscretisationEstimate e;
+    double diff = 0, ref = 0, var = 0;
+    for (int y = 0; y < a.height; ++y)
+        for (int x = 0; x < a.width; ++x) {
+            if (b.at(x, y, 3) < 0.5f) continue;
+            if (a.at(x, y, 3) < 0.5f) throw Error("reference", "convergence pixel is not an object pixel");
+            ++e.pixels;
+            for (int c = 0; c < 3; ++c) {
+                const double va = a.at(x, y, c), vb = b.at(x, y, c);
+                const double sa = full.standardError.at(x, y, c), sb = half.standardError.at(x, y, c);
+                diff += (va - vb) * (va - vb);
+                ref += va * va;
+                var += sa * sa + sb * sb;
+            }
+        }
+    if (e.pixels == 0 || !(ref > 0)) return e;
+    e.difference = std::sqrt(diff / ref);
+    e.noiseFloor = std::sqrt(var / ref);
+    e.halfError = std::sqrt(std::max(0.0, diff - var) / ref);
+    e.estimatedError = e.halfError / std::sqrt(1.0 + std::pow(2.0, 2.0 * kDiscretisationRate));
+    return e;
+}
+
+GBuffer subsampleObjectPixels(const GBuffer& g, size_t stride) {
+    if (stride < 1) throw Error("reference", "pixel stride must be at least 1");
+    GBuffer out = g;
+    size_t k = 0;
+    for (GBufferPixel& p : out.pixels)
+        if (p.hit && (k++ % stride) != 0) p.hit = false;
+    return out;
+}
+
 }  // namespace prt

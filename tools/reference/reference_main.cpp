@@ -81,6 +81,11 @@ struct Options {
     std::string material;
     std::optional<size_t> samples;
     std::optional<uint64_t> seed;
+    bool sameSamples = false;
+    double spacingFraction = kReferenceSpacingFraction;
+    size_t maxSamples = kDefaultSampleCap;
+    size_t envSamples = 0;  // 0: from the ray budget (or 2048 with --same-samples)
+    size_t convergenceStride = 4;
     IrradianceEstimatorOptions irradiance;
     std::string components;  // empty: ms, plus ss when the file has it
     SingleScatteringReferenceOptions ss;
@@ -99,7 +104,9 @@ int run(const Options& o) {
     if (!std::isfinite(o.exposure)) throw Error("--exposure", "must be finite");
     const std::string output = outputPrefix(o.output);
     if (output.empty()) throw Error("--output", "empty prefix");
-    if (o.irradiance.directions < 1) throw Error("--env-samples", "must be at least 1");
+    if (!(o.spacingFraction > 0 && o.spacingFraction <= 10))
+        throw Error("--spacing-fraction", "must be in (0, 10]");
+    if (o.maxSamples < 1) throw Error("--max-samples", "must be at least 1");
     if (!(o.irradiance.environmentFraction >= 0 && o.irradiance.environmentFraction <= 1))
         throw Error("--env-fraction", "must be in [0, 1]");
 
@@ -181,21 +188,111 @@ int run(const Options& o) {
     std::vector<std::string> partNames;
 
     if (components.multipleScattering) {
-        // Samples, exactly as prt-precompute placed them (same mesh, count and seed).
-        const size_t sampleCount =
-            o.samples ? *o.samples : size_t(require(params.samples, o.transport, "samples", "--samples"));
-        const uint64_t seed =
-            o.seed ? *o.seed : require(params.seed, o.transport, "seed", "--seed");
-        if (sampleCount < 1) throw Error("--samples", "must be at least 1");
-        SampleSet samples;
-        {
-            Progress p("samples", sampleCount, "samples");
-            samples = poissonDiskSamples(mesh, sampleCount, seed);
-            p.advance(sampleCount);
+        // The sample set. By default the reference's own (docs/reference.md, reference.h):
+        // spacing from the convergence rule, its own seed, never the precomputation's;
+        // --same-samples reproduces the precomputation's set to isolate the transport error.
+        const std::optional<uint64_t> fileSeed = params.seed;
+        const std::optional<uint64_t> fileSamples = params.samples;
+        if (o.seed && fileSeed && *o.seed == *fileSeed && !o.sameSamples)
+            throw Error("--seed", "is the transport file's placement seed (" + std::to_string(*fileSeed) +
+                                      "): the reference would share the precomputation's sample set; give "
+                                      "--same-samples to do that deliberately");
+        const double totalArea = prt::totalArea(mesh);
+        size_t sampleCount = 0;
+        uint64_t seed = 0;
+        std::string sampleRule;
+        if (o.sameSamples) {
+            sampleCount = o.samples ? *o.samples : size_t(require(fileSamples, o.transport, "samples", "--samples"));
+            seed = o.seed ? *o.seed : require(fileSeed, o.transport, "seed", "--seed");
+            sampleRule = "SAME SAMPLES as the precomputation (--same-samples): this reference measures the transport "
+                         "error only (cubemap, wavelets, hierarchy, truncation, interpolation), NOT the error of the "
+                         "sample sum";
+        } else {
+            const ReferenceSamplePlan plan = planReferenceSamples(material, totalArea, fileSeed.value_or(1),
+                                                                  o.maxSamples, o.spacingFraction, o.seed);
+            sampleCount = o.samples ? *o.samples : plan.count;
+            seed = plan.seed;
+            char buf[512];
+            if (o.samples)
+                std::snprintf(buf, sizeof buf, "independent samples: --samples %zu, own seed", sampleCount);
+            else
+                std::snprintf(buf, sizeof buf,
+                              "independent samples: spacing %.4g mm = %.3g x 1/max_c(sigma_t' + sigma_tr) (the "
+                              "convergence rule), own seed",
+                              plan.spacingMm, o.spacingFraction);
+            sampleRule = buf;
+            if (plan.capped && !o.samples)
+                warn("the convergence rule asks for " +
+                     std::to_string(defaultSampleCount(totalArea, plan.spacingMm, size_t(-1))) +
+                     " samples (spacing " + formatParameter(plan.spacingMm) + " mm); capped at --max-samples " +
+                     std::to_string(o.maxSamples) + " (spacing " + formatParameter(plan.cappedSpacingMm) +
+                     " mm): the sample sum is less converged, see the discretisation estimate below");
+            if (fileSamples && fileSeed && sampleCount == *fileSamples && seed == *fileSeed)
+                throw Error("reference", "internal: the default sample set equals the precomputation's");
         }
+        if (sampleCount < 1) throw Error("--samples", "must be at least 1");
+        IrradianceEstimatorOptions irradianceOptions = o.irradiance;
+        if (o.envSamples == 0)
+            irradianceOptions.directions = o.sameSamples ? 2048 : referenceIrradianceDirections(sampleCount);
+        else
+            irradianceOptions.directions = o.envSamples;
+        if (irradianceOptions.directions < 1) throw Error("--env-samples", "must be at least 1");
+        std::printf("samples: %s\n", sampleRule.c_str());
+        std::printf("  planned: %zu samples x %zu object pixels = %.3g point-sample pairs%s\n", sampleCount,
+                    gbuffer.objectPixels(), double(sampleCount) * double(gbuffer.objectPixels()),
+                    o.convergenceStride ? " (+ the convergence run)" : "");
+        std::fflush(stdout);
+
+        // One multiple-scattering render from `count` samples placed with `placementSeed`.
+        struct MsRun {
+            ReferenceFrame frame;
+            SampleSet samples;
+            uint64_t rays = 0;
+            double irradianceSeconds = 0, sampleRelativeError = 0, vertexSeconds = 0;
+        };
+        auto renderMs = [&](size_t count, uint64_t placementSeed, const GBuffer& pixels, bool perVertex,
+                            const std::string& label) {
+            MsRun run;
+            {
+                Progress p(label + "samples", count, "samples");
+                run.samples = poissonDiskSamples(mesh, count, placementSeed);
+                p.advance(count);
+            }
+            SampleIrradiance irradiance;
+            {
+                Progress p(label + "irradiance (" + std::to_string(irradianceOptions.directions) +
+                               " directions per sample)",
+                           run.samples.samples.size(), "samples");
+                irradiance = computeSampleIrradiance(sampler, &scene, run.samples, material.eta, irradianceOptions, &p);
+            }
+            run.rays = irradiance.rays;
+            run.irradianceSeconds = irradiance.seconds;
+            run.sampleRelativeError = irradiance.medianRelativeStandardError;
+            std::vector<glm::vec3> positions;
+            positions.reserve(run.samples.samples.size());
+            for (const SurfaceSample& s : run.samples.samples) positions.push_back(s.position);
+            MultipleScatteringReference ms(material, std::move(positions), run.samples.areaPerSample,
+                                           std::move(irradiance));
+            if (perVertex) {
+                const Stopwatch t0;
+                Progress p(label + "multiple scattering at vertices", mesh.vertexCount(), "vertices");
+                ms.evaluateAtVertices(mesh, &p);
+                run.vertexSeconds = t0.seconds();
+            }
+            Progress p(label + (perVertex ? "multiple scattering (interpolated)" : "multiple scattering per pixel"),
+                       pixels.objectPixels(), "pixels");
+            run.frame = renderReference(pixels, {&ms}, environment, rotation, &p);
+            return run;
+        };
+
+        const MsRun main = renderMs(sampleCount, seed, gbuffer, o.perVertex, "");
+        parts.push_back(main.frame);
+        partNames.push_back("ms");
+        const ReferenceFrame& frame = main.frame;
+        const SampleSet& samples = main.samples;
 
         // Cross-check: with the file's count and seed the samples must be the file's.
-        if (!o.samples && !o.seed && params.sampleAreaMm2) {
+        if (o.sameSamples && !o.samples && !o.seed && params.sampleAreaMm2) {
             const double fileArea = *params.sampleAreaMm2;
             if (!(std::abs(fileArea - samples.areaPerSample) <= 1e-6 * fileArea))
                 warn("sample area " + std::to_string(samples.areaPerSample) +
@@ -203,55 +300,45 @@ int run(const Options& o) {
                      " mm^2: the samples are not the ones it was computed from");
         }
 
-        // Irradiance per sample from the full-resolution map.
-        SampleIrradiance irradiance;
-        {
-            Progress p("irradiance (" + std::to_string(o.irradiance.directions) + " directions per sample)",
-                       samples.samples.size(), "samples");
-            irradiance = computeSampleIrradiance(sampler, &scene, samples, material.eta, o.irradiance, &p);
-        }
-        const uint64_t occlusionRays = irradiance.rays;
-        const double irradianceSeconds = irradiance.seconds;
-        const double sampleRelativeError = irradiance.medianRelativeStandardError;
-
-        std::vector<glm::vec3> positions;
-        positions.reserve(samples.samples.size());
-        for (const SurfaceSample& s : samples.samples) positions.push_back(s.position);
-        MultipleScatteringReference ms(material, std::move(positions), samples.areaPerSample, std::move(irradiance));
-
-        double vertexSeconds = 0;
-        if (o.perVertex) {
-            const Stopwatch t0;
-            Progress p("multiple scattering at vertices", mesh.vertexCount(), "vertices");
-            ms.evaluateAtVertices(mesh, &p);
-            vertexSeconds = t0.seconds();
-        }
-        {
-            Progress p(o.perVertex ? "multiple scattering (interpolated)" : "multiple scattering per pixel",
-                       gbuffer.objectPixels(), "pixels");
-            parts.push_back(renderReference(gbuffer, {&ms}, environment, rotation, &p));
-            partNames.push_back("ms");
-        }
-        const ReferenceFrame& frame = parts.back();
-
-        const size_t nEnv = size_t(std::llround(o.irradiance.environmentFraction * double(o.irradiance.directions)));
-        std::printf("samples: %zu (seed %llu), A_i = %.4g mm^2 (total %.4g mm^2), min spacing %.4g mm\n",
-                    samples.samples.size(), (unsigned long long)seed, samples.areaPerSample, samples.totalArea,
-                    samples.minSpacing);
+        const size_t nEnv =
+            size_t(std::llround(irradianceOptions.environmentFraction * double(irradianceOptions.directions)));
+        std::printf("samples: %zu (seed %llu%s), A_i = %.4g mm^2 (total %.4g mm^2), spacing %.4g mm, min spacing "
+                    "%.4g mm\n",
+                    samples.samples.size(), (unsigned long long)seed,
+                    o.sameSamples ? ", the precomputation's" : ", the reference's own", samples.areaPerSample,
+                    samples.totalArea, std::sqrt(2.0 * samples.areaPerSample / std::sqrt(3.0)), samples.minSpacing);
         std::printf("irradiance: %zu directions per sample (%zu environment + %zu cosine, MIS balance heuristic, "
                     "Monte Carlo seed %llu), %llu occlusion rays in %.1f s (%.3g rays/s)\n",
-                    o.irradiance.directions, nEnv, o.irradiance.directions - nEnv,
-                    (unsigned long long)o.irradiance.seed, (unsigned long long)occlusionRays, irradianceSeconds,
-                    irradianceSeconds > 0 ? occlusionRays / irradianceSeconds : 0.0);
+                    irradianceOptions.directions, nEnv, irradianceOptions.directions - nEnv,
+                    (unsigned long long)irradianceOptions.seed, (unsigned long long)main.rays,
+                    main.irradianceSeconds, main.irradianceSeconds > 0 ? main.rays / main.irradianceSeconds : 0.0);
         std::printf("  median relative standard error of one sample's irradiance: %.3g%%\n",
-                    100 * sampleRelativeError);
+                    100 * main.sampleRelativeError);
         const double pairs =
             double(o.perVertex ? mesh.vertexCount() : frame.objectPixels) * double(samples.samples.size());
         std::printf("multiple scattering: %s, %.3g point-sample pairs in %.1f s\n",
                     o.perVertex ? "per vertex, interpolated" : "per pixel", pairs,
-                    o.perVertex ? vertexSeconds + frame.seconds : frame.seconds);
+                    o.perVertex ? main.vertexSeconds + frame.seconds : frame.seconds);
         printNoise("multiple scattering", frame);
         std::fflush(stdout);
+
+        // Convergence: the same render from an independent set of half as many samples
+        // (its own seed) over every k-th object pixel; their difference, less the noise,
+        // estimates the quadrature error that remains (reference.h).
+        if (o.convergenceStride > 0 && o.perVertex) {
+            std::printf("  discretisation: no estimate in --per-vertex mode\n");
+        } else if (o.convergenceStride > 0 && sampleCount >= 2) {
+            const GBuffer subset = subsampleObjectPixels(gbuffer, o.convergenceStride);
+            const uint64_t halfSeed = referenceSampleSeed(fileSeed.value_or(seed), 1, seed);
+            const MsRun half = renderMs(sampleCount / 2, halfSeed, subset, false, "convergence: ");
+            const DiscretisationEstimate d = estimateDiscretisationError(frame, half.frame);
+            std::printf("  discretisation (sample sum): estimated remaining error %.3g%% relative RMSE (from %zu "
+                        "samples, seed %llu, over %zu pixels: they differ by %.3g%%, noise floor %.3g%%, so %.3g%% "
+                        "of quadrature error, divided by sqrt(1 + 2^%.2g))\n",
+                        100 * d.estimatedError, half.samples.samples.size(), (unsigned long long)halfSeed, d.pixels,
+                        100 * d.difference, 100 * d.noiseFloor, 100 * d.halfError, 2 * kDiscretisationRate);
+            std::fflush(stdout);
+        }
     }
 
     if (components.singleScattering) {
@@ -302,8 +389,9 @@ int main(int argc, char** argv) {
         CLI::App app{
             "prt-reference: brute-force reference frames of a translucent object. Multiple scattering:\n"
             "per-sample irradiance from the full-resolution environment (Monte Carlo, Embree visibility),\n"
-            "dipole summed over all samples per pixel. Single scattering (--components ss): Monte Carlo\n"
-            "along the refracted view ray with the exact Henyey-Greenstein phase (Wang Eq. 4 + Eq. 5).\n"
+            "dipole summed over all samples per pixel, from the reference's own denser sample set\n"
+            "(--same-samples: the precomputation's, which isolates the transport error). Single\n"
+            "scattering (--components ss): Monte Carlo along the refracted view ray with the exact Henyey-Greenstein phase (Wang Eq. 4 + Eq. 5).\n"
             "Same placement, camera and outputs as prt-relight render; compare with prt-compare.\n"
             "Example:\n"
             "  prt-reference bunny.off -t bunny.prt -e sunset.exr -o out/bunny_ref\n"
@@ -332,12 +420,30 @@ int main(int argc, char** argv) {
         app.add_option("--material", o.material,
                        "Use this measured material instead of the transport file's (experiments only)")
             ->group("Reference");
-        app.add_option("--samples", o.samples, "Surface samples (default: the transport file's 'samples')")
+        app.add_flag("--same-samples", o.sameSamples,
+                     "Use the precomputation's sample set (the file's count and seed): isolates the transport "
+                     "error (cubemap, wavelets, hierarchy, truncation) and hides the sample-sum error")
             ->group("Reference");
-        app.add_option("--seed", o.seed, "Seed of the sample placement (default: the transport file's 'seed')")
+        app.add_option("--samples", o.samples,
+                       "Surface samples (default: from the convergence rule; with --same-samples the file's)")
             ->group("Reference");
-        app.add_option("--env-samples", o.irradiance.directions, "Monte Carlo directions per sample")
+        app.add_option("--seed", o.seed,
+                       "Seed of the sample placement (default: the reference's own; the file's seed is refused "
+                       "without --same-samples)")
+            ->group("Reference");
+        app.add_option("--spacing-fraction", o.spacingFraction,
+                       "Convergence rule: sample spacing = this x 1/max_c(sigma_t' + sigma_tr)")
             ->capture_default_str()->group("Reference");
+        app.add_option("--max-samples", o.maxSamples, "Budget: at most this many samples (a warning says so)")
+            ->capture_default_str()->group("Reference");
+        app.add_option("--convergence-stride", o.convergenceStride,
+                       "Convergence estimate: render every k-th object pixel again from half as many samples "
+                       "(0: off)")
+            ->capture_default_str()->group("Reference");
+        app.add_option("--env-samples", o.envSamples,
+                       "Monte Carlo directions per sample (default: 16.8 M rays / samples, in [64, 2048]; 2048 "
+                       "with --same-samples)")
+            ->group("Reference");
         app.add_option("--env-fraction", o.irradiance.environmentFraction,
                        "Share of the directions drawn from the environment's luminance (the rest cosine-weighted)")
             ->capture_default_str()->group("Reference");
