@@ -1,13 +1,17 @@
 // prt-pointlight: offline frames of a translucent object under point and directional
-// lights with the Jensen-Buhler hierarchical renderer (docs/point-lights.md; issue 14,
-// the baseline of Keng et al. 2006). Mesh + material + physical size + lights in,
-// linear EXR + sRGB PNG out, with the time of every stage.
+// lights (docs/point-lights.md; issue 14): the translucent irradiance cache of Keng et
+// al. 2006 (--method cache, the default; irradiance_cache.h), the Jensen-Buhler
+// hierarchical renderer it accelerates (--method jb) or the brute-force sum (--method
+// brute). Mesh + material + physical size + lights in, linear EXR + sRGB PNG out, with
+// the time of every stage.
 //
 // Placement: like prt-precompute, the mesh is scaled about the origin by --size-mm
 // (bounding-box diagonal, default 30 mm) or --mm-per-unit; lights are given in mm in
 // that scaled frame (the bounding box is printed to help placing them).
 
 #include <CLI/CLI.hpp>
+
+#include <algorithm>
 
 #include <chrono>
 #include <cmath>
@@ -29,6 +33,8 @@
 #include "common/raytrace.h"
 #include "relight/render.h"
 #include "common/sampling.h"
+#include "common/util.h"
+#include "relight/irradiance_cache.h"
 #include "relight/jensen_buhler.h"
 #include "relight/point_lights.h"
 
@@ -55,6 +61,11 @@ struct Options {
     std::string fresnel = "exact";
     double exposure = 0.0;
     bool compareBrute = false;
+    std::string method = "cache";
+    double a = IrradianceCacheOptions{}.a;
+    double radius = 0.0;
+    std::string splitDisk = "paper";
+    bool compareJb = false, cacheImage = false;
     int threads = 0;
     CameraOptions camera;
 };
@@ -77,6 +88,69 @@ std::string rgb(const glm::dvec3& v) {
     return buf;
 }
 
+// The paper's RMS (Keng section 4, Table 1): over hit pixels, the RMS of the mean of
+// R, G, B of the DISPLAYED image, i.e. writePng's tone mapping without its 8-bit
+// rounding: x 2^exposure, clamped to [0, 1], sRGB-encoded.
+double displayRms(const Image& test, const Image& reference, double exposure) {
+    const float scale = float(std::exp2(exposure));
+    auto display = [&](float v) { return linearToSrgb(std::clamp(std::isfinite(v) ? v * scale : 0.0f, 0.0f, 1.0f)); };
+    double sum = 0.0;
+    size_t n = 0;
+    for (int y = 0; y < reference.height; ++y)
+        for (int x = 0; x < reference.width; ++x) {
+            if (!(reference.at(x, y, 3) > 0.5f)) continue;
+            double d = 0.0;
+            for (int c = 0; c < 3; ++c) d += display(test.at(x, y, c)) - display(reference.at(x, y, c));
+            sum += (d / 3.0) * (d / 3.0);
+            ++n;
+        }
+    return n ? std::sqrt(sum / double(n)) : 0.0;
+}
+
+// Keng Figs. 8-9: the cache positions (red dots over the frame), the interpolated
+// gradient of S (world |x|, |y|, |z| of the channel-mean gradient as R, G, B; brightness
+// = magnitude / its 99th percentile) and the split-disk spread V (gray, / its 99th
+// percentile).
+void writeCacheImages(const std::string& output, const Image& frame, const GBuffer& g, const IrradianceCache& cache,
+                      const CacheVisuals& visuals, double exposure) {
+    const float scale = float(std::exp2(exposure));
+    Image dots(g.width, g.height, 3, 0.0f);
+    for (int y = 0; y < g.height; ++y)
+        for (int x = 0; x < g.width; ++x)
+            for (int c = 0; c < 3; ++c) dots.at(x, y, c) = 0.6f * frame.at(x, y, c) * scale;
+    for (const CacheRecord& r : cache.caches()) {
+        const int cx = int(r.pixel % uint32_t(g.width)), cy = int(r.pixel / uint32_t(g.width));
+        for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+                const int x = cx + dx, y = cy + dy;
+                if (x < 0 || y < 0 || x >= g.width || y >= g.height || std::abs(dx) + std::abs(dy) > 1) continue;
+                dots.at(x, y, 0) = 1.0f;
+                dots.at(x, y, 1) = 0.0f;
+                dots.at(x, y, 2) = 0.0f;
+            }
+    }
+    writePng(output + "_caches.png", dots);
+    auto percentile99 = [](std::vector<float> v) {
+        v.erase(std::remove_if(v.begin(), v.end(), [](float x) { return !(x > 0.0f); }), v.end());
+        if (v.empty()) return 1.0f;
+        std::nth_element(v.begin(), v.begin() + ptrdiff_t(0.99 * double(v.size() - 1)), v.end());
+        return v[size_t(0.99 * double(v.size() - 1))];
+    };
+    std::vector<float> magnitude(visuals.gradient.size());
+    for (size_t i = 0; i < magnitude.size(); ++i) magnitude[i] = glm::length(visuals.gradient[i]);
+    const float gScale = percentile99(magnitude), vScale = percentile99(visuals.spread);
+    Image grad(g.width, g.height, 3, 0.0f), spread(g.width, g.height, 1, 0.0f);
+    for (size_t i = 0; i < magnitude.size(); ++i) {
+        const glm::vec3 v = glm::abs(visuals.gradient[i]) / gScale;
+        grad.pixels[3 * i] = v.x;
+        grad.pixels[3 * i + 1] = v.y;
+        grad.pixels[3 * i + 2] = v.z;
+        spread.pixels[i] = visuals.spread[i] / vScale;
+    }
+    writePng(output + "_gradient.png", grad);
+    writePng(output + "_variance.png", spread);
+}
+
 int run(const Options& o) {
     const Clock::time_point start = Clock::now();
     const ThreadLimit limit(o.threads);
@@ -84,6 +158,12 @@ int run(const Options& o) {
     if (o.leafSize < 1) throw Error("--leaf-size", "must be at least 1");
     if (!std::isfinite(o.exposure)) throw Error("--exposure", "must be finite");
     const FresnelModel fresnel = parseFresnelModel(o.fresnel);
+    const std::string method = toLower(o.method);
+    if (method != "cache" && method != "jb" && method != "brute")
+        throw Error("--method", "must be cache, jb or brute, got '" + o.method + "'");
+    const SplitDiskModel splitDisk = parseSplitDiskModel(o.splitDisk);
+    validateCacheOptions({.a = o.a, .radius = o.radius, .epsilon = o.epsilon});
+    if (o.cacheImage && method != "cache") throw Error("--cache-image", "needs --method cache");
     const SampleSource source = parseSampleSource(o.samples);
     if (o.sampleCount && source != SampleSource::PoissonDisk)
         throw Error("--sample-count", "applies to --samples poisson only (faces: one sample per face)");
@@ -138,7 +218,7 @@ int run(const Options& o) {
     std::printf("samples: %zu (%s), %.4g mm^2 in all; octree %zu nodes, %zu leaves, depth %d\n", samples.size(),
                 toString(source), samples.totalArea(), tree.nodes().size(), tree.leafCount(), tree.depth());
 
-    // Primary rays, then the hierarchical sum per pixel.
+    // Primary rays, then the frame by the chosen method.
     glm::dvec3 centre(box.centre());
     double radius = 0.0;
     for (const glm::vec3& p : mesh.positions) radius = std::max(radius, glm::length(glm::dvec3(p) - centre));
@@ -146,37 +226,84 @@ int run(const Options& o) {
     t = Clock::now();
     const GBuffer g = traceGBuffer(scene, mesh, camera);
     const double tGBuffer = secondsSince(t);
-    const JensenBuhler jb(material, std::move(tree), {.epsilon = o.epsilon, .fresnel = fresnel});
-    t = Clock::now();
-    JensenBuhlerStats stats;
-    const Image image = jb.render(g, &stats);
-    const double tRender = secondsSince(t);
 
     const std::filesystem::path parent = std::filesystem::path(output).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);
+
+    // The Jensen-Buhler frame (the image of --method jb/brute, the reference of
+    // --compare-jb); the times exclude irradiance sampling and the octree, as Keng's T_1.
+    auto renderJb = [&](double epsilon, double& seconds, JensenBuhlerStats& stats) {
+        const JensenBuhler jb(material, IrradianceOctree(samples, OctreeOptions{.leafSize = o.leafSize}),
+                              {.epsilon = epsilon, .fresnel = fresnel});
+        const Clock::time_point t0 = Clock::now();
+        Image image = jb.render(g, &stats);
+        seconds = secondsSince(t0);
+        return image;
+    };
+
+    Image image;
+    double tRender = 0.0;
+    if (method == "cache") {
+        IrradianceCache cache(material, std::move(tree),
+                              {.a = o.a, .radius = o.radius, .epsilon = o.epsilon, .fresnel = fresnel,
+                               .splitDisk = splitDisk});
+        IrradianceCacheStats cs;
+        CacheVisuals visuals;
+        t = Clock::now();
+        image = cache.render(g, &cs, o.cacheImage ? &visuals : nullptr);
+        tRender = secondsSince(t);
+        std::printf("irradiance cache: a %g, R %.4g mm (split disk %s), epsilon %g, S_ref %.4g W/m^2; %zu caches / "
+                    "%zu hit pixels = %.2f%% (%zu shaded), %.1f terms per cache walk, %.2f valid caches per pixel\n",
+                    o.a, cs.radius, toString(splitDisk), o.epsilon, cs.sRef, cs.caches, cs.hitPixels,
+                    100.0 * cs.ratio(), cs.shadedPixels, cs.caches ? double(cs.walkTerms) / double(cs.caches) : 0.0,
+                    cs.meanValidCaches);
+        std::printf("cache times: pass 2 %.3f s (serial scan %.3f s, S and gradient in parallel tasks), pass 3 %.3f s; "
+                    "T_cache %.3f s\n",
+                    cs.pass2Seconds, cs.scanSeconds, cs.pass3Seconds, tRender);
+        if (o.cacheImage) writeCacheImages(output, image, g, cache, visuals, o.exposure);
+    } else {
+        JensenBuhlerStats stats;
+        image = renderJb(method == "brute" ? 0.0 : o.epsilon, tRender, stats);
+        std::printf("%s: epsilon %g, %zu object pixels, %.1f terms per pixel (of %zu samples)\n",
+                    method == "brute" ? "brute force" : "Jensen-Buhler", method == "brute" ? 0.0 : o.epsilon,
+                    stats.pixels, stats.meanTerms(), samples.size());
+    }
+
     t = Clock::now();
     writeExr(output + ".exr", image);
     writePng(output + ".png", image, o.exposure);
     const double tWrite = secondsSince(t);
 
-    std::printf("frame: %d x %d, %zu object pixels, epsilon %g, %.1f terms per pixel (of %zu samples)\n", g.width,
-                g.height, stats.pixels, o.epsilon, stats.meanTerms(), samples.size());
-    std::printf("times: load %.3f s, Embree scene %.3f s, sample placement %.3f s, irradiance %.3f s, octree %.3f s, "
-                "G-buffer %.3f s, Jensen-Buhler %.3f s, write %.3f s\n",
-                tLoad, tScene, tPlace, tIrradiance, tTree, tGBuffer, tRender, tWrite);
+    std::printf("frame: %d x %d, %zu hit pixels, %zu samples\n", g.width, g.height, g.objectPixels(), samples.size());
+    std::printf("times: load %.3f s, Embree scene %.3f s, sample placement %.3f s, irradiance sampling %.3f s, "
+                "octree %.3f s, G-buffer %.3f s, %s %.3f s, write %.3f s\n",
+                tLoad, tScene, tPlace, tIrradiance, tTree, tGBuffer, method.c_str(), tRender, tWrite);
 
+    if (o.compareJb && method != "jb") {
+        double tJb = 0.0;
+        JensenBuhlerStats stats;
+        const Image reference = renderJb(o.epsilon, tJb, stats);
+        writeExr(output + "_jb.exr", reference);
+        writePng(output + "_jb.png", reference, o.exposure);
+        const CompareResult r = compareImages(image, reference);
+        writePng(output + "_error.png", heatmapImage(relativeErrorImage(image, reference, r),
+                                                     heatmapScale(relativeErrorImage(image, reference, r))));
+        std::printf("Jensen-Buhler (epsilon %g): T_JB %.3f s, speedup %.2fx; RMS (paper: hit pixels, mean of R G B of "
+                    "the displayed 0..1 image, writePng's tone mapping) %.5f; relative RMSE (linear) %.4g, mean ratio "
+                    "%.5f\n",
+                    o.epsilon, tJb, tJb / std::max(tRender, 1e-9), displayRms(image, reference, o.exposure),
+                    r.overall.relativeRmse, r.overall.meanRatio);
+    }
     if (o.compareBrute) {
-        const JensenBuhler brute(material, IrradianceOctree(samples, OctreeOptions{.leafSize = o.leafSize}),
-                                 {.epsilon = 0.0, .fresnel = fresnel});
-        t = Clock::now();
-        const Image reference = brute.render(g);
-        const double tBrute = secondsSince(t);
+        double tBrute = 0.0;
+        JensenBuhlerStats stats;
+        const Image reference = renderJb(0.0, tBrute, stats);
         writeExr(output + "_brute.exr", reference);
         const CompareResult r = compareImages(image, reference);
-        std::printf("brute force (epsilon 0): %.3f s, %.1fx the Jensen-Buhler time; Jensen-Buhler vs brute: relative "
-                    "RMSE %.3g, max relative error %.3g, mean ratio %.6f\n",
-                    tBrute, tBrute / std::max(tRender, 1e-9), r.overall.relativeRmse, r.overall.maxRelative,
-                    r.overall.meanRatio);
+        std::printf("brute force (epsilon 0): %.3f s, %.1fx the %s time; %s vs brute: relative RMSE %.3g, max relative "
+                    "error %.3g, mean ratio %.6f, RMS (paper) %.5f\n",
+                    tBrute, tBrute / std::max(tRender, 1e-9), method.c_str(), method.c_str(), r.overall.relativeRmse,
+                    r.overall.maxRelative, r.overall.meanRatio, displayRms(image, reference, o.exposure));
     }
     std::printf("wrote %s.exr and %s.png in %s\n", output.c_str(), output.c_str(),
                 formatDuration(secondsSince(start)).c_str());
@@ -234,6 +361,28 @@ int main(int argc, char** argv) {
         app.add_flag("--compare-brute", o.compareBrute,
                      "Also render the brute-force sum (epsilon 0, slow) to <prefix>_brute.exr and report time and error")
             ->group("Jensen-Buhler");
+        app.add_option("--method", o.method,
+                       "cache (Keng et al. 2006 translucent irradiance cache), jb (Jensen-Buhler at every pixel) "
+                       "or brute (the sum over all samples)")
+            ->capture_default_str()->group("Irradiance cache");
+        app.add_option("--a", o.a,
+                       "Cache error bound a (> 0): a cache is valid where its Eq. 11 error is below a S_ref "
+                       "(S_ref = exitance of the brightest sample irradiance); smaller = more caches")
+            ->capture_default_str()->group("Irradiance cache");
+        app.add_option("--radius", o.radius,
+                       "Split-disk radius R in mm (0 = the material's default: half of int R_d dA within R)")
+            ->capture_default_str()->group("Irradiance cache");
+        app.add_option("--split-disk", o.splitDisk,
+                       "dS/du bound of the split disk: paper (Keng's four-sector formula) or exact (half-bright disk)")
+            ->capture_default_str()->group("Irradiance cache");
+        app.add_flag("--compare-jb", o.compareJb,
+                     "Also render Jensen-Buhler (same epsilon) to <prefix>_jb.exr/png, <prefix>_error.png; print "
+                     "T_JB, speedup, the paper's RMS and the relative RMSE")
+            ->group("Irradiance cache");
+        app.add_flag("--cache-image", o.cacheImage,
+                     "Write <prefix>_caches.png (cache positions over the frame), <prefix>_gradient.png and "
+                     "<prefix>_variance.png (Keng Figs. 8-9)")
+            ->group("Irradiance cache");
         app.add_option("--exposure", o.exposure, "PNG exposure in stops (the EXR is unscaled)")->capture_default_str();
         addThreadsOption(app, o.threads);
         addCameraOptions(app, o.camera);
