@@ -54,7 +54,7 @@ double splitDiskGradientFactor(const DipoleChannel& d, double radius, SplitDiskM
 
 double defaultSplitDiskRadius(const Material& m) {
     double r = 0.0;
-    for (int c = 0; c < 3; ++c) r = std::max(r, dipoleRadiusForFraction(makeDipoleChannel(m, c), 0.5));
+    for (int c = 0; c < 3; ++c) r = std::max(r, dipoleRadiusForFraction(makeDipoleChannel(m, c), 0.2));
     return r;
 }
 
