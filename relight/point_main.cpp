@@ -386,11 +386,7 @@ int main(int argc, char** argv) {
         app.add_option("--exposure", o.exposure, "PNG exposure in stops (the EXR is unscaled)")->capture_default_str();
         addThreadsOption(app, o.threads);
         addCameraOptions(app, o.camera);
-        try {
-            app.parse(argc, argv);
-        } catch (const CLI::ParseError& e) {
-            return app.exit(e) == 0 ? 0 : 1;
-        }
+        if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-pointlight")) return *exitCode;
         return run(o);
     });
 }
