@@ -15,15 +15,12 @@
 
 #include "common/bssrdf.h"
 #include "common/error.h"
+#include "common/util.h"
 
 namespace prt {
 
 namespace {
 
-std::string lower(std::string s) {
-    for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return s;
-}
 
 std::string trim(const std::string& s) {
     size_t a = 0, b = s.size();
@@ -153,7 +150,7 @@ Light parseLight(const std::string& text) {
     if (fields.size() != 3)
         throw Error(subject, "expected TYPE:X,Y,Z:R,G,B (TYPE point or dir), got " + std::to_string(fields.size()) +
                                  " ':'-separated fields");
-    const std::string type = lower(trim(fields[0]));
+    const std::string type = toLower(trim(fields[0]));
     if (type == "point") {
         const glm::dvec3 p = vectorFrom(parseNumbers(fields[1], subject, "position"), subject, "position");
         const glm::dvec3 c = colourFrom(parseNumbers(fields[2], subject, "intensity"), subject, "intensity");
@@ -204,7 +201,7 @@ std::vector<Light> parseLightScene(const std::string& jsonText, const std::strin
         const nlohmann::json& l = list[i];
         if (!l.is_object()) throw Error(where, "must be an object");
         if (!l.contains("type") || !l["type"].is_string()) throw Error(where, "needs \"type\": \"point\" or \"directional\"");
-        const std::string type = lower(l["type"].get<std::string>());
+        const std::string type = toLower(l["type"].get<std::string>());
         const bool point = type == "point";
         const bool directional = type == "directional" || type == "dir";
         if (!point && !directional)
@@ -274,7 +271,7 @@ void checkLightsOutside(const RayScene& scene, const std::vector<Light>& lights)
 const char* toString(FresnelModel model) { return model == FresnelModel::Exact ? "exact" : "keng"; }
 
 FresnelModel parseFresnelModel(const std::string& text) {
-    const std::string t = lower(trim(text));
+    const std::string t = toLower(trim(text));
     if (t == "exact") return FresnelModel::Exact;
     if (t == "keng") return FresnelModel::Keng;
     throw Error("--fresnel", "unknown model '" + text + "' (valid: exact, keng)");
@@ -397,7 +394,7 @@ const char* toString(SampleSource source) {
 }
 
 SampleSource parseSampleSource(const std::string& text) {
-    const std::string t = lower(trim(text));
+    const std::string t = toLower(trim(text));
     if (t == "faces") return SampleSource::FaceCentroids;
     if (t == "poisson") return SampleSource::PoissonDisk;
     throw Error("--samples", "unknown sample source '" + text + "' (valid: faces, poisson)");

@@ -42,9 +42,7 @@ using namespace prt;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 
-double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 struct Options {
     std::string mesh, output, lightsFile;
@@ -152,7 +150,7 @@ void writeCacheImages(const std::string& output, const Image& frame, const GBuff
 }
 
 int run(const Options& o) {
-    const Clock::time_point start = Clock::now();
+    const Stopwatch start;
     const ThreadLimit limit(o.threads);
     validateEpsilon(o.epsilon);
     if (o.leafSize < 1) throw Error("--leaf-size", "must be at least 1");
@@ -179,14 +177,14 @@ int run(const Options& o) {
     if (lights.empty()) throw Error("--light", "no light: give --light (repeatable) and/or --lights scene.json");
 
     // Mesh, placed in mm.
-    Clock::time_point t = Clock::now();
+    Stopwatch t;
     TriangleMesh mesh = loadMesh(o.mesh);
     MeshScale scale;
     if (o.mmPerUnit) scale.mmPerUnit = o.mmPerUnit;
     else scale.sizeMm = o.sizeMm.value_or(30.0);
     const double factor = scaleToPhysical(mesh, scale);
     const Bounds box = bounds(mesh);
-    const double tLoad = secondsSince(t);
+    const double tLoad = t.seconds();
     std::printf("mesh: %s, %zu vertices, %zu triangles, x %.4g mm per unit; box (%.4g, %.4g, %.4g) .. (%.4g, %.4g, %.4g) mm\n",
                 o.mesh.c_str(), mesh.vertexCount(), mesh.triangleCount(), factor, box.lo.x, box.lo.y, box.lo.z,
                 box.hi.x, box.hi.y, box.hi.z);
@@ -194,13 +192,13 @@ int run(const Options& o) {
                 rgb(material.sigmaSPrime).c_str(), rgb(material.sigmaA).c_str(), material.eta, toString(fresnel));
     for (const Light& l : lights) std::printf("light: %s\n", describe(l).c_str());
 
-    t = Clock::now();
+    t.restart();
     const RayScene scene(mesh);
-    const double tScene = secondsSince(t);
+    const double tScene = t.seconds();
     checkLightsOutside(scene, lights);
 
     // Pass 1: irradiance samples.
-    t = Clock::now();
+    t.restart();
     IrradianceSamples samples;
     if (source == SampleSource::FaceCentroids) {
         samples = faceCentroidSamples(mesh);
@@ -208,13 +206,13 @@ int run(const Options& o) {
         const size_t n = o.sampleCount.value_or(defaultSampleCount(totalArea(mesh), material.minMeanFreePath()));
         samples = samplesFromSampleSet(poissonDiskSamples(mesh, n, o.seed));
     }
-    const double tPlace = secondsSince(t);
-    t = Clock::now();
+    const double tPlace = t.seconds();
+    t.restart();
     computeIrradiance(samples, scene, lights, material.eta, fresnel);
-    const double tIrradiance = secondsSince(t);
-    t = Clock::now();
+    const double tIrradiance = t.seconds();
+    t.restart();
     IrradianceOctree tree(samples, OctreeOptions{.leafSize = o.leafSize});
-    const double tTree = secondsSince(t);
+    const double tTree = t.seconds();
     std::printf("samples: %zu (%s), %.4g mm^2 in all; octree %zu nodes, %zu leaves, depth %d\n", samples.size(),
                 toString(source), samples.totalArea(), tree.nodes().size(), tree.leafCount(), tree.depth());
 
@@ -223,9 +221,9 @@ int run(const Options& o) {
     double radius = 0.0;
     for (const glm::vec3& p : mesh.positions) radius = std::max(radius, glm::length(glm::dvec3(p) - centre));
     const Camera camera = makeCamera(o.camera, centre, radius);
-    t = Clock::now();
+    t.restart();
     const GBuffer g = traceGBuffer(scene, mesh, camera);
-    const double tGBuffer = secondsSince(t);
+    const double tGBuffer = t.seconds();
 
     const std::filesystem::path parent = std::filesystem::path(output).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);
@@ -235,9 +233,9 @@ int run(const Options& o) {
     auto renderJb = [&](double epsilon, double& seconds, JensenBuhlerStats& stats) {
         const JensenBuhler jb(material, IrradianceOctree(samples, OctreeOptions{.leafSize = o.leafSize}),
                               {.epsilon = epsilon, .fresnel = fresnel});
-        const Clock::time_point t0 = Clock::now();
+        const Stopwatch t0;
         Image image = jb.render(g, &stats);
-        seconds = secondsSince(t0);
+        seconds = t0.seconds();
         return image;
     };
 
@@ -249,9 +247,9 @@ int run(const Options& o) {
                                .splitDisk = splitDisk});
         IrradianceCacheStats cs;
         CacheVisuals visuals;
-        t = Clock::now();
+        t.restart();
         image = cache.render(g, &cs, o.cacheImage ? &visuals : nullptr);
-        tRender = secondsSince(t);
+        tRender = t.seconds();
         std::printf("irradiance cache: a %g, R %.4g mm (split disk %s), epsilon %g, S_ref %.4g W/m^2; %zu caches / "
                     "%zu hit pixels = %.2f%% (%zu shaded), %.1f terms per cache walk, %.2f valid caches per pixel\n",
                     o.a, cs.radius, toString(splitDisk), o.epsilon, cs.sRef, cs.caches, cs.hitPixels,
@@ -269,10 +267,10 @@ int run(const Options& o) {
                     stats.pixels, stats.meanTerms(), samples.size());
     }
 
-    t = Clock::now();
+    t.restart();
     writeExr(output + ".exr", image);
     writePng(output + ".png", image, o.exposure);
-    const double tWrite = secondsSince(t);
+    const double tWrite = t.seconds();
 
     std::printf("frame: %d x %d, %zu hit pixels, %zu samples\n", g.width, g.height, g.objectPixels(), samples.size());
     std::printf("times: load %.3f s, Embree scene %.3f s, sample placement %.3f s, irradiance sampling %.3f s, "
@@ -306,7 +304,7 @@ int run(const Options& o) {
                     r.overall.maxRelative, r.overall.meanRatio, displayRms(image, reference, o.exposure));
     }
     std::printf("wrote %s.exr and %s.png in %s\n", output.c_str(), output.c_str(),
-                formatDuration(secondsSince(start)).c_str());
+                formatDuration(start.seconds()).c_str());
     return 0;
 }
 

@@ -65,6 +65,7 @@
 #include "relight/relight_worker.h"
 #include "relight/shaders/shaders.h"
 #include "common/progress.h"
+#include "common/util.h"
 
 #ifndef PRT_SOURCE_DIR
 #define PRT_SOURCE_DIR "."
@@ -90,9 +91,7 @@ double wrapDegrees(double d) {
 }
 
 std::string lowerExtension(const fs::path& p) {
-    std::string e = p.extension().string();
-    for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return e;
+    return toLower(p.extension().string());
 }
 
 // ---------------------------------------------------------------------------

@@ -20,7 +20,7 @@ timed() {
 step "installing packages";  timed "$root/tools/setup.sh"
 step "building";             timed "$root/tools/build.sh"
 step "fetching data";        timed "$root/tools/fetch-data.sh"
-mkdir -p "$out"
+mkdir -p "$out" "$out/compare"
 
 step "precomputing the bunny (30 mm, Marble, 6x32x32, 128 coefficients)"
 timed "$bin/precompute/prt-precompute" "$mesh" --size-mm 30 --material Marble \
@@ -30,12 +30,17 @@ for env in "${envs[@]}"; do
     step "rendering under $env"
     timed "$bin/relight/prt-relight" render "$mesh" -t "$out/bunny_marble.prt" \
         -e "$root/data/envmaps/$env.exr" -o "$out/bunny_$env"
-    step "brute-force reference under $env"
+    # The error a user sees: a 256 x 256 frame against prt-reference's independent
+    # brute force (its own 250K samples and seed; docs/reference.md). The reference
+    # takes a few minutes per environment on 2 cores.
+    step "brute-force reference under $env (256 x 256, independent samples)"
+    timed "$bin/relight/prt-relight" render "$mesh" -t "$out/bunny_marble.prt" \
+        -e "$root/data/envmaps/$env.exr" -W 256 -H 256 -o "$out/compare/bunny_$env"
     timed "$bin/tools/prt-reference" "$mesh" -t "$out/bunny_marble.prt" \
-        -e "$root/data/envmaps/$env.exr" -o "$out/bunny_${env}_reference"
+        -e "$root/data/envmaps/$env.exr" -W 256 -H 256 -o "$out/compare/bunny_${env}_reference"
     step "error of the precomputed render against the reference ($env)"
-    "$bin/tools/prt-compare" "$out/bunny_$env.exr" "$out/bunny_${env}_reference.exr" \
-        --heatmap "$out/bunny_${env}_error.png"
+    "$bin/tools/prt-compare" "$out/compare/bunny_$env.exr" "$out/compare/bunny_${env}_reference.exr" \
+        --heatmap "$out/compare/bunny_${env}_error.png"
 done
 
 step "turntable under forest (12 frames)"
@@ -46,6 +51,7 @@ timed "$bin/relight/prt-relight" render "$mesh" -t "$out/bunny_marble.prt" \
 echo
 echo "demo: done in $(( $(date +%s) - t_start )) s. Frames are in $out:"
 for env in "${envs[@]}"; do
-    echo "  $out/bunny_$env.png (precomputed), $out/bunny_${env}_reference.png (reference), $out/bunny_${env}_error.png (error)"
+    echo "  $out/bunny_$env.png (precomputed, 512 x 512)"
+    echo "  $out/compare/bunny_$env.png, bunny_${env}_reference.png, bunny_${env}_error.png (256 x 256 against the reference)"
 done
 echo "  $out/turntable/bunny_0000.png ... bunny_0011.png"
