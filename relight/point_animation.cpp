@@ -130,6 +130,7 @@ std::vector<Light> animationLights(const PointAnimation& a, const std::vector<Li
     const double t = a.frames > 1 ? double(frame) / double(a.frames - 1) : 0.0;
     // (1 - t) P0 + t P1: exactly P0 at t = 0 and exactly P1 at t = 1.
     out.front().position = (1.0 - t) * a.from + t * a.to;
+    out.front().source = "--light-path (frame " + std::to_string(frame) + ", light 1)";
     return out;
 }
 
