@@ -480,7 +480,7 @@ int main(int argc, char** argv) {
                        "(S_ref = exitance of the brightest sample irradiance); smaller = more caches")
             ->capture_default_str()->group("Irradiance cache");
         app.add_option("--radius", o.radius,
-                       "Split-disk radius R in mm (0 = the material's default: half of int R_d dA within R)")
+                       "Split-disk radius R in mm (0 = the material's default: the radius collecting a fifth of int R_d dA, widest channel)")
             ->capture_default_str()->group("Irradiance cache");
         app.add_option("--split-disk", o.splitDisk,
                        "dS/du bound of the split disk: paper (Keng's four-sector formula) or exact (half-bright disk)")
