@@ -68,6 +68,47 @@ Camera makeCamera(const CameraOptions& o, const glm::dvec3& sphereCentre, double
     return c;
 }
 
+void addMaterialOptions(CLI::App& app, MaterialOptions& o, bool withG, const std::string& group) {
+    app.add_option("-m,--material", o.material,
+                   "Measured material (Jensen et al. 2001): Apple Chicken1 Chicken2 Cream Ketchup Marble "
+                   "Potato Skimmilk Skin1 Skin2 Spectralon Wholemilk")
+        ->capture_default_str()->group(group);
+    app.add_option("--sigma-a", o.sigmaA, "Custom absorption R,G,B in mm^-1 (with --sigma-s-prime)")
+        ->expected(3)->delimiter(',')->allow_extra_args(false)->group(group);
+    app.add_option("--sigma-s-prime", o.sigmaSPrime, "Custom reduced scattering R,G,B in mm^-1")
+        ->expected(3)->delimiter(',')->allow_extra_args(false)->group(group);
+    app.add_option("--eta", o.eta, "Relative index of refraction (default 1.3)")->group(group);
+    if (withG) app.add_option("--g", o.g, "Henyey-Greenstein asymmetry (> 0 forward; default 0)")->group(group);
+}
+
+Material makeMaterial(const MaterialOptions& o) {
+    if (o.sigmaA.empty() != o.sigmaSPrime.empty())
+        throw Error("--sigma-a", "a custom material needs both --sigma-a and --sigma-s-prime");
+    if (!o.sigmaA.empty())
+        return customMaterial({o.sigmaSPrime[0], o.sigmaSPrime[1], o.sigmaSPrime[2]},
+                              {o.sigmaA[0], o.sigmaA[1], o.sigmaA[2]}, o.eta.value_or(1.3), o.g.value_or(0.0));
+    Material m = materialByName(o.material);
+    if (o.eta) m.eta = *o.eta;
+    if (o.g) m.g = *o.g;
+    validateMaterial(m);
+    return m;
+}
+
+void addScaleOptions(CLI::App& app, ScaleOptions& o, const std::string& group) {
+    app.add_option("--size-mm", o.sizeMm, "Scale the mesh so its bounding-box diagonal is this many mm (default 30)")
+        ->group(group);
+    app.add_option("--mm-per-unit", o.mmPerUnit, "Millimetres per mesh-file unit (instead of --size-mm)")
+        ->group(group);
+}
+
+MeshScale makeScale(const ScaleOptions& o) {
+    if (o.sizeMm && o.mmPerUnit) throw Error("--size-mm", "give either --size-mm or --mm-per-unit, not both");
+    MeshScale scale;
+    if (o.mmPerUnit) scale.mmPerUnit = o.mmPerUnit;
+    else scale.sizeMm = o.sizeMm.value_or(30.0);
+    return scale;
+}
+
 std::optional<int> parseCommandLine(CLI::App& app, int argc, char** argv, const std::string& program) {
     try {
         app.parse(argc, argv);

@@ -4,6 +4,7 @@
 // - the camera (prt-relight render and view, prt-reference; docs/relight.md, "Camera"):
 //   lengths in mm, in the object's space after scaling; angles in degrees;
 // - -j/--threads (every tool with a parallel stage);
+// - the object: its material and physical scale (prt-precompute, prt-pointlight);
 // and the one way every tool parses its command line (parseCommandLine).
 
 #include <CLI/CLI.hpp>
@@ -16,6 +17,8 @@
 #include <vector>
 
 #include "common/camera.h"
+#include "common/materials.h"
+#include "common/mesh.h"
 
 namespace prt {
 
@@ -34,6 +37,25 @@ void addCameraOptions(CLI::App& app, CameraOptions& o);
 // from --azimuth/--elevation so it fills --fill of the smaller image side. Throws
 // prt::Error naming the option for non-finite or out-of-range values.
 Camera makeCamera(const CameraOptions& o, const glm::dvec3& sphereCentre, double sphereRadius);
+
+// The material: -m/--material (a measured one, default Marble) or --sigma-a with
+// --sigma-s-prime (custom, mm^-1), --eta and, with `withG`, --g.
+struct MaterialOptions {
+    std::string material = "Marble";
+    std::vector<double> sigmaA, sigmaSPrime;
+    std::optional<double> eta, g;
+};
+void addMaterialOptions(CLI::App& app, MaterialOptions& o, bool withG, const std::string& group = "Object");
+// The validated material; throws prt::Error naming the option.
+Material makeMaterial(const MaterialOptions& o);
+
+// The physical size: --size-mm (bounding-box diagonal, default 30) or --mm-per-unit.
+struct ScaleOptions {
+    std::optional<double> sizeMm, mmPerUnit;
+};
+void addScaleOptions(CLI::App& app, ScaleOptions& o, const std::string& group = "Object");
+// Throws prt::Error when both are given.
+MeshScale makeScale(const ScaleOptions& o);
 
 // Parses the command line. --help / --help-all print the help and give exit code 0;
 // any other usage error (unknown option, missing or malformed value, missing

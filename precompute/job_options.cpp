@@ -27,19 +27,8 @@ std::string argumentText(const nlohmann::json& v, const std::string& where) {
 void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     app.add_option("mesh", raw.mesh, "Mesh file (.obj .ply .off .stl, optionally .gz)");
     app.add_option("-o,--output", raw.output, "Transport file to write (written atomically)");
-    app.add_option("--size-mm", raw.sizeMm, "Scale the mesh so its bounding-box diagonal is this many mm");
-    app.add_option("--mm-per-unit", raw.mmPerUnit, "Millimetres per mesh-file unit (instead of --size-mm)");
-    app.add_option("-m,--material", raw.material,
-                   "Measured material (Jensen et al. 2001): Apple Chicken1 Chicken2 Cream Ketchup Marble "
-                   "Potato Skimmilk Skin1 Skin2 Spectralon Wholemilk")
-        ->capture_default_str();
-    app.add_option("--sigma-a", raw.sigmaA, "Custom absorption R G B in mm^-1 (with --sigma-s-prime)")
-        ->expected(3)->delimiter(',')->allow_extra_args(false);
-    app.add_option("--sigma-s-prime", raw.sigmaSPrime, "Custom reduced scattering R G B in mm^-1")
-        ->expected(3)->delimiter(',')->allow_extra_args(false);
-    app.add_option_function<double>("--eta", [&](double v) { raw.eta = v; raw.etaSet = true; },
-                                    "Relative index of refraction (default 1.3)");
-    app.add_option("--g", raw.g, "Henyey-Greenstein asymmetry (> 0 forward)")->capture_default_str();
+    addScaleOptions(app, raw.scale, "Object");
+    addMaterialOptions(app, raw.material, /*withG=*/true, "Object");
     app.add_option("--cubemap-size", s.cubemapSize, "Lighting cubemap face size N (power of two, <= 64)")
         ->capture_default_str();
     app.add_option("--supersample", s.supersample, "s x s stratified directions per texel in pass 1")
@@ -78,21 +67,8 @@ PrecomputeSettings settingsFromOptions(const JobOptions& raw, PrecomputeSettings
     s.meshPath = raw.mesh;
     s.outputPath = raw.output;
     s.components = parseScatteringComponents(raw.components);
-    if (raw.sizeMm && raw.mmPerUnit)
-        throw Error("--size-mm", "give either --size-mm or --mm-per-unit, not both");
-    if (raw.mmPerUnit) s.scale.mmPerUnit = raw.mmPerUnit;
-    else s.scale.sizeMm = raw.sizeMm.value_or(30.0);
-    if (raw.sigmaA.empty() != raw.sigmaSPrime.empty())
-        throw Error("--sigma-a", "a custom material needs both --sigma-a and --sigma-s-prime");
-    if (!raw.sigmaA.empty()) {
-        s.material = customMaterial({raw.sigmaSPrime[0], raw.sigmaSPrime[1], raw.sigmaSPrime[2]},
-                                    {raw.sigmaA[0], raw.sigmaA[1], raw.sigmaA[2]}, raw.eta, raw.g);
-    } else {
-        s.material = materialByName(raw.material);
-        if (raw.etaSet) s.material.eta = raw.eta;
-        s.material.g = raw.g;
-        validateMaterial(s.material);
-    }
+    s.scale = makeScale(raw.scale);
+    s.material = makeMaterial(raw.material);
     return s;
 }
 

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "common/options.h"
 #include "precompute/pipeline.h"
 
 namespace prt {
@@ -19,11 +20,9 @@ namespace prt {
 // What the options give before they become PrecomputeSettings (material by name or
 // custom coefficients, one of two scales, components as text).
 struct JobOptions {
-    std::string mesh, output, material = "Marble";
-    std::optional<double> sizeMm, mmPerUnit;
-    std::vector<double> sigmaA, sigmaSPrime;
-    double eta = 1.3, g = 0.0;
-    bool etaSet = false;
+    std::string mesh, output;
+    ScaleOptions scale;
+    MaterialOptions material;
     std::string components = "ms";
 };
 

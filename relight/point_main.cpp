@@ -55,10 +55,8 @@ namespace {
 struct Options {
     std::string mesh, output, lightsFile;
     std::vector<std::string> lights;
-    std::optional<double> sizeMm, mmPerUnit;
-    std::string material = "Marble";
-    std::vector<double> sigmaA, sigmaSPrime;
-    std::optional<double> eta;
+    ScaleOptions scale;
+    MaterialOptions material;
     std::string samples = "faces";
     std::optional<size_t> sampleCount;
     uint64_t seed = 1;
@@ -77,18 +75,6 @@ struct Options {
     int turntable = 0, frames = 0;
     std::string lightPath;
 };
-
-Material makeMaterial(const Options& o) {
-    if (o.sigmaA.empty() != o.sigmaSPrime.empty())
-        throw Error("--sigma-a", "a custom material needs both --sigma-a and --sigma-s-prime");
-    if (!o.sigmaA.empty())
-        return customMaterial({o.sigmaSPrime[0], o.sigmaSPrime[1], o.sigmaSPrime[2]},
-                              {o.sigmaA[0], o.sigmaA[1], o.sigmaA[2]}, o.eta.value_or(1.3));
-    Material m = materialByName(o.material);
-    if (o.eta) m.eta = *o.eta;
-    validateMaterial(m);
-    return m;
-}
 
 std::string rgb(const glm::dvec3& v) {
     char buf[96];
@@ -253,10 +239,10 @@ int run(const Options& o) {
     if (o.sampleCount && source != SampleSource::PoissonDisk)
         throw Error("--sample-count", "applies to --samples poisson only (faces: one sample per face)");
     if (o.sampleCount && *o.sampleCount == 0) throw Error("--sample-count", "must be at least 1");
-    const Material material = makeMaterial(o);
+    const Material material = makeMaterial(o.material);
     const std::string output = outputPrefix(o.output);
     if (output.empty()) throw Error("--output", "empty prefix");
-    if (o.sizeMm && o.mmPerUnit) throw Error("--size-mm", "give either --size-mm or --mm-per-unit, not both");
+    const MeshScale scale = makeScale(o.scale);
 
     // Animation mode.
     PointAnimation animation;
@@ -288,9 +274,6 @@ int run(const Options& o) {
     // Mesh, placed in mm.
     Stopwatch t;
     TriangleMesh mesh = loadMesh(o.mesh);
-    MeshScale scale;
-    if (o.mmPerUnit) scale.mmPerUnit = o.mmPerUnit;
-    else scale.sizeMm = o.sizeMm.value_or(30.0);
     const double factor = scaleToPhysical(mesh, scale);
     const Bounds box = bounds(mesh);
     const double tLoad = t.seconds();
@@ -441,19 +424,8 @@ int main(int argc, char** argv) {
             ->group("Lights");
         app.add_option("--lights", o.lightsFile, "JSON scene file with a \"lights\" list (docs/point-lights.md)")
             ->group("Lights");
-        app.add_option("--size-mm", o.sizeMm, "Scale the mesh so its bounding-box diagonal is this many mm (default 30)")
-            ->group("Object");
-        app.add_option("--mm-per-unit", o.mmPerUnit, "Millimetres per mesh-file unit (instead of --size-mm)")
-            ->group("Object");
-        app.add_option("-m,--material", o.material,
-                       "Measured material (Jensen et al. 2001): Apple Chicken1 Chicken2 Cream Ketchup Marble "
-                       "Potato Skimmilk Skin1 Skin2 Spectralon Wholemilk")
-            ->capture_default_str()->group("Object");
-        app.add_option("--sigma-a", o.sigmaA, "Custom absorption R,G,B in mm^-1 (with --sigma-s-prime)")
-            ->expected(3)->delimiter(',')->allow_extra_args(false)->group("Object");
-        app.add_option("--sigma-s-prime", o.sigmaSPrime, "Custom reduced scattering R,G,B in mm^-1")
-            ->expected(3)->delimiter(',')->allow_extra_args(false)->group("Object");
-        app.add_option("--eta", o.eta, "Relative index of refraction (default 1.3)")->group("Object");
+        addScaleOptions(app, o.scale);
+        addMaterialOptions(app, o.material, /*withG=*/false);
         app.add_option("--samples", o.samples,
                        "Irradiance samples: faces (one per face at its centroid with the face area, Keng's choice) "
                        "or poisson (the precompute's Poisson-disk samples)")
