@@ -657,7 +657,8 @@ TriangleMesh loadMesh(const std::string& path, MeshReport* report) {
         std::optional<TempFile> temp;
         std::string readPath = path;
         if (compressed) {
-            temp.emplace(path, fs::temp_directory_path(), "prt-mesh-", "." + formatName(format));
+            temp.emplace(path, fs::temp_directory_path(), "prt-mesh-" + std::to_string(long(::getpid())) + "-",
+                         "." + formatName(format));
             std::FILE* out = std::fopen(temp->path().c_str(), "wb");
             bool written = out != nullptr;
             if (out) {

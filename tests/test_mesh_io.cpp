@@ -57,10 +57,12 @@ protected:
         return p;
     }
     // Number of files left in the system temp dir by loadMesh (must stay zero).
+    // This process's decompression temporaries (other test processes run in parallel).
     static size_t leftoverTempFiles() {
+        const std::string prefix = "prt-mesh-" + std::to_string(long(::getpid())) + "-";
         size_t n = 0;
         for (const auto& e : fs::directory_iterator(fs::temp_directory_path()))
-            if (e.path().filename().string().rfind("prt-mesh-", 0) == 0) ++n;
+            if (e.path().filename().string().rfind(prefix, 0) == 0) ++n;
         return n;
     }
 
