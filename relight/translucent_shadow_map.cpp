@@ -1,0 +1,264 @@
+#include "relight/translucent_shadow_map.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "common/error.h"
+#include "common/util.h"
+
+namespace prt {
+
+namespace {
+
+constexpr double kMaxConeDegrees = 140.0;
+
+// Two unit vectors completing w to a right-handed orthonormal frame.
+void orthonormalBasis(const glm::dvec3& w, glm::dvec3& a, glm::dvec3& b) {
+    const glm::dvec3 helper = std::abs(w.y) < 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
+    a = glm::normalize(glm::cross(helper, w));
+    b = glm::cross(w, a);
+}
+
+}  // namespace
+
+LocalFilter makeLocalFilter(RadialTable kernel, int rings, int ringSamples) {
+    if (rings < 1) throw Error("--rings", "must be at least 1, got " + std::to_string(rings));
+    if (ringSamples < 1) throw Error("--ring-samples", "must be at least 1, got " + std::to_string(ringSamples));
+    LocalFilter f;
+    f.rings = rings;
+    f.ringSamples = ringSamples;
+    // Cumulative planar importance of the kernel (mean of R, G, B) and of each channel
+    // on a fine grid in t = sqrt(r / rMax) (trapezoids in r).
+    const double rMax = kernel.rMax();
+    const int steps = 20000;
+    std::vector<double> r(steps + 1), cum(steps + 1, 0.0);
+    std::vector<glm::dvec3> cumC(steps + 1, glm::dvec3(0.0));
+    glm::dvec3 prev(0.0);
+    for (int i = 0; i <= steps; ++i) {
+        const double t = double(i) / steps;
+        r[i] = std::min(rMax * t * t, rMax * (1.0 - 1e-9));
+        const glm::dvec3 g = glm::dvec3(kernel(float(r[i] * r[i]))) * (2.0 * kPi * r[i]);
+        if (i > 0) {
+            cumC[i] = cumC[i - 1] + 0.5 * (g + prev) * (r[i] - r[i - 1]);
+            cum[i] = (cumC[i].x + cumC[i].y + cumC[i].z) / 3.0;
+        }
+        prev = g;
+    }
+    f.kernel = std::move(kernel);
+    f.radius.assign(size_t(rings), 0.0);
+    f.area.assign(size_t(rings), glm::dvec3(0.0));
+    const double total = cum.back();
+    if (!(total > 0.0)) return f;
+    auto inverse = [&](double value) {  // smallest r with cum(r) >= value, linear between nodes
+        const auto it = std::lower_bound(cum.begin(), cum.end(), value);
+        if (it == cum.begin()) return 0.0;
+        if (it == cum.end()) return r.back();
+        const size_t i = size_t(it - cum.begin());
+        const double span = cum[i] - cum[i - 1];
+        const double w = span > 0.0 ? (value - cum[i - 1]) / span : 0.0;
+        return r[i - 1] + w * (r[i] - r[i - 1]);
+    };
+    auto channelIntegral = [&](double value) {  // per-channel int_0^r K 2 pi r dr at r = inverse(value)
+        const auto it = std::lower_bound(cum.begin(), cum.end(), value);
+        if (it == cum.begin()) return glm::dvec3(0.0);
+        if (it == cum.end()) return cumC.back();
+        const size_t i = size_t(it - cum.begin());
+        const double span = cum[i] - cum[i - 1];
+        const double w = span > 0.0 ? (value - cum[i - 1]) / span : 0.0;
+        return cumC[i - 1] + w * (cumC[i] - cumC[i - 1]);
+    };
+    // Importance weights (Mertens et al.): a tap at radius rho stands for its share of
+    // the annulus integral of K divided by K(rho), per channel, so that a lit plane
+    // facing the light is filtered exactly whatever L and C.
+    auto effectiveArea = [&](const glm::dvec3& integral, double rho, int taps) {
+        const glm::dvec3 k(f.kernel(float(rho * rho)));
+        glm::dvec3 a(0.0);
+        for (int c = 0; c < 3; ++c) a[c] = k[c] > 0.0 ? integral[c] / (double(taps) * k[c]) : 0.0;
+        return a;
+    };
+    const double held = 0.999 * total;
+    f.rhoMax = inverse(held);
+    const int parts = rings + 1;
+    auto edgeValue = [&](int k) { return held * double(k) / parts; };
+    f.centreArea = effectiveArea(channelIntegral(edgeValue(1)), 0.0, 1);
+    for (int l = 0; l < rings; ++l) {
+        const glm::dvec3 integral = channelIntegral(edgeValue(l + 2)) - channelIntegral(edgeValue(l + 1));
+        f.radius[size_t(l)] = inverse(held * (double(l + 1) + 0.5) / parts);
+        f.area[size_t(l)] = effectiveArea(integral, f.radius[size_t(l)], ringSamples);
+    }
+    return f;
+}
+
+TranslucentShadowMap::TranslucentShadowMap(const RayScene& scene, const TriangleMesh& mesh, const Light& light,
+                                           const BoundingSphere& sphere, double eta, FresnelModel fresnel,
+                                           int resolution)
+    : light_(light), resolution_(resolution) {
+    if (resolution < 16 || resolution > 8192)
+        throw Error("--light-map", "resolution must be from 16 to 8192, got " + std::to_string(resolution));
+    const double radius = std::max(sphere.radius, 1e-9) * 1.02;
+    if (light.type == LightType::Point) {
+        const glm::dvec3 toCentre = sphere.centre - light.position;
+        const double d = glm::length(toCentre);
+        const double half = d > radius ? std::asin(radius / d) : kPi;
+        if (2.0 * half * 180.0 / kPi > kMaxConeDegrees)
+            throw Error(light.source.empty() ? "light" : light.source,
+                        "the point light is too close to the object for a translucent shadow map (the bounding "
+                        "sphere spans " + (d > radius ? std::to_string(int(2.0 * half * 180.0 / kPi)) : std::string(">180")) +
+                        " degrees from it, at most 140): move it farther or render without the local filter "
+                        "(--split sampling)");
+        origin_ = light.position;
+        forward_ = toCentre / d;
+        halfExtent_ = std::tan(half);
+    } else {
+        forward_ = -glm::normalize(light.direction);  // the direction light travels
+        origin_ = sphere.centre - forward_ * (2.0 * radius);
+        halfExtent_ = radius;
+    }
+    orthonormalBasis(forward_, right_, up_);
+
+    const size_t n = size_t(resolution) * size_t(resolution);
+    position_.assign(n, glm::vec3(0.0f));
+    flux_.assign(n, glm::vec3(0.0f));
+    const bool haveNormals = mesh.normals.size() == mesh.positions.size();
+    std::vector<uint8_t> lit(n, 0);
+    tbb::parallel_for(0, resolution, [&](int y) {
+        for (int x = 0; x < resolution; ++x) {
+            const double a = ((x + 0.5) / resolution * 2.0 - 1.0) * halfExtent_;
+            const double b = ((y + 0.5) / resolution * 2.0 - 1.0) * halfExtent_;
+            glm::dvec3 org, dir;
+            if (light_.type == LightType::Point) {
+                org = origin_;
+                dir = glm::normalize(forward_ + a * right_ + b * up_);
+            } else {
+                org = origin_ + a * right_ + b * up_;
+                dir = forward_;
+            }
+            const Hit h = scene.intersect(glm::vec3(org), glm::vec3(dir), 0.0f, std::numeric_limits<float>::infinity());
+            if (!h.hit) continue;
+            const glm::uvec3 t = mesh.triangles[h.triangle];
+            const double u = h.u, v = h.v, w0 = 1.0 - u - v;
+            const glm::dvec3 p = w0 * glm::dvec3(mesh.positions[t.x]) + u * glm::dvec3(mesh.positions[t.y]) +
+                                 v * glm::dvec3(mesh.positions[t.z]);
+            const glm::dvec3 ng(h.geometricNormal);
+            glm::dvec3 ns = ng;
+            if (haveNormals) {
+                const glm::dvec3 s = w0 * glm::dvec3(mesh.normals[t.x]) + u * glm::dvec3(mesh.normals[t.y]) +
+                                     v * glm::dvec3(mesh.normals[t.z]);
+                const double len = glm::length(s);
+                if (len > 1e-12 && glm::dot(s, ng) > 0.0) ns = s / len;
+            }
+            const glm::dvec3 toLight = -dir;
+            const double cosS = glm::dot(ns, toLight), cosG = glm::dot(ng, toLight);
+            if (cosS <= 0.0 || cosG <= 1e-6) continue;
+            glm::dvec3 perMeasure;
+            if (light_.type == LightType::Point) {
+                // E^ r^2 / cos_g = F I cos_s 1e6 / cos_g: flux per steradian.
+                perMeasure = light_.rgb * kSquareMmPerSquareMetre * (cosS / cosG);
+            } else {
+                perMeasure = light_.rgb * (cosS / cosG);  // flux per mm^2 of beam
+            }
+            perMeasure *= incidentTransmittance(fresnel, eta, cosS);
+            const size_t i = size_t(y) * size_t(resolution) + size_t(x);
+            position_[i] = glm::vec3(p);
+            flux_[i] = glm::vec3(perMeasure);
+            lit[i] = 1;
+        }
+    });
+    for (uint8_t l : lit) litPixels_ += l;
+}
+
+bool TranslucentShadowMap::project(const glm::dvec3& q, double& px, double& py) const {
+    double a, b;
+    if (light_.type == LightType::Point) {
+        const glm::dvec3 d = q - origin_;
+        const double z = glm::dot(d, forward_);
+        if (!(z > 0.0)) return false;
+        a = glm::dot(d, right_) / z;
+        b = glm::dot(d, up_) / z;
+    } else {
+        const glm::dvec3 d = q - origin_;
+        a = glm::dot(d, right_);
+        b = glm::dot(d, up_);
+    }
+    px = (a / halfExtent_ + 1.0) * 0.5 * resolution_;
+    py = (b / halfExtent_ + 1.0) * 0.5 * resolution_;
+    return px >= 0.0 && py >= 0.0 && px < resolution_ && py < resolution_;
+}
+
+double TranslucentShadowMap::pixelMeasure(int x, int y) const {
+    const double step = 2.0 * halfExtent_ / resolution_;
+    if (light_.type == LightType::Directional) return step * step;
+    // Solid angle of a pixel of the image plane at unit distance: step^2 cos^3 of its
+    // angle off the axis (at its centre).
+    const double a = ((x + 0.5) / resolution_ * 2.0 - 1.0) * halfExtent_;
+    const double b = ((y + 0.5) / resolution_ * 2.0 - 1.0) * halfExtent_;
+    const double c = 1.0 / std::sqrt(1.0 + a * a + b * b);
+    return step * step * c * c * c;
+}
+
+glm::dvec3 TranslucentShadowMap::localExitance(const glm::dvec3& x, const LocalFilter& filter) const {
+    if (!(filter.rhoMax > 0.0)) return glm::dvec3(0.0);
+    glm::dvec3 w;  // the light's ray direction at x
+    double measureScale = 1.0;
+    if (light_.type == LightType::Point) {
+        const glm::dvec3 d = x - origin_;
+        const double d2 = glm::dot(d, d);
+        if (!(d2 > 0.0)) return glm::dvec3(0.0);
+        w = d / std::sqrt(d2);
+        measureScale = 1.0 / d2;
+    } else {
+        w = forward_;
+    }
+    glm::dvec3 e1, e2;
+    orthonormalBasis(w, e1, e2);
+    glm::dvec3 sum(0.0);
+    const glm::vec3 xf(x);
+    auto tap = [&](const glm::dvec3& q, const glm::dvec3& area) {
+        double px, py;
+        if (!project(q, px, py)) return;
+        const size_t i = size_t(int(py)) * size_t(resolution_) + size_t(int(px));
+        const glm::vec3 f = flux_[i];
+        if (f.x == 0.0f && f.y == 0.0f && f.z == 0.0f) return;
+        const glm::vec3 d = xf - position_[i];
+        sum += glm::dvec3(f * filter.kernel(glm::dot(d, d))) * area * measureScale;
+    };
+    tap(x, filter.centreArea);
+    const double step = 2.0 * kPi / filter.ringSamples;
+    for (int l = 0; l < filter.rings; ++l) {
+        const double rho = filter.radius[size_t(l)];
+        const glm::dvec3 area = filter.area[size_t(l)];
+        const double offset = (l & 1) ? 0.5 : 0.0;
+        for (int c = 0; c < filter.ringSamples; ++c) {
+            const double phi = (c + offset) * step;
+            tap(x + rho * (std::cos(phi) * e1 + std::sin(phi) * e2), area);
+        }
+    }
+    return sum;
+}
+
+glm::dvec3 TranslucentShadowMap::exitanceAllPixels(const glm::dvec3& x, const RadialTable& kernel) const {
+    glm::dvec3 sum(0.0);
+    const glm::vec3 xf(x);
+    for (int y = 0; y < resolution_; ++y)
+        for (int px = 0; px < resolution_; ++px) {
+            const size_t i = size_t(y) * size_t(resolution_) + size_t(px);
+            const glm::vec3 f = flux_[i];
+            if (f.x == 0.0f && f.y == 0.0f && f.z == 0.0f) continue;
+            const glm::vec3 d = xf - position_[i];
+            sum += glm::dvec3(f * kernel(glm::dot(d, d))) * pixelMeasure(px, y);
+        }
+    return sum;
+}
+
+glm::dvec3 TranslucentShadowMap::totalFlux() const {
+    glm::dvec3 sum(0.0);
+    for (int y = 0; y < resolution_; ++y)
+        for (int x = 0; x < resolution_; ++x)
+            sum += glm::dvec3(flux_[size_t(y) * size_t(resolution_) + size_t(x)]) * pixelMeasure(x, y);
+    return sum;
+}
+
+}  // namespace prt

@@ -1,0 +1,204 @@
+// Texture-space importance sampling and the hybrid (relight/texture_space_sampling.h,
+// relight/translucent_shadow_map.h). Physics asserted:
+//   - the estimator converges to the Jensen-Buhler epsilon = 0 sum over the SAME texel
+//     points as N grows, with error falling like 1/sqrt(N) (the map-resolution floor
+//     is then the distance between that sum and one over face centroids, reported);
+//   - a wide slab under a normal directional light reaches the closed form
+//     E F_t int R_d dA at its centre;
+//   - the translucent shadow map holds the lit surface's transmitted power (= the
+//     atlas's), and its L x C + 1 filter approximates the map's full cubature;
+//   - the hybrid with all weight global IS sampling alone, with all weight local IS
+//     the local filter alone, and hybrid = local part + global part;
+//   - determinism per seed and across thread counts.
+
+#include "relight/texture_space_sampling.h"
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "common/bssrdf.h"
+#include "common/camera.h"
+#include "common/image_compare.h"
+#include "common/shapes.h"
+#include "relight/jensen_buhler.h"
+#include "tests/test_support.h"
+
+using namespace prt;
+
+namespace {
+
+struct Scene {
+    TriangleMesh mesh;
+    RayScene scene;
+    SurfaceAtlas atlas;
+    GBuffer g;
+    explicit Scene(TriangleMesh m, int atlasSize = 256, int image = 48)
+        : mesh(std::move(m)), scene(mesh), atlas(buildSurfaceAtlas(mesh, atlasSize)) {
+        const BoundingSphere s = boundingSphere(mesh);
+        Camera cam;
+        cam.target = s.centre;
+        cam.eye = s.centre + glm::dvec3(0.3, 0.2, 1.0) * (3.2 * s.radius);
+        cam.fovY = 40.0;
+        cam.width = cam.height = image;
+        g = traceGBuffer(scene, mesh, cam);
+    }
+};
+
+// Jensen-Buhler at epsilon 0 over the given irradiance samples.
+Image jensenBuhler(const Scene& s, IrradianceSamples samples, const Material& m, const std::vector<Light>& lights) {
+    computeIrradiance(samples, s.scene, lights, m.eta, FresnelModel::Exact);
+    const JensenBuhler jb(m, IrradianceOctree(samples), {.epsilon = 0.0});
+    return jb.render(s.g);
+}
+
+double rmse(const Image& a, const Image& b) { return compareImages(a, b).overall.relativeRmse; }
+
+}  // namespace
+
+TEST(TextureSpaceSampling, ConvergesToJensenBuhlerLikeOneOverSqrtN) {
+    // A bumpy object lit from behind-left: global transport matters.
+    const Scene s(makeTorus(6.0f, 2.5f, 48, 24));
+    const Material m = materialByName("Marble");
+    const std::vector<Light> lights{pointLight({-30, 25, -20}, {1, 1, 1})};
+    const Image ref = jensenBuhler(s, s.atlas.samples, m, lights);
+    std::vector<double> errors;
+    const std::vector<int> counts{256, 1024, 4096, 16384, 65536};
+    for (int n : counts) {
+        // Each N averaged over 4 seeds (RMS) so that the slope is not one draw's luck.
+        double sum2 = 0.0;
+        for (uint64_t seed = 1; seed <= 4; ++seed) {
+            TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m,
+                                   {.mode = TextureSpaceMode::Sampling, .samples = n, .seed = seed});
+            r.setLights(lights);
+            const double e = rmse(r.render(s.g), ref);
+            sum2 += e * e;
+        }
+        errors.push_back(std::sqrt(sum2 / 4.0));
+        std::printf("N %6d: relative RMSE vs JB (same texels) %.5f\n", n, errors.back());
+    }
+    // 256x more samples: 1/sqrt(N) predicts 16x less error. The strata follow the
+    // mipmap (Morton) order, so neighbouring draws are spread over the surface and the
+    // error falls somewhat faster (measured: slope -0.73 on this scene); slower than
+    // -0.4 would mean a biased or broken estimator, faster than -1 an impossible one.
+    const double slope = std::log(errors.back() / errors.front()) / std::log(double(counts.back()) / counts.front());
+    std::printf("log-log slope %.3f (1/sqrt(N): -0.5)\n", slope);
+    EXPECT_LT(slope, -0.4);
+    EXPECT_GT(slope, -1.0);
+    for (size_t k = 1; k < errors.size(); ++k) EXPECT_LT(errors[k], errors[k - 1]);
+    EXPECT_LT(errors.back(), 0.01);
+    // The floor: the same JB sum over face centroids instead of texel points.
+    IrradianceSamples faces = faceCentroidSamples(s.mesh);
+    const double floor = rmse(jensenBuhler(s, faces, m, lights), ref);
+    std::printf("texel points vs face centroids (JB epsilon 0): %.5f\n", floor);
+    EXPECT_LT(floor, 0.05);
+}
+
+TEST(TextureSpaceSampling, SlabCentreMatchesTheClosedForm) {
+    // 60 x 60 x 20 mm slab of Marble, normal sun: at the top centre M = E F_t(1) int R_d dA
+    // (the slab is > 25 diffusion lengths wide for every channel but red; the finite
+    // width and thickness cut off well under 1%).
+    const Scene s(makeSlab(60.0f, 60.0f, 20.0f, 30), 512);
+    const Material m = materialByName("Skin1");
+    const std::vector<Light> lights{directionalLight({0, 1, 0}, {1000, 1000, 1000})};
+    TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m, {.mode = TextureSpaceMode::Sampling, .samples = 400000});
+    r.setLights(lights);
+    const glm::dvec3 got = r.exitance({0.0, 10.0, 0.0});
+    const double ft = fresnelTransmittance(m.eta, 1.0);
+    for (int c = 0; c < 3; ++c) {
+        const double expected = 1000.0 * ft * dipoleTotalDiffuseReflectance(makeDipoleChannel(m, c));
+        EXPECT_NEAR(got[c], expected, 0.02 * expected) << c;
+    }
+}
+
+TEST(TextureSpaceSampling, ShadowMapHoldsTheLitPowerAndItsFilterTheLocalPart) {
+    const Scene s(makeIcosphere(4, 8.0f), 512);
+    const Material m = materialByName("Skin1");
+    for (const Light& light : {pointLight({20, 30, 25}, {2, 2, 2}), directionalLight({1, 2, 1}, {900, 900, 900})}) {
+        const std::vector<Light> lights{light};
+        TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m, {.mode = TextureSpaceMode::Hybrid, .samples = 64});
+        r.setLights(lights);
+        ASSERT_EQ(r.shadowMaps().size(), 1u);
+        const TranslucentShadowMap& map = r.shadowMaps().front();
+        // Both the map and the atlas texels carry the lit surface's transmitted power.
+        const glm::dvec3 mapPower = map.totalFlux(), atlasPower = r.totalFlux();
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(mapPower[c], atlasPower[c], 0.01 * atlasPower[c]) << describe(light);
+        // The filter against the map's full cubature with the same kernel, at lit points,
+        // at shadowed points (both ~0 far from the light) and near the terminator.
+        const LocalFilter& f = r.localFilter();
+        double worst = 0.0, peak = 0.0;
+        for (size_t v = 0; v < s.mesh.vertexCount(); v += 97) {
+            const glm::dvec3 x(s.mesh.positions[v]);
+            const glm::dvec3 full = map.exitanceAllPixels(x, f.kernel);
+            const glm::dvec3 filtered = map.localExitance(x, f);
+            peak = std::max(peak, full.y);
+            worst = std::max(worst, std::abs(filtered.y - full.y));
+        }
+        std::printf("%s: local filter vs full map cubature: max |diff| %.4g of peak %.4g\n", describe(light).c_str(),
+                    worst, peak);
+        EXPECT_LT(worst, 0.03 * peak);
+    }
+}
+
+TEST(TextureSpaceSampling, HybridReducesToEachMethodAndIsTheSumOfItsParts) {
+    const Scene s(makeTorus(6.0f, 2.5f, 32, 16));
+    const Material m = materialByName("Skin1");
+    const std::vector<Light> lights{pointLight({-20, 25, 30}, {1, 1, 1})};
+    auto image = [&](TextureSpaceMode mode, SplitWeights w) {
+        TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m, {.mode = mode, .samples = 500, .seed = 3, .weights = w});
+        r.setLights(lights);
+        return r.render(s.g);
+    };
+    const Image sampling = image(TextureSpaceMode::Sampling, SplitWeights::Paper);
+    const Image allGlobal = image(TextureSpaceMode::Hybrid, SplitWeights::AllGlobal);
+    EXPECT_EQ(allGlobal.pixels, sampling.pixels);
+    const Image allLocal = image(TextureSpaceMode::Hybrid, SplitWeights::AllLocal);
+    const Image localAlone = image(TextureSpaceMode::Local, SplitWeights::AllLocal);
+    EXPECT_EQ(allLocal.pixels, localAlone.pixels);
+    const Image hybrid = image(TextureSpaceMode::Hybrid, SplitWeights::Paper);
+    const Image local = image(TextureSpaceMode::Local, SplitWeights::Paper);
+    const Image global = image(TextureSpaceMode::Global, SplitWeights::Paper);
+    double worst = 0.0, peak = 0.0;
+    for (size_t i = 0; i < hybrid.pixels.size(); ++i) {
+        if (i % 4 == 3) continue;  // alpha
+        worst = std::max(worst, double(std::abs(hybrid.pixels[i] - local.pixels[i] - global.pixels[i])));
+        peak = std::max(peak, double(hybrid.pixels[i]));
+    }
+    EXPECT_LT(worst, 1e-5 * peak);
+    EXPECT_GT(peak, 0.0);
+}
+
+TEST(TextureSpaceSampling, DeterministicPerSeedAndThreadCount) {
+    const Scene s(makeIcosphere(3, 6.0f));
+    const Material m = materialByName("Marble");
+    const std::vector<Light> lights{pointLight({10, 20, 30}, {1, 1, 1})};
+    auto render = [&](uint64_t seed) {
+        TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m, {.samples = 300, .seed = seed});
+        r.setLights(lights);
+        return r.render(s.g);
+    };
+    const Image a = render(5);
+    Image b;
+    {
+        tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+        b = render(5);
+    }
+    EXPECT_EQ(a.pixels, b.pixels);
+    EXPECT_NE(render(6).pixels, a.pixels);
+}
+
+TEST(TextureSpaceSampling, BadOptionsAreErrors) {
+    const Scene s(makeIcosphere(1, 6.0f), 64, 8);
+    const Material m = materialByName("Marble");
+    auto make = [&](TextureSpaceOptions o) { TextureSpaceRenderer(s.mesh, s.scene, s.atlas, m, o); };
+    test::expectErrorSubject([&] { make({.samples = 0}); }, "--tsis-samples");
+    test::expectErrorSubject([&] { make({.importanceBound = -1.0}); }, "--importance-bound");
+    test::expectErrorSubject([&] { make({.lightMapSize = 4}); }, "--light-map");
+    test::expectErrorSubject([&] { make({.rings = 0}); }, "--rings");
+    test::expectErrorSubject([] { parseTextureSpaceMode("both"); }, "--split");
+    // A point light right next to the object cannot be framed by one planar map.
+    TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m, {.mode = TextureSpaceMode::Hybrid});
+    test::expectErrorSubject([&] { r.setLights({pointLight({6.3, 0, 0}, {1, 1, 1}, "near")}); }, "near");
+}
