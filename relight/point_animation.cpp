@@ -19,6 +19,7 @@ const char* toString(PointMethod method) {
         case PointMethod::Cache: return "cache";
         case PointMethod::JensenBuhler: return "jb";
         case PointMethod::Brute: return "brute";
+        case PointMethod::TextureSpace: return "tsis";
     }
     return "?";
 }
@@ -28,7 +29,8 @@ PointMethod parsePointMethod(const std::string& text) {
     if (m == "cache") return PointMethod::Cache;
     if (m == "jb") return PointMethod::JensenBuhler;
     if (m == "brute") return PointMethod::Brute;
-    throw Error("--method", "must be cache, jb or brute, got '" + text + "'");
+    if (m == "tsis") return PointMethod::TextureSpace;
+    throw Error("--method", "must be cache, jb, brute or tsis, got '" + text + "'");
 }
 
 LitSamples lightSamples(const IrradianceSamples& placed, const RayScene& scene, const std::vector<Light>& lights,
@@ -47,6 +49,8 @@ LitSamples lightSamples(const IrradianceSamples& placed, const RayScene& scene, 
 PointFrame renderPointFrame(const IrradianceOctree& tree, const GBuffer& g, const PointRenderSettings& s,
                             bool wantVisuals) {
     PointFrame f;
+    if (s.method == PointMethod::TextureSpace)
+        throw Error("--method", "tsis renders single frames only (its animations run in prt-relight view)");
     if (s.method == PointMethod::Cache) {
         IrradianceCache cache(s.material, tree,
                               {.a = s.a, .radius = s.radius, .epsilon = s.epsilon, .fresnel = s.fresnel,

@@ -55,9 +55,12 @@
 
 namespace prt {
 
-enum class PointMethod { Cache, JensenBuhler, Brute };
-const char* toString(PointMethod method);  // "cache", "jb", "brute"
-// "cache", "jb" or "brute" (case-insensitive); prt::Error("--method", ...) otherwise.
+// TextureSpace (Chang et al. 2008) renders through TextureSpaceRenderer
+// (texture_space_sampling.h), which needs a surface atlas: prt-pointlight calls it
+// directly; renderPointFrame and the animations refuse it.
+enum class PointMethod { Cache, JensenBuhler, Brute, TextureSpace };
+const char* toString(PointMethod method);  // "cache", "jb", "brute", "tsis"
+// "cache", "jb", "brute" or "tsis" (case-insensitive); prt::Error("--method", ...) otherwise.
 PointMethod parsePointMethod(const std::string& text);
 
 struct PointRenderSettings {

@@ -408,11 +408,55 @@ void computeIrradiance(IrradianceSamples& samples, const RayScene& scene, const 
     samples.irradiance.assign(n, glm::vec3(0.0f));
     // Fail before the parallel loop, not inside it, for a bad eta.
     (void)incidentTransmittance(model, eta, 1.0);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-            const SurfacePoint x{samples.positions[i], samples.normals[i], samples.geometricNormals[i]};
-            samples.irradiance[i] = glm::vec3(directIrradiance(scene, lights, x, eta, model));
+    // directIrradiance's rays, traced in packets (occludedBatch) per block of samples:
+    // the ray toward a point light is scaled so that t = 1 is the light's distance
+    // (one tfar for the whole batch), which is the same segment.
+    constexpr size_t kBlock = 256;
+    const size_t blocks = (n + kBlock - 1) / kBlock;
+    tbb::parallel_for(size_t(0), blocks, [&](size_t b) {
+        const tbb::blocked_range<size_t> r(b * kBlock, std::min(n, (b + 1) * kBlock));
+        float ox[kBlock], oy[kBlock], oz[kBlock], dx[kBlock], dy[kBlock], dz[kBlock];
+        uint8_t occluded[kBlock];
+        size_t index[kBlock];
+        glm::dvec3 value[kBlock];
+        glm::dvec3 sum[kBlock];
+        const size_t count = r.end() - r.begin();
+        for (size_t k = 0; k < count; ++k) sum[k] = glm::dvec3(0.0);
+        for (const Light& l : lights) {
+            size_t m = 0;
+            for (size_t k = 0; k < count; ++k) {
+                const size_t i = r.begin() + k;
+                const glm::dvec3 p(samples.positions[i]), nrm(samples.normals[i]), ng(samples.geometricNormals[i]);
+                glm::dvec3 w, e;
+                double dist = 1.0;
+                if (l.type == LightType::Point) {
+                    const glm::dvec3 d = l.position - p;
+                    const double r2 = glm::dot(d, d);
+                    if (!(r2 > 0.0)) continue;
+                    dist = std::sqrt(r2);
+                    w = d / dist;
+                    e = l.rgb * (kSquareMmPerSquareMetre / r2);
+                } else {
+                    w = l.direction;
+                    e = l.rgb;
+                }
+                const double cosTheta = glm::dot(nrm, w);
+                if (cosTheta <= 0.0 || glm::dot(ng, w) <= 0.0) continue;
+                const glm::vec3 wf(w);
+                const glm::vec3 org = scene.offsetRayOrigin(samples.positions[i], samples.geometricNormals[i], wf);
+                const glm::vec3 dir = l.type == LightType::Point ? wf * float(dist) : wf;
+                ox[m] = org.x; oy[m] = org.y; oz[m] = org.z;
+                dx[m] = dir.x; dy[m] = dir.y; dz[m] = dir.z;
+                index[m] = k;
+                value[m] = incidentTransmittance(model, eta, cosTheta) * cosTheta * e;  // Keng Eq. 4: E^ = F E
+                ++m;
+            }
+            const float tfar = l.type == LightType::Point ? float(1.0 - 1e-6) : std::numeric_limits<float>::infinity();
+            scene.occludedBatch(ox, oy, oz, dx, dy, dz, m, 0.0f, tfar, occluded);
+            for (size_t j = 0; j < m; ++j)
+                if (!occluded[j]) sum[index[j]] += value[j];
         }
+        for (size_t k = 0; k < count; ++k) samples.irradiance[r.begin() + k] = glm::vec3(sum[k]);
     });
 }
 

@@ -45,6 +45,8 @@
 #include "relight/jensen_buhler.h"
 #include "relight/point_lights.h"
 #include "relight/point_animation.h"
+#include "relight/surface_atlas.h"
+#include "relight/texture_space_sampling.h"
 
 using namespace prt;
 
@@ -74,6 +76,10 @@ struct Options {
     CameraOptions camera;
     int turntable = 0, frames = 0;
     std::string lightPath;
+    // Texture-space importance sampling (--method tsis).
+    TextureSpaceOptions tsis;
+    std::string split = "hybrid", evaluate = "pixel";
+    int atlasSize = 1024;
 };
 
 std::string rgb(const glm::dvec3& v) {
@@ -224,6 +230,90 @@ int runAnimation(const Options& o, const PointAnimation& animation, const Triang
     return 0;
 }
 
+// --method tsis: texture-space importance sampling (Chang et al. 2008). Everything a
+// new light position needs (irradiance map, draws, shadow maps) and the evaluation are
+// timed apart; the atlas is built once per mesh.
+int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& scene, const std::vector<Light>& lights,
+                    const Material& material, FresnelModel fresnel, SampleSource source, const Camera& camera,
+                    const std::string& output, const Stopwatch& start) {
+    TextureSpaceOptions to = o.tsis;
+    to.mode = parseTextureSpaceMode(o.split);
+    to.fresnel = fresnel;
+    const std::string evaluate = toLower(o.evaluate);
+    if (evaluate != "pixel" && evaluate != "vertex")
+        throw Error("--evaluate", "expected pixel or vertex, got '" + o.evaluate + "'");
+    validateTextureSpaceOptions(to);
+
+    const SurfaceAtlas atlas = buildSurfaceAtlas(mesh, o.atlasSize);
+    const SurfaceAtlasStats& as = atlas.stats;
+    std::printf("atlas: %d x %d, %zu charts (one per triangle, isometric: area distortion %.4f .. %.4f), %.1f%% of "
+                "texels cover surface (%zu), %.2f texels per triangle, %zu triangles under one texel; mapped area "
+                "%.6g of %.6g mm^2; built in %.3f s\n",
+                atlas.resolution, atlas.resolution, as.triangles, as.minDistortion, as.maxDistortion,
+                100.0 * as.coverage, as.coveredTexels, as.meanTexelsPerTriangle, as.subTexelTriangles,
+                as.mappedAreaMm2, as.meshAreaMm2, as.buildSeconds);
+
+    TextureSpaceRenderer renderer(mesh, scene, atlas, material, to);
+    const DiffusionSplit& split = renderer.split();
+    std::printf("texture-space sampling: %s, N = %d, seed %llu; R_p %.4g mm (c = %g /mm), K = %g /mm",
+                toString(to.mode), to.samples, static_cast<unsigned long long>(to.seed), split.rp,
+                to.importanceBound, to.sharpness);
+    if (to.mode == TextureSpaceMode::Hybrid || to.mode == TextureSpaceMode::Local)
+        std::printf("; local filter %d x %d + 1 taps to %.4g mm on a %d^2 shadow map per light",
+                    to.rings, to.ringSamples, renderer.localFilter().rhoMax, to.lightMapSize);
+    std::printf("; evaluated per %s\n", evaluate.c_str());
+
+    renderer.setLights(lights);
+    const TextureSpaceTimings& tt = renderer.timings();
+    Stopwatch t;
+    const GBuffer g = traceGBuffer(scene, mesh, camera);
+    const double tGBuffer = t.seconds();
+    t.restart();
+    const Image image = evaluate == "vertex" ? renderer.renderPerVertex(g) : renderer.render(g);
+    const double tEval = t.seconds();
+    std::printf("frame: %d x %d, %zu hit pixels; %zu distinct sample texels of %d draws\n", g.width, g.height,
+                g.objectPixels(), renderer.uniqueSamples(), to.samples);
+    std::printf("times: irradiance map %.4f s, shadow maps %.4f s, draws %.4f s, evaluation %.4f s = %.4f s per "
+                "new light position (%.1f fps); G-buffer %.4f s (once per view)\n",
+                tt.irradianceSeconds, tt.shadowMapSeconds, tt.samplingSeconds, tEval, tt.lighting() + tEval,
+                1.0 / std::max(tt.lighting() + tEval, 1e-9), tGBuffer);
+    t.restart();
+    writeExr(output + ".exr", image);
+    writePng(output + ".png", image, o.exposure);
+    const double tWrite = t.seconds();
+
+    if (o.compareJb || o.compareBrute) {
+        // The reference: Jensen-Buhler (or the brute-force sum) over its own irradiance
+        // samples (face centroids by default), not the atlas texels.
+        IrradianceSamples placed = source == SampleSource::FaceCentroids
+                                       ? faceCentroidSamples(mesh)
+                                       : samplesFromSampleSet(poissonDiskSamples(
+                                             mesh, o.sampleCount.value_or(defaultSampleCount(
+                                                       totalArea(mesh), material.minMeanFreePath())),
+                                             o.seed));
+        computeIrradiance(placed, scene, lights, material.eta, fresnel);
+        const double epsilon = o.compareBrute ? 0.0 : o.epsilon;
+        const JensenBuhler jb(material, IrradianceOctree(placed, {.leafSize = o.leafSize}),
+                              {.epsilon = epsilon, .fresnel = fresnel});
+        t.restart();
+        const Image ref = jb.render(g);
+        const double tRef = t.seconds();
+        const std::string suffix = o.compareBrute ? "_brute" : "_jb";
+        writeExr(output + suffix + ".exr", ref);
+        writePng(output + suffix + ".png", ref, o.exposure);
+        const CompareResult r = compareImages(image, ref);
+        const Image err = relativeErrorImage(image, ref, r);
+        writePng(output + "_error.png", heatmapImage(err, heatmapScale(err)));
+        std::printf("%s (epsilon %g, %zu %s samples): %.3f s; RMSE (hit pixels, mean of R G B of the displayed 0..1 "
+                    "image at exposure %g) %.5f; relative RMSE (linear) %.4g, mean ratio %.5f\n",
+                    o.compareBrute ? "brute force" : "Jensen-Buhler", epsilon, placed.size(), toString(source), tRef,
+                    o.exposure, displayRms(image, ref, o.exposure), r.overall.relativeRmse, r.overall.meanRatio);
+    }
+    std::printf("wrote %s.exr and %s.png (write %.3f s) in %s\n", output.c_str(), output.c_str(), tWrite,
+                formatDuration(start.seconds()).c_str());
+    return 0;
+}
+
 int run(const Options& o) {
     const Stopwatch start;
     const ThreadLimit limit(o.threads);
@@ -235,6 +325,8 @@ int run(const Options& o) {
     const SplitDiskModel splitDisk = parseSplitDiskModel(o.splitDisk);
     validateCacheOptions({.a = o.a, .radius = o.radius, .epsilon = o.epsilon});
     if (o.cacheImage && method != PointMethod::Cache) throw Error("--cache-image", "needs --method cache");
+    if (o.compareJb && o.compareBrute && method == PointMethod::TextureSpace)
+        throw Error("--compare-brute", "with --method tsis give --compare-jb or --compare-brute, not both");
     const SampleSource source = parseSampleSource(o.samples);
     if (o.sampleCount && source != SampleSource::PoissonDisk)
         throw Error("--sample-count", "applies to --samples poisson only (faces: one sample per face)");
@@ -261,6 +353,8 @@ int run(const Options& o) {
         animation.frames = o.turntable;
     }
     const bool animated = animation.kind != AnimationKind::None;
+    if (animated && method == PointMethod::TextureSpace)
+        throw Error("--method", "tsis renders single frames here; move its lights interactively in prt-relight view");
     if (animated && (o.compareJb || o.compareBrute || o.cacheImage))
         throw Error(o.compareJb ? "--compare-jb" : o.compareBrute ? "--compare-brute" : "--cache-image",
                     "applies to single frames, not to --turntable / --light-path");
@@ -314,6 +408,9 @@ int run(const Options& o) {
 
     const std::filesystem::path parent = std::filesystem::path(output).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);
+
+    if (method == PointMethod::TextureSpace)
+        return runTextureSpace(o, mesh, scene, lights, material, fresnel, source, camera, output, start);
 
     if (animated) {
         std::printf("samples: %zu (%s), %.4g mm^2 in all; load %.3f s, Embree scene %.3f s, sample placement %.3f s\n",
@@ -406,11 +503,14 @@ int run(const Options& o) {
 int main(int argc, char** argv) {
     return runMain("prt-pointlight", [&]() -> int {
         CLI::App app{
-            "prt-pointlight: a translucent object under point and directional lights, rendered with the\n"
-            "Jensen-Buhler hierarchical dipole integration (docs/point-lights.md). Lights in mm in the\n"
+            "prt-pointlight: a translucent object under point and directional lights, rendered by the\n"
+            "translucent irradiance cache (Keng et al. 2006, the default), the Jensen-Buhler hierarchical\n"
+            "dipole integration it accelerates, or texture-space importance sampling (Chang et al. 2008,\n"
+            "--method tsis; docs/point-lights.md). Lights in mm in the\n"
             "scaled mesh's frame; point intensity in W/sr, directional irradiance in W/m^2; output radiance\n"
             "in W/(m^2 sr). Example:\n"
             "  prt-pointlight bunny.off --size-mm 60 -m Marble --light point:40,80,60:3 -o out/bunny_pl\n"
+            "  prt-pointlight bunny.off -m Skin1 --light point:-20,30,-40:1 --method tsis --compare-jb -o out/tsis\n"
             "Animations (frames <prefix>_0000.exr/.png ...): --turntable N, or --light-path P0:P1 --frames N\n"
             "(what each reuses between frames, and why that is valid: docs/point-lights.md, \"Animation\").\n"
             "Vector options take comma-separated values; write negative ones as --eye=-10,0,50."};
@@ -444,8 +544,9 @@ int main(int argc, char** argv) {
                      "Also render the brute-force sum (epsilon 0, slow) to <prefix>_brute.exr and report time and error")
             ->group("Jensen-Buhler");
         app.add_option("--method", o.method,
-                       "cache (Keng et al. 2006 translucent irradiance cache), jb (Jensen-Buhler at every pixel) "
-                       "or brute (the sum over all samples)")
+                       "cache (Keng et al. 2006 translucent irradiance cache), jb (Jensen-Buhler at every pixel), "
+                       "brute (the sum over all samples) or tsis (Chang et al. 2008 texture-space importance "
+                       "sampling; --compare-jb / --compare-brute then render the reference)")
             ->capture_default_str()->group("Irradiance cache");
         app.add_option("--a", o.a,
                        "Cache error bound a (> 0): a cache is valid where its Eq. 11 error is below a S_ref "
@@ -465,6 +566,29 @@ int main(int argc, char** argv) {
                      "Write <prefix>_caches.png (cache positions over the frame), <prefix>_gradient.png and "
                      "<prefix>_variance.png (Keng Figs. 8-9)")
             ->group("Irradiance cache");
+        app.add_option("--split", o.split,
+                       "What renders R_d: hybrid (local part by the shadow-map filter + global part by the samples, "
+                       "Chang section 4), sampling (the samples alone, section 3), local or global (one part alone)")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--tsis-samples", o.tsis.samples, "N, importance samples drawn from the irradiance map")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--tsis-seed", o.tsis.seed, "Seed of the stratified draws' jitter (the frame's seed)")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--atlas-size", o.atlasSize, "Surface atlas / irradiance map resolution (power of two)")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--importance-bound", o.tsis.importanceBound,
+                       "c in mm^-1: R_p is the largest r with R_d(r) 2 pi r = c (0.1 gives the paper's Skimmilk 2.41 mm)")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--split-sharpness", o.tsis.sharpness, "K in mm^-1 of the weights W_l, W_g")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--light-map", o.tsis.lightMapSize, "Translucent shadow map resolution per light")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--rings", o.tsis.rings, "L, rings of the local filter")->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--ring-samples", o.tsis.ringSamples, "C, taps per ring of the local filter")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--evaluate", o.evaluate,
+                       "pixel (the sums at every visible point) or vertex (at mesh vertices, interpolated)")
+            ->capture_default_str()->group("Texture-space sampling");
         app.add_option("--turntable", o.turntable,
                        "Render N frames <prefix>_0000 ... of the object turning 360 degrees about the vertical axis "
                        "through its bounding-box centre (a camera orbit, as prt-relight render), lights fixed in the "

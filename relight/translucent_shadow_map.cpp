@@ -89,6 +89,17 @@ LocalFilter makeLocalFilter(RadialTable kernel, int rings, int ringSamples) {
         f.radius[size_t(l)] = inverse(held * (double(l + 1) + 0.5) / parts);
         f.area[size_t(l)] = effectiveArea(integral, f.radius[size_t(l)], ringSamples);
     }
+    f.tapOffset.push_back(glm::vec2(0.0f));
+    f.tapArea.push_back(glm::vec3(f.centreArea));
+    const double step = 2.0 * kPi / ringSamples;
+    for (int l = 0; l < rings; ++l) {
+        const double offset = (l & 1) ? 0.5 : 0.0;
+        for (int c = 0; c < ringSamples; ++c) {
+            const double phi = (c + offset) * step;
+            f.tapOffset.push_back(glm::vec2(glm::dvec2(std::cos(phi), std::sin(phi)) * f.radius[size_t(l)]));
+            f.tapArea.push_back(glm::vec3(f.area[size_t(l)]));
+        }
+    }
     return f;
 }
 
@@ -120,8 +131,7 @@ TranslucentShadowMap::TranslucentShadowMap(const RayScene& scene, const Triangle
     orthonormalBasis(forward_, right_, up_);
 
     const size_t n = size_t(resolution) * size_t(resolution);
-    position_.assign(n, glm::vec3(0.0f));
-    flux_.assign(n, glm::vec3(0.0f));
+    texels_.assign(n, Texel{});
     const bool haveNormals = mesh.normals.size() == mesh.positions.size();
     std::vector<uint8_t> lit(n, 0);
     tbb::parallel_for(0, resolution, [&](int y) {
@@ -162,8 +172,7 @@ TranslucentShadowMap::TranslucentShadowMap(const RayScene& scene, const Triangle
             }
             perMeasure *= incidentTransmittance(fresnel, eta, cosS);
             const size_t i = size_t(y) * size_t(resolution) + size_t(x);
-            position_[i] = glm::vec3(p);
-            flux_[i] = glm::vec3(perMeasure);
+            texels_[i] = Texel{glm::vec3(p), glm::vec3(perMeasure)};
             lit[i] = 1;
         }
     });
@@ -214,29 +223,38 @@ glm::dvec3 TranslucentShadowMap::localExitance(const glm::dvec3& x, const LocalF
     }
     glm::dvec3 e1, e2;
     orthonormalBasis(w, e1, e2);
-    glm::dvec3 sum(0.0);
+    // The projection in float, relative to the map's origin: tap q = x + o1 e1 + o2 e2
+    // has map-frame coordinates (a, b, z) = X + o1 E1 + o2 E2 (linear in the offsets).
+    const glm::dvec3 rel = x - origin_;
+    const glm::vec3 X(glm::dot(rel, right_), glm::dot(rel, up_), glm::dot(rel, forward_));
+    const glm::vec3 E1(glm::dot(e1, right_), glm::dot(e1, up_), glm::dot(e1, forward_));
+    const glm::vec3 E2(glm::dot(e2, right_), glm::dot(e2, up_), glm::dot(e2, forward_));
+    const bool perspective = light_.type == LightType::Point;
+    const float toPixel = float(0.5 * resolution_ / halfExtent_), half = 0.5f * float(resolution_);
+    const float res = float(resolution_);
     const glm::vec3 xf(x);
-    auto tap = [&](const glm::dvec3& q, const glm::dvec3& area) {
-        double px, py;
-        if (!project(q, px, py)) return;
-        const size_t i = size_t(int(py)) * size_t(resolution_) + size_t(int(px));
-        const glm::vec3 f = flux_[i];
-        if (f.x == 0.0f && f.y == 0.0f && f.z == 0.0f) return;
-        const glm::vec3 d = xf - position_[i];
-        sum += glm::dvec3(f * filter.kernel(glm::dot(d, d))) * area * measureScale;
-    };
-    tap(x, filter.centreArea);
-    const double step = 2.0 * kPi / filter.ringSamples;
-    for (int l = 0; l < filter.rings; ++l) {
-        const double rho = filter.radius[size_t(l)];
-        const glm::dvec3 area = filter.area[size_t(l)];
-        const double offset = (l & 1) ? 0.5 : 0.0;
-        for (int c = 0; c < filter.ringSamples; ++c) {
-            const double phi = (c + offset) * step;
-            tap(x + rho * (std::cos(phi) * e1 + std::sin(phi) * e2), area);
+    glm::vec3 sum(0.0f);
+    const size_t taps = filter.tapOffset.size();
+    for (size_t k = 0; k < taps; ++k) {
+        const glm::vec2 o = filter.tapOffset[k];
+        const glm::vec3 q = X + o.x * E1 + o.y * E2;
+        float a = q.x, b = q.y;
+        if (perspective) {
+            if (!(q.z > 0.0f)) continue;
+            const float inv = 1.0f / q.z;
+            a *= inv;
+            b *= inv;
         }
+        const float px = a * toPixel + half, py = b * toPixel + half;
+        if (!(px >= 0.0f && py >= 0.0f && px < res && py < res)) continue;
+        const size_t i = size_t(int(py)) * size_t(resolution_) + size_t(int(px));
+        const Texel& t = texels_[i];
+        const glm::vec3 f = t.flux;
+        if (f.x == 0.0f && f.y == 0.0f && f.z == 0.0f) continue;
+        const glm::vec3 d = xf - t.position;
+        sum += f * filter.kernel(glm::dot(d, d)) * filter.tapArea[k];
     }
-    return sum;
+    return glm::dvec3(sum) * measureScale;
 }
 
 glm::dvec3 TranslucentShadowMap::exitanceAllPixels(const glm::dvec3& x, const RadialTable& kernel) const {
@@ -245,9 +263,9 @@ glm::dvec3 TranslucentShadowMap::exitanceAllPixels(const glm::dvec3& x, const Ra
     for (int y = 0; y < resolution_; ++y)
         for (int px = 0; px < resolution_; ++px) {
             const size_t i = size_t(y) * size_t(resolution_) + size_t(px);
-            const glm::vec3 f = flux_[i];
+            const glm::vec3 f = texels_[i].flux;
             if (f.x == 0.0f && f.y == 0.0f && f.z == 0.0f) continue;
-            const glm::vec3 d = xf - position_[i];
+            const glm::vec3 d = xf - texels_[i].position;
             sum += glm::dvec3(f * kernel(glm::dot(d, d))) * pixelMeasure(px, y);
         }
     return sum;
@@ -257,7 +275,7 @@ glm::dvec3 TranslucentShadowMap::totalFlux() const {
     glm::dvec3 sum(0.0);
     for (int y = 0; y < resolution_; ++y)
         for (int x = 0; x < resolution_; ++x)
-            sum += glm::dvec3(flux_[size_t(y) * size_t(resolution_) + size_t(x)]) * pixelMeasure(x, y);
+            sum += glm::dvec3(texels_[size_t(y) * size_t(resolution_) + size_t(x)].flux) * pixelMeasure(x, y);
     return sum;
 }
 

@@ -56,6 +56,10 @@ struct LocalFilter {
     glm::dvec3 centreArea{0.0};  // mm^2 per channel: int_0^e_1 K 2 pi r dr / K(0)
     std::vector<double> radius;  // per ring, mm (the tap radius)
     std::vector<glm::dvec3> area;  // per ring, mm^2 per tap and channel: int_e_l^e_l+1 K 2 pi r dr / (C K(radius))
+    // Every tap as (offset along e1, offset along e2) in mm and its measure per channel
+    // (mm^2), centre first: the unrolled pattern localExitance walks.
+    std::vector<glm::vec2> tapOffset;
+    std::vector<glm::vec3> tapArea;
     size_t taps() const { return size_t(rings) * size_t(ringSamples) + 1; }
 };
 
@@ -93,8 +97,13 @@ private:
     glm::dvec3 origin_{0.0};   // point: the light position; directional: the centre of the map plane
     glm::dvec3 forward_{0.0}, right_{0.0}, up_{0.0};
     double halfExtent_ = 0.0;  // point: tan(half angle); directional: half width in mm
-    std::vector<glm::vec3> position_;  // per pixel; only meaningful where lit
-    std::vector<glm::vec3> flux_;      // per pixel flux per unit measure (0 = nothing)
+    // Per pixel, together (one cache line per tap): the surface point (only meaningful
+    // where lit) and the flux per unit measure (0 = nothing).
+    struct Texel {
+        glm::vec3 position{0.0f};
+        glm::vec3 flux{0.0f};
+    };
+    std::vector<Texel> texels_;
     size_t litPixels_ = 0;
 };
 

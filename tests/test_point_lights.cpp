@@ -325,6 +325,27 @@ TEST(PointLights, SampleSetSamplesUseAreaPerSample) {
     EXPECT_NEAR(s.totalArea(), totalArea(mesh), 1e-5 * totalArea(mesh));
 }
 
+// computeIrradiance traces directIrradiance's shadow rays in packets (the point-light
+// ray rescaled so that t = 1 is the light): the same values, up to a ray grazing an
+// edge that rounding sends the other way.
+TEST(PointLights, BatchedIrradianceMatchesDirectIrradiance) {
+    const TriangleMesh mesh = makeTorus(20.0f, 6.0f, 96, 48);
+    const RayScene scene(mesh);
+    const std::vector<Light> lights = {parseLight("point:40,60,30:2,1,1"), parseLight("dir:-1,0.5,0.2:100")};
+    IrradianceSamples s = faceCentroidSamples(mesh);
+    computeIrradiance(s, scene, lights, 1.3, FresnelModel::Exact);
+    size_t differ = 0, lit = 0;
+    for (size_t i = 0; i < s.size(); ++i) {
+        const glm::dvec3 ref =
+            directIrradiance(scene, lights, {s.positions[i], s.normals[i], s.geometricNormals[i]}, 1.3, FresnelModel::Exact);
+        const glm::dvec3 got(s.irradiance[i]);
+        if (glm::length(got - ref) > 1e-5 * (glm::length(ref) + 1e-30)) ++differ;
+        lit += ref.x > 0.0 ? 1 : 0;
+    }
+    EXPECT_GT(lit, s.size() / 4);
+    EXPECT_LE(differ, s.size() / 1000) << differ << " of " << s.size();
+}
+
 TEST(PointLights, IrradianceIsIndependentOfThreadCount) {
     const TriangleMesh mesh = makeTorus(20.0f, 6.0f, 96, 48);
     const RayScene scene(mesh);
