@@ -268,4 +268,20 @@ std::string formatCompareResult(const CompareResult& r) {
     return o.str();
 }
 
+double displayRmse(const Image& test, const Image& reference, double exposure) {
+    const float scale = float(std::exp2(exposure));
+    auto display = [&](float v) { return linearToSrgb(std::clamp(std::isfinite(v) ? v * scale : 0.0f, 0.0f, 1.0f)); };
+    double sum = 0.0;
+    size_t n = 0;
+    for (int y = 0; y < reference.height; ++y)
+        for (int x = 0; x < reference.width; ++x) {
+            if (!(reference.at(x, y, 3) > 0.5f)) continue;
+            double d = 0.0;
+            for (int c = 0; c < 3; ++c) d += display(test.at(x, y, c)) - display(reference.at(x, y, c));
+            sum += (d / 3.0) * (d / 3.0);
+            ++n;
+        }
+    return n ? std::sqrt(sum / double(n)) : 0.0;
+}
+
 }  // namespace prt

@@ -88,4 +88,11 @@ int thresholdExitCode(const CompareResult& result, double maxRelativeRmse);
 // Multi-line table of the result (for prt-compare and logs).
 std::string formatCompareResult(const CompareResult& r);
 
+// The papers' RMS (Keng et al. 2006 Table 1, Chang et al. 2008 Figs. 7-14): over the
+// reference's object pixels (A > 0.5), the RMS of the mean of R, G, B of the DISPLAYED
+// images, i.e. writePng's tone mapping without its 8-bit rounding: x 2^exposure,
+// clamped to [0, 1], sRGB-encoded. It depends on the exposure; non-finite values count
+// as 0.
+double displayRmse(const Image& test, const Image& reference, double exposure);
+
 }  // namespace prt

@@ -29,7 +29,11 @@
 #include "relight/relight_kernel.h"
 #include "common/options.h"
 #include "relight/render.h"
+#include "relight/point_lights.h"
+#include "relight/surface_atlas.h"
+#include "relight/texture_space_sampling.h"
 #include "relight/view.h"
+#include "common/transport_params.h"
 #include "common/util.h"
 
 using namespace prt;
@@ -247,6 +251,12 @@ struct ViewOptions : LightingOptions {
     bool screenshotWithPanel = false, noVsync = false, hidePanel = false;
     double spin = 0.0, orbit = 0.0;
     int threads = 0;
+    // Point lights (texture-space importance sampling).
+    std::vector<std::string> lights;
+    std::string lightsFile, split = "hybrid";
+    TextureSpaceOptions tsis;
+    int atlasSize = 1024;
+    bool noEnvironmentLight = false;
 };
 
 void addViewOptions(CLI::App& app, ViewOptions& o) {
@@ -280,6 +290,30 @@ void addViewOptions(CLI::App& app, ViewOptions& o) {
         ->group("Scripting");
     app.add_flag("--hide-panel", o.hidePanel, "Start with the panel hidden (H toggles it)")->group("Scripting");
     addThreadsOption(app, o.threads, "Worker threads of the relight (default: all cores)");
+    const char* group = "Point lights (Chang et al. 2008; docs/point-lights.md)";
+    app.add_option("--light", o.lights,
+                   "A point or directional light added to the environment's light, repeatable: "
+                   "point:X,Y,Z:R,G,B (mm in the object's frame, W/sr) or dir:X,Y,Z:R,G,B (toward the light, W/m^2); "
+                   "add, drag and recolour more in the panel")
+        ->group(group);
+    app.add_option("--lights", o.lightsFile, "JSON scene file with a \"lights\" list")->group(group);
+    app.add_flag("--no-environment-light", o.noEnvironmentLight,
+                 "Start with the environment's light (and background) off: point lights only (E toggles)")
+        ->group(group);
+    app.add_option("--split", o.split, "R_d by: hybrid (local filter + global samples), sampling, local or global")
+        ->capture_default_str()->group(group);
+    app.add_option("--tsis-samples", o.tsis.samples, "N, importance samples per lighting")
+        ->capture_default_str()->group(group);
+    app.add_option("--tsis-seed", o.tsis.seed, "Seed of the draws' jitter")->capture_default_str()->group(group);
+    app.add_option("--atlas-size", o.atlasSize, "Irradiance map resolution (power of two)")
+        ->capture_default_str()->group(group);
+    app.add_option("--light-map", o.tsis.lightMapSize, "Translucent shadow map resolution per light")
+        ->capture_default_str()->group(group);
+    app.add_option("--rings", o.tsis.rings, "L, rings of the local filter")->capture_default_str()->group(group);
+    app.add_option("--ring-samples", o.tsis.ringSamples, "C, taps per ring")->capture_default_str()->group(group);
+    app.add_option("--importance-bound", o.tsis.importanceBound, "c in mm^-1 (R_p: R_d(r) 2 pi r = c)")
+        ->capture_default_str()->group(group);
+    app.add_option("--split-sharpness", o.tsis.sharpness, "K in mm^-1")->capture_default_str()->group(group);
 }
 
 int runView(const ViewOptions& o) {
@@ -311,6 +345,7 @@ int runView(const ViewOptions& o) {
                 double(setup.object.box.diagonal()), setup.object.eta, setup.object.transport.cubemapSize,
                 setup.object.transport.cubemapSize, loadStart.milliseconds());
     std::fflush(stdout);
+    setup.tsis = o.tsis;
     setup.envRotation = o.envRotation;
     setup.exposure = o.exposure;
     setup.lightTerms = o.lightTerms;
@@ -323,6 +358,17 @@ int runView(const ViewOptions& o) {
     setup.orbitDegreesPerFrame = o.orbit;
     setup.vsync = !o.noVsync;
     setup.showPanel = !o.hidePanel;
+    setup.material = readTransportParameters(setup.object.transport.parameters, o.transport).material;
+    if (!o.lightsFile.empty()) setup.pointLights = loadLightScene(o.lightsFile);
+    for (const std::string& text : o.lights) setup.pointLights.push_back(parseLight(text));
+    if (!setup.pointLights.empty() && !setup.material)
+        throw Error(o.transport, "names no material (sigma_s_prime, sigma_a, eta): point lights need one");
+    if (!setup.pointLights.empty()) checkLightsOutside(RayScene(setup.object.mesh), setup.pointLights);
+    setup.tsis.mode = parseTextureSpaceMode(o.split);
+    setup.atlasSize = o.atlasSize;
+    validateTextureSpaceOptions(setup.tsis);
+    validateAtlasResolution(o.atlasSize);
+    setup.environmentLight = !o.noEnvironmentLight;
     return runViewer(std::move(setup));
 #endif
 }

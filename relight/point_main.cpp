@@ -88,25 +88,6 @@ std::string rgb(const glm::dvec3& v) {
     return buf;
 }
 
-// The paper's RMS (Keng section 4, Table 1): over hit pixels, the RMS of the mean of
-// R, G, B of the DISPLAYED image, i.e. writePng's tone mapping without its 8-bit
-// rounding: x 2^exposure, clamped to [0, 1], sRGB-encoded.
-double displayRms(const Image& test, const Image& reference, double exposure) {
-    const float scale = float(std::exp2(exposure));
-    auto display = [&](float v) { return linearToSrgb(std::clamp(std::isfinite(v) ? v * scale : 0.0f, 0.0f, 1.0f)); };
-    double sum = 0.0;
-    size_t n = 0;
-    for (int y = 0; y < reference.height; ++y)
-        for (int x = 0; x < reference.width; ++x) {
-            if (!(reference.at(x, y, 3) > 0.5f)) continue;
-            double d = 0.0;
-            for (int c = 0; c < 3; ++c) d += display(test.at(x, y, c)) - display(reference.at(x, y, c));
-            sum += (d / 3.0) * (d / 3.0);
-            ++n;
-        }
-    return n ? std::sqrt(sum / double(n)) : 0.0;
-}
-
 // Keng Figs. 8-9: the cache positions (red dots over the frame), the interpolated
 // gradient of S (world |x|, |y|, |z| of the channel-mean gradient as R, G, B; brightness
 // = magnitude / its 99th percentile) and the split-disk spread V (gray, / its 99th
@@ -307,7 +288,7 @@ int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& 
         std::printf("%s (epsilon %g, %zu %s samples): %.3f s; RMSE (hit pixels, mean of R G B of the displayed 0..1 "
                     "image at exposure %g) %.5f; relative RMSE (linear) %.4g, mean ratio %.5f\n",
                     o.compareBrute ? "brute force" : "Jensen-Buhler", epsilon, placed.size(), toString(source), tRef,
-                    o.exposure, displayRms(image, ref, o.exposure), r.overall.relativeRmse, r.overall.meanRatio);
+                    o.exposure, displayRmse(image, ref, o.exposure), r.overall.relativeRmse, r.overall.meanRatio);
     }
     std::printf("wrote %s.exr and %s.png (write %.3f s) in %s\n", output.c_str(), output.c_str(), tWrite,
                 formatDuration(start.seconds()).c_str());
@@ -479,7 +460,7 @@ int run(const Options& o) {
         std::printf("Jensen-Buhler (epsilon %g): T_JB %.3f s, speedup %.2fx; RMS (paper: hit pixels, mean of R G B of "
                     "the displayed 0..1 image, writePng's tone mapping) %.5f; relative RMSE (linear) %.4g, mean ratio "
                     "%.5f\n",
-                    o.epsilon, tJb, tJb / std::max(tRender, 1e-9), displayRms(image, jb.image, o.exposure),
+                    o.epsilon, tJb, tJb / std::max(tRender, 1e-9), displayRmse(image, jb.image, o.exposure),
                     r.overall.relativeRmse, r.overall.meanRatio);
     }
     if (o.compareBrute) {
@@ -491,7 +472,7 @@ int run(const Options& o) {
                     "error %.3g, mean ratio %.6f, RMS (paper) %.5f\n",
                     tBrute, tBrute / std::max(tRender, 1e-9), toString(method), toString(method),
                     r.overall.relativeRmse, r.overall.maxRelative, r.overall.meanRatio,
-                    displayRms(image, brute.image, o.exposure));
+                    displayRmse(image, brute.image, o.exposure));
     }
     std::printf("wrote %s.exr and %s.png in %s\n", output.c_str(), output.c_str(),
                 formatDuration(start.seconds()).c_str());

@@ -98,13 +98,13 @@ void TextureSpaceRenderer::setLights(const std::vector<Light>& lights) {
     timings_.samplingSeconds = t.seconds();
 }
 
-void TextureSpaceRenderer::redraw(int samples, uint64_t seed) {
+void TextureSpaceRenderer::redraw(int samples, uint64_t seed, bool drawNow) {
     TextureSpaceOptions o = options_;
     o.samples = samples;
     o.seed = seed;
     validateTextureSpaceOptions(o);
     options_ = o;
-    if (!sampler_) return;
+    if (!sampler_ || !drawNow) return;
     const Stopwatch t;
     draw();
     timings_.samplingSeconds = t.seconds();

@@ -98,8 +98,9 @@ public:
     // Everything that depends on the lights (see above). Throws prt::Error for an empty
     // light list or a light the shadow map cannot frame.
     void setLights(const std::vector<Light>& lights);
-    // Changes only N / the seed and redraws from the current irradiance map.
-    void redraw(int samples, uint64_t seed);
+    // Changes only N / the seed and redraws from the current irradiance map (no new
+    // shadow rays). drawNow = false only records them for the next setLights.
+    void redraw(int samples, uint64_t seed, bool drawNow = true);
 
     glm::dvec3 exitance(const glm::dvec3& x) const;
     glm::vec3 radiance(const GBufferPixel& pixel) const;

@@ -62,6 +62,7 @@
 #include "common/error.h"
 #include "relight/gl_util.h"
 #include "relight/light_vector.h"
+#include "relight/point_light_worker.h"
 #include "relight/relight_worker.h"
 #include "relight/shaders/shaders.h"
 #include "common/progress.h"
@@ -156,7 +157,12 @@ private:
     void createTargets(int width, int height);
     void destroyTargets();
     GLuint environmentTexture(int index, bool prefiltered);
-    void uploadResult(const LightResult& r);
+    // Uploads the environment's per-vertex radiance (if on) plus the point lights' (if
+    // on) to the back radiance texture and swaps it in.
+    void uploadCombined();
+    PointLightRequest currentPointRequest() const;
+    void drawPointLightPanel();
+    void drawLightMarkers();
     void handleInput();
     void handleKey(int key, int mods);
     void renderScene(bool offscreen);
@@ -199,6 +205,20 @@ private:
     double lastUploadMs_ = 0.0;
     RunningStats relightStats_, lightStats_, kernelStats_, uploadStats_;
 
+    // Point lights (texture-space importance sampling).
+    std::unique_ptr<PointLightWorker> pointWorker_;
+    PointLightResult pointFront_;
+    bool havePoint_ = false, envOn_ = true, pointOn_ = true;
+    PointLightRequest pointSubmitted_, pointDisplayed_;
+    uint64_t nextPointId_ = 1;
+    std::vector<Light> lights_;
+    int splitMode_ = int(TextureSpaceMode::Hybrid), pointSamples_ = 900;
+    bool comparing_ = false;
+    std::string comparison_, pointStatus_;
+    RunningStats pointStats_;
+    bool uploadDirty_ = false, uploadedEnvOn_ = true, uploadedPointOn_ = true;
+    std::vector<glm::vec4> combined_;
+
     // GLFW / GL.
     std::unique_ptr<GlfwSession> glfw_;
     GLFWwindow* window_ = nullptr;
@@ -233,6 +253,7 @@ private:
 
 Viewer::~Viewer() {
     worker_.reset();
+    pointWorker_.reset();
     if (window_) {
         glfwMakeContextCurrent(window_);
         if (imgui_) {
@@ -458,17 +479,33 @@ GLuint Viewer::environmentTexture(int index, bool prefiltered) {
     return t;
 }
 
-void Viewer::uploadResult(const LightResult& r) {
+void Viewer::uploadCombined() {
     const auto t0 = Clock::now();
     const int back = 1 - radianceFront_;
     const size_t V = s_.object.mesh.vertexCount();
-    const int slots = std::min(1 + fileTerms_, int(r.packed.size() / std::max<size_t>(V, 1)));
+    const bool env = envOn_ && haveLight_;
+    const bool point = pointOn_ && havePoint_ && pointFront_.radiance.size() == V;
+    const int envSlots = haveLight_ ? std::min(1 + fileTerms_, int(front_.packed.size() / std::max<size_t>(V, 1))) : 1;
+    const int slots = std::max(envSlots, 1);
+    combined_.assign(size_t(slots) * V, glm::vec4(0.0f));
+    if (env) std::copy(front_.packed.begin(), front_.packed.begin() + ptrdiff_t(size_t(slots) * V), combined_.begin());
+    if (point)
+        for (size_t v = 0; v < V; ++v) combined_[v] += glm::vec4(pointFront_.radiance[v], 0.0f);
     for (int k = 0; k < slots; ++k)
-        uploadRows(radiance_[back], rowWidth_, k * slotRows_, V, GL_RGBA, GL_FLOAT, &r.packed[size_t(k) * V].x, 4);
+        uploadRows(radiance_[back], rowWidth_, k * slotRows_, V, GL_RGBA, GL_FLOAT, &combined_[size_t(k) * V].x, 4);
     radianceFront_ = back;
-    displayedTerms_ = std::max(slots - 1, 0);
+    displayedTerms_ = env ? std::max(slots - 1, 0) : 0;
     lastUploadMs_ = msSince(t0);
     checkGl("uploading relit radiance");
+}
+
+PointLightRequest Viewer::currentPointRequest() const {
+    PointLightRequest r;
+    if (pointOn_) r.lights = lights_;
+    r.mode = TextureSpaceMode(splitMode_);
+    r.samples = pointSamples_;
+    r.seed = s_.tsis.seed;
+    return r;
 }
 
 LightRequest Viewer::currentRequest() const {
@@ -525,6 +562,8 @@ void Viewer::handleKey(int key, int mods) {
         case GLFW_KEY_M: ms_ = !ms_; break;
         case GLFW_KEY_S: ss_ = !ss_; break;
         case GLFW_KEY_G: specular_ = !specular_; break;
+        case GLFW_KEY_E: envOn_ = !envOn_; break;
+        case GLFW_KEY_L: pointOn_ = !pointOn_; break;
         case GLFW_KEY_EQUAL:
         case GLFW_KEY_KP_ADD: exposure_ += 0.5f; break;
         case GLFW_KEY_MINUS:
@@ -680,7 +719,8 @@ void Viewer::renderScene(bool offscreen) {
     glUniform1i(glGetUniformLocation(p, "uTermCount"), haveLight_ ? displayedTerms_ : 0);
     glUniform1i(glGetUniformLocation(p, "uViewMapSize"), std::max(viewMapSize_, 1));
     glUniform1f(glGetUniformLocation(p, "uEta"), float(s_.object.eta));
-    glUniform1i(glGetUniformLocation(p, "uSpecular"), specular_ ? 1 : 0);
+    glUniform1i(glGetUniformLocation(p, "uSpecular"), specular_ && envOn_ ? 1 : 0);
+    glUniform1i(glGetUniformLocation(p, "uBackground"), envOn_ ? 1 : 0);
     const std::pair<const char*, GLuint> textures[] = {
         {"uVisibility", visibility_},
         {"uEnvironment", environmentTexture(env, false)},
@@ -729,6 +769,107 @@ std::string Viewer::renderCommand() const {
         if (s_.specularBlur > 0) cmd += " --specular-blur " + std::to_string(s_.specularBlur);
     }
     return cmd + " -o OUT";
+}
+
+void Viewer::drawPointLightPanel() {
+    ImGui::Separator();
+    ImGui::Checkbox("environment light (E)", &envOn_);
+    if (!pointWorker_) {
+        ImGui::TextDisabled("point lights: the transport file names no material");
+        return;
+    }
+    ImGui::SameLine();
+    ImGui::Checkbox("point lights (L)", &pointOn_);
+    if (!ImGui::CollapsingHeader("point lights (Chang et al. 2008)", ImGuiTreeNodeFlags_DefaultOpen)) return;
+    static const char* kModes[] = {"sampling", "hybrid", "local", "global"};  // TextureSpaceMode order
+    ImGui::Combo("R_d by", &splitMode_, kModes, int(std::size(kModes)));
+    ImGui::SliderInt("samples N", &pointSamples_, 16, 20000, "%d", ImGuiSliderFlags_Logarithmic);
+    const float radius = float(std::max(s_.object.sphereRadius, 1e-3));
+    int remove = -1;
+    for (int i = 0; i < int(lights_.size()); ++i) {
+        Light& l = lights_[size_t(i)];
+        ImGui::PushID(i);
+        ImGui::Text("light %d (%s)", i + 1, l.type == LightType::Point ? "point, W/sr" : "directional, W/m^2");
+        if (l.type == LightType::Point) {
+            float p[3] = {float(l.position.x), float(l.position.y), float(l.position.z)};
+            if (ImGui::DragFloat3("position (mm)", p, 0.01f * radius, 0.0f, 0.0f, "%.2f"))
+                l.position = glm::dvec3(p[0], p[1], p[2]);
+        } else {
+            float d[3] = {float(l.direction.x), float(l.direction.y), float(l.direction.z)};
+            if (ImGui::DragFloat3("toward", d, 0.01f, -1.0f, 1.0f, "%.3f")) {
+                const glm::dvec3 v(d[0], d[1], d[2]);
+                if (glm::length(v) > 1e-6) l.direction = glm::normalize(v);
+            }
+        }
+        const double peak = std::max({l.rgb.x, l.rgb.y, l.rgb.z});
+        float colour[3] = {1.0f, 1.0f, 1.0f};
+        if (peak > 0.0)
+            for (int c = 0; c < 3; ++c) colour[c] = float(l.rgb[c] / peak);
+        float power = float(peak);
+        bool changed = ImGui::ColorEdit3("colour", colour, ImGuiColorEditFlags_NoInputs);
+        ImGui::SameLine();
+        ImGui::SetNextItemWidth(110.0f);
+        changed |= ImGui::DragFloat("intensity", &power, std::max(0.01f * power, 1e-6f), 0.0f, 1e9f, "%.4g",
+                                    ImGuiSliderFlags_Logarithmic);
+        if (changed && std::isfinite(power))
+            l.rgb = glm::dvec3(colour[0], colour[1], colour[2]) * double(std::max(power, 0.0f));
+        ImGui::SameLine();
+        if (ImGui::SmallButton("remove")) remove = i;
+        ImGui::PopID();
+    }
+    if (remove >= 0) lights_.erase(lights_.begin() + remove);
+    if (ImGui::Button("add point light")) {
+        // Above the camera's side of the object, 3 radii out, giving ~100 W/m^2 at the centre.
+        const glm::dvec3 c = s_.object.sphereCentre;
+        const glm::dvec3 dir = glm::normalize(glm::normalize(camera_.eye - c) + glm::dvec3(camera_.up));
+        const double d = 3.0 * double(radius);
+        lights_.push_back(pointLight(c + d * dir, glm::dvec3(100.0 * d * d / kSquareMmPerSquareMetre), "viewer"));
+    }
+    if (havePoint_) {
+        const PointLightResult& r = pointFront_;
+        if (!r.message.empty()) ImGui::TextColored(ImVec4(1.0f, 0.5f, 0.3f, 1.0f), "%s", r.message.c_str());
+        const TextureSpaceTimings& t = r.timings;
+        ImGui::Text("last update %.1f ms: irradiance %.1f, shadow maps %.1f, draws %.1f, sums %.1f", r.totalMs,
+                    1e3 * t.irradianceSeconds, 1e3 * t.shadowMapSeconds, 1e3 * t.samplingSeconds, r.evaluationMs);
+        ImGui::Text("%zu updates, mean %.1f ms; %zu distinct samples, R_p %.3g mm", pointStats_.count,
+                    pointStats_.mean(), r.uniqueSamples, r.rp);
+    }
+    ImGui::BeginDisabled(comparing_ || lights_.empty() || !pointOn_);
+    if (ImGui::Button("RMSE vs Jensen-Buhler")) {
+        pointWorker_->compare(camera_, double(exposure_));
+        comparing_ = true;
+        comparison_ = "rendering the reference ...";
+    }
+    ImGui::EndDisabled();
+    if (!comparison_.empty()) ImGui::TextWrapped("%s", comparison_.c_str());
+    const std::string atlas = pointWorker_->atlasSummary();
+    ImGui::TextDisabled("%s", atlas.empty() ? "building the surface atlas ..." : atlas.c_str());
+}
+
+void Viewer::drawLightMarkers() {
+    if (!pointWorker_ || !pointOn_) return;
+    const Camera& c = camera_;
+    const glm::dvec3 forward = glm::normalize(c.target - c.eye);
+    const glm::dvec3 right = glm::normalize(glm::cross(forward, c.up));
+    const glm::dvec3 up = glm::cross(right, forward);
+    const double tanHalf = std::tan(glm::radians(c.fovY) * 0.5), aspect = double(c.width) / c.height;
+    const ImVec2 size = ImGui::GetIO().DisplaySize;
+    ImDrawList* draw = ImGui::GetBackgroundDrawList();
+    for (size_t i = 0; i < lights_.size(); ++i) {
+        const Light& l = lights_[i];
+        if (l.type != LightType::Point) continue;
+        const glm::dvec3 d = l.position - c.eye;
+        const double z = glm::dot(d, forward);
+        if (!(z > 0.0)) continue;
+        const double sx = glm::dot(d, right) / z / (tanHalf * aspect), sy = glm::dot(d, up) / z / tanHalf;
+        const ImVec2 p(float((sx + 1.0) * 0.5 * size.x), float((1.0 - sy) * 0.5 * size.y));
+        const double peak = std::max({l.rgb.x, l.rgb.y, l.rgb.z, 1e-30});
+        const ImU32 colour = ImGui::ColorConvertFloat4ToU32(
+            ImVec4(float(l.rgb.x / peak), float(l.rgb.y / peak), float(l.rgb.z / peak), 1.0f));
+        draw->AddCircleFilled(p, 6.0f, colour);
+        draw->AddCircle(p, 7.0f, IM_COL32(0, 0, 0, 255), 0, 1.5f);
+        draw->AddText(ImVec2(p.x + 9.0f, p.y - 7.0f), IM_COL32(255, 255, 255, 255), std::to_string(i + 1).c_str());
+    }
 }
 
 void Viewer::drawPanel() {
@@ -780,6 +921,7 @@ void Viewer::drawPanel() {
     ImGui::TextDisabled("%zu vertices, %zu triangles, %s", mesh.vertexCount(), mesh.triangleCount(),
                         glRenderer_.substr(0, glRenderer_.find(' ')).c_str());
 
+    drawPointLightPanel();
     if (ImGui::CollapsingHeader("camera")) {
         ImGui::Text("eye (%.4g, %.4g, %.4g) mm", camera_.eye.x, camera_.eye.y, camera_.eye.z);
         ImGui::Text("target (%.4g, %.4g, %.4g), fov %.3g", camera_.target.x, camera_.target.y, camera_.target.z,
@@ -796,6 +938,7 @@ void Viewer::drawPanel() {
             "shift/ctrl + left drag, arrows: rotate light\n"
             "N, B (PgDn, PgUp): next, previous environment\n"
             "M, S, G: multiple, single scattering, specular\n"
+            "E, L: environment light, point lights\n"
             "+, -, 0: exposure; [, ]: light terms\n"
             "F12 or P: screenshot, H: panel, Esc: quit");
     }
@@ -885,6 +1028,11 @@ void Viewer::printSummary(double seconds) const {
                     "max %.1f ms\n",
                     relightStats_.count, relightStats_.mean(), lightStats_.mean(), kernelStats_.mean(),
                     uploadStats_.mean(), relightStats_.min, relightStats_.max);
+    if (pointStats_.count)
+        std::printf("point-light updates: %zu, mean %.1f ms (irradiance map, shadow maps, draws and per-vertex sums; "
+                    "last: %.1f ms, N = %d, %s), min %.1f, max %.1f ms\n",
+                    pointStats_.count, pointStats_.mean(), pointFront_.totalMs, pointFront_.request.samples,
+                    toString(pointFront_.request.mode), pointStats_.min, pointStats_.max);
     std::fflush(stdout);
 }
 
@@ -908,6 +1056,12 @@ int Viewer::run() {
     createWindow();
     createResources();
     worker_ = std::make_unique<RelightWorker>(file, environments_);
+    envOn_ = s_.environmentLight;
+    lights_ = s_.pointLights;
+    splitMode_ = int(s_.tsis.mode);
+    pointSamples_ = s_.tsis.samples;
+    if (s_.material)
+        pointWorker_ = std::make_unique<PointLightWorker>(s_.object.mesh, *s_.material, s_.tsis, s_.atlasSize);
     glfwGetCursorPos(window_, &lastX_, &lastY_);
 
     const bool scripted = s_.frames > 0;
@@ -959,19 +1113,50 @@ int Viewer::run() {
             submitted_.id = nextId_++;
             worker_->submit(submitted_);
         }
-        if (worker_->take(front_)) {
-            uploadResult(front_);
+        const bool envLanded = worker_->take(front_);
+        if (envLanded) {
             displayed_ = front_.request;
             haveLight_ = true;
+            uploadDirty_ = true;
+        }
+        if (pointWorker_) {
+            const PointLightRequest pw = currentPointRequest();
+            if (nextPointId_ == 1 || !pw.sameAs(pointSubmitted_)) {
+                pointSubmitted_ = pw;
+                pointSubmitted_.id = nextPointId_++;
+                pointWorker_->submit(pointSubmitted_);
+            }
+            if (pointWorker_->take(pointFront_)) {
+                pointDisplayed_ = pointFront_.request;
+                havePoint_ = true;
+                uploadDirty_ = true;
+                if (!pointFront_.request.lights.empty()) pointStats_.add(pointFront_.totalMs);
+            }
+            std::string text;
+            if (pointWorker_->takeComparison(text)) {
+                comparison_ = text;
+                comparing_ = false;
+            }
+        }
+        if (envOn_ != uploadedEnvOn_ || pointOn_ != uploadedPointOn_) uploadDirty_ = true;
+        if (uploadDirty_ && (haveLight_ || havePoint_)) {
+            uploadCombined();
+            uploadDirty_ = false;
+            uploadedEnvOn_ = envOn_;
+            uploadedPointOn_ = pointOn_;
+        }
+        if (envLanded) {
             const double total = front_.lightMs + front_.relightMs + lastUploadMs_;
             relightStats_.add(total);
             lightStats_.add(front_.lightMs);
             kernelStats_.add(front_.relightMs);
             uploadStats_.add(lastUploadMs_);
         }
-        const bool busy = worker_->busy();
+        const bool pointBusy = pointWorker_ && !comparing_ && pointWorker_->busy();
+        const bool busy = worker_->busy() || pointBusy;
         // Scripted end: the frames are done and the light on screen is the last asked for.
-        const bool lastFrame = finishing && !busy && displayed_.id == submitted_.id;
+        const bool lastFrame = finishing && !busy && displayed_.id == submitted_.id &&
+                               (!pointWorker_ || (havePoint_ && pointDisplayed_.id == pointSubmitted_.id));
         const bool keyShot = screenshotRequested_;
         screenshotRequested_ = false;
 
@@ -1000,7 +1185,10 @@ int Viewer::run() {
                 }
 
         glViewport(0, 0, fbWidth, fbHeight);
-        if (showPanel_) drawPanel();
+        if (showPanel_) {
+            drawLightMarkers();
+            drawPanel();
+        }
         ImGui::Render();
         ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
 
@@ -1033,6 +1221,7 @@ int Viewer::run() {
         }
     }
     worker_.reset();
+    pointWorker_.reset();
     printSummary(std::chrono::duration<double>(Clock::now() - start).count());
     if (scripted && !screenshotsDone) {
         if (!s_.screenshots.empty())

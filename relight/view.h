@@ -12,6 +12,9 @@
 //     h_k(w_o') and the optional specular layer, ports of TranslucentShader::shade and
 //     specularReflection; the background is the lat-long environment along the pixel's
 //     ray (environmentRadiance: L(R^T d), bilinear, u wraps, v clamps).
+//   - point lights (texture-space importance sampling, Chang et al. 2008) on a second
+//     worker (relight/point_light_worker.h): per-vertex M / pi added to the
+//     environment's diffuse radiance before upload; each source toggles on its own.
 // The projection reproduces cameraRayDirection exactly (same vertical fov, aspect and
 // pixel centres), and tone mapping is writePng's (2^exposure, clamp to [0, 1], exact
 // sRGB encoding), so a screenshot matches prt-relight render's PNG and EXR.
@@ -19,14 +22,17 @@
 #include <glm/glm.hpp>
 
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "common/camera.h"
 #include "common/error.h"
 #include "common/image.h"
+#include "relight/point_lights.h"
 #include "relight/relight_kernel.h"
 #include "relight/render.h"
+#include "relight/texture_space_sampling.h"
 
 namespace prt {
 
@@ -41,6 +47,15 @@ struct ViewerSetup {
     size_t lightTerms = 0;             // 0 = all
     bool specular = false;
     int specularBlur = 0;              // 0 = automatic (specularBlurFactor)
+
+    // Point lights by texture-space importance sampling (relight/point_light_worker.h),
+    // added to the environment's light. Unavailable when the transport file names no
+    // material.
+    std::optional<Material> material;  // the transport file's
+    std::vector<Light> pointLights;    // initial lights (mm, the object's frame)
+    TextureSpaceOptions tsis;          // split mode, N, seed, shadow map, filter
+    int atlasSize = 1024;              // irradiance map resolution
+    bool environmentLight = true;      // the environment's light (and background) on at start
 
     // Scripting. frames > 0: render this many frames once the first relight has landed
     // (and, after them, until no relight is in flight), write the screenshots, exit.

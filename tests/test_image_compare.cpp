@@ -248,3 +248,23 @@ TEST(Compare, HeatmapScaleRoundsUp) {
     for (int x = 0; x < 100; ++x) rel.at(x, 0, 0) = 0.0f;
     EXPECT_NEAR(heatmapScale(rel), 1e-6, 1e-18);
 }
+
+// The papers' displayed-image RMS: identical images give 0; a constant offset of the
+// displayed value gives that offset; background pixels (A = 0) are not counted; the
+// exposure scales before the clamp.
+TEST(ImageCompare, DisplayRmseMeasuresTheToneMappedImage) {
+    Image a(4, 2, 4, 0.0f), b(4, 2, 4, 0.0f);
+    for (int y = 0; y < 2; ++y)
+        for (int x = 0; x < 4; ++x) {
+            const bool object = x < 3;
+            for (int c = 0; c < 3; ++c) {
+                a.at(x, y, c) = 0.2f;
+                b.at(x, y, c) = object ? srgbToLinear(linearToSrgb(0.2f) + 0.1f) : 5.0f;
+            }
+            a.at(x, y, 3) = b.at(x, y, 3) = object ? 1.0f : 0.0f;
+        }
+    EXPECT_NEAR(displayRmse(a, a, 0.0), 0.0, 1e-12);
+    EXPECT_NEAR(displayRmse(b, a, 0.0), 0.1, 1e-5);
+    // +3 stops: 0.2 x 8 clamps to 1 in both images.
+    EXPECT_NEAR(displayRmse(b, a, 3.0), 0.0, 1e-6);
+}

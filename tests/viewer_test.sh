@@ -2,7 +2,7 @@
 # The viewer against the offline renderer (registered as the CTest viewer_matches_render
 # in relight/CMakeLists.txt; docs/viewer.md).
 #
-#   viewer_test.sh PRT_RELIGHT PRT_PRECOMPUTE PRT_COMPARE PRT_MAKE_TEST_SCENE WORKDIR
+#   viewer_test.sh PRT_RELIGHT PRT_PRECOMPUTE PRT_COMPARE PRT_MAKE_TEST_SCENE WORKDIR PRT_POINTLIGHT
 #
 # Under xvfb-run (Mesa llvmpipe), `prt-relight view --frames N --screenshot` of a small
 # generated scene must match `prt-relight render` of the same camera, environment,
@@ -17,16 +17,19 @@
 #     float atan/acos of the mirror direction looked up in a 16 x 8 pre-filtered map);
 #   - sRGB PNG, every pixel with equal coverage (background included): at most one
 #     level of 255 apart (measured: 1 level on a few pixels).
+# Point lights (texture-space importance sampling) in the viewer must match
+# `prt-pointlight --method tsis --evaluate vertex` of the same lights, N and seed in the
+# same way (the same estimator at the vertices, the same shading per pixel).
 # Bad inputs (missing transport, mismatched mesh, no display, no OpenGL 3.3, a
 # screenshot without --frames) must exit with code 1 and a one-line message.
 # Exit 77 (CTest: skipped) when xvfb-run is not installed.
 set -u
 
-if [ $# -ne 5 ]; then
-    echo "usage: $0 PRT_RELIGHT PRT_PRECOMPUTE PRT_COMPARE PRT_MAKE_TEST_SCENE WORKDIR" >&2
+if [ $# -ne 6 ]; then
+    echo "usage: $0 PRT_RELIGHT PRT_PRECOMPUTE PRT_COMPARE PRT_MAKE_TEST_SCENE WORKDIR PRT_POINTLIGHT" >&2
     exit 2
 fi
-RELIGHT=$1 PRECOMPUTE=$2 COMPARE=$3 MAKE_SCENE=$4 WORK=$5
+RELIGHT=$1 PRECOMPUTE=$2 COMPARE=$3 MAKE_SCENE=$4 WORK=$5 POINTLIGHT=$6
 
 if ! command -v xvfb-run > /dev/null; then
     echo "SKIP: xvfb-run not found (apt-get install xvfb xauth libgl1-mesa-dri)"
@@ -137,7 +140,39 @@ fi
 matches_render orbit 1e-4 "$S/torus.ply -t $S/torus.prt -e $S/sky.exr -W 200 -H 160 --azimuth 40 --elevation 25" \
     "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 200 -H 160 --azimuth 15 --elevation 25 --orbit 5
 
-# 6. Bad inputs: exit code 1 and a message naming the problem.
+# 6. Point lights alone (texture-space importance sampling, hybrid, two lights), against
+#    prt-pointlight's per-vertex frame of the same estimator. The file was made at
+#    --size-mm 20 with the default material (Marble).
+P="-W 200 -H 160 --azimuth 30 --elevation 20 --light point:30,40,-25:0.01 --light point:-35,10,30:0,0.004,0.008
+   --tsis-samples 300 --tsis-seed 4 --atlas-size 256 --light-map 256"
+echo "--- point lights"
+# shellcheck disable=SC2086
+if view "$S/torus.ply" -t "$S/torus.prt" $P --no-environment-light --frames 3 --screenshot "$O/points.view.exr" \
+    --screenshot "$O/points.view.png" > "$O/points.view.log" 2>&1; then
+    grep -E "^(viewer|point-light)" "$O/points.view.log"
+    # shellcheck disable=SC2086
+    "$POINTLIGHT" "$S/torus.ply" --size-mm 20 -m Marble $P --method tsis --evaluate vertex -o "$O/points.render" \
+        > "$O/points.render.log" 2>&1 || { cat "$O/points.render.log"; fail "points: prt-pointlight failed"; }
+    agree points "$O/points.view" "$O/points.render"
+    compare "points: EXR, common object pixels" "$O/points.view.exr" "$O/points.render.masked.exr" 1e-4
+else
+    cat "$O/points.view.log"
+    fail "points: the viewer failed"
+fi
+# Both sources together: the environment's light is still there (a different image).
+if view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" $P --frames 2 --screenshot "$O/both.view.exr" \
+    > "$O/both.view.log" 2>&1; then
+    if "$COMPARE" "$O/both.view.exr" "$O/points.view.exr" --max-rel-rmse 0.05 > /dev/null 2>&1; then
+        fail "both: environment + point lights look like the point lights alone"
+    else
+        pass "both: environment + point lights differ from point lights alone"
+    fi
+else
+    cat "$O/both.view.log"
+    fail "both: the viewer failed"
+fi
+
+# 7. Bad inputs: exit code 1 and a message naming the problem.
 # expect_error NAME PATTERN COMMAND...
 expect_error() {
     local name=$1 pattern=$2
@@ -162,6 +197,10 @@ expect_error "no display" "display" \
     env -u DISPLAY -u WAYLAND_DISPLAY "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --frames 1
 expect_error "no OpenGL 3.3" "OpenGL 3.3" \
     inx env MESA_GL_VERSION_OVERRIDE=3.0 "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --frames 1
+expect_error "point light inside the object" "inside the object" \
+    inx "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --light point:5,0,0:1 --frames 1
+expect_error "bad split" "--split" \
+    inx "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --light point:30,40,0:1 --split both --frames 1
 expect_error "screenshot without --frames" "needs --frames" \
     "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --screenshot "$O/x.png"
 

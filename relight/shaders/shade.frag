@@ -12,6 +12,7 @@ uniform sampler2D uViewMaps;   // R32F, N x 6NK: texel (i, (k * 6 + face) * N + 
 uniform int uViewMapSize;
 uniform float uEta;
 uniform bool uSpecular;
+uniform bool uBackground;      // false: black background (the environment's light is off)
 uniform sampler2D uPrefiltered;
 
 ivec3 gTriangle;
@@ -125,7 +126,7 @@ void main() {
     vec3 d = rayDirection();
     uint id = texelFetch(uVisibility, ivec2(gl_FragCoord.xy), 0).r;
     if (id == 0u) {
-        writeColor(background(d), 0.0);
+        writeColor(uBackground ? background(d) : vec3(0.0), 0.0);
         return;
     }
     findTriangle(int(id - 1u), d);
