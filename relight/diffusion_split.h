@@ -78,6 +78,18 @@ public:
     double rMax() const { return rMax_; }
     int entries() const { return int(values_.size()) - 1; }
 
+    // The lookup split in two for loops over many distances: position(r2) is the
+    // continuous index t (vectorisable: no branch, no table), then at(t, r2) is
+    // operator()(r2) from it. at(position(r2), r2) == operator()(r2).
+    float position(float r2) const { return std::sqrt(std::sqrt(r2) * invRMax_) * scale_; }
+    glm::vec3 at(float t, float r2) const {
+        if (!(r2 < rMax2_)) return glm::vec3(0.0f);
+        const int i = std::min(int(t), last_);
+        const float f = t - float(i);
+        const glm::vec3 a = values_[size_t(i)], b = values_[size_t(i) + 1];
+        return a + f * (b - a);
+    }
+
 private:
     double rMax_ = 0.0;
     float rMax2_ = 0.0f, invRMax_ = 0.0f, scale_ = 0.0f;

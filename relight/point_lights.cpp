@@ -402,10 +402,17 @@ SampleSource parseSampleSource(const std::string& text) {
 
 void computeIrradiance(IrradianceSamples& samples, const RayScene& scene, const std::vector<Light>& lights,
                        double eta, FresnelModel model) {
+    std::vector<glm::vec3> irradiance;
+    computeIrradiance(samples, scene, lights, eta, model, irradiance);
+    samples.irradiance = std::move(irradiance);
+}
+
+void computeIrradiance(const IrradianceSamples& samples, const RayScene& scene, const std::vector<Light>& lights,
+                       double eta, FresnelModel model, std::vector<glm::vec3>& irradiance) {
     const size_t n = samples.size();
     if (samples.normals.size() != n || samples.geometricNormals.size() != n)
         throw Error("samples", "inconsistent sample arrays");
-    samples.irradiance.assign(n, glm::vec3(0.0f));
+    irradiance.assign(n, glm::vec3(0.0f));
     // Fail before the parallel loop, not inside it, for a bad eta.
     (void)incidentTransmittance(model, eta, 1.0);
     // directIrradiance's rays, traced in packets (occludedBatch) per block of samples:
@@ -456,7 +463,7 @@ void computeIrradiance(IrradianceSamples& samples, const RayScene& scene, const 
             for (size_t j = 0; j < m; ++j)
                 if (!occluded[j]) sum[index[j]] += value[j];
         }
-        for (size_t k = 0; k < count; ++k) samples.irradiance[r.begin() + k] = glm::vec3(sum[k]);
+        for (size_t k = 0; k < count; ++k) irradiance[r.begin() + k] = glm::vec3(sum[k]);
     });
 }
 

@@ -170,5 +170,8 @@ SampleSource parseSampleSource(const std::string& text);
 // number of threads.
 void computeIrradiance(IrradianceSamples& samples, const RayScene& scene, const std::vector<Light>& lights,
                        double eta, FresnelModel model);
+// The same into `irradiance` (resized to samples.size()), leaving samples untouched.
+void computeIrradiance(const IrradianceSamples& samples, const RayScene& scene, const std::vector<Light>& lights,
+                       double eta, FresnelModel model, std::vector<glm::vec3>& irradiance);
 
 }  // namespace prt

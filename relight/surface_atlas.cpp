@@ -261,8 +261,15 @@ SurfaceAtlas buildSurfaceAtlas(const TriangleMesh& mesh, int resolution) {
     atlas.texelSample.assign(texels, SurfaceAtlas::kNoSample);
     IrradianceSamples& smp = atlas.samples;
     const double r = double(resolution);
-    for (size_t t = 0; t < texels; ++t) {
-        if (bestTriangle[t] == kNoTriangle) continue;
+    // Samples in triangle order (texel order within a triangle): neighbouring samples are
+    // neighbouring surface points, so the irradiance map's shadow rays, traced in
+    // packets of consecutive samples, are coherent.
+    std::vector<uint32_t> covered;
+    for (size_t t = 0; t < texels; ++t)
+        if (bestTriangle[t] != kNoTriangle) covered.push_back(uint32_t(t));
+    std::stable_sort(covered.begin(), covered.end(),
+                     [&](uint32_t a, uint32_t b) { return bestTriangle[a] < bestTriangle[b]; });
+    for (const uint32_t t : covered) {
         const uint32_t f = bestTriangle[t];
         const glm::uvec3 tri = mesh.triangles[f];
         const glm::dvec2 a = glm::dvec2(atlas.cornerUv[3 * f]) * r, b = glm::dvec2(atlas.cornerUv[3 * f + 1]) * r,

@@ -62,7 +62,8 @@ struct SurfaceAtlas {
     std::vector<float> texelArea;
     std::vector<uint32_t> texelSample;  // kNoSample for an empty texel
     // One irradiance sample per covered texel (positions, normals, geometric normals,
-    // areas = texelArea, triangles), in texel order; sampleTexel[i] is its texel.
+    // areas = texelArea, triangles), ordered by triangle (then texel) so that
+    // consecutive samples are neighbours on the surface; sampleTexel[i] is its texel.
     IrradianceSamples samples;
     std::vector<uint32_t> sampleTexel;
     SurfaceAtlasStats stats;

@@ -142,6 +142,28 @@ TEST(TextureSpaceSampling, ShadowMapHoldsTheLitPowerAndItsFilterTheLocalPart) {
     }
 }
 
+// A coarse sphere with smooth normals: faces seen edge-on by the light have interpolated
+// normals facing it. The filter must stay close to the map's cubature everywhere (no
+// sparkle of one tap carrying a strip's flux).
+TEST(TextureSpaceSampling, LocalFilterHasNoSparklesOnCoarseMeshes) {
+    const Scene s(makeIcosphere(1, 8.0f), 128);
+    const Material m = materialByName("Skin1");
+    TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m,
+                           {.mode = TextureSpaceMode::Local, .samples = 16, .lightMapSize = 128});
+    r.setLights({pointLight({30, 10, 5}, {1, 1, 1})});
+    const TranslucentShadowMap& map = r.shadowMaps().front();
+    double peak = 0.0, worst = 0.0;
+    const IrradianceSamples& points = s.atlas.samples;  // points all over the faces
+    for (size_t i = 0; i < points.size(); i += 2) {
+        const glm::dvec3 x(points.positions[i]);
+        const double full = map.exitanceAllPixels(x, r.localFilter().kernel).y;
+        peak = std::max(peak, full);
+        worst = std::max(worst, map.localExitance(x, r.localFilter()).y - full);
+    }
+    std::printf("coarse sphere: worst filter excess %.4g of peak %.4g\n", worst, peak);
+    EXPECT_LT(worst, 0.1 * peak);
+}
+
 TEST(TextureSpaceSampling, HybridReducesToEachMethodAndIsTheSumOfItsParts) {
     const Scene s(makeTorus(6.0f, 2.5f, 32, 16));
     const Material m = materialByName("Skin1");

@@ -1,0 +1,199 @@
+// prt-bench-tsis: the frame rate of texture-space importance sampling (Chang et al.
+// 2008; docs/point-lights.md, docs/performance.md) and, optionally, its error against
+// the Jensen-Buhler reference, for a list of sample counts N: the analogues of the
+// paper's Table 2 (everything a new light position needs: irradiance map, shadow maps,
+// draws, the sums), Table 3 (the sums alone: the light is still, the view changes) and
+// Fig. 7 (RMSE against N).
+//
+// Every figure is the median of --repeat runs in this process. "per vertex" frames add
+// the CPU's per-pixel interpolation and shading (what the viewer does on the GPU) only
+// when --evaluate pixel; the per-vertex frame time is the lighting + the vertex sums.
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/atomic_file.h"
+#include "common/error.h"
+#include "common/image_compare.h"
+#include "common/mesh_io.h"
+#include "common/options.h"
+#include "common/util.h"
+#include "relight/jensen_buhler.h"
+#include "relight/render.h"
+#include "relight/surface_atlas.h"
+#include "relight/texture_space_sampling.h"
+
+using namespace prt;
+
+namespace {
+
+double median(std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+struct Options {
+    std::string mesh, json;
+    ScaleOptions scale;
+    MaterialOptions material;
+    std::vector<std::string> lights;
+    std::vector<int> samples{49, 100, 169, 256, 400, 900, 1600, 2500};
+    std::string split = "hybrid", evaluate = "vertex";
+    int atlasSize = 1024, repeat = 5, seeds = 1;
+    double epsilon = 0.0, exposure = 0.0;
+    bool reference = false;
+    CameraOptions camera;
+    int threads = 0;
+    TextureSpaceOptions tsis;
+};
+
+int run(const Options& o) {
+    const ThreadLimit limit(o.threads);
+    if (o.repeat < 1) throw Error("--repeat", "must be at least 1");
+    if (o.seeds < 1) throw Error("--seeds", "must be at least 1");
+    const Material material = makeMaterial(o.material);
+    TriangleMesh mesh = loadMesh(o.mesh);
+    scaleToPhysical(mesh, makeScale(o.scale));
+    std::vector<Light> lights;
+    for (const std::string& t : o.lights) lights.push_back(parseLight(t));
+    if (lights.empty()) throw Error("--light", "give at least one light");
+    const RayScene scene(mesh);
+    checkLightsOutside(scene, lights);
+    const BoundingSphere sphere = boundingSphere(mesh);
+    const Camera camera = makeCamera(o.camera, sphere.centre, sphere.radius);
+    const GBuffer g = traceGBuffer(scene, mesh, camera);
+    const bool perVertex = toLower(o.evaluate) == "vertex";
+    if (!perVertex && toLower(o.evaluate) != "pixel") throw Error("--evaluate", "expected pixel or vertex");
+    TextureSpaceOptions to = o.tsis;
+    to.mode = parseTextureSpaceMode(o.split);
+    const SurfaceAtlas atlas = buildSurfaceAtlas(mesh, o.atlasSize);
+
+    Image reference;
+    double referenceSeconds = 0.0;
+    if (o.reference) {
+        IrradianceSamples faces = faceCentroidSamples(mesh);
+        computeIrradiance(faces, scene, lights, material.eta, to.fresnel);
+        const JensenBuhler jb(material, IrradianceOctree(faces), {.epsilon = o.epsilon, .fresnel = to.fresnel});
+        const Stopwatch t;
+        reference = jb.render(g);
+        referenceSeconds = t.seconds();
+    }
+    std::printf("prt-bench-tsis: %s, %zu triangles, %zu vertices, %s, %s, atlas %d^2 (%.0f%% covered), %d x %d "
+                "(%zu object pixels), evaluated per %s, %d threads; median of %d runs\n",
+                o.mesh.c_str(), mesh.triangleCount(), mesh.vertexCount(), material.name.c_str(), toString(to.mode),
+                o.atlasSize, 100.0 * atlas.stats.coverage, g.width, g.height, g.objectPixels(),
+                perVertex ? "vertex" : "pixel", o.threads > 0 ? o.threads : int(std::thread::hardware_concurrency()), o.repeat);
+    if (o.reference)
+        std::printf("reference: Jensen-Buhler epsilon %g over %zu face centroids, per pixel, %.2f s\n", o.epsilon,
+                    mesh.triangleCount(), referenceSeconds);
+    std::printf("| N | irradiance map ms | shadow maps ms | draws ms | sums ms | new light: ms (fps) | sums only: fps |%s\n",
+                o.reference ? " RMSE (displayed) | rel. RMSE |" : "");
+    std::printf("|---|---|---|---|---|---|---|%s\n", o.reference ? "---|---|" : "");
+    nlohmann::json rows = nlohmann::json::array();
+    for (int n : o.samples) {
+        TextureSpaceOptions on = to;
+        on.samples = n;
+        TextureSpaceRenderer r(mesh, scene, atlas, material, on);
+        std::vector<double> irr, maps, draws, sums;
+        Image image;
+        for (int k = 0; k < o.repeat; ++k) {
+            r.setLights(lights);
+            const TextureSpaceTimings& t = r.timings();
+            irr.push_back(1e3 * t.irradianceSeconds);
+            maps.push_back(1e3 * t.shadowMapSeconds);
+            draws.push_back(1e3 * t.samplingSeconds);
+            const Stopwatch s;
+            if (perVertex) {
+                const std::vector<glm::vec3> m = r.vertexExitance();
+                if (m.empty()) throw Error("bench", "no vertices");
+            } else {
+                image = r.render(g);
+            }
+            sums.push_back(s.milliseconds());
+        }
+        const double total = median(irr) + median(maps) + median(draws) + median(sums);
+        std::printf("| %d | %.2f | %.2f | %.2f | %.2f | %.1f (%.1f) | %.1f |", n, median(irr), median(maps),
+                    median(draws), median(sums), total, 1e3 / total, 1e3 / median(sums));
+        nlohmann::json row = {{"samples", n},           {"irradiance_ms", median(irr)}, {"shadow_maps_ms", median(maps)},
+                              {"draws_ms", median(draws)}, {"sums_ms", median(sums)},    {"frame_ms", total}};
+        if (o.reference) {
+            // RMS over seeds of the error of one frame.
+            double d2 = 0.0, r2 = 0.0;
+            for (int seed = 1; seed <= o.seeds; ++seed) {
+                r.redraw(n, uint64_t(seed));
+                const Image frame = perVertex ? r.renderPerVertex(g) : r.render(g);
+                const double d = displayRmse(frame, reference, o.exposure);
+                const double rel = compareImages(frame, reference).overall.relativeRmse;
+                d2 += d * d;
+                r2 += rel * rel;
+            }
+            const double d = std::sqrt(d2 / o.seeds), rel = std::sqrt(r2 / o.seeds);
+            std::printf(" %.4f | %.4f |", d, rel);
+            row["rmse_display"] = d;
+            row["relative_rmse"] = rel;
+        }
+        std::printf("\n");
+        std::fflush(stdout);
+        rows.push_back(row);
+    }
+    if (!o.json.empty()) {
+        nlohmann::json j = {{"mesh", o.mesh},
+                            {"triangles", mesh.triangleCount()},
+                            {"vertices", mesh.vertexCount()},
+                            {"material", material.name},
+                            {"split", toString(to.mode)},
+                            {"evaluate", perVertex ? "vertex" : "pixel"},
+                            {"atlas", o.atlasSize},
+                            {"width", g.width},
+                            {"height", g.height},
+                            {"exposure", o.exposure},
+                            {"rows", rows}};
+        writeAtomically(o.json, [&](const std::string& tmp) {
+            std::ofstream out(tmp);
+            out << j.dump(2) << "\n";
+            if (!out) throw Error(o.json, "cannot write");
+        });
+    }
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    return runMain("prt-bench-tsis", [&]() -> int {
+        CLI::App app{"prt-bench-tsis: frame time of texture-space importance sampling against the sample count, "
+                     "and its error against Jensen-Buhler (docs/performance.md)"};
+        Options o;
+        app.add_option("mesh", o.mesh, "Mesh file")->required();
+        addScaleOptions(app, o.scale);
+        addMaterialOptions(app, o.material, /*withG=*/false);
+        app.add_option("--light", o.lights, "point:X,Y,Z:R,G,B or dir:X,Y,Z:R,G,B, repeatable")->required();
+        app.add_option("--samples", o.samples, "Sample counts N")->delimiter(',')->capture_default_str();
+        app.add_option("--split", o.split, "hybrid, sampling, local or global")->capture_default_str();
+        app.add_option("--evaluate", o.evaluate, "vertex (the viewer's) or pixel")->capture_default_str();
+        app.add_option("--atlas-size", o.atlasSize, "Irradiance map resolution")->capture_default_str();
+        app.add_option("--light-map", o.tsis.lightMapSize, "Shadow map resolution")->capture_default_str();
+        app.add_option("--rings", o.tsis.rings, "L")->capture_default_str();
+        app.add_option("--ring-samples", o.tsis.ringSamples, "C")->capture_default_str();
+        app.add_option("--repeat", o.repeat, "Runs per N (the median is reported)")->capture_default_str();
+        app.add_flag("--reference", o.reference, "Also render Jensen-Buhler and report the error at each N");
+        app.add_option("--epsilon", o.epsilon, "Jensen-Buhler's epsilon for --reference (0 = brute force)")
+            ->capture_default_str();
+        app.add_option("--seeds", o.seeds, "Seeds the error is averaged over (RMS)")->capture_default_str();
+        app.add_option("--exposure", o.exposure, "Exposure of the displayed-image RMSE")->capture_default_str();
+        app.add_option("--json", o.json, "Also write the rows as JSON");
+        addCameraOptions(app, o.camera);
+        addThreadsOption(app, o.threads);
+        if (const auto code = parseCommandLine(app, argc, argv, "prt-bench-tsis")) return *code;
+        return run(o);
+    });
+}
