@@ -62,7 +62,7 @@ RadialTable::RadialTable(const std::function<glm::dvec3(double r)>& kernel, doub
     values_.resize(size_t(entries) + 1);
     for (int i = 0; i <= entries; ++i) {
         const double t = double(i) / double(entries);
-        values_[size_t(i)] = glm::vec3(kernel(rMax * t * t));
+        values_[size_t(i)] = glm::vec4(glm::vec3(kernel(rMax * t * t)), 0.0f);
     }
 }
 

@@ -72,7 +72,7 @@ public:
         const float t = std::sqrt(std::sqrt(r2) * invRMax_) * scale_;
         const int i = std::min(int(t), last_);
         const float f = t - float(i);
-        const glm::vec3 a = values_[size_t(i)], b = values_[size_t(i) + 1];
+        const glm::vec3 a(values_[size_t(i)]), b(values_[size_t(i) + 1]);
         return a + f * (b - a);
     }
     double rMax() const { return rMax_; }
@@ -86,15 +86,19 @@ public:
         if (!(r2 < rMax2_)) return glm::vec3(0.0f);
         const int i = std::min(int(t), last_);
         const float f = t - float(i);
-        const glm::vec3 a = values_[size_t(i)], b = values_[size_t(i) + 1];
+        const glm::vec3 a(values_[size_t(i)]), b(values_[size_t(i) + 1]);
         return a + f * (b - a);
     }
+    // For SIMD loops: node i as 4 floats (R, G, B, 0), and the guards of at().
+    const float* node(int i) const { return &values_[size_t(i)].x; }
+    int lastIndex() const { return last_; }
+    float rMax2() const { return rMax2_; }
 
 private:
     double rMax_ = 0.0;
     float rMax2_ = 0.0f, invRMax_ = 0.0f, scale_ = 0.0f;
     int last_ = 0;  // entries - 1
-    std::vector<glm::vec3> values_;
+    std::vector<glm::vec4> values_;  // RGB + 0 padding: one 16-byte load per node
 };
 
 // The three kernels of a material: full R_d, local R_d W_l and global R_d W_g.

@@ -1,6 +1,7 @@
 #include "relight/texture_space_sampling.h"
 
 #include <tbb/parallel_for.h>
+#include <xmmintrin.h>
 
 #include <algorithm>
 #include <cmath>
@@ -63,6 +64,30 @@ TextureSpaceRenderer::TextureSpaceRenderer(const TriangleMesh& mesh, const RaySc
     }
     if (usesFilter())
         filter_ = makeLocalFilter(localDiffusionTable(material_, split_, rMax), options_.rings, options_.ringSamples);
+
+    // Morton order of the vertices in the bounding box (10 bits per axis).
+    const Bounds box = bounds(mesh);
+    const glm::vec3 extent = glm::max(box.size(), glm::vec3(1e-12f));
+    auto spread = [](uint32_t v) {  // 10 bits -> every third bit
+        v &= 0x3ffu;
+        v = (v | (v << 16)) & 0x030000ffu;
+        v = (v | (v << 8)) & 0x0300f00fu;
+        v = (v | (v << 4)) & 0x030c30c3u;
+        v = (v | (v << 2)) & 0x09249249u;
+        return v;
+    };
+    std::vector<std::pair<uint32_t, uint32_t>> keys(mesh.vertexCount());
+    for (size_t v = 0; v < keys.size(); ++v) {
+        const glm::vec3 q = glm::clamp((mesh.positions[v] - box.lo) / extent, 0.0f, 1.0f) * 1023.0f;
+        keys[v] = {spread(uint32_t(q.x)) | (spread(uint32_t(q.y)) << 1) | (spread(uint32_t(q.z)) << 2), uint32_t(v)};
+    }
+    std::sort(keys.begin(), keys.end());
+    vertexOrder_.resize(keys.size());
+    orderedPositions_.resize(keys.size());
+    for (size_t k = 0; k < keys.size(); ++k) {
+        vertexOrder_[k] = keys[k].second;
+        orderedPositions_[k] = mesh.positions[keys[k].second];
+    }
 }
 
 void TextureSpaceRenderer::setLights(const std::vector<Light>& lights) {
@@ -110,7 +135,7 @@ void TextureSpaceRenderer::redraw(int samples, uint64_t seed, bool drawNow) {
 }
 
 void TextureSpaceRenderer::draw() {
-    px_.clear(); py_.clear(); pz_.clear(); wr_.clear(); wg_.clear(); wb_.clear();
+    px_.clear(); py_.clear(); pz_.clear(); w_.clear();
     if (!usesSamples() || !(sampler_->total() > 0.0)) return;
     std::vector<uint32_t> texels = sampler_->stratifiedSamples(size_t(options_.samples), options_.seed, options_.jitter);
     std::sort(texels.begin(), texels.end());
@@ -128,44 +153,54 @@ void TextureSpaceRenderer::draw() {
         px_.push_back(p.x);
         py_.push_back(p.y);
         pz_.push_back(p.z);
-        wr_.push_back(float(f.x * scale));
-        wg_.push_back(float(f.y * scale));
-        wb_.push_back(float(f.z * scale));
+        w_.push_back(glm::vec4(glm::vec3(glm::dvec3(f) * scale), 0.0f));
         k = e;
+    }
+}
+
+void TextureSpaceRenderer::sampleSums(const glm::vec3* points, size_t count, glm::dvec3* out) const {
+    // Tiled: one block of samples (kBlock x 24 bytes, in L1) for all the points, then
+    // the next block. Per point and block: distances and table positions in loops the
+    // compiler vectorises, then the table reads and the weighted sums (float within a
+    // block, double across blocks: the same order for one point or many).
+    constexpr size_t kBlock = 64;
+    float r2[kBlock], t[kBlock];
+    for (size_t p = 0; p < count; ++p) out[p] = glm::dvec3(0.0);
+    const size_t n = px_.size();
+    for (size_t begin = 0; begin < n; begin += kBlock) {
+        const size_t block = std::min(kBlock, n - begin);
+        const float *px = &px_[begin], *py = &py_[begin], *pz = &pz_[begin];
+        const glm::vec4* w = &w_[begin];
+        const float rMax2 = sampleKernel_.rMax2();
+        const int last = sampleKernel_.lastIndex();
+        for (size_t p = 0; p < count; ++p) {
+            const float x0 = points[p].x, y0 = points[p].y, z0 = points[p].z;
+            for (size_t j = 0; j < block; ++j) {
+                const float dx = x0 - px[j], dy = y0 - py[j], dz = z0 - pz[j];
+                r2[j] = dx * dx + dy * dy + dz * dz;
+            }
+            for (size_t j = 0; j < block; ++j) t[j] = sampleKernel_.position(r2[j]);
+            // RGB in one SSE register: w_j * lerp(node i, node i + 1, f) (at() by hand).
+            __m128 acc = _mm_setzero_ps();
+            for (size_t j = 0; j < block; ++j) {
+                if (!(r2[j] < rMax2)) continue;
+                const int i = std::min(int(t[j]), last);
+                const __m128 a = _mm_loadu_ps(sampleKernel_.node(i)), b = _mm_loadu_ps(sampleKernel_.node(i + 1));
+                const __m128 k = _mm_add_ps(a, _mm_mul_ps(_mm_set1_ps(t[j] - float(i)), _mm_sub_ps(b, a)));
+                acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(&w[j].x), k));
+            }
+            alignas(16) float sum[4];
+            _mm_store_ps(sum, acc);
+            out[p] += glm::dvec3(sum[0], sum[1], sum[2]);
+        }
     }
 }
 
 glm::dvec3 TextureSpaceRenderer::exitance(const glm::dvec3& x) const {
     glm::dvec3 m(0.0);
     if (usesSamples()) {
-        // In blocks: distances and table positions in loops the compiler vectorises,
-        // then the table reads and the weighted sums.
-        constexpr size_t kBlock = 64;
-        float r2[kBlock], t[kBlock];
-        const float x0 = float(x.x), y0 = float(x.y), z0 = float(x.z);
-        double r = 0.0, g = 0.0, b = 0.0;
-        const size_t n = px_.size();
-        for (size_t begin = 0; begin < n; begin += kBlock) {
-            const size_t count = std::min(kBlock, n - begin);
-            const float *px = &px_[begin], *py = &py_[begin], *pz = &pz_[begin];
-            for (size_t j = 0; j < count; ++j) {
-                const float dx = x0 - px[j], dy = y0 - py[j], dz = z0 - pz[j];
-                r2[j] = dx * dx + dy * dy + dz * dz;
-            }
-            for (size_t j = 0; j < count; ++j) t[j] = sampleKernel_.position(r2[j]);
-            float br = 0.0f, bg = 0.0f, bb = 0.0f;
-            const float *wr = &wr_[begin], *wg = &wg_[begin], *wb = &wb_[begin];
-            for (size_t j = 0; j < count; ++j) {
-                const glm::vec3 k = sampleKernel_.at(t[j], r2[j]);
-                br += wr[j] * k.x;
-                bg += wg[j] * k.y;
-                bb += wb[j] * k.z;
-            }
-            r += br;
-            g += bg;
-            b += bb;
-        }
-        m += glm::dvec3(r, g, b);
+        const glm::vec3 p(x);
+        sampleSums(&p, 1, &m);
     }
     if (usesFilter())
         for (const TranslucentShadowMap& map : maps_) m += map.localExitance(x, filter_);
@@ -185,9 +220,23 @@ Image TextureSpaceRenderer::render(const GBuffer& g) const {
 }
 
 std::vector<glm::vec3> TextureSpaceRenderer::vertexExitance() const {
-    std::vector<glm::vec3> out(mesh_->vertexCount());
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, out.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t v = r.begin(); v != r.end(); ++v) out[v] = glm::vec3(exitance(glm::dvec3(mesh_->positions[v])));
+    const size_t nv = mesh_->vertexCount();
+    std::vector<glm::vec3> out(nv);
+    constexpr size_t kChunk = 64;  // vertices sharing each block of samples
+    tbb::parallel_for(size_t(0), (nv + kChunk - 1) / kChunk, [&](size_t c) {
+        const size_t begin = c * kChunk, count = std::min(kChunk, nv - begin);
+        glm::dvec3 m[kChunk];
+        const glm::vec3* points = &orderedPositions_[begin];
+        if (usesSamples()) {
+            sampleSums(points, count, m);
+        } else {
+            for (size_t k = 0; k < count; ++k) m[k] = glm::dvec3(0.0);
+        }
+        for (size_t k = 0; k < count; ++k) {
+            if (usesFilter())
+                for (const TranslucentShadowMap& map : maps_) m[k] += map.localExitance(glm::dvec3(points[k]), filter_);
+            out[vertexOrder_[begin + k]] = glm::vec3(m[k]);
+        }
     });
     return out;
 }

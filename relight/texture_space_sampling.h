@@ -73,7 +73,7 @@ struct TextureSpaceOptions {
     double importanceBound = kDefaultImportanceBound;  // c, mm^-1
     double sharpness = kDefaultSplitSharpness;         // K, mm^-1
     SplitWeights weights = SplitWeights::Paper;
-    int lightMapSize = 512;            // translucent shadow map resolution
+    int lightMapSize = 256;            // translucent shadow map resolution (256: as accurate as 512 on the dragon, 4x cheaper)
     int rings = 20, ringSamples = 20;  // L, C
     FresnelModel fresnel = FresnelModel::Exact;
 };
@@ -126,6 +126,8 @@ private:
         return options_.mode == TextureSpaceMode::Hybrid || options_.mode == TextureSpaceMode::Local;
     }
     void draw();
+    // The global (sample) sums at `count` points into out[0 .. count).
+    void sampleSums(const glm::vec3* points, size_t count, glm::dvec3* out) const;
 
     const TriangleMesh* mesh_;
     const RayScene* scene_;
@@ -140,9 +142,15 @@ private:
     std::vector<glm::vec3> texelFlux_;  // per atlas sample (covered texel): Phi_t
     std::optional<MipmapSampler> sampler_;
     glm::dvec3 totalFlux_{0.0};
-    std::vector<float> px_, py_, pz_, wr_, wg_, wb_;  // merged samples (SoA)
+    std::vector<float> px_, py_, pz_;  // merged samples: positions (SoA) ...
+    std::vector<glm::vec4> w_;         // ... and weights (R, G, B, 0)
     std::vector<TranslucentShadowMap> maps_;
     TextureSpaceTimings timings_;
+    // The mesh's vertices in Morton order of their positions (and those positions):
+    // vertexExitance walks them so, so that consecutive vertices' filter taps read the
+    // same shadow-map cache lines.
+    std::vector<uint32_t> vertexOrder_;
+    std::vector<glm::vec3> orderedPositions_;
 };
 
 }  // namespace prt

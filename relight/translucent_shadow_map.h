@@ -65,7 +65,8 @@ struct LocalFilter {
     // Every tap as (offset along e1, offset along e2) in mm and its measure per channel
     // (mm^2), centre first: the unrolled pattern localExitance walks.
     std::vector<glm::vec2> tapOffset;
-    std::vector<glm::vec3> tapArea;
+    std::vector<float> tapOffset1, tapOffset2;  // the same, as two arrays (SIMD-friendly)
+    std::vector<glm::vec4> tapArea;  // (R, G, B, 0)
     size_t taps() const { return size_t(rings) * size_t(ringSamples) + 1; }
 };
 
