@@ -284,7 +284,10 @@ int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& 
         writePng(output + suffix + ".png", ref, o.exposure);
         const CompareResult r = compareImages(image, ref);
         const Image err = relativeErrorImage(image, ref, r);
-        writePng(output + "_error.png", heatmapImage(err, heatmapScale(err)));
+        const double scale = heatmapScale(err);
+        writePng(output + "_error.png", heatmapImage(err, scale));
+        std::printf("%s_error.png: relative error, yellow = %g or more (the 99th percentile, rounded up)\n",
+                    output.c_str(), scale);
         std::printf("%s (epsilon %g, %zu %s samples): %.3f s; RMSE (hit pixels, mean of R G B of the displayed 0..1 "
                     "image at exposure %g) %.5f; relative RMSE (linear) %.4g, mean ratio %.5f\n",
                     o.compareBrute ? "brute force" : "Jensen-Buhler", epsilon, placed.size(), toString(source), tRef,
