@@ -8,6 +8,9 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <limits>
+#include <numeric>
+#include <string>
 #include <utility>
 
 namespace prt {
@@ -237,4 +240,43 @@ uint64_t meshFingerprint(const TriangleMesh& mesh) {
         for (int k = 0; k < 3; ++k) u32(t[k]);
     return hash;
 }
+namespace {
+
+// 30-bit Morton code of a point quantised to 1024^3 cells of the box [lo, lo + 1023 / scale].
+uint32_t morton3(const glm::vec3& p, const glm::vec3& lo, const glm::vec3& scale) {
+    auto spread = [](uint32_t v) {  // 10 bits -> every third bit
+        v &= 0x3ffu;
+        v = (v | (v << 16)) & 0x030000ffu;
+        v = (v | (v << 8)) & 0x0300f00fu;
+        v = (v | (v << 4)) & 0x030c30c3u;
+        v = (v | (v << 2)) & 0x09249249u;
+        return v;
+    };
+    const glm::vec3 q = glm::clamp((p - lo) * scale, glm::vec3(0.0f), glm::vec3(1023.0f));
+    return (spread(uint32_t(q.x)) << 2) | (spread(uint32_t(q.y)) << 1) | spread(uint32_t(q.z));
+}
+
+}  // namespace
+
+std::vector<uint32_t> mortonOrder(std::span<const glm::vec3> points, const std::string& subject) {
+    std::vector<uint32_t> order(points.size());
+    std::iota(order.begin(), order.end(), 0u);
+    if (points.empty()) return order;
+    glm::vec3 lo(std::numeric_limits<float>::max());
+    glm::vec3 hi(std::numeric_limits<float>::lowest());
+    for (const glm::vec3& v : points) {
+        if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
+            throw Error(subject, "point " + std::to_string(&v - points.data()) + " has a non-finite position");
+        lo = glm::min(lo, v);
+        hi = glm::max(hi, v);
+    }
+    const glm::vec3 extent = hi - lo;
+    const float largest = std::max(extent.x, std::max(extent.y, extent.z));
+    const glm::vec3 scale(largest > 0.0f ? 1023.0f / largest : 0.0f);
+    std::vector<uint32_t> code(points.size());
+    for (size_t v = 0; v < points.size(); ++v) code[v] = morton3(points[v], lo, scale);
+    std::stable_sort(order.begin(), order.end(), [&code](uint32_t a, uint32_t b) { return code[a] < code[b]; });
+    return order;
+}
+
 }  // namespace prt

@@ -34,6 +34,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <span>
 #include <vector>
 
 namespace prt {
@@ -59,6 +60,13 @@ struct Bounds {
 
 // Bounding box of all positions.
 Bounds bounds(const TriangleMesh& mesh);
+
+// Indices 0 .. points.size() - 1 sorted along a Morton curve through the points'
+// bounding box (1024 cells per side of its largest extent, stable for equal codes):
+// consecutive indices are close in space, so per-point work done in this order (pass 2's
+// vertices, the point-light sums) reuses what is already in cache. Throws
+// prt::Error(subject, "point i has a non-finite position").
+std::vector<uint32_t> mortonOrder(std::span<const glm::vec3> points, const std::string& subject = "points");
 
 // Bounding sphere as the renderers frame the object: centre = the bounding-box centre
 // (bounds(mesh).centre(), computed in float, then widened to double), radius = the

@@ -1,6 +1,7 @@
 #include "precompute/multiple_scattering.h"
 
 #include "common/error.h"
+#include "common/mesh.h"
 #include "common/util.h"
 
 #include <tbb/blocked_range.h>
@@ -388,45 +389,6 @@ inline bool insideWithMargin(const SampleTree::Node& node, const glm::vec3& x) {
            x.z >= node.boundsMin.z - margin && x.z <= node.boundsMax.z + margin;
 }
 
-// 30-bit Morton code of a point quantised to 1024^3 cells of the box [lo, hi].
-uint32_t morton3(const glm::vec3& p, const glm::vec3& lo, const glm::vec3& scale) {
-    auto spread = [](uint32_t v) {
-        v &= 0x3ffu;
-        v = (v | (v << 16)) & 0x030000ffu;
-        v = (v | (v << 8)) & 0x0300f00fu;
-        v = (v | (v << 4)) & 0x030c30c3u;
-        v = (v | (v << 2)) & 0x09249249u;
-        return v;
-    };
-    const glm::vec3 q = glm::clamp((p - lo) * scale, glm::vec3(0.0f), glm::vec3(1023.0f));
-    return (spread(uint32_t(q.x)) << 2) | (spread(uint32_t(q.y)) << 1) | spread(uint32_t(q.z));
-}
-
-// Vertex processing order: along a Morton curve, so that the vertices one thread
-// handles in a row are close together and reuse the node sums already in cache.
-std::vector<uint32_t> spatialOrder(std::span<const glm::vec3> vertices) {
-    std::vector<uint32_t> order(vertices.size());
-    std::iota(order.begin(), order.end(), 0u);
-    if (vertices.empty()) return order;
-    glm::vec3 lo(std::numeric_limits<float>::max());
-    glm::vec3 hi(std::numeric_limits<float>::lowest());
-    for (const glm::vec3& v : vertices) {
-        if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {
-            throw Error("hierarchy", "vertex " + std::to_string(&v - vertices.data()) +
-                                         " has a non-finite position");
-        }
-        lo = glm::min(lo, v);
-        hi = glm::max(hi, v);
-    }
-    const glm::vec3 extent = hi - lo;
-    const float largest = std::max(extent.x, std::max(extent.y, extent.z));
-    const glm::vec3 scale(largest > 0.0f ? 1023.0f / largest : 0.0f);
-    std::vector<uint32_t> code(vertices.size());
-    for (size_t v = 0; v < vertices.size(); ++v) code[v] = morton3(vertices[v], lo, scale);
-    std::stable_sort(order.begin(), order.end(), [&code](uint32_t a, uint32_t b) { return code[a] < code[b]; });
-    return order;
-}
-
 struct VertexCounters {
     uint32_t visited = 0;
     uint32_t used = 0;
@@ -463,7 +425,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
     if (vertices.size() > size_t(std::numeric_limits<uint32_t>::max())) {
         throw Error("hierarchy", "too many vertices");
     }
-    const std::vector<uint32_t> order = spatialOrder(vertices);
+    const std::vector<uint32_t> order = mortonOrder(vertices, "hierarchy");
     std::vector<SparseVector> result(vertices.size());
     std::vector<VertexCounters> counters(vertices.size());
 

@@ -65,29 +65,9 @@ TextureSpaceRenderer::TextureSpaceRenderer(const TriangleMesh& mesh, const RaySc
     if (usesFilter())
         filter_ = makeLocalFilter(localDiffusionTable(material_, split_, rMax), options_.rings, options_.ringSamples);
 
-    // Morton order of the vertices in the bounding box (10 bits per axis).
-    const Bounds box = bounds(mesh);
-    const glm::vec3 extent = glm::max(box.size(), glm::vec3(1e-12f));
-    auto spread = [](uint32_t v) {  // 10 bits -> every third bit
-        v &= 0x3ffu;
-        v = (v | (v << 16)) & 0x030000ffu;
-        v = (v | (v << 8)) & 0x0300f00fu;
-        v = (v | (v << 4)) & 0x030c30c3u;
-        v = (v | (v << 2)) & 0x09249249u;
-        return v;
-    };
-    std::vector<std::pair<uint32_t, uint32_t>> keys(mesh.vertexCount());
-    for (size_t v = 0; v < keys.size(); ++v) {
-        const glm::vec3 q = glm::clamp((mesh.positions[v] - box.lo) / extent, 0.0f, 1.0f) * 1023.0f;
-        keys[v] = {spread(uint32_t(q.x)) | (spread(uint32_t(q.y)) << 1) | (spread(uint32_t(q.z)) << 2), uint32_t(v)};
-    }
-    std::sort(keys.begin(), keys.end());
-    vertexOrder_.resize(keys.size());
-    orderedPositions_.resize(keys.size());
-    for (size_t k = 0; k < keys.size(); ++k) {
-        vertexOrder_[k] = keys[k].second;
-        orderedPositions_[k] = mesh.positions[keys[k].second];
-    }
+    vertexOrder_ = mortonOrder(mesh.positions, "mesh");
+    orderedPositions_.resize(vertexOrder_.size());
+    for (size_t k = 0; k < vertexOrder_.size(); ++k) orderedPositions_[k] = mesh.positions[vertexOrder_[k]];
 }
 
 void TextureSpaceRenderer::setLights(const std::vector<Light>& lights) {

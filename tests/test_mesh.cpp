@@ -398,3 +398,26 @@ TEST(Fingerprint, StableAndSensitive) {
     EXPECT_EQ(prt::meshFingerprint(fixed), h);
     EXPECT_NE(prt::meshFingerprint(fixed), prt::meshFingerprint(TriangleMesh{}));
 }
+
+// mortonOrder: a permutation; on a 2 x 2 x 2 grid given in reverse, the order of the
+// Morton codes (x, y, z bits from high to low); a NaN point is an error naming the subject.
+TEST(Mesh, MortonOrderFollowsTheCurve) {
+    std::vector<glm::vec3> points;
+    for (int i = 7; i >= 0; --i) points.emplace_back(float((i >> 2) & 1), float((i >> 1) & 1), float(i & 1));
+    const std::vector<uint32_t> order = prt::mortonOrder(points);
+    ASSERT_EQ(order.size(), 8u);
+    for (int k = 0; k < 8; ++k) {
+        const glm::vec3 p = points[order[size_t(k)]];
+        EXPECT_EQ(int(p.x) * 4 + int(p.y) * 2 + int(p.z), k);
+    }
+    EXPECT_TRUE(prt::mortonOrder(std::vector<glm::vec3>{}).empty());
+    points[3].y = std::nanf("");
+    try {
+        prt::mortonOrder(points, "mesh");
+        ADD_FAILURE() << "expected an error";
+    } catch (const prt::Error& e) {
+        EXPECT_NE(std::string(e.what()).find("mesh"), std::string::npos);
+        EXPECT_NE(std::string(e.what()).find("point 3"), std::string::npos);
+    }
+}
+
