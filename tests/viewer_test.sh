@@ -147,7 +147,7 @@ P="-W 200 -H 160 --azimuth 30 --elevation 20 --light point:30,40,-25:0.01 --ligh
    --tsis-samples 300 --tsis-seed 4 --atlas-size 256 --light-map 256"
 echo "--- point lights"
 # shellcheck disable=SC2086
-if view "$S/torus.ply" -t "$S/torus.prt" $P --no-environment-light --frames 3 --screenshot "$O/points.view.exr" \
+if view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" $P --no-environment-light --frames 3 --screenshot "$O/points.view.exr" \
     --screenshot "$O/points.view.png" > "$O/points.view.log" 2>&1; then
     grep -E "^(viewer|point-light)" "$O/points.view.log"
     # shellcheck disable=SC2086
