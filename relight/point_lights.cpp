@@ -408,10 +408,12 @@ void computeIrradiance(IrradianceSamples& samples, const RayScene& scene, const 
 }
 
 void computeIrradiance(const IrradianceSamples& samples, const RayScene& scene, const std::vector<Light>& lights,
-                       double eta, FresnelModel model, std::vector<glm::vec3>& irradiance) {
+                       double eta, FresnelModel model, std::vector<glm::vec3>& irradiance,
+                       std::vector<glm::dvec3>* lightPower) {
     const size_t n = samples.size();
     if (samples.normals.size() != n || samples.geometricNormals.size() != n)
         throw Error("samples", "inconsistent sample arrays");
+    if (lightPower && samples.areas.size() != n) throw Error("samples", "inconsistent sample arrays");
     irradiance.assign(n, glm::vec3(0.0f));
     // Fail before the parallel loop, not inside it, for a bad eta.
     (void)incidentTransmittance(model, eta, 1.0);
@@ -420,6 +422,9 @@ void computeIrradiance(const IrradianceSamples& samples, const RayScene& scene, 
     // (one tfar for the whole batch), which is the same segment.
     constexpr size_t kBlock = 256;
     const size_t blocks = (n + kBlock - 1) / kBlock;
+    // Per block and light: sum of A_i E^_i (summed over blocks in order afterwards, so
+    // the totals do not depend on the thread count).
+    std::vector<glm::dvec3> blockPower(lightPower ? blocks * lights.size() : 0, glm::dvec3(0.0));
     tbb::parallel_for(size_t(0), blocks, [&](size_t b) {
         const tbb::blocked_range<size_t> r(b * kBlock, std::min(n, (b + 1) * kBlock));
         float ox[kBlock], oy[kBlock], oz[kBlock], dx[kBlock], dy[kBlock], dz[kBlock];
@@ -429,7 +434,8 @@ void computeIrradiance(const IrradianceSamples& samples, const RayScene& scene, 
         glm::dvec3 sum[kBlock];
         const size_t count = r.end() - r.begin();
         for (size_t k = 0; k < count; ++k) sum[k] = glm::dvec3(0.0);
-        for (const Light& l : lights) {
+        for (size_t li = 0; li < lights.size(); ++li) {
+            const Light& l = lights[li];
             size_t m = 0;
             for (size_t k = 0; k < count; ++k) {
                 const size_t i = r.begin() + k;
@@ -461,10 +467,18 @@ void computeIrradiance(const IrradianceSamples& samples, const RayScene& scene, 
             const float tfar = l.type == LightType::Point ? float(1.0 - 1e-6) : std::numeric_limits<float>::infinity();
             scene.occludedBatch(ox, oy, oz, dx, dy, dz, m, 0.0f, tfar, occluded);
             for (size_t j = 0; j < m; ++j)
-                if (!occluded[j]) sum[index[j]] += value[j];
+                if (!occluded[j]) {
+                    sum[index[j]] += value[j];
+                    if (lightPower) blockPower[b * lights.size() + li] += double(samples.areas[r.begin() + index[j]]) * value[j];
+                }
         }
         for (size_t k = 0; k < count; ++k) irradiance[r.begin() + k] = glm::vec3(sum[k]);
     });
+    if (lightPower) {
+        lightPower->assign(lights.size(), glm::dvec3(0.0));
+        for (size_t b = 0; b < blocks; ++b)
+            for (size_t li = 0; li < lights.size(); ++li) (*lightPower)[li] += blockPower[b * lights.size() + li];
+    }
 }
 
 }  // namespace prt

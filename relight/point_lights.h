@@ -170,8 +170,11 @@ SampleSource parseSampleSource(const std::string& text);
 // number of threads.
 void computeIrradiance(IrradianceSamples& samples, const RayScene& scene, const std::vector<Light>& lights,
                        double eta, FresnelModel model);
-// The same into `irradiance` (resized to samples.size()), leaving samples untouched.
+// The same into `irradiance` (resized to samples.size()), leaving samples untouched;
+// with lightPower, also each light's transmitted power over the samples, sum_i A_i E^_i
+// of that light alone (W/m^2 mm^2, RGB; deterministic).
 void computeIrradiance(const IrradianceSamples& samples, const RayScene& scene, const std::vector<Light>& lights,
-                       double eta, FresnelModel model, std::vector<glm::vec3>& irradiance);
+                       double eta, FresnelModel model, std::vector<glm::vec3>& irradiance,
+                       std::vector<glm::dvec3>* lightPower = nullptr);
 
 }  // namespace prt

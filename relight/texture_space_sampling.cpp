@@ -75,7 +75,9 @@ void TextureSpaceRenderer::setLights(const std::vector<Light>& lights) {
     Stopwatch t;
     // 1. The irradiance map: E^ at every texel's surface point, times its area.
     const IrradianceSamples& samples = atlas_->samples;
-    computeIrradiance(samples, *scene_, lights, material_.eta, options_.fresnel, texelFlux_);
+    std::vector<glm::dvec3> lightPower;
+    computeIrradiance(samples, *scene_, lights, material_.eta, options_.fresnel, texelFlux_,
+                      usesFilter() ? &lightPower : nullptr);
     for (size_t i = 0; i < samples.size(); ++i) texelFlux_[i] *= samples.areas[i];
     timings_.irradianceSeconds = t.seconds();
 
@@ -83,8 +85,11 @@ void TextureSpaceRenderer::setLights(const std::vector<Light>& lights) {
     t.restart();
     maps_.clear();
     if (usesFilter())
-        for (const Light& l : lights)
-            maps_.emplace_back(*scene_, *mesh_, l, sphere_, material_.eta, options_.fresnel, options_.lightMapSize);
+        for (size_t l = 0; l < lights.size(); ++l) {
+            maps_.emplace_back(*scene_, *mesh_, lights[l], sphere_, material_.eta, options_.fresnel,
+                               options_.lightMapSize);
+            maps_.back().normalisePower(lightPower[l]);
+        }
     timings_.shadowMapSeconds = t.seconds();
 
     // 2. The pyramid and the draws.

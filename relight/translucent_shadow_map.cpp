@@ -335,4 +335,13 @@ glm::dvec3 TranslucentShadowMap::totalFlux() const {
     return sum;
 }
 
+glm::dvec3 TranslucentShadowMap::normalisePower(const glm::dvec3& power) {
+    const glm::dvec3 held = totalFlux();
+    glm::dvec3 factor(1.0);
+    for (int c = 0; c < 3; ++c)
+        if (held[c] > 0.0 && power[c] > 0.0 && std::isfinite(power[c])) factor[c] = power[c] / held[c];
+    fluxScale_ *= glm::vec3(factor);
+    return factor;
+}
+
 }  // namespace prt

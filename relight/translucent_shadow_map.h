@@ -19,7 +19,8 @@
 // tap of the filter, which stands for far more area than a pixel, then sparkles. The
 // ratio is capped at 2; with the pixels that see no grazing surface at all, the map
 // then holds 2.6% less power than the atlas on the 11K-face dragon (0.3% on a fine
-// sphere): the local part's bias, measured in docs/point-lights.md. The sum over all pixels of
+// sphere), which normalisePower gives back (spread over the map in proportion to its
+// flux). The sum over all pixels of
 // flux x measure x K(|x_o - x_p|) is the local exitance at x_o (a cubature of the lit
 // surface); the filter evaluates a sparse version of it.
 //
@@ -93,6 +94,12 @@ public:
     // Sum over pixels of flux x pixel measure: the transmitted power the map holds
     // (W/m^2 mm^2), for tests against the irradiance samples.
     glm::dvec3 totalFlux() const;
+    // Rescales the map's flux per channel so that totalFlux() equals `power`, the light's
+    // transmitted power over the whole surface (the atlas's, computeIrradiance's
+    // lightPower): the map misses what it cannot see (surfaces grazing the light's rays,
+    // the cosine cap above), 2-3% on the 11K-face dragon, and would bias the local part
+    // low by as much. Channels where either is 0 are left alone. Returns the factors.
+    glm::dvec3 normalisePower(const glm::dvec3& power);
 
 private:
     // Continuous pixel coordinates of world point q; false outside the image plane.
