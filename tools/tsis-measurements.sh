@@ -67,7 +67,7 @@ common=(-W 512 -H 512 --size-mm 30 --repeat 5)
     echo "## options: ${cfg:-defaults (atlas 1024, shadow map 256, L = C = 20)}"
     # shellcheck disable=SC2086
     "$bench" "$m/dragon_vrip_res4.ply.gz" "${common[@]}" -m Skin2 --light "$light_dragon" --split hybrid \
-      --samples 400,900,1600 --reference --seeds 3 $cfg 2>/dev/null
+      --samples 400,900,1200,1600 --reference --seeds 3 $cfg 2>/dev/null
   done
 } | tee "$out/fast.md"
 echo "tsis-measurements: wrote $out/{table2-3,fig7,fig13,fast}.md"
