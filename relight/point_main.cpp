@@ -214,9 +214,8 @@ int runAnimation(const Options& o, const PointAnimation& animation, const Triang
 // --method tsis: texture-space importance sampling (Chang et al. 2008). Everything a
 // new light position needs (irradiance map, draws, shadow maps) and the evaluation are
 // timed apart; the atlas is built once per mesh.
-int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& scene, const std::vector<Light>& lights,
-                    const Material& material, FresnelModel fresnel, SampleSource source, const Camera& camera,
-                    const std::string& output, const Stopwatch& start) {
+// The --method tsis options, checked (before the mesh is read: errors come first).
+TextureSpaceOptions textureSpaceOptions(const Options& o, FresnelModel fresnel) {
     TextureSpaceOptions to = o.tsis;
     to.mode = parseTextureSpaceMode(o.split);
     to.fresnel = fresnel;
@@ -224,6 +223,15 @@ int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& 
     if (evaluate != "pixel" && evaluate != "vertex")
         throw Error("--evaluate", "expected pixel or vertex, got '" + o.evaluate + "'");
     validateTextureSpaceOptions(to);
+    validateAtlasResolution(o.atlasSize);
+    return to;
+}
+
+int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& scene, const std::vector<Light>& lights,
+                    const Material& material, FresnelModel fresnel, SampleSource source, const Camera& camera,
+                    const std::string& output, const Stopwatch& start) {
+    const TextureSpaceOptions to = textureSpaceOptions(o, fresnel);
+    const std::string evaluate = toLower(o.evaluate);
 
     const SurfaceAtlas atlas = buildSurfaceAtlas(mesh, o.atlasSize);
     const SurfaceAtlasStats& as = atlas.stats;
@@ -339,6 +347,7 @@ int run(const Options& o) {
     const bool animated = animation.kind != AnimationKind::None;
     if (animated && method == PointMethod::TextureSpace)
         throw Error("--method", "tsis renders single frames here; move its lights interactively in prt-relight view");
+    if (method == PointMethod::TextureSpace) (void)textureSpaceOptions(o, fresnel);
     if (animated && (o.compareJb || o.compareBrute || o.cacheImage))
         throw Error(o.compareJb ? "--compare-jb" : o.compareBrute ? "--compare-brute" : "--cache-image",
                     "applies to single frames, not to --turntable / --light-path");
