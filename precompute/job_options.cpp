@@ -46,6 +46,10 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
                    "Sample spacing in mm (default: the material's mean free path 1/sigma_t')");
     app.add_option("--max-samples", s.maxSamples, "Cap on the automatic sample count")->capture_default_str();
     app.add_option("--seed", s.seed, "Seed of the sample placement")->capture_default_str();
+    app.add_option("--max-memory", s.maxMemoryGb,
+                   "Refuse the job up front when its estimated memory exceeds this many GB (0 = the available "
+                   "memory)")
+        ->capture_default_str();
     app.add_option("--components", raw.components,
                    "Components to compute: ms (multiple scattering), ss (single scattering) or ms,ss")
         ->capture_default_str();

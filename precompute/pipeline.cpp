@@ -1,6 +1,7 @@
 #include "precompute/pipeline.h"
 
 #include <sys/resource.h>
+#include <tbb/task_arena.h>
 
 #include <chrono>
 #include <cmath>
@@ -18,6 +19,7 @@
 #include "common/raytrace.h"
 #include "common/sampling.h"
 #include "common/mesh_io.h"
+#include "precompute/memory_estimate.h"
 #include "precompute/single_scattering.h"
 #include "common/util.h"
 
@@ -98,6 +100,8 @@ void validateSettings(const PrecomputeSettings& s) {
     if (!(s.sampleSpacingMm >= 0) || !std::isfinite(s.sampleSpacingMm))
         throw Error("--sample-spacing", "must be a positive length in mm, got " + fmt(s.sampleSpacingMm));
     if (s.maxSamples < 1) throw Error("--max-samples", "must be at least 1");
+    if (!std::isfinite(s.maxMemoryGb) || s.maxMemoryGb < 0.0)
+        throw Error("--max-memory", "must be a finite number of GB >= 0 (0 = the available memory)");
     if (!s.components.multipleScattering && !s.components.singleScattering)
         throw Error("--components", "select at least one of ms, ss");
     // M <= 32: the phase table is (6 M^2)^2 doubles (precompute/phase_factoring.h).
@@ -203,8 +207,8 @@ std::string PrecomputeSummary::format() const {
             ssMeanDepthMm, (unsigned long long)ssCappedDepths, (unsigned long long)ssFlippedNormals,
             (unsigned long long)ssOutsideSamples);
     }
-    add("total             %s, peak memory %.0f MB (setup %s, write %s)",
-        formatDuration(totalSeconds).c_str(), peakMemoryBytes / 1e6,
+    add("total             %s, peak memory %.0f MB, estimated %.0f MB (setup %s, write %s)",
+        formatDuration(totalSeconds).c_str(), peakMemoryBytes / 1e6, estimatedMemoryBytes / 1e6,
         formatDuration(setupSeconds).c_str(), formatDuration(writeSeconds).c_str());
     // ru_maxrss only grows: each figure is the process's peak up to the end of that stage.
     std::string peaks = "peak memory so far after setup " + megabytes(peakMemoryAfterSetupBytes);
@@ -261,6 +265,12 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
     summary.setupSeconds = start.seconds();
     summary.peakMemoryAfterSetupBytes = peakMemoryBytes();
 
+    if (!settings.components.multipleScattering) {  // single scattering alone: no samples
+        const MemoryEstimate need = estimatePrecomputeMemory(settings, mesh.vertexCount(), mesh.triangleCount(), 0,
+                                                             tbb::this_task_arena::max_concurrency());
+        checkMemory(need, settings.maxMemoryGb);
+        summary.estimatedMemoryBytes = need.bytes;
+    }
     if (settings.components.multipleScattering) {
         // Samples: spacing about the mean free path l_u = 1 / sigma_t' (Jensen-Buhler).
         const double spacing = settings.sampleSpacingMm > 0 ? settings.sampleSpacingMm
@@ -269,6 +279,11 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             settings.sampleCount > 0
                 ? settings.sampleCount
                 : defaultSampleCount(summary.totalAreaMm2, spacing, settings.maxSamples);
+        // Before any allocation that grows with the job: refuse what cannot fit.
+        const MemoryEstimate need = estimatePrecomputeMemory(settings, mesh.vertexCount(), mesh.triangleCount(),
+                                                             sampleCount, tbb::this_task_arena::max_concurrency());
+        checkMemory(need, settings.maxMemoryGb);
+        summary.estimatedMemoryBytes = need.bytes;
         SampleSet samples;
         const Stopwatch samplesStart;
         {

@@ -47,6 +47,10 @@ struct PrecomputeSettings {
     int phaseMapSize = 16;        // M of the 6 x M x M light / view maps
     int pathSamples = 16;         // deterministic samples along -n_o
     int ssSupersample = 1;        // s x s sub-directions per texel in single scattering
+    // Refuse the job up front when its estimated memory (memory_estimate.h) exceeds this
+    // many GB; 0 = the machine's available memory. Not a physics setting: not stored in
+    // the file and not part of the input digest.
+    double maxMemoryGb = 0.0;
 };
 
 // Throws prt::Error naming the bad option.
@@ -91,6 +95,7 @@ struct PrecomputeSummary {
     double ssMeanDepthMm = 0;         // mean d_m
     double ssRetainedEnergy = 0;      // mean kept/total energy of the per-vertex truncations
     size_t peakMemoryBytes = 0;       // of the process, at the end
+    uint64_t estimatedMemoryBytes = 0;  // memory_estimate.h, checked before the passes
     // Peak resident set size of the process read at the end of each stage (getrusage
     // ru_maxrss). It only ever grows, so each is the peak SO FAR (that stage and every
     // earlier one, and earlier jobs of the same process), not the stage's own use; a
