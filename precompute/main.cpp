@@ -30,7 +30,9 @@ int runJobFile(const std::string& path, bool force, const std::string& summaryJs
     Json results = Json::array();
     for (size_t i = 0; i < jobs.size(); ++i) {
         const std::string where = path + ": job " + std::to_string(i + 1);
-        std::fprintf(stderr, "== job %zu/%zu ==\n", i + 1, jobs.size());
+        // On stdout with the summaries: stderr holds only progress and the one-line errors.
+        std::printf("== job %zu/%zu ==\n", i + 1, jobs.size());
+        std::fflush(stdout);
         Json result;
         result["job"] = i + 1;
         result["load_average_start"] = loadAverage();

@@ -1,0 +1,181 @@
+#!/usr/bin/env bash
+# Bad inputs through the real executables (CTest bad_inputs; issue 17, docs/reliability.md).
+#
+#   bad_inputs_test.sh BUILD_DIR WORKDIR
+#
+# Every case must: exit with code 1; print exactly one line on stderr, of the form
+# "<program>: error: <subject>: <reason>", whose text matches the case's pattern (the
+# file or option at fault and the problem); and leave the output it names untouched (a
+# file holding "old output" before the run holds it after, and no temporary file is left
+# beside it). Missing files, wrong formats, NaN/Inf pixels, corrupted and mismatched
+# transport files, degenerate meshes, nonsense parameters, unwritable outputs, absurd
+# memory needs, bad light and job files, command-line usage errors.
+set -u
+
+if [ $# -ne 2 ]; then
+    echo "usage: $0 BUILD_DIR WORKDIR" >&2
+    exit 2
+fi
+BUILD=$1 WORK=$2
+PRECOMPUTE=$BUILD/precompute/prt-precompute
+RELIGHT=$BUILD/relight/prt-relight
+POINTLIGHT=$BUILD/relight/prt-pointlight
+REFERENCE=$BUILD/tools/prt-reference
+COMPARE=$BUILD/tools/prt-compare
+ENVCHECK=$BUILD/tools/prt-envcheck
+MAKE_SCENE=$BUILD/relight/prt-make-test-scene
+
+rm -rf "$WORK"
+mkdir -p "$WORK"
+cd "$WORK" || exit 1
+S=scene
+
+# --- inputs -------------------------------------------------------------------------
+if [ -x "$MAKE_SCENE" ]; then
+    "$MAKE_SCENE" scene "$S" > /dev/null 2>&1 || { echo "FAIL: prt-make-test-scene"; exit 1; }
+else
+    echo "SKIP: prt-make-test-scene not built (the viewer is off)"
+    exit 77
+fi
+"$PRECOMPUTE" "$S/torus.ply" --size-mm 20 --cubemap-size 8 --samples 2000 -q -o "$S/torus.prt" > /dev/null 2>&1 \
+    || { echo "FAIL: prt-precompute of the test scene"; exit 1; }
+: > empty.obj
+printf 'garbage\nmore garbage\n' > garbage.ply
+printf 'v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' > nan.obj
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n' > index.obj
+printf 'v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n' > flat.obj
+head -c 1000 "$S/torus.prt" > truncated.prt
+cp "$S/torus.prt" corrupted.prt
+printf '\xff\xfe' | dd of=corrupted.prt bs=1 seek=600000 conv=notrunc status=none
+cp "$S/sky.exr" not-a-transport.prt
+printf 'not a PNG at all' > fake.png
+oiiotool --pattern constant:color=0,1,1 64x32 3 -d float --powc -1,1,1 -o inf.exr > /dev/null 2>&1 \
+    || { echo "FAIL: oiiotool (openimageio-tools) could not write inf.exr"; exit 1; }
+oiiotool --pattern constant:color=0.5,0.5,0.5 32x32 3 -d float -o small.exr > /dev/null 2>&1
+printf '{"jobs": [ {"mesh": "x.obj" ' > broken-job.json
+printf '{"jobs": [ {"mesh": "%s", "output": "j.prt", "sampels": 100} ]}\n' "$S/torus.ply" > typo-job.json
+printf '{"lights": [ {"type": "point", "positon": [0, 50, 0], "intensity": 1} ]}\n' > typo-lights.json
+printf '{"lights": [ {"type": "point", "position": [0, 50, 0], "intensity": -1} ]}\n' > negative-lights.json
+mkdir -p outdir
+: > a-file
+
+failures=0 cases=0
+fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+
+# expect NAME PATTERN OUTPUT COMMAND...: OUTPUT is a file path that must survive
+# untouched ("-" for none). The pattern is an extended regular expression matched
+# against the single stderr line.
+expect() {
+    local name=$1 pattern=$2 output=$3
+    shift 3
+    cases=$((cases + 1))
+    if [ "$output" != "-" ]; then
+        mkdir -p "$(dirname "$output")" 2> /dev/null
+        [ -d "$(dirname "$output")" ] && printf 'old output' > "$output"
+    fi
+    "$@" > stdout.txt 2> stderr.txt
+    local rc=$?
+    local lines
+    lines=$(wc -l < stderr.txt)
+    local message
+    message=$(cat stderr.txt)
+    local problems=""
+    [ $rc -eq 1 ] || problems+=" exit $rc (expected 1);"
+    [ "$lines" -eq 1 ] || problems+=" $lines stderr lines (expected 1);"
+    echo "$message" | grep -qE "^prt-[a-z-]+: error: " || problems+=" not 'prog: error: ...';"
+    echo "$message" | grep -qE -- "$pattern" || problems+=" message does not match /$pattern/;"
+    if [ "$output" != "-" ] && [ -d "$(dirname "$output")" ]; then
+        [ "$(cat "$output" 2> /dev/null)" = "old output" ] || problems+=" $output was touched;"
+        if ls -a "$(dirname "$output")" | grep -q '\.tmp'; then problems+=" a temporary file was left;"; fi
+        rm -f "$output"
+    fi
+    if [ -z "$problems" ]; then
+        echo "PASS: $name: $message"
+    else
+        echo "$message" | head -5
+        fail "$name:$problems"
+    fi
+}
+
+P="$PRECOMPUTE"
+O=outdir/out.prt
+# --- prt-precompute: meshes -----------------------------------------------------------
+expect "precompute: missing mesh" "missing\.obj: no such file" $O $P missing.obj -q -o $O
+expect "precompute: empty mesh" "empty\.obj: .*empty" $O $P empty.obj -q -o $O
+expect "precompute: not a PLY" "garbage\.ply: not a PLY" $O $P garbage.ply -q -o $O
+expect "precompute: NaN vertex" "nan\.obj: .*non-finite" $O $P nan.obj -q -o $O
+expect "precompute: index out of range" "index\.obj: .*vertex 8" $O $P index.obj -q -o $O
+expect "precompute: degenerate mesh" "flat\.obj: .*degenerate" $O $P flat.obj -q -o $O
+# --- prt-precompute: options ----------------------------------------------------------
+expect "precompute: unknown option" "--bogus" $O $P "$S/torus.ply" --bogus -q -o $O
+expect "precompute: missing value" "--output" - $P "$S/torus.ply" -o
+expect "precompute: negative size" "--size-mm" $O $P "$S/torus.ply" --size-mm -5 -q -o $O
+expect "precompute: unknown material" "Unobtainium: unknown material" $O $P "$S/torus.ply" -m Unobtainium -q -o $O
+expect "precompute: cubemap not a power of two" "--cubemap-size" $O $P "$S/torus.ply" --cubemap-size 33 -q -o $O
+expect "precompute: zero coefficients" "--coefficients" $O $P "$S/torus.ply" --coefficients 0 -q -o $O
+expect "precompute: negative threads" "--threads" $O $P "$S/torus.ply" --threads -1 -q -o $O
+expect "precompute: eta out of range" "eta: .*0\.5, 2\.5" $O $P "$S/torus.ply" --eta 0 -q -o $O
+expect "precompute: negative epsilon" "--epsilon" $O $P "$S/torus.ply" --epsilon -1 -q -o $O
+expect "precompute: unknown component" "--components" $O $P "$S/torus.ply" --components xs -q -o $O
+expect "precompute: g out of range" "--g|g:" $O $P "$S/torus.ply" --components ms,ss --g 1.5 -q -o $O
+expect "precompute: absurd sample count" "memory: the job needs about .* GB .*available" $O \
+    $P "$S/torus.ply" --samples 800000000 -q -o $O
+expect "precompute: over --max-memory" "allowed by --max-memory" $O \
+    $P "$S/torus.ply" --samples 100000 --max-memory 0.01 -q -o $O
+expect "precompute: negative --max-memory" "--max-memory" $O $P "$S/torus.ply" --max-memory -1 -q -o $O
+expect "precompute: missing output directory" "nodir/o\.prt: directory 'nodir' does not exist" - \
+    $P "$S/torus.ply" -q -o nodir/o.prt
+expect "precompute: output under a file" "a-file/o\.prt" - $P "$S/torus.ply" -q -o a-file/o.prt
+expect "precompute: broken job file" "broken-job\.json" - $P --jobs broken-job.json
+expect "precompute: misspelt job key" "typo-job\.json.*sampels" - $P --jobs typo-job.json
+
+# --- prt-relight render: transport files and environments -------------------------------
+R="$RELIGHT render"
+F=outdir/frame
+expect "render: missing transport" "missing\.prt: no such file" $F.exr $R "$S/torus.ply" -t missing.prt -e "$S/sky.exr" -o $F
+expect "render: mesh does not match" "torus\.prt: transport file was made for a mesh with 1152 vertices" $F.exr \
+    $R "$S/sphere.ply" -t "$S/torus.prt" -e "$S/sky.exr" -o $F
+expect "render: truncated transport" "truncated\.prt" $F.exr $R "$S/torus.ply" -t truncated.prt -e "$S/sky.exr" -o $F
+expect "render: corrupted transport" "corrupted\.prt: .*(checksum|CRC|corrupt)" $F.exr \
+    $R "$S/torus.ply" -t corrupted.prt -e "$S/sky.exr" -o $F
+expect "render: not a transport file" "not-a-transport\.prt" $F.exr \
+    $R "$S/torus.ply" -t not-a-transport.prt -e "$S/sky.exr" -o $F
+expect "render: missing environment" "nowhere\.exr" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e nowhere.exr -o $F
+expect "render: Inf pixels" "inf\.exr: .*(Inf|non-finite)" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e inf.exr -o $F
+expect "render: not an image" "fake\.png" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e fake.png -o $F
+expect "render: square environment" "small\.exr: .*(2:1|lat-long|aspect|twice)" $F.exr \
+    $R "$S/torus.ply" -t "$S/torus.prt" -e small.exr -o $F
+expect "render: zero width" "-W" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 0 -o $F
+expect "render: zero fov" "--fov" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --fov 0 -o $F
+expect "render: component the file lacks" "torus\.prt: has no single-scattering component" $F.exr \
+    $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --components ss -o $F
+
+# --- prt-pointlight -------------------------------------------------------------------
+L="$POINTLIGHT"
+expect "pointlight: no light" "--light: no light" $F.exr $L "$S/torus.ply" -o $F
+expect "pointlight: bad light syntax" "--light point:1,2:1" $F.exr $L "$S/torus.ply" --light point:1,2:1 -o $F
+expect "pointlight: light inside the object" "inside the object" $F.exr \
+    $L "$S/torus.ply" --size-mm 20 --light point:5,0,0:1 -o $F
+expect "pointlight: misspelt lights key" "typo-lights\.json.*positon" $F.exr $L "$S/torus.ply" --lights typo-lights.json -o $F
+expect "pointlight: negative intensity" "negative-lights\.json" $F.exr \
+    $L "$S/torus.ply" --lights negative-lights.json -o $F
+expect "pointlight: unknown method" "--method" $F.exr $L "$S/torus.ply" --light point:0,50,0:1 --method magic -o $F
+expect "pointlight: atlas not a power of two" "--atlas-size" $F.exr \
+    $L "$S/torus.ply" --light point:0,50,0:1 --method tsis --atlas-size 1000 -o $F
+expect "pointlight: unknown split" "--split" $F.exr $L "$S/torus.ply" --light point:0,50,0:1 --method tsis --split both -o $F
+expect "pointlight: zero samples" "--tsis-samples" $F.exr \
+    $L "$S/torus.ply" --light point:0,50,0:1 --method tsis --tsis-samples 0 -o $F
+expect "pointlight: cache bound a = 0" "--a" $F.exr $L "$S/torus.ply" --light point:0,50,0:1 --a 0 -o $F
+
+# --- prt-reference, prt-compare, prt-envcheck ----------------------------------------------
+expect "reference: missing environment" "nowhere\.exr" $F.exr \
+    $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e nowhere.exr -W 16 -H 16 -o $F
+expect "reference: the file's seed" "--seed" $F.exr \
+    $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 16 -H 16 --seed 1 -o $F
+expect "compare: missing image" "nowhere\.exr" - $COMPARE nowhere.exr "$S/sky.exr"
+expect "compare: different sizes" "(size|dimension)" - $COMPARE small.exr "$S/sky.exr"
+expect "envcheck: Inf pixels" "inf\.exr" - $ENVCHECK inf.exr --size 8 -o outdir/cube
+expect "envcheck: cubemap size" "--size" - $ENVCHECK "$S/sky.exr" --size 33 -o outdir/cube
+
+echo "bad inputs: $cases cases, $failures failure(s)"
+[ $failures -eq 0 ]
