@@ -30,7 +30,6 @@ PointLightWorker::PointLightWorker(const TriangleMesh& meshMm, const Material& m
     validateMaterial(material_);
     validateTextureSpaceOptions(base_);
     validateAtlasResolution(atlasSize_);
-    running_ = true;  // building the atlas
     thread_ = std::thread([this] { run(); });
 }
 
@@ -87,22 +86,6 @@ std::string PointLightWorker::atlasSummary() const {
 }
 
 void PointLightWorker::run() {
-    try {
-        scene_ = std::make_unique<RayScene>(mesh_);
-        atlas_ = std::make_unique<SurfaceAtlas>(buildSurfaceAtlas(mesh_, atlasSize_));
-        char buf[160];
-        std::snprintf(buf, sizeof buf, "atlas %d^2: %.0f%% covered, %.1f texels per triangle, built in %.2f s",
-                      atlas_->resolution, 100.0 * atlas_->stats.coverage, atlas_->stats.meanTexelsPerTriangle,
-                      atlas_->stats.buildSeconds);
-        std::lock_guard<std::mutex> lock(mutex_);
-        atlasSummary_ = buf;
-        running_ = false;
-    } catch (const std::exception& e) {
-        std::lock_guard<std::mutex> lock(mutex_);
-        error_ = e.what();
-        running_ = false;
-        return;
-    }
     for (;;) {
         std::optional<PointLightRequest> r;
         std::optional<std::pair<Camera, double>> cmp;
@@ -142,6 +125,18 @@ void PointLightWorker::run() {
     }
 }
 
+void PointLightWorker::ensureAtlas() {
+    if (atlas_) return;
+    scene_ = std::make_unique<RayScene>(mesh_);
+    atlas_ = std::make_unique<SurfaceAtlas>(buildSurfaceAtlas(mesh_, atlasSize_));
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "atlas %d^2: %.0f%% covered, %.1f texels per triangle, built in %.2f s",
+                  atlas_->resolution, 100.0 * atlas_->stats.coverage, atlas_->stats.meanTexelsPerTriangle,
+                  atlas_->stats.buildSeconds);
+    std::lock_guard<std::mutex> lock(mutex_);
+    atlasSummary_ = buf;
+}
+
 void PointLightWorker::compute(const PointLightRequest& r, PointLightResult& out) {
     const Stopwatch total;
     out.request = r;
@@ -156,6 +151,7 @@ void PointLightWorker::compute(const PointLightRequest& r, PointLightResult& out
         return;
     }
     out.message.clear();
+    ensureAtlas();  // on the first light: a viewer without point lights never pays for it
     try {
         checkLightsOutside(*scene_, r.lights);
         if (!renderer_ || !current_ || current_->mode != r.mode) {

@@ -843,7 +843,7 @@ void Viewer::drawPointLightPanel() {
     ImGui::EndDisabled();
     if (!comparison_.empty()) ImGui::TextWrapped("%s", comparison_.c_str());
     const std::string atlas = pointWorker_->atlasSummary();
-    ImGui::TextDisabled("%s", atlas.empty() ? "building the surface atlas ..." : atlas.c_str());
+    ImGui::TextDisabled("%s", atlas.empty() ? "surface atlas: built with the first light" : atlas.c_str());
 }
 
 void Viewer::drawLightMarkers() {
