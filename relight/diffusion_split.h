@@ -22,6 +22,7 @@
 // importance everywhere (no crossing), R_p = 0.
 
 #include <glm/glm.hpp>
+#include <xmmintrin.h>
 
 #include <algorithm>
 #include <cmath>
@@ -89,9 +90,13 @@ public:
         const glm::vec3 a(values_[size_t(i)]), b(values_[size_t(i) + 1]);
         return a + f * (b - a);
     }
-    // For SIMD loops: node i as 4 floats (R, G, B, 0), and the guards of at().
-    const float* node(int i) const { return &values_[size_t(i)].x; }
-    int lastIndex() const { return last_; }
+    // at(t, r2) as (R, G, B, 0) in one SSE register, for the SIMD loops; the caller
+    // checks r2 < rMax2() (beyond it the kernel is 0).
+    __m128 atSse(float t) const {
+        const int i = std::min(int(t), last_);
+        const __m128 a = _mm_loadu_ps(&values_[size_t(i)].x), b = _mm_loadu_ps(&values_[size_t(i) + 1].x);
+        return _mm_add_ps(a, _mm_mul_ps(_mm_set1_ps(t - float(i)), _mm_sub_ps(b, a)));
+    }
     float rMax2() const { return rMax2_; }
 
 private:

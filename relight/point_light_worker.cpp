@@ -141,16 +141,18 @@ void PointLightWorker::compute(const PointLightRequest& r, PointLightResult& out
     const Stopwatch total;
     out.request = r;
     out.lightsRecomputed = false;
-    if (r.lights.empty()) {
+    out.message.clear();
+    // No light, or lights that give nothing: black, and the next request starts afresh.
+    auto nothing = [&] {
         out.radiance.assign(mesh_.vertexCount(), glm::vec3(0.0f));
         out.timings = {};
         out.evaluationMs = 0.0;
         out.uniqueSamples = 0;
+        renderer_.reset();
         current_.reset();
         out.totalMs = total.milliseconds();
-        return;
-    }
-    out.message.clear();
+    };
+    if (r.lights.empty()) return nothing();
     ensureAtlas();  // on the first light: a viewer without point lights never pays for it
     try {
         checkLightsOutside(*scene_, r.lights);
@@ -173,14 +175,7 @@ void PointLightWorker::compute(const PointLightRequest& r, PointLightResult& out
         // A light the user dragged into the object (or too close for the shadow map):
         // nothing from the point lights until it moves; the viewer shows why.
         out.message = e.what();
-        out.radiance.assign(mesh_.vertexCount(), glm::vec3(0.0f));
-        out.timings = {};
-        out.evaluationMs = 0.0;
-        out.uniqueSamples = 0;
-        renderer_.reset();
-        current_.reset();
-        out.totalMs = total.milliseconds();
-        return;
+        return nothing();
     }
     current_ = r;
     out.timings = renderer_->timings();

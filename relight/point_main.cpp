@@ -88,6 +88,16 @@ std::string rgb(const glm::dvec3& v) {
     return buf;
 }
 
+// <output>_error.png: the relative error of `image` against `reference` as a heat map
+// scaled to its 99th percentile (rounded up); returns that scale.
+double writeErrorHeatmap(const std::string& output, const Image& image, const Image& reference,
+                         const CompareResult& result) {
+    const Image error = relativeErrorImage(image, reference, result);
+    const double scale = heatmapScale(error);
+    writePng(output + "_error.png", heatmapImage(error, scale));
+    return scale;
+}
+
 // Keng Figs. 8-9: the cache positions (red dots over the frame), the interpolated
 // gradient of S (world |x|, |y|, |z| of the channel-mean gradient as R, G, B; brightness
 // = magnitude / its 99th percentile) and the split-disk spread V (gray, / its 99th
@@ -227,10 +237,11 @@ TextureSpaceOptions textureSpaceOptions(const Options& o, FresnelModel fresnel) 
     return to;
 }
 
-int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& scene, const std::vector<Light>& lights,
-                    const Material& material, FresnelModel fresnel, SampleSource source, const Camera& camera,
-                    const std::string& output, const Stopwatch& start) {
-    const TextureSpaceOptions to = textureSpaceOptions(o, fresnel);
+int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& scene, const IrradianceSamples& placed,
+                    const std::vector<Light>& lights, const PointRenderSettings& settings, SampleSource source,
+                    const Camera& camera, const std::string& output, const Stopwatch& start) {
+    const Material& material = settings.material;
+    const TextureSpaceOptions to = textureSpaceOptions(o, settings.fresnel);
     const std::string evaluate = toLower(o.evaluate);
 
     const SurfaceAtlas atlas = buildSurfaceAtlas(mesh, o.atlasSize);
@@ -274,26 +285,18 @@ int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& 
     if (o.compareJb || o.compareBrute) {
         // The reference: Jensen-Buhler (or the brute-force sum) over its own irradiance
         // samples (face centroids by default), not the atlas texels.
-        IrradianceSamples placed = source == SampleSource::FaceCentroids
-                                       ? faceCentroidSamples(mesh)
-                                       : samplesFromSampleSet(poissonDiskSamples(
-                                             mesh, o.sampleCount.value_or(defaultSampleCount(
-                                                       totalArea(mesh), material.minMeanFreePath())),
-                                             o.seed));
-        computeIrradiance(placed, scene, lights, material.eta, fresnel);
+        const LitSamples lit = lightSamples(placed, scene, lights, settings);
+        PointRenderSettings reference = settings;
+        reference.method = o.compareBrute ? PointMethod::Brute : PointMethod::JensenBuhler;
         const double epsilon = o.compareBrute ? 0.0 : o.epsilon;
-        const JensenBuhler jb(material, IrradianceOctree(placed, {.leafSize = o.leafSize}),
-                              {.epsilon = epsilon, .fresnel = fresnel});
-        t.restart();
-        const Image ref = jb.render(g);
-        const double tRef = t.seconds();
+        const PointFrame frame = renderPointFrame(*lit.tree, g, reference);
+        const Image& ref = frame.image;
+        const double tRef = frame.renderSeconds;
         const std::string suffix = o.compareBrute ? "_brute" : "_jb";
         writeExr(output + suffix + ".exr", ref);
         writePng(output + suffix + ".png", ref, o.exposure);
         const CompareResult r = compareImages(image, ref);
-        const Image err = relativeErrorImage(image, ref, r);
-        const double scale = heatmapScale(err);
-        writePng(output + "_error.png", heatmapImage(err, scale));
+        const double scale = writeErrorHeatmap(output, image, ref, r);
         std::printf("%s_error.png: relative error, yellow = %g or more (the 99th percentile, rounded up)\n",
                     output.c_str(), scale);
         std::printf("%s (epsilon %g, %zu %s samples): %.3f s; RMSE (hit pixels, mean of R G B of the displayed 0..1 "
@@ -403,7 +406,7 @@ int run(const Options& o) {
     if (!parent.empty()) std::filesystem::create_directories(parent);
 
     if (method == PointMethod::TextureSpace)
-        return runTextureSpace(o, mesh, scene, lights, material, fresnel, source, camera, output, start);
+        return runTextureSpace(o, mesh, scene, placed, lights, settings, source, camera, output, start);
 
     if (animated) {
         std::printf("samples: %zu (%s), %.4g mm^2 in all; load %.3f s, Embree scene %.3f s, sample placement %.3f s\n",
@@ -467,8 +470,7 @@ int run(const Options& o) {
         writeExr(output + "_jb.exr", jb.image);
         writePng(output + "_jb.png", jb.image, o.exposure);
         const CompareResult r = compareImages(image, jb.image);
-        writePng(output + "_error.png", heatmapImage(relativeErrorImage(image, jb.image, r),
-                                                     heatmapScale(relativeErrorImage(image, jb.image, r))));
+        writeErrorHeatmap(output, image, jb.image, r);
         std::printf("Jensen-Buhler (epsilon %g): T_JB %.3f s, speedup %.2fx; RMS (paper: hit pixels, mean of R G B of "
                     "the displayed 0..1 image, writePng's tone mapping) %.5f; relative RMSE (linear) %.4g, mean ratio "
                     "%.5f\n",

@@ -73,7 +73,7 @@ TextureSpaceRenderer::TextureSpaceRenderer(const TriangleMesh& mesh, const RaySc
 void TextureSpaceRenderer::setLights(const std::vector<Light>& lights) {
     if (lights.empty()) throw Error("--light", "no light");
     Stopwatch t;
-    // 1. The irradiance map: E^ at every texel's surface point, times its area.
+    // The irradiance map: E^ at every texel's surface point, times its area.
     const IrradianceSamples& samples = atlas_->samples;
     std::vector<glm::dvec3> lightPower;
     computeIrradiance(samples, *scene_, lights, material_.eta, options_.fresnel, texelFlux_,
@@ -81,7 +81,7 @@ void TextureSpaceRenderer::setLights(const std::vector<Light>& lights) {
     for (size_t i = 0; i < samples.size(); ++i) texelFlux_[i] *= samples.areas[i];
     timings_.irradianceSeconds = t.seconds();
 
-    // 3. The shadow maps (before the draws so that the timings add up in order).
+    // The shadow maps (local part), each holding its light's power over the atlas.
     t.restart();
     maps_.clear();
     if (usesFilter())
@@ -92,7 +92,7 @@ void TextureSpaceRenderer::setLights(const std::vector<Light>& lights) {
         }
     timings_.shadowMapSeconds = t.seconds();
 
-    // 2. The pyramid and the draws.
+    // The pyramid and the draws.
     t.restart();
     const int res = atlas_->resolution;
     std::vector<float> importance(size_t(res) * size_t(res), 0.0f);
@@ -157,7 +157,6 @@ void TextureSpaceRenderer::sampleSums(const glm::vec3* points, size_t count, glm
         const float *px = &px_[begin], *py = &py_[begin], *pz = &pz_[begin];
         const glm::vec4* w = &w_[begin];
         const float rMax2 = sampleKernel_.rMax2();
-        const int last = sampleKernel_.lastIndex();
         for (size_t p = 0; p < count; ++p) {
             const float x0 = points[p].x, y0 = points[p].y, z0 = points[p].z;
             for (size_t j = 0; j < block; ++j) {
@@ -165,15 +164,9 @@ void TextureSpaceRenderer::sampleSums(const glm::vec3* points, size_t count, glm
                 r2[j] = dx * dx + dy * dy + dz * dz;
             }
             for (size_t j = 0; j < block; ++j) t[j] = sampleKernel_.position(r2[j]);
-            // RGB in one SSE register: w_j * lerp(node i, node i + 1, f) (at() by hand).
-            __m128 acc = _mm_setzero_ps();
-            for (size_t j = 0; j < block; ++j) {
-                if (!(r2[j] < rMax2)) continue;
-                const int i = std::min(int(t[j]), last);
-                const __m128 a = _mm_loadu_ps(sampleKernel_.node(i)), b = _mm_loadu_ps(sampleKernel_.node(i + 1));
-                const __m128 k = _mm_add_ps(a, _mm_mul_ps(_mm_set1_ps(t[j] - float(i)), _mm_sub_ps(b, a)));
-                acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(&w[j].x), k));
-            }
+            __m128 acc = _mm_setzero_ps();  // RGB in one SSE register
+            for (size_t j = 0; j < block; ++j)
+                if (r2[j] < rMax2) acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(&w[j].x), sampleKernel_.atSse(t[j])));
             alignas(16) float sum[4];
             _mm_store_ps(sum, acc);
             out[p] += glm::dvec3(sum[0], sum[1], sum[2]);

@@ -268,7 +268,6 @@ glm::dvec3 TranslucentShadowMap::localExitance(const glm::dvec3& x, const LocalF
     float r2[kBlock], flux[kBlock], t[kBlock];
     __m128 sum = _mm_setzero_ps();
     const float rMax2 = filter.kernel.rMax2();
-    const int lastNode = filter.kernel.lastIndex();
     const size_t taps = filter.tapOffset.size();
     const int last = resolution_ - 1;
     for (size_t begin = 0; begin < taps; begin += kBlock) {
@@ -301,9 +300,7 @@ glm::dvec3 TranslucentShadowMap::localExitance(const glm::dvec3& x, const LocalF
         const glm::vec4* area = &filter.tapArea[begin];
         for (size_t k = 0; k < count; ++k) {  // flux x K(r) x measure, RGB in one SSE register
             if (flux[k] == 0.0f || !(r2[k] < rMax2)) continue;
-            const int i = std::min(int(t[k]), lastNode);
-            const __m128 a = _mm_loadu_ps(filter.kernel.node(i)), b = _mm_loadu_ps(filter.kernel.node(i + 1));
-            const __m128 kr = _mm_add_ps(a, _mm_mul_ps(_mm_set1_ps(t[k] - float(i)), _mm_sub_ps(b, a)));
+            const __m128 kr = filter.kernel.atSse(t[k]);
             sum = _mm_add_ps(sum, _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(flux[k]), kr), _mm_loadu_ps(&area[k].x)));
         }
     }
