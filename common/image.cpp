@@ -1,20 +1,20 @@
-#include <cctype>
 #include "common/image.h"
 
-#include "common/atomic_file.h"
-#include "common/util.h"
-
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <system_error>
 
+#include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/util.h"
 
 namespace prt {
 
@@ -68,17 +68,24 @@ void checkWritable(const std::string& path, const Image& image) {
 // `formatName` writer, all or nothing (writeAtomically).
 void writeImageAtomically(const std::string& path, const char* formatName, const OIIO::ImageSpec& spec,
                           OIIO::TypeDesc dataType, const void* data) {
-    writeAtomically(path, [&](const std::string& temp) {
-        auto out = OIIO::ImageOutput::create(formatName);
-        if (!out) throw Error(path, "no " + std::string(formatName) + " writer: " + oneLine(OIIO::geterror()));
-        if (!out->open(temp, spec)) throw Error(path, "cannot create: " + oneLine(out->geterror()));
-        if (!out->write_image(dataType, data)) {
-            const std::string reason = oneLine(out->geterror());
-            out->close();
-            throw Error(path, "write failed: " + reason);
-        }
-        if (!out->close()) throw Error(path, "write failed: " + oneLine(out->geterror()));
-    });
+    // The image is encoded in memory, then written by writeFileAtomically, whose every
+    // write and close is checked: OpenImageIO's file writers can miss a failure (a full
+    // disk while OpenEXR flushes a small file left a truncated EXR renamed over the
+    // target, tests/bad_inputs_test.sh "disk full: envcheck cubemap").
+    std::vector<unsigned char> bytes;
+    OIIO::Filesystem::IOVecOutput proxy(bytes);
+    auto out = OIIO::ImageOutput::create(formatName);
+    if (!out) throw Error(path, "no " + std::string(formatName) + " writer: " + oneLine(OIIO::geterror()));
+    if (!out->supports("ioproxy")) throw Error(path, std::string(formatName) + " writer cannot encode to memory");
+    if (!out->set_ioproxy(&proxy)) throw Error(path, "cannot encode: " + oneLine(out->geterror()));
+    if (!out->open(path, spec)) throw Error(path, "cannot encode: " + oneLine(out->geterror()));
+    if (!out->write_image(dataType, data)) {
+        const std::string why = oneLine(out->geterror());
+        out->close();
+        throw Error(path, "cannot encode: " + why);
+    }
+    if (!out->close()) throw Error(path, "cannot encode: " + oneLine(out->geterror()));
+    writeFileAtomically(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
 }  // namespace

@@ -301,43 +301,83 @@ struct PlyElement {
     std::vector<PlyProperty> properties;
 };
 
+// Bytes of a PLY scalar type, 0 for an unknown name.
+size_t plyTypeBytes(std::string_view type) {
+    static const std::pair<std::string_view, size_t> kTypes[] = {
+        {"char", 1},  {"uchar", 1},  {"int8", 1},   {"uint8", 1},   {"short", 2},  {"ushort", 2},
+        {"int16", 2}, {"uint16", 2}, {"int", 4},    {"uint", 4},    {"int32", 4},  {"uint32", 4},
+        {"float", 4}, {"float32", 4}, {"double", 8}, {"float64", 8}};
+    for (const auto& [name, bytes] : kTypes)
+        if (type == name) return bytes;
+    return 0;
+}
+
+// The header is checked strictly, line by line, before OpenMesh sees the file: OpenMesh
+// 9.0's reader loops forever on some malformed headers (found by tools/fuzz, input in
+// tools/fuzz/crashes/mesh/), and reserves memory for whatever counts the header claims.
 ScanResult scanPly(const std::string& path, std::string_view data) {
     Lines lines(data);
     std::string_view line;
-    if (!lines.next(line) || split(line).empty() || split(line)[0] != "ply")
+    if (!lines.next(line) || split(line).size() != 1 || split(line)[0] != "ply")
         throw Error(path, "not a PLY file (it does not start with 'ply')");
     bool ascii = false, sawFormat = false, sawEnd = false;
     std::vector<PlyElement> elements;
+    std::vector<size_t> minRecordBytes;  // per element: the fewest bytes one record can take
     while (lines.next(line)) {
         const auto tok = split(line);
         if (tok.empty()) continue;
         const std::string where = "PLY header line " + std::to_string(lines.number()) + ": ";
         if (tok[0] == "end_header") {
+            if (tok.size() != 1) throw Error(path, where + "malformed end_header line");
             sawEnd = true;
             break;
         }
+        if (tok[0] == "comment" || tok[0] == "obj_info") continue;
         if (tok[0] == "format") {
-            if (tok.size() < 2) throw Error(path, where + "incomplete format line");
+            if (tok.size() != 3 || tok[2] != "1.0")
+                throw Error(path, where + "malformed format line (expected 'format <ascii|binary_little_endian|"
+                                          "binary_big_endian> 1.0')");
+            if (sawFormat) throw Error(path, where + "a second format line");
             sawFormat = true;
             ascii = tok[1] == "ascii";
             if (!ascii && tok[1] != "binary_little_endian" && tok[1] != "binary_big_endian")
                 throw Error(path, where + "unknown format " + shown(tok[1]));
         } else if (tok[0] == "element") {
             PlyElement e;
-            if (tok.size() < 3 || !parseCount(tok[2], e.count))
-                throw Error(path, where + "malformed element line");
+            if (tok.size() != 3 || !parseCount(tok[2], e.count))
+                throw Error(path, where + "malformed element line (expected 'element <name> <count>')");
             e.name = std::string(tok[1]);
             elements.push_back(std::move(e));
+            minRecordBytes.push_back(0);
         } else if (tok[0] == "property") {
             if (elements.empty()) throw Error(path, where + "property before any element");
             PlyProperty p;
             p.list = tok.size() > 1 && tok[1] == "list";
-            if (tok.size() < (p.list ? 5u : 3u)) throw Error(path, where + "malformed property line");
+            if (tok.size() != (p.list ? 5u : 3u))
+                throw Error(path, where + "malformed property line (expected 'property <type> <name>' or "
+                                          "'property list <count type> <index type> <name>')");
+            const size_t bytes = plyTypeBytes(tok[p.list ? 2 : 1]);
+            if (bytes == 0 || (p.list && plyTypeBytes(tok[3]) == 0))
+                throw Error(path, where + "unknown property type " + shown(p.list && bytes ? tok[3] : tok[p.list ? 2 : 1]));
+            minRecordBytes.back() += bytes;
             p.name = std::string(tok.back());
             elements.back().properties.push_back(std::move(p));
+        } else {
+            throw Error(path, where + "unknown header keyword " + shown(tok[0]));
         }
     }
     if (!sawFormat || !sawEnd) throw Error(path, "malformed PLY header (no format or end_header)");
+
+    // Every record of an element takes at least a byte per property (ascii: a digit
+    // and a separator), so the counts cannot exceed what the body could hold.
+    const size_t body = data.size() - std::min(data.size(), lines.offset());
+    for (size_t i = 0; i < elements.size(); ++i) {
+        const size_t perRecord = ascii ? 2 * elements[i].properties.size() : minRecordBytes[i];
+        if (perRecord > 0 && elements[i].count > (body + 1) / perRecord)
+            throw Error(path, "the header declares " + std::to_string(elements[i].count) + " " + elements[i].name +
+                                  " records, more than the " + std::to_string(body) +
+                                  " bytes after the header can hold (truncated or corrupt)");
+    }
 
     ScanResult r;
     size_t vertexCount = 0, faceCount = 0;
@@ -349,7 +389,8 @@ ScanResult scanPly(const std::string& path, std::string_view data) {
     r.faces = faceCount;
     if (!ascii) return r;
 
-    // ASCII body: walk the elements up to and including the vertices.
+    // ASCII body: walk every element, so that a list never claims more entries than
+    // the file holds (OpenMesh would keep appending).
     Tokens tokens(data, lines.offset(), lines.number() + 1);
     std::string_view token;
     for (const auto& e : elements) {
@@ -372,7 +413,6 @@ ScanResult scanPly(const std::string& path, std::string_view data) {
                     checkCoordinate(path, tokens.line(), token);
                 }
             }
-        if (isVertex) break;
     }
     return r;
 }
@@ -393,6 +433,10 @@ ScanResult scanOff(const std::string& path, std::string_view data) {
         if (data.size() < at + 12) throw Error(path, "binary OFF file ends inside its counts");
         uint32_t counts[2];
         std::memcpy(counts, data.data() + at, sizeof counts);
+        // A vertex takes 12 bytes, a face at least its 4-byte corner count.
+        if (12 * uint64_t(counts[0]) + 4 * uint64_t(counts[1]) > data.size() - at - 12)
+            throw Error(path, "the header declares " + std::to_string(counts[0]) + " vertices and " +
+                                  std::to_string(counts[1]) + " faces, more than the file can hold (truncated or corrupt)");
         r.vertices = counts[0];
         r.faces = counts[1];
         return r;
@@ -413,6 +457,24 @@ ScanResult scanOff(const std::string& path, std::string_view data) {
                                       std::to_string(counts[0]) + " (truncated)");
             checkCoordinate(path, tokens.line(), token);
         }
+        tokens.skipLine();
+    }
+    // Every face's corner count must be followed by that many indices: OpenMesh 9.0's
+    // reader keeps appending corners past the end of the file otherwise, until memory
+    // runs out (found by tools/fuzz, input in tools/fuzz/crashes/mesh/).
+    for (size_t i = 0; i < counts[1]; ++i) {
+        size_t corners = 0;
+        if (!tokens.next(token))
+            throw Error(path, "file ends before face " + std::to_string(i) + " of " + std::to_string(counts[1]) +
+                                  " (truncated)");
+        if (!parseCount(token, corners))
+            throw Error(path, "line " + std::to_string(tokens.line()) + ": cannot parse the corner count " +
+                                  shown(token) + " of face " + std::to_string(i));
+        for (size_t k = 0; k < corners; ++k)
+            if (!tokens.next(token))
+                throw Error(path, "file ends inside face " + std::to_string(i) + " of " +
+                                      std::to_string(counts[1]) + " (it declares " + std::to_string(corners) +
+                                      " corners; truncated or corrupt)");
         tokens.skipLine();
     }
     r.vertices = counts[0];

@@ -16,6 +16,18 @@ int& enabledOverride() {
 
 void Progress::setEnabled(bool enabled) { enabledOverride() = enabled ? 1 : 0; }
 
+namespace {
+std::atomic<bool>& quietFlag() {
+    static std::atomic<bool> quiet{false};
+    return quiet;
+}
+}  // namespace
+
+void Progress::setQuiet(bool quiet) {
+    quietFlag() = quiet;
+    if (quiet) setEnabled(false);
+}
+
 std::string formatDuration(double s) {
     char buf[64];
     if (!std::isfinite(s) || s < 0) return "?";
@@ -76,6 +88,7 @@ double Progress::finish() {
     uint64_t done = done_.load();
     double rate = t > 0 ? done / t : 0;
     if (interactive_) std::fprintf(stderr, "\r\033[K");
+    if (quietFlag()) return t;
     std::fprintf(stderr, "%s: %llu %s in %s (%.3g %s/s)\n", label_.c_str(),
                  (unsigned long long)done, unit_.c_str(), formatDuration(t).c_str(), rate,
                  unit_.c_str());

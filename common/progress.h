@@ -22,8 +22,11 @@ public:
     double finish();
     double elapsedSeconds() const;
 
-    // Overrides terminal detection (tests, --quiet).
+    // Overrides terminal detection (tests): false = never redraw, only finish()'s line.
     static void setEnabled(bool enabled);
+    // --quiet: no progress output at all, not even finish()'s line (stderr then holds
+    // only warnings and errors; the summaries on stdout report the stage times).
+    static void setQuiet(bool quiet);
 
 private:
     void redraw(uint64_t done);

@@ -91,7 +91,7 @@ int main(int argc, char** argv) {
         addThreadsOption(app, threads);
         app.add_flag("-q,--quiet", quiet, "No progress display");
         if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-precompute")) return *exitCode;
-        if (quiet) Progress::setEnabled(false);
+        if (quiet) Progress::setQuiet(true);
         const ThreadLimit limit(threads);
         if (!summaryJsonPath.empty()) checkJsonPath(summaryJsonPath);
         const std::string command = commandLine(argc, argv);

@@ -75,6 +75,10 @@ expect() {
     fi
     "$@" > stdout.txt 2> stderr.txt
     local rc=$?
+    # Stage summaries of long runs ("pass 1: 2000 samples in 0.1 s (1.4e+04 samples/s)")
+    # may precede the error; every other line counts.
+    grep -vE '^[a-z0-9 ():,-]+: [0-9]+ [a-z ()0-9]+ in [0-9.]+ (s|min|h)[^(]*\([0-9.e+]+ [a-z ]+/s\)$' stderr.txt > errors.txt
+    mv errors.txt stderr.txt
     local lines
     lines=$(wc -l < stderr.txt)
     local message
@@ -176,6 +180,34 @@ expect "compare: missing image" "nowhere\.exr" - $COMPARE nowhere.exr "$S/sky.ex
 expect "compare: different sizes" "(size|dimension)" - $COMPARE small.exr "$S/sky.exr"
 expect "envcheck: Inf pixels" "inf\.exr" - $ENVCHECK inf.exr --size 8 -o outdir/cube
 expect "envcheck: cubemap size" "--size" - $ENVCHECK "$S/sky.exr" --size 33 -o outdir/cube
+
+# --- a full disk while writing: every writer, through each executable ------------------
+# RLIMIT_FSIZE stands in for a full disk (no mount needed): with SIGXFSZ ignored a write
+# past the limit fails with EFBIG ("File too large") exactly where ENOSPC would. The old
+# output must survive and no temporary may be left (common/atomic_file.h).
+limited() {
+    local kb=$1
+    shift
+    ( trap '' XFSZ; ulimit -f "$kb"; exec "$@" )
+}
+FULL="(File too large|No space left)"
+expect "disk full: precompute transport file" "outdir/out\.prt: .*$FULL" $O \
+    limited 32 $P "$S/torus.ply" --size-mm 20 --cubemap-size 8 --samples 2000 -q -o $O
+printf '{"jobs": [{"mesh": "%s", "output": "%s", "size-mm": 20, "cubemap-size": 8, "samples": 2000}]}\n' \
+    "$S/torus.ply" "$S/torus.prt" > up-to-date-job.json
+expect "disk full: precompute --summary-json" "outdir/summary\.json: .*$FULL" outdir/summary.json \
+    limited 1 $P --jobs up-to-date-job.json --summary-json outdir/summary.json
+expect "disk full: render EXR" "outdir/frame\.exr: .*$FULL" $F.exr \
+    limited 16 $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 256 -H 256 -o $F
+expect "disk full: pointlight EXR" "outdir/frame\.exr: .*$FULL" $F.exr \
+    limited 16 $L "$S/torus.ply" --size-mm 20 --light point:0,50,0:1 -W 256 -H 256 -o $F
+expect "disk full: reference EXR" "outdir/frame\.exr: .*$FULL" $F.exr \
+    limited 16 $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 128 -H 128 --samples 2000 -o $F
+expect "disk full: envcheck cubemap" "outdir/cube.*: .*$FULL" outdir/cube.exr \
+    limited 1 $ENVCHECK "$S/sky.exr" --size 32 -o outdir/cube
+oiiotool --pattern noise:type=uniform:min=0.1:max=1 128x64 3 -d float -o noisy.exr > /dev/null 2>&1
+expect "disk full: compare heat map" "outdir/heat\.png: .*$FULL" outdir/heat.png \
+    limited 4 $COMPARE noisy.exr "$S/sky.exr" --heatmap outdir/heat.png
 
 echo "bad inputs: $cases cases, $failures failure(s)"
 [ $failures -eq 0 ]

@@ -46,6 +46,22 @@ TEST(Progress, CountsAcrossThreadsAndSummarises) {
     EXPECT_EQ(err.find('\r'), std::string::npos);
 }
 
+TEST(Progress, QuietPrintsNothing) {
+    Progress::setQuiet(true);
+    testing::internal::CaptureStderr();
+    {
+        Progress p("pass 1", 10, "samples");
+        p.advance(10);
+        p.finish();
+    }
+    const std::string quiet = testing::internal::GetCapturedStderr();
+    Progress::setQuiet(false);
+    EXPECT_EQ(quiet, "");
+    testing::internal::CaptureStderr();
+    Progress("pass 2", 1).finish();
+    EXPECT_NE(testing::internal::GetCapturedStderr().find("pass 2: 0 items in"), std::string::npos);
+}
+
 TEST(Progress, FormatDuration) {
     EXPECT_EQ(formatDuration(1.25), "1.2 s");
     EXPECT_EQ(formatDuration(125), "2 min 05 s");

@@ -2,13 +2,16 @@
 
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <csignal>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <string>
 
@@ -198,6 +201,44 @@ TEST_F(ImageIoTest, FailedOverwriteKeepsOldFile) {
     EXPECT_EQ(fs::file_size(path), oldSize);
     const Image back = prt::readImage(path);
     EXPECT_EQ(back.pixels, good.pixels);
+}
+
+// A full disk (RLIMIT_FSIZE, SIGXFSZ ignored) while writing a small EXR or PNG: the
+// error names the file and the reason, the old file survives, no temporary is left.
+// Before images were encoded in memory, OpenEXR's writer missed the failure of its
+// final flush and a truncated 1024-byte EXR replaced the old file.
+TEST_F(ImageIoTest, DiskFullKeepsTheOldImage) {
+    const Image old = randomImage(8, 4, 3, 0.0f, 1.0f, 7u);
+    const Image big = randomImage(64, 32, 3, 0.0f, 1.0f, 8u);  // ~25 KB as float EXR, ~6 KB as PNG
+    for (const char* name : {"full.exr", "full.png"}) {
+        SCOPED_TRACE(name);
+        const std::string path = file(name);
+        const bool exr = std::string(name).ends_with(".exr");
+        exr ? prt::writeExr(path, old) : prt::writePng(path, old);
+        const std::string before = [&] {
+            std::ifstream in(path, std::ios::binary);
+            return std::string(std::istreambuf_iterator<char>(in), {});
+        }();
+        struct rlimit saved {};
+        ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &saved), 0);
+        auto oldHandler = std::signal(SIGXFSZ, SIG_IGN);
+        struct rlimit small = saved;
+        small.rlim_cur = 1024;
+        ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &small), 0);
+        std::string message;
+        try {
+            exr ? prt::writeExr(path, big) : prt::writePng(path, big);
+        } catch (const prt::Error& e) {
+            message = e.what();
+        }
+        ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &saved), 0);
+        std::signal(SIGXFSZ, oldHandler);
+        EXPECT_NE(message.find(path), std::string::npos) << message;
+        EXPECT_NE(message.find("File too large"), std::string::npos) << message;
+        std::ifstream in(path, std::ios::binary);
+        EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), before);
+    }
+    EXPECT_EQ(entries(), (std::vector<std::string>{"full.exr", "full.png"}));
 }
 
 TEST_F(ImageIoTest, MissingDirectoryIsAnErrorAndNotCreated) {

