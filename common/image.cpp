@@ -107,11 +107,37 @@ Image readImage(const std::string& path) {
     if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
         throw Error(path, "image has no pixels");
 
-    Image image(spec.width, spec.height, spec.nchannels);
-    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {
-        const std::string reason = oneLine(in->geterror());
-        in->close();
-        throw Error(path, "cannot read pixels: " + reason);
+    const int w = spec.width, h = spec.height, c = spec.nchannels;
+    const double bytes = double(w) * double(h) * double(c) * sizeof(float);
+    const uint64_t available = availableMemoryBytes();
+    if (available > 0 && bytes > double(available))
+        throw Error(path, "the header declares " + std::to_string(w) + " x " + std::to_string(h) + " x " +
+                              std::to_string(c) + " pixels, which need " + formatBytes(uint64_t(bytes)) + ", " +
+                              formatBytes(available) + " available");
+
+    // Rows are read in strips of about 16 MB and the buffer grows with them, so a small
+    // corrupt file whose header claims a huge image fails at its first missing rows
+    // instead of allocating the whole claim first (found by tools/fuzz).
+    Image image;
+    image.width = w;
+    image.height = h;
+    image.channels = c;
+    const size_t row = size_t(w) * size_t(c);
+    const int unit = spec.tile_width > 0 ? std::max(1, spec.tile_height) : 1;
+    const int strip = unit * std::max<int>(1, int(std::min<size_t>(size_t(h), (size_t(1) << 22) / row) / size_t(unit)));
+    for (int y0 = 0; y0 < h; y0 += strip) {
+        const int y1 = std::min(h, y0 + strip);
+        image.pixels.resize(row * size_t(y1));
+        float* dst = image.pixels.data() + row * size_t(y0);
+        const bool ok = spec.tile_width > 0
+                            ? in->read_tiles(0, 0, spec.x, spec.x + w, spec.y + y0, spec.y + y1, spec.z, spec.z + 1, 0, c,
+                                             OIIO::TypeDesc::FLOAT, dst)
+                            : in->read_scanlines(0, 0, spec.y + y0, spec.y + y1, spec.z, 0, c, OIIO::TypeDesc::FLOAT, dst);
+        if (!ok) {
+            const std::string reason = oneLine(in->geterror());
+            in->close();
+            throw Error(path, "cannot read pixels: " + reason);
+        }
     }
     in->close();
     return image;

@@ -267,6 +267,32 @@ bool parseCount(std::string_view token, size_t& out) {
     return ec == std::errc() && end == token.data() + token.size();
 }
 
+// An optionally signed, non-zero integer: an OBJ index (1-based, or negative = relative).
+bool objIndexIsValid(std::string_view t) {
+    if (!t.empty() && (t.front() == '-' || t.front() == '+')) t.remove_prefix(1);
+    if (t.empty() || t.size() > 10) return false;
+    bool nonZero = false;
+    for (char c : t) {
+        if (c < '0' || c > '9') return false;
+        nonZero = nonZero || c != '0';
+    }
+    return nonZero;
+}
+
+// V, V/, V/T, V//N, V/T/N (V/ is not in the specification but common and harmless).
+bool objCornerIsValid(std::string_view corner) {
+    const size_t a = corner.find('/');
+    if (!objIndexIsValid(corner.substr(0, a))) return false;
+    if (a == std::string_view::npos) return true;
+    const std::string_view rest = corner.substr(a + 1);
+    const size_t b = rest.find('/');
+    const std::string_view t = rest.substr(0, b);
+    if (!t.empty() && !objIndexIsValid(t)) return false;
+    if (b == std::string_view::npos) return true;
+    const std::string_view n = rest.substr(b + 1);
+    return !n.empty() && objIndexIsValid(n) && n.find('/') == std::string_view::npos;
+}
+
 ScanResult scanObj(const std::string& path, std::string_view data) {
     ScanResult r;
     r.readerDropsDegenerate = true;
@@ -283,6 +309,15 @@ ScanResult scanObj(const std::string& path, std::string_view data) {
             for (int k = 1; k <= 3; ++k) checkCoordinate(path, lines.number(), tok[size_t(k)]);
             ++v;
         } else if (tok[0] == "f") {
+            // OpenMesh 9.0 aborts (an assertion) on a face whose corners all lack a
+            // vertex index ("f /1 /2 /3"; found by tools/fuzz): each corner must be
+            // V, V/T, V//N or V/T/N with non-zero integers, V required.
+            if (tok.size() < 2)
+                throw Error(path, "line " + std::to_string(lines.number()) + ": face without corners");
+            for (size_t k = 1; k < tok.size(); ++k)
+                if (!objCornerIsValid(tok[k]))
+                    throw Error(path, "line " + std::to_string(lines.number()) + ": malformed face corner " +
+                                          shown(tok[k]) + " (expected V, V/T, V//N or V/T/N, indices from 1 or negative)");
             ++f;
         }
     }

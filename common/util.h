@@ -1,8 +1,10 @@
 #pragma once
 // Small helpers that several modules need, in one place: the constant pi, ASCII
-// lowercasing, and a wall-clock stopwatch for the per-stage times the tools report.
+// lowercasing, memory sizes (available memory, "41.2 GB"), and a wall-clock stopwatch
+// for the per-stage times the tools report.
 
 #include <chrono>
+#include <cstdint>
 #include <ctime>
 #include <numbers>
 #include <string>
@@ -14,6 +16,13 @@ inline constexpr double kPi = std::numbers::pi;
 // ASCII lowercase (file extensions, material names, option values); other bytes
 // are left as they are.
 std::string toLower(std::string s);
+
+// MemAvailable of /proc/meminfo (what can be allocated without swapping), or the
+// physical memory when that is not readable; 0 when neither is known.
+uint64_t availableMemoryBytes();
+
+// "41.2 GB", "830 MB", "12 kB" (decimal units).
+std::string formatBytes(uint64_t bytes);
 
 // Wall-clock time since construction or the last restart(), on the steady clock
 // (never goes backwards when the system clock is set), and the process's CPU time

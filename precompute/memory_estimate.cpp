@@ -1,12 +1,8 @@
 #include "precompute/memory_estimate.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <sstream>
 #include <utility>
 #include <vector>
 
@@ -16,15 +12,6 @@ namespace prt {
 
 namespace {
 constexpr double kSafety = 1.5;
-}
-
-std::string formatBytes(uint64_t bytes) {
-    char buf[64];
-    const double b = double(bytes);
-    if (b >= 1e9) std::snprintf(buf, sizeof buf, "%.1f GB", b / 1e9);
-    else if (b >= 1e6) std::snprintf(buf, sizeof buf, "%.0f MB", b / 1e6);
-    else std::snprintf(buf, sizeof buf, "%.0f kB", b / 1e3);
-    return buf;
 }
 
 MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vertices, size_t triangles,
@@ -53,19 +40,6 @@ MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vert
     }
     e.bytes = uint64_t(std::min(total * kSafety, 1.8e19));
     return e;
-}
-
-uint64_t availableMemoryBytes() {
-    std::ifstream in("/proc/meminfo");
-    std::string line;
-    while (std::getline(in, line)) {
-        std::istringstream ss(line);
-        std::string key;
-        uint64_t kb = 0;
-        if (ss >> key >> kb && key == "MemAvailable:") return kb * 1024;
-    }
-    const long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGE_SIZE);
-    return pages > 0 && size > 0 ? uint64_t(pages) * uint64_t(size) : 0;
 }
 
 void checkMemory(const MemoryEstimate& estimate, double maxMemoryGb) {

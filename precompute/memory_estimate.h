@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <string>
 
+#include "common/util.h"  // availableMemoryBytes, formatBytes
 #include "precompute/pipeline.h"
 
 namespace prt {
@@ -33,16 +34,9 @@ struct MemoryEstimate {
 MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vertices, size_t triangles,
                                         size_t samples, int threads);
 
-// MemAvailable of /proc/meminfo (what can be allocated without swapping), or the
-// physical memory when that is not readable; 0 when neither is known.
-uint64_t availableMemoryBytes();
-
 // Throws prt::Error("memory", "needs 41.2 GB (largest: ...), 23.8 GB available; use
 // --max-memory GB to allow more, or fewer samples / coefficients") when the estimate
 // exceeds maxMemoryGb (> 0) or, with maxMemoryGb = 0, the available memory (when known).
 void checkMemory(const MemoryEstimate& estimate, double maxMemoryGb);
-
-// "41.2 GB", "830 MB".
-std::string formatBytes(uint64_t bytes);
 
 }  // namespace prt

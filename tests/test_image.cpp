@@ -272,6 +272,51 @@ TEST_F(ImageIoTest, ReadErrorsNameThePath) {
     expectErrorNaming(file("cut.exr"), [&] { prt::readImage(file("cut.exr")); });
 }
 
+// A small file whose header claims a huge image: refused up front when the claim
+// exceeds the available memory, otherwise failing at its first missing rows (rows are
+// read in strips, the buffer grows with them; the fuzzer found claims that made
+// readImage allocate gigabytes before reading a byte).
+TEST_F(ImageIoTest, HugeHeaderClaimsFailWithoutAllocatingTheClaim) {
+    std::ofstream(dir_ / "absurd.hdr") << "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1000000 +X 2000000\n\x02\x02";
+    try {
+        prt::readImage(file("absurd.hdr"));
+        ADD_FAILURE() << "expected an error";
+    } catch (const prt::Error& e) {
+        EXPECT_NE(std::string(e.what()).find("available"), std::string::npos) << e.what();
+    }
+    // 1.2 GB claimed, 60 bytes present.
+    std::ofstream(dir_ / "claim.hdr") << "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 5000 +X 20000\n\x02\x02";
+    try {
+        prt::readImage(file("claim.hdr"));
+        ADD_FAILURE() << "expected an error";
+    } catch (const prt::Error& e) {
+        EXPECT_NE(std::string(e.what()).find("cannot read pixels"), std::string::npos) << e.what();
+    }
+}
+
+// Tiled EXRs (a size that is not a multiple of the tile, a data window off the origin)
+// read as the scanline path does.
+TEST_F(ImageIoTest, TiledExrReadsLikeScanlines) {
+    const Image img = randomImage(37, 21, 3, 0.0f, 4.0f, 12u);
+    const std::string path = file("tiled.exr");
+    {
+        OIIO::ImageSpec spec(img.width, img.height, img.channels, OIIO::TypeDesc::FLOAT);
+        spec.tile_width = 16;
+        spec.tile_height = 8;
+        spec.x = 3;
+        spec.y = -5;
+        auto out = OIIO::ImageOutput::create(path);
+        ASSERT_TRUE(out);
+        ASSERT_TRUE(out->open(path, spec));
+        ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, img.pixels.data()));
+        ASSERT_TRUE(out->close());
+    }
+    const Image back = prt::readImage(path);
+    EXPECT_EQ(back.width, img.width);
+    EXPECT_EQ(back.height, img.height);
+    EXPECT_EQ(back.pixels, img.pixels);
+}
+
 TEST_F(ImageIoTest, ReadsRadianceHdr) {
     // A Radiance .hdr written directly with OpenImageIO (RGBE, ~1% precision).
     const Image img = randomImage(6, 3, 3, 0.01f, 50.0f, 4u);

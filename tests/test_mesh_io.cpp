@@ -337,6 +337,13 @@ TEST_F(MeshFiles, MalformedHeadersAndCountsAreRefusedBeforeOpenMesh) {
     expectError([&] { prt::loadMesh(offCorners); }, offCorners, "declares 3000000000 corners");
     const std::string offText = writeText("count.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\nthree 0 1 2\n");
     expectError([&] { prt::loadMesh(offText); }, offText, "corner count 'three'");
+    const std::string tetra = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\n";
+    for (const char* face : {"f /1 /2 /3", "f", "f 1 2 x", "f 0 2 4", "f 1//", "f 1/2/3/4 2 3", "f 1 f 3"}) {
+        SCOPED_TRACE(face);
+        const std::string obj = writeText("face.obj", tetra + face + "\n");
+        expectError([&] { prt::loadMesh(obj); }, obj, "line 8");
+    }
+    EXPECT_EQ(prt::loadMesh(writeText("corners.obj", tetra + "f 1/1 -1//2 3/4/5\n")).triangleCount(), 4u);
     // The well-formed versions load.
     EXPECT_EQ(prt::loadMesh(writeText("ok.ply", "ply\nformat ascii 1.0\ncomment fine\n" + vertexProps + faceProps + tail))
                   .triangleCount(), 1u);

@@ -5,7 +5,7 @@
 // .tif) and the non-finite policy, the rest is the file.
 //
 // Oracle: an accepted environment is RGB, width = 2 x height, every value finite and
-// non-negative, and its cubemap is finite and non-negative too.
+// non-negative, and its cubemap (for one input in 16) is finite and non-negative too.
 
 #include <cmath>
 #include <cstdint>
@@ -28,8 +28,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         fuzz::require(env.channels == 3 && env.width == 2 * env.height && env.consistent(),
                       "an accepted environment is an RGB lat-long image");
         for (float v : env.pixels) fuzz::require(std::isfinite(v) && v >= 0.0f, "finite non-negative values");
-        const Cubemap cube = latLongToCubemap(env, 2);
-        for (float v : cube.data()) fuzz::require(std::isfinite(v) && v >= 0.0f, "finite non-negative cubemap");
+        // The exact box filter costs ~0.4 s under the sanitizers whatever the image
+        // size; one input in 16 (by length) keeps the fuzzer near 100 runs/s.
+        if (size % 16 == 0) {
+            const Cubemap cube = latLongToCubemap(env, 2);
+            for (float v : cube.data()) fuzz::require(std::isfinite(v) && v >= 0.0f, "finite non-negative cubemap");
+        }
     });
     return 0;
 }
