@@ -892,6 +892,11 @@ void checkFingerprint(FileReader& r, const MeshFingerprint& stored,
            hex64(expected.positionHash) + ")");
 }
 
+std::string findParameter(const std::vector<std::pair<std::string, std::string>>& parameters,
+                          const std::string& key);
+bool containsParameter(const std::vector<std::pair<std::string, std::string>>& parameters,
+                       const std::string& key);
+
 TransportFile loadImpl(const std::string& path, const MeshFingerprint* expected) {
     FileReader r(path);
     readPreamble(r);
@@ -902,6 +907,11 @@ TransportFile loadImpl(const std::string& path, const MeshFingerprint* expected)
     f.mesh = h.mesh;
     f.mmPerUnit = h.mmPerUnit;
     f.parameters = readParameters(r);
+    if (expected && containsParameter(f.parameters, kShardParameter))
+        throw Error(path, "is shard " + findParameter(f.parameters, kShardParameter) + " (vertices " +
+                              findParameter(f.parameters, kShardVerticesParameter) +
+                              ") of a sharded precompute, not a whole transport file: join the shards with "
+                              "prt-merge");
     for (size_t i = 0; i < h.componentCount; ++i)
         f.components.push_back(readComponent(r, h, i, false, nullptr));
     if (h.hasViewMaps) f.viewMaps = readViewMaps(r, false);

@@ -127,6 +127,13 @@ struct TransportFile {
     bool operator==(const TransportFile&) const = default;
 };
 
+// A shard file (prt-precompute --shard i/n, docs/cluster.md) is a transport file of the
+// whole mesh whose vectors are empty outside one vertex range, with these two
+// parameters: "shard" = "i/n" and "shard_vertices" = "begin-end" (end exclusive).
+// prt-merge joins the n shards of a job into the whole file.
+inline constexpr const char* kShardParameter = "shard";
+inline constexpr const char* kShardVerticesParameter = "shard_vertices";
+
 // Writes `file` to `path` atomically: validates it (one vertex count everywhere,
 // equal to mesh.vertexCount; indices < 6 N^2 and increasing; view maps present iff
 // term components exist, one term component per view-map term; finite values), then
@@ -141,7 +148,8 @@ void saveTransportFile(const std::string& path, const TransportFile& file);
 // section and the bytes it needs), a checksum mismatch (naming the section) or
 // inconsistent contents. Allocations never exceed the file's size.
 TransportFile loadTransportFile(const std::string& path);
-// The same, but refuses (before reading the vectors) a file made for another mesh.
+// The same, but refuses (before reading the vectors) a file made for another mesh, and
+// a shard file (what the renderers load must be whole).
 TransportFile loadTransportFile(const std::string& path, const MeshFingerprint& expected);
 
 // What readTransportFileInfo returns: everything except the vectors and view maps.

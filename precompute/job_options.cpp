@@ -65,6 +65,9 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     app.add_option("--ss-supersample", s.ssSupersample,
                    "Single scattering: s x s sub-directions per texel")
         ->capture_default_str();
+    app.add_option("--shard", raw.shard,
+                   "i/n: compute only shard i (0-based) of n of the vertices into a shard file; "
+                   "prt-merge joins the n shard files (docs/cluster.md)");
 }
 
 PrecomputeSettings settingsFromOptions(const JobOptions& raw, PrecomputeSettings s) {
@@ -73,6 +76,7 @@ PrecomputeSettings settingsFromOptions(const JobOptions& raw, PrecomputeSettings
     s.components = parseScatteringComponents(raw.components);
     s.scale = makeScale(raw.scale);
     s.material = makeMaterial(raw.material);
+    if (!raw.shard.empty()) s.shard = parseShard(raw.shard);
     return s;
 }
 

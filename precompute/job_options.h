@@ -24,6 +24,7 @@ struct JobOptions {
     ScaleOptions scale;
     MaterialOptions material;
     std::string components = "ms";
+    std::string shard;  // "i/n" or empty
 };
 
 // Declares every per-job option on `app`, bound to `raw` and `s`.

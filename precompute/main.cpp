@@ -5,6 +5,9 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <cstdio>
 #include <string>
 
@@ -12,6 +15,7 @@
 #include "common/options.h"
 #include "common/progress.h"
 #include "precompute/job_options.h"
+#include "precompute/mpi_distribution.h"
 #include "precompute/pipeline.h"
 #include "precompute/summary_json.h"
 
@@ -19,8 +23,22 @@ using namespace prt;
 
 namespace {
 
+// Under MPI only rank 0 speaks: the other ranks' progress, summaries and (identical,
+// see Distribution::stage) error lines would repeat rank 0's.
+void silenceOtherRanks(const Distribution* dist) {
+    if (!dist || dist->rank() == 0) return;
+    Progress::setQuiet(true);
+    const int null = open("/dev/null", O_WRONLY);
+    if (null < 0) return;
+    std::fflush(stdout);
+    std::fflush(stderr);
+    dup2(null, STDOUT_FILENO);
+    dup2(null, STDERR_FILENO);
+    close(null);
+}
+
 int runJobFile(const std::string& path, bool force, const std::string& summaryJsonPath,
-               const std::string& command) {
+               const std::string& command, Distribution* dist) {
     const JobFile file = loadJobFile(path);
     const nlohmann::json& defaults = file.defaults;
     const nlohmann::json& jobs = file.jobs;
@@ -40,7 +58,7 @@ int runJobFile(const std::string& path, bool force, const std::string& summaryJs
             if (!jobs[i].is_object()) throw Error(where, "a job must be an object");
             const PrecomputeSettings settings = parseJob(defaults, jobs[i], where);
             result["settings"] = settingsJson(settings);
-            PrecomputeSummary summary = precomputeTransport(settings, force);
+            PrecomputeSummary summary = precomputeTransport(settings, force, dist);
             std::printf("%s", summary.format().c_str());
             std::fflush(stdout);
             result["summary"] = summaryJson(summary);
@@ -55,7 +73,7 @@ int runJobFile(const std::string& path, bool force, const std::string& summaryJs
     }
     std::printf("jobs: %d computed, %d up to date, %d failed (of %zu)\n", done, skipped, failed,
                 jobs.size());
-    if (!summaryJsonPath.empty()) {
+    if (!summaryJsonPath.empty() && (!dist || dist->writes())) {
         report["machine"]["load_average_end"] = loadAverage();
         report["computed"] = done;
         report["up_to_date"] = skipped;
@@ -71,12 +89,18 @@ int runJobFile(const std::string& path, bool force, const std::string& summaryJs
 
 int main(int argc, char** argv) {
     return runMain("prt-precompute", [&]() -> int {
+        // Under mpirun / srun: MPI_Init here, MPI_Finalize when the body returns.
+        MpiSession mpi(argc, argv);
+        Distribution* dist = mpi.distribution();
+        silenceOtherRanks(dist);
         CLI::App app{
             "prt-precompute: precompute translucent light transport (dipole multiple scattering,\n"
             "single scattering) into per-vertex Haar wavelet vectors. Examples:\n"
             "  prt-precompute data/meshes/bunny.off --size-mm 30 --material Marble -o out/bunny.prt\n"
             "  prt-precompute data/meshes/bunny.off --components ms,ss --g 0.25 --phase-terms 4 -o b.prt\n"
-            "  prt-precompute --jobs jobs.json"};
+            "  prt-precompute --jobs jobs.json\n"
+            "  mpirun -np 4 prt-precompute mesh.ply -o out.prt          (MPI ranks, docs/cluster.md)\n"
+            "  prt-precompute mesh.ply --shard 1/4 -o part1.prt; prt-merge -o out.prt part*.prt"};
         JobOptions raw;
         PrecomputeSettings settings;
         addJobOptions(app, raw, settings);
@@ -95,14 +119,14 @@ int main(int argc, char** argv) {
         const ThreadLimit limit(threads);
         if (!summaryJsonPath.empty()) checkJsonPath(summaryJsonPath);
         const std::string command = commandLine(argc, argv);
-        if (!jobFile.empty()) return runJobFile(jobFile, force, summaryJsonPath, command);
+        if (!jobFile.empty()) return runJobFile(jobFile, force, summaryJsonPath, command, dist);
         if (raw.mesh.empty()) throw Error("prt-precompute", "no mesh given (see --help)");
         if (raw.output.empty()) throw Error("--output", "no output path given (see --help)");
         const PrecomputeSettings job = settingsFromOptions(raw, settings);
         Json report = runJson(command);
-        PrecomputeSummary summary = precomputeTransport(job, force);
+        PrecomputeSummary summary = precomputeTransport(job, force, dist);
         std::printf("%s", summary.format().c_str());
-        if (!summaryJsonPath.empty()) {
+        if (!summaryJsonPath.empty() && (!dist || dist->writes())) {
             report["machine"]["load_average_end"] = loadAverage();
             const Json j = jobJson(job, summary);
             for (auto it = j.begin(); it != j.end(); ++it) report[it.key()] = it.value();

@@ -15,6 +15,7 @@
 // alone; this module only wires them, reports progress and collects the summary.
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -23,6 +24,7 @@
 #include "common/mesh.h"
 #include "common/transport_file.h"
 #include "common/transport_params.h"
+#include "precompute/distribution.h"
 
 namespace prt {
 
@@ -51,6 +53,10 @@ struct PrecomputeSettings {
     // many GB; 0 = the machine's available memory. Not a physics setting: not stored in
     // the file and not part of the input digest.
     double maxMemoryGb = 0.0;
+    // --shard i/n: compute only the vertices of shard i of n into a shard file that
+    // prt-merge joins (precompute/distribution.h). Not a physics setting either: the
+    // shards of one job share its input_digest.
+    std::optional<ShardSpec> shard;
 };
 
 // Throws prt::Error naming the bad option.
@@ -67,6 +73,12 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
 struct PrecomputeSummary {
     std::string outputPath;
     bool skipped = false;  // output already up to date
+    std::string distribution = "1 process";  // Distribution::describe() of this process
+    int ranks = 1;
+    // Work split over processes (precompute/distribution.h): bytes of pass-1 vectors all
+    // ranks exchanged (0 in one process), the time of that exchange, and the time spent
+    // gathering the per-vertex vectors at the writing process.
+    double pass1ExchangeBytes = 0, pass1ExchangeSeconds = 0, gatherSeconds = 0;
     ScatteringComponents components;
     size_t vertices = 0, triangles = 0, samples = 0;
     double totalAreaMm2 = 0, sampleSpacingMm = 0;
@@ -110,7 +122,12 @@ struct PrecomputeSummary {
 
 // Runs the pipeline. When the output exists, is valid and was made from the same
 // settings and mesh, returns a summary with skipped = true unless force is set.
-PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool force = false);
+// `distribution` divides the work between processes (precompute/distribution.h: a
+// shard of the vertices, MPI ranks); null = all of it in this process. The file
+// written is the same, byte for byte, however the work was divided (a shard writes
+// its part, which prt-merge joins into that file).
+PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool force = false,
+                                      Distribution* distribution = nullptr);
 
 // Peak resident set size of this process in bytes (getrusage).
 size_t peakMemoryBytes();

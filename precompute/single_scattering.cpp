@@ -464,9 +464,13 @@ double compressSingleScattering(const SingleScatteringContext& ctx, float* dense
 
 SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ctx,
                                                const SingleScatteringSink& sink,
-                                               Progress* progress) {
+                                               Progress* progress,
+                                               std::optional<std::pair<size_t, size_t>> range) {
     const TriangleMesh& mesh = ctx.mesh();
-    const size_t vertices = mesh.positions.size();
+    const size_t first = range ? range->first : 0;
+    const size_t vertices = range ? range->second : mesh.positions.size();
+    if (first > vertices || vertices > mesh.positions.size())
+        throw Error("single scattering", "vertex range out of bounds");
     SingleScatteringResult result;
     result.isotropic = ctx.isotropic();
     result.terms = ctx.terms();
@@ -486,7 +490,7 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
     double retainedSum = 0.0;
 
     const Stopwatch start;
-    for (size_t base = 0; base < vertices; base += kBlock) {
+    for (size_t base = first; base < vertices; base += kBlock) {
         const size_t end = std::min(vertices, base + kBlock);
         tbb::parallel_for(tbb::blocked_range<size_t>(base, end, 1),
                           [&](const tbb::blocked_range<size_t>& r) {
@@ -508,7 +512,7 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
     result.seconds =
         start.seconds();
     states.combine_each([&](const ThreadState& st) { result.stats.add(st.stats); });
-    result.retainedEnergyFraction = vertices ? retainedSum / double(vertices) : 1.0;
+    result.retainedEnergyFraction = vertices > first ? retainedSum / double(vertices - first) : 1.0;
     return result;
 }
 

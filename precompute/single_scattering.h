@@ -50,6 +50,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <optional>
+#include <utility>
 #include <vector>
 
 #include "common/bssrdf.h"
@@ -256,11 +258,13 @@ using SingleScatteringSink =
     std::function<void(size_t vertex, const std::vector<SparseVector>& terms)>;
 
 // Every vertex of the context's mesh (positions and normals of mesh.positions /
-// mesh.normals), in parallel (TBB) over blocks of vertices. Deterministic: the result
-// does not depend on the thread count.
+// mesh.normals), or those of [vertices.first, vertices.second) when given, in parallel (TBB)
+// over blocks of vertices. Deterministic: a vertex's result depends neither on the
+// thread count nor on the range it was computed in.
 SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ctx,
                                                const SingleScatteringSink& sink,
-                                               Progress* progress = nullptr);
+                                               Progress* progress = nullptr,
+                                               std::optional<std::pair<size_t, size_t>> vertices = {});
 
 // Convenience: collects the vectors, out[k][vertex].
 SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ctx,

@@ -1,6 +1,6 @@
 // Fuzz target: the command-line parsers of every executable, through their real main
 // functions (compiled a second time with main renamed: prt-precompute, prt-relight,
-// prt-pointlight, prt-reference, prt-compare, prt-envcheck). The first input byte picks
+// prt-pointlight, prt-reference, prt-compare, prt-envcheck, prt-merge). The first input byte picks
 // the program ('0'..'5' in the text seeds), the rest are its arguments, one per line.
 //
 // Run it in an empty directory (tools/fuzz.sh does): no argument list the fuzzer can
@@ -26,6 +26,7 @@ int prt_pointlight_main(int argc, char** argv);
 int prt_reference_main(int argc, char** argv);
 int prt_compare_main(int argc, char** argv);
 int prt_envcheck_main(int argc, char** argv);
+int prt_merge_main(int argc, char** argv);
 
 namespace {
 
@@ -38,7 +39,9 @@ const Program kPrograms[] = {
     {"prt-precompute", prt_precompute_main}, {"prt-relight", prt_relight_main},
     {"prt-pointlight", prt_pointlight_main}, {"prt-reference", prt_reference_main},
     {"prt-compare", prt_compare_main},       {"prt-envcheck", prt_envcheck_main},
+    {"prt-merge", prt_merge_main},
 };
+constexpr size_t kProgramCount = sizeof kPrograms / sizeof kPrograms[0];
 
 // Runs main with stderr going to a file; returns the exit code and what it printed.
 int runCaptured(const Program& p, std::vector<std::string>& args, std::string& errText) {
@@ -70,7 +73,10 @@ int runCaptured(const Program& p, std::vector<std::string>& args, std::string& e
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (size < 1 || size > 4096) return 0;
-    const Program& program = kPrograms[data[0] % 6];
+    // A digit picks the program by its value (the seeds' first lines), any other byte by
+    // its value modulo the count.
+    const size_t pick = data[0] >= '0' && data[0] <= '9' ? size_t(data[0] - '0') : size_t(data[0]);
+    const Program& program = kPrograms[pick % kProgramCount];
     std::vector<std::string> args;
     std::string current;
     bool any = false;

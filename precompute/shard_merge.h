@@ -1,0 +1,27 @@
+#pragma once
+// Joining the shard files of one job (`prt-precompute --shard i/n`, docs/cluster.md)
+// into the whole transport file: the file one process would have written, byte for
+// byte (tests/test_distribution.cpp).
+//
+// The shards must belong together: the same mesh fingerprint, cubemap size, scale,
+// components, view maps and parameters (input_digest included) apart from the shard's
+// own two; one shard count n; every index 0..n-1 exactly once; each shard's vertex
+// range the one evenRange gives for its index, with no coefficients outside it. A
+// missing, duplicated or foreign shard is a prt::Error naming the file (or the
+// missing index) and the problem.
+
+#include <string>
+#include <vector>
+
+#include "common/transport_file.h"
+
+namespace prt {
+
+// Reads the shards (any order) and returns the whole file. Peak memory: the result
+// plus one shard.
+TransportFile mergeShards(const std::vector<std::string>& paths);
+
+// The vertices [begin, end) of `all` as their own array (offsets rebased).
+SparseRgbVectors sliceVertices(const SparseRgbVectors& all, size_t begin, size_t end);
+
+}  // namespace prt
