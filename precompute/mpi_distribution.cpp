@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <climits>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <string>
@@ -134,7 +135,9 @@ public:
     void stage(const std::function<void()>& work) override {
         std::string message;
         bool failed = false;
+        ++stage_;
         try {
+            injectFailure();
             work();
         } catch (const std::exception& e) {
             failed = true;
@@ -219,6 +222,16 @@ public:
     }
 
 private:
+    // Fault injection for tests/cluster_test.sh: PRT_MPI_FAIL=R:S makes rank R fail in
+    // its S-th stage (1-based), as a rank that runs out of memory or disk would.
+    void injectFailure() const {
+        const char* spec = std::getenv("PRT_MPI_FAIL");
+        int r = -1, s = -1;
+        if (spec && std::sscanf(spec, "%d:%d", &r, &s) == 2 && r == rank_ && s == stage_)
+            throw Error("PRT_MPI_FAIL", "injected failure in stage " + std::to_string(s));
+    }
+
+    int stage_ = 0;
     IndexRange sampleShare_(size_t samples, int r) const { return evenRange(samples, r, ranks_); }
     IndexRange vertexShare_(size_t vertices, int r) const { return evenRange(vertices, r, ranks_); }
 

@@ -79,7 +79,7 @@ void checkSameJob(const TransportFile& first, const std::string& firstPath, cons
 }  // namespace
 
 TransportFile mergeShards(const std::vector<std::string>& paths) {
-    if (paths.empty()) throw Error("prt-merge", "no shard files given");
+    if (paths.empty()) throw Error("shards", "no shard files given");
     // Cheap look at every shard first: membership errors before any large read.
     std::map<int, ShardInfo> byIndex;
     int count = 0;
@@ -95,7 +95,7 @@ TransportFile mergeShards(const std::vector<std::string>& paths) {
     }
     for (int i = 0; i < count; ++i)
         if (!byIndex.count(i))
-            throw Error("prt-merge", "shard " + std::to_string(i) + "/" + std::to_string(count) +
+            throw Error("shards", "shard " + std::to_string(i) + "/" + std::to_string(count) +
                                          " is missing (" + std::to_string(byIndex.size()) + " of " +
                                          std::to_string(count) + " given)");
 

@@ -28,6 +28,7 @@ packages=(
   zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   xvfb xauth libgl1-mesa-dri
+  libopenmpi-dev openmpi-bin
 
 )
 

@@ -1,0 +1,105 @@
+#!/usr/bin/env bash
+# The precompute split over processes through the real executables (CTest
+# precompute_cluster; docs/cluster.md).
+#
+#   cluster_test.sh BUILD_DIR WORKDIR
+#
+# One small job (a generated sphere, multiple + single scattering with a 2-term phase,
+# so every component kind and the view maps are split) is computed in one process; then
+#   - as 4 shards (--shard i/4) joined by prt-merge, and as 2 shards from a job file;
+#   - under mpirun with 1, 2 and 4 ranks (--oversubscribe: this machine has 2 cores),
+#     and a job file under 2 ranks;
+# and every output must equal the single-process file byte for byte. Then failures: a
+# rank that fails (PRT_MPI_FAIL fault injection) must stop the whole job with exit 1 and
+# the failing rank named on one line of prt-precompute's, leaving no output; a missing
+# or duplicated shard and a shard handed to the renderer are one-line errors.
+# Without mpirun (a build without MPI) the MPI cases are skipped and said so.
+set -u
+if [ $# -ne 2 ]; then echo "usage: $0 BUILD_DIR WORKDIR" >&2; exit 2; fi
+BUILD=$1 WORK=$2
+PRE=$BUILD/precompute/prt-precompute MERGE=$BUILD/precompute/prt-merge
+RELIGHT=$BUILD/relight/prt-relight
+rm -rf "$WORK" && mkdir -p "$WORK" && cd "$WORK" || exit 1
+"$BUILD/tests/prt-make-shape" icosphere sphere.obj --subdivisions 3 --radius 10 > /dev/null || exit 1
+oiiotool --pattern constant:color=1,1,1 64x32 3 -d float -o sky.exr > /dev/null || exit 1
+# CI runs as root; Open MPI refuses that unless told.
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+# Keep Open MPI off the network interfaces of a sandbox: shared memory on one host.
+export OMPI_MCA_btl=self,vader OMPI_MCA_btl_vader_single_copy_mechanism=none
+
+job=(sphere.obj --size-mm 20 -m Skin1 --components ms,ss --g 0.3 --phase-terms 2 --phase-map-size 8
+     --cubemap-size 16 --samples 2000 --path-samples 8 -q)
+failures=0
+fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+same() {  # same FILE WHAT
+    if cmp -s "$1" whole.prt; then echo "ok: $2 = one process, byte for byte"; else fail "$2 differs from one process"; fi
+}
+
+"$PRE" "${job[@]}" -o whole.prt > whole.log || { cat whole.log; echo "FAIL: single-process run"; exit 1; }
+
+# Shards, in any order, joined.
+for i in 3 1 0 2; do "$PRE" "${job[@]}" --shard $i/4 -o part$i.prt > /dev/null || fail "shard $i/4"; done
+"$MERGE" -o merged.prt part2.prt part0.prt part3.prt part1.prt --mesh sphere.obj > merge.log || fail "prt-merge"
+same merged.prt "4 shards merged"
+
+# A job file targets shards too.
+cat > shards.json <<JSON
+{"defaults": {"mesh": "sphere.obj", "size-mm": 20, "material": "Skin1", "components": "ms,ss", "g": 0.3,
+              "phase-terms": 2, "phase-map-size": 8, "cubemap-size": 16, "samples": 2000, "path-samples": 8},
+ "jobs": [{"shard": "0/2", "output": "job0.prt"}, {"shard": "1/2", "output": "job1.prt"}]}
+JSON
+"$PRE" --jobs shards.json -q > /dev/null || fail "job file of shards"
+"$MERGE" -o jobmerged.prt job1.prt job0.prt > /dev/null || fail "prt-merge of the job file's shards"
+same jobmerged.prt "job file of 2 shards merged"
+
+# Errors: one line each, naming the problem.
+one_line() {  # one_line PATTERN COMMAND...: exit 1 and exactly one stderr line matching PATTERN
+    local pattern=$1; shift
+    "$@" > /dev/null 2> err.txt; local code=$?
+    if [ $code -ne 1 ] || [ "$(wc -l < err.txt)" -ne 1 ] || ! grep -qE "$pattern" err.txt; then
+        fail "'$*' exited $code with: $(cat err.txt)"
+    else
+        echo "ok: $(cat err.txt)"
+    fi
+}
+one_line "^prt-merge: error: shards: shard 3/4 is missing" "$MERGE" -o bad.prt part0.prt part1.prt part2.prt
+one_line "^prt-merge: error: part1.prt: shard 1/4 is given twice" "$MERGE" -o bad.prt part0.prt part1.prt part1.prt part2.prt part3.prt
+one_line "^prt-relight: error: part1.prt: is shard 1/4 .*prt-merge" "$RELIGHT" render sphere.obj -t part1.prt -e sky.exr -o bad
+one_line "^prt-precompute: error: --shard: " "$PRE" "${job[@]}" --shard 4/4 -o bad.prt
+[ ! -e bad.prt ] || fail "a failed merge left bad.prt"
+
+if ! command -v mpirun > /dev/null || ! grep -q "PRT_HAVE_MPI" "$BUILD/precompute/CMakeFiles/prt_mpi_distribution.dir/flags.make" 2> /dev/null; then
+    echo "SKIPPED: the MPI cases (no mpirun, or prt-precompute built without MPI)"
+else
+    mpi=(mpirun --oversubscribe)
+    for np in 1 2 4; do
+        "${mpi[@]}" -np $np "$PRE" "${job[@]}" -o mpi$np.prt > mpi$np.log 2>&1 || { cat mpi$np.log; fail "mpirun -np $np"; }
+        same mpi$np.prt "mpirun -np $np"
+    done
+    grep -q "2 MPI ranks" mpi2.log || fail "the -np 2 summary does not name its ranks: $(head -1 mpi2.log)"
+    cat > mpijobs.json <<JSON
+{"defaults": {"mesh": "sphere.obj", "size-mm": 20, "material": "Skin1", "components": "ms,ss", "g": 0.3,
+              "phase-terms": 2, "phase-map-size": 8, "cubemap-size": 16, "samples": 2000, "path-samples": 8},
+ "jobs": [{"output": "mpijob.prt"}]}
+JSON
+    "${mpi[@]}" -np 2 "$PRE" --jobs mpijobs.json -q > /dev/null 2>&1 || fail "job file under mpirun -np 2"
+    same mpijob.prt "job file under mpirun -np 2"
+
+    # A failing rank stops every rank; rank 0 says which and why, once.
+    for stage in 1 3 5; do
+        PRT_MPI_FAIL=1:$stage "${mpi[@]}" -np 2 "$PRE" "${job[@]}" -o failed.prt > /dev/null 2> err.txt
+        code=$?
+        n=$(grep -c "^prt-precompute: error: " err.txt)
+        if [ $code -eq 0 ] || [ "$n" -ne 1 ] || ! grep -q "^prt-precompute: error: rank 1 of 2: PRT_MPI_FAIL: injected failure in stage $stage" err.txt; then
+            fail "rank 1 failing in stage $stage: exit $code, $n error lines: $(cat err.txt)"
+        else
+            echo "ok: rank 1 failing in stage $stage stops the job: $(grep '^prt-precompute' err.txt)"
+        fi
+        [ ! -e failed.prt ] || { fail "a failed MPI job left failed.prt"; rm -f failed.prt; }
+    done
+fi
+
+leftover=$(find . -name '*.tmp*' | head -3)
+[ -z "$leftover" ] || fail "temporary files left: $leftover"
+if [ $failures -gt 0 ]; then echo "$failures failures"; exit 1; fi
+echo "cluster_test: all cases passed"

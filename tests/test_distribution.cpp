@@ -1,0 +1,216 @@
+// Work split over processes (precompute/distribution.h) and the shard merge
+// (precompute/shard_merge.h): ranges partition their index space, slices and
+// concatenation are inverse, and a job computed as shards and merged is the same file,
+// byte for byte, as the job computed in one process. The MPI route runs through the
+// real executables in tests/cluster_test.sh.
+
+#include "precompute/distribution.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <random>
+
+#include "common/materials.h"
+#include "common/mesh_io.h"
+#include "common/progress.h"
+#include "common/shapes.h"
+#include "precompute/pipeline.h"
+#include "precompute/shard_merge.h"
+#include "tests/test_support.h"
+
+using namespace prt;
+using prt::test::errorOf;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path tempDir() {
+    fs::path d = fs::temp_directory_path() / ("prt_test_distribution_" + std::to_string(getpid()));
+    fs::create_directories(d);
+    return d;
+}
+
+std::string bytesOf(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// Random sparse vectors, some vertices empty.
+SparseRgbVectors randomVectors(size_t vertices, uint32_t seed) {
+    std::mt19937 rng(seed);
+    SparseRgbVectors v;
+    for (size_t i = 0; i < vertices; ++i) {
+        const size_t n = rng() % 5;
+        std::vector<uint32_t> idx;
+        std::vector<float> rgb;
+        for (size_t k = 0; k < n; ++k) {
+            idx.push_back(uint32_t(k * 7 + rng() % 7));
+            for (int c = 0; c < 3; ++c) rgb.push_back(float(int(rng() % 2001) - 1000) / 100.0f);
+        }
+        v.appendVertex(idx, rgb);
+    }
+    return v;
+}
+
+// A small job with both components and a K = 2 phase, so every component kind and
+// the view maps go through the split.
+PrecomputeSettings smallJob(const fs::path& dir) {
+    const fs::path mesh = dir / "sphere.obj";
+    if (!fs::exists(mesh)) saveMesh(makeIcosphere(2, 1.0f), mesh.string());
+    PrecomputeSettings s;
+    s.meshPath = mesh.string();
+    s.scale.sizeMm = 20.0;
+    s.material = materialByName("Skin1");
+    s.material.g = 0.3;
+    s.components = parseScatteringComponents("ms,ss");
+    s.phaseTerms = 2;
+    s.phaseMapSize = 4;
+    s.cubemapSize = 8;
+    s.sampleCount = 600;
+    s.pathSamples = 4;
+    s.vertexCoefficients = 48;
+    s.sampleCoefficients = 48;
+    return s;
+}
+
+}  // namespace
+
+TEST(EvenRange, PartitionsTheIndexSpace) {
+    for (size_t count : {size_t(0), size_t(1), size_t(7), size_t(100), size_t(1001)})
+        for (int parts : {1, 2, 3, 4, 7, 64}) {
+            size_t next = 0, smallest = SIZE_MAX, largest = 0;
+            for (int p = 0; p < parts; ++p) {
+                const IndexRange r = evenRange(count, p, parts);
+                EXPECT_EQ(r.begin, next) << count << " " << parts << " " << p;
+                next = r.end;
+                smallest = std::min(smallest, r.size());
+                largest = std::max(largest, r.size());
+            }
+            EXPECT_EQ(next, count);
+            EXPECT_LE(largest - smallest, 1u);
+        }
+    EXPECT_NE(errorOf([] { evenRange(10, 3, 3); }), prt::test::kNoError);
+}
+
+TEST(ShardSpec, ParsesAndRefuses) {
+    EXPECT_EQ(parseShard("0/1"), (ShardSpec{0, 1}));
+    EXPECT_EQ(parseShard("3/4"), (ShardSpec{3, 4}));
+    EXPECT_EQ(toString(parseShard("12/64")), "12/64");
+    for (const char* bad : {"", "1", "4/4", "-1/4", "1/0", "a/4", "1/4x", "1//4", " 1/4", "1/70000"}) {
+        const std::string e = errorOf([&] { parseShard(bad); });
+        EXPECT_EQ(e.rfind("--shard: ", 0), 0u) << bad << ": " << e;
+    }
+}
+
+TEST(SparseRgbSplit, SlicesConcatenateToTheWhole) {
+    const SparseRgbVectors all = randomVectors(101, 5);
+    for (int parts : {1, 2, 3, 10}) {
+        SparseRgbVectors joined;
+        for (int p = 0; p < parts; ++p) {
+            const IndexRange r = evenRange(all.vertexCount(), p, parts);
+            appendVertices(joined, sliceVertices(all, r.begin, r.end));
+        }
+        EXPECT_EQ(joined, all) << parts;
+    }
+}
+
+TEST(ShardDistribution, PadsItsRangeWithEmptyVertices) {
+    const SparseRgbVectors all = randomVectors(50, 9);
+    ShardDistribution shard(ShardSpec{1, 3});
+    const IndexRange r = shard.vertexShare(50);
+    EXPECT_EQ(r, (IndexRange{17, 34}));
+    const SparseRgbVectors padded = shard.gatherVertices(sliceVertices(all, r.begin, r.end), 50);
+    ASSERT_EQ(padded.vertexCount(), 50u);
+    EXPECT_EQ(sliceVertices(padded, r.begin, r.end), sliceVertices(all, r.begin, r.end));
+    EXPECT_EQ(padded.offsets[r.begin], 0u);
+    EXPECT_EQ(padded.offsets[r.end], padded.coefficientCount());
+    const auto params = shard.outputParameters(50);
+    ASSERT_EQ(params.size(), 2u);
+    EXPECT_EQ(params[0], (std::pair<std::string, std::string>{kShardParameter, "1/3"}));
+    EXPECT_EQ(params[1], (std::pair<std::string, std::string>{kShardVerticesParameter, "17-34"}));
+}
+
+TEST(Shards, MergedShardsAreTheSingleProcessFileByteForByte) {
+    Progress::setQuiet(true);
+    const fs::path dir = tempDir() / "merge";
+    fs::create_directories(dir);
+    PrecomputeSettings whole = smallJob(dir);
+    whole.outputPath = (dir / "whole.prt").string();
+    precomputeTransport(whole, true);
+
+    for (int n : {1, 3, 7}) {
+        std::vector<std::string> parts;
+        for (int i = n - 1; i >= 0; --i) {  // any order
+            PrecomputeSettings s = whole;
+            s.shard = ShardSpec{i, n};
+            s.outputPath = (dir / ("part" + std::to_string(i) + "of" + std::to_string(n) + ".prt")).string();
+            const PrecomputeSummary summary = precomputeTransport(s, true);
+            EXPECT_EQ(summary.distribution, "shard " + std::to_string(i) + "/" + std::to_string(n));
+            parts.push_back(s.outputPath);
+            // A shard is not a whole file: the renderers' loader refuses it.
+            const TransportFile shardFile = loadTransportFile(s.outputPath);
+            const std::string e = errorOf([&] { loadTransportFile(s.outputPath, shardFile.mesh); });
+            EXPECT_NE(e.find("prt-merge"), std::string::npos) << e;
+        }
+        const fs::path merged = dir / ("merged" + std::to_string(n) + ".prt");
+        saveTransportFile(merged.string(), mergeShards(parts));
+        EXPECT_EQ(bytesOf(merged), bytesOf(whole.outputPath)) << n << " shards";
+    }
+    fs::remove_all(dir);
+}
+
+TEST(Shards, UpToDateCheckTellsShardsFromWholeFiles) {
+    Progress::setQuiet(true);
+    const fs::path dir = tempDir() / "uptodate";
+    fs::create_directories(dir);
+    PrecomputeSettings s = smallJob(dir);
+    s.components = parseScatteringComponents("ms");
+    s.outputPath = (dir / "out.prt").string();
+    s.shard = ShardSpec{0, 2};
+    EXPECT_FALSE(precomputeTransport(s).skipped);
+    EXPECT_TRUE(precomputeTransport(s).skipped);
+    s.shard = ShardSpec{1, 2};  // another shard at the same path: recomputed
+    EXPECT_FALSE(precomputeTransport(s).skipped);
+    s.shard.reset();  // the whole job where a shard lies: recomputed
+    EXPECT_FALSE(precomputeTransport(s).skipped);
+    EXPECT_TRUE(precomputeTransport(s).skipped);
+    s.shard = ShardSpec{1, 2};  // a shard job where the whole file lies: recomputed
+    EXPECT_FALSE(precomputeTransport(s).skipped);
+    fs::remove_all(dir);
+}
+
+TEST(Shards, MergeRefusesShardsThatDoNotBelongTogether) {
+    Progress::setQuiet(true);
+    const fs::path dir = tempDir() / "refuse";
+    fs::create_directories(dir);
+    PrecomputeSettings s = smallJob(dir);
+    s.components = parseScatteringComponents("ms");
+    auto shard = [&](int i, int n, const std::string& name, uint64_t seed = 1) {
+        PrecomputeSettings t = s;
+        t.seed = seed;
+        t.shard = ShardSpec{i, n};
+        t.outputPath = (dir / name).string();
+        precomputeTransport(t, true);
+        return t.outputPath;
+    };
+    const std::string a = shard(0, 3, "a.prt"), b = shard(1, 3, "b.prt"), c = shard(2, 3, "c.prt");
+    const std::string other = shard(2, 3, "other_seed.prt", 2), half = shard(1, 2, "half.prt");
+    PrecomputeSettings w = s;
+    w.outputPath = (dir / "whole.prt").string();
+    precomputeTransport(w, true);
+
+    EXPECT_EQ(errorOf([&] { mergeShards({a, b}); }), "shards: shard 2/3 is missing (2 of 3 given)");
+    EXPECT_EQ(errorOf([&] { mergeShards({a, b, b}); }), b + ": shard 1/3 is given twice (also " + b + ")");
+    EXPECT_EQ(errorOf([&] { mergeShards({a, b, half}); }), half + ": is shard 1/2 but " + a + " is one of 3");
+    const std::string foreign = errorOf([&] { mergeShards({a, b, other}); });
+    EXPECT_EQ(foreign, other + ": does not belong with " + a + ": different settings (input_digest)");
+    EXPECT_EQ(errorOf([&] { mergeShards({a, b, w.outputPath}); }),
+              w.outputPath + ": is a whole transport file, not a shard (it has no 'shard' parameter)");
+    EXPECT_EQ(errorOf([&] { mergeShards({}); }), "shards: no shard files given");
+    EXPECT_EQ(errorOf([&] { mergeShards({c, a, b}); }), prt::test::kNoError);
+    fs::remove_all(dir);
+}
