@@ -194,6 +194,7 @@ public:
         while (pos_ < data_.size() && data_[pos_] != '\n') ++pos_;
     }
     size_t line() const { return line_; }
+    size_t offset() const { return pos_; }
 
 private:
     std::string_view data_;
@@ -485,32 +486,50 @@ ScanResult scanOff(const std::string& path, std::string_view data) {
                                   ": expected the vertex, face and edge counts (comments "
                                   "before the counts are not supported)");
     tokens.skipLine();
-    for (size_t i = 0; i < counts[0]; ++i) {
-        for (int k = 0; k < 3; ++k) {
-            if (!tokens.next(token))
-                throw Error(path, "file ends inside vertex " + std::to_string(i) + " of " +
-                                      std::to_string(counts[0]) + " (truncated)");
-            checkCoordinate(path, tokens.line(), token);
+    // The body line by line, as OpenMesh 9.0 reads vertices: one vertex per line (x y z
+    // first, then optional colours or normals), one face per line (its corner count,
+    // then that many indices, then optional colours). Anything else reached OpenMesh's
+    // stream reader out of step and it looped forever (found by tools/fuzz: a face
+    // index '1p', inputs in tools/fuzz/crashes/mesh/).
+    Lines body(data.substr(std::min(data.size(), tokens.offset())));
+    const size_t firstBodyLine = tokens.line();
+    std::string_view line;
+    auto nextRecord = [&](std::vector<std::string_view>& fields) {
+        while (body.next(line)) {
+            fields = split(line);
+            if (!fields.empty()) return true;  // blank lines are skipped; OpenMesh misreads comments
         }
-        tokens.skipLine();
+        return false;
+    };
+    auto at = [&] { return "line " + std::to_string(firstBodyLine + body.number() - 1) + ": "; };
+    std::vector<std::string_view> fields;
+    for (size_t i = 0; i < counts[0]; ++i) {
+        if (!nextRecord(fields))
+            throw Error(path, "file ends before vertex " + std::to_string(i) + " of " + std::to_string(counts[0]) +
+                                  " (truncated)");
+        if (fields.size() < 3)
+            throw Error(path, at() + "vertex " + std::to_string(i) + " has " + std::to_string(fields.size()) +
+                                  " coordinates, expected x y z on one line");
+        for (int k = 0; k < 3; ++k) checkCoordinate(path, firstBodyLine + body.number() - 1, fields[size_t(k)]);
     }
-    // Every face's corner count must be followed by that many indices: OpenMesh 9.0's
-    // reader keeps appending corners past the end of the file otherwise, until memory
-    // runs out (found by tools/fuzz, input in tools/fuzz/crashes/mesh/).
     for (size_t i = 0; i < counts[1]; ++i) {
-        size_t corners = 0;
-        if (!tokens.next(token))
+        if (!nextRecord(fields))
             throw Error(path, "file ends before face " + std::to_string(i) + " of " + std::to_string(counts[1]) +
                                   " (truncated)");
-        if (!parseCount(token, corners))
-            throw Error(path, "line " + std::to_string(tokens.line()) + ": cannot parse the corner count " +
-                                  shown(token) + " of face " + std::to_string(i));
-        for (size_t k = 0; k < corners; ++k)
-            if (!tokens.next(token))
-                throw Error(path, "file ends inside face " + std::to_string(i) + " of " +
-                                      std::to_string(counts[1]) + " (it declares " + std::to_string(corners) +
-                                      " corners; truncated or corrupt)");
-        tokens.skipLine();
+        size_t corners = 0;
+        if (!parseCount(fields[0], corners))
+            throw Error(path, at() + "cannot parse the corner count " + shown(fields[0]) + " of face " +
+                                  std::to_string(i));
+        if (fields.size() < corners + 1)
+            throw Error(path, at() + "face " + std::to_string(i) + " declares " + std::to_string(corners) +
+                                  " corners but lists " + std::to_string(fields.size() - 1) +
+                                  " indices on its line (truncated or corrupt)");
+        for (size_t k = 1; k <= corners; ++k) {
+            size_t index = 0;
+            if (!parseCount(fields[k], index))
+                throw Error(path, at() + "cannot parse vertex index " + shown(fields[k]) + " of face " +
+                                      std::to_string(i));
+        }
     }
     r.vertices = counts[0];
     r.faces = counts[1];

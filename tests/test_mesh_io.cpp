@@ -337,6 +337,18 @@ TEST_F(MeshFiles, MalformedHeadersAndCountsAreRefusedBeforeOpenMesh) {
     expectError([&] { prt::loadMesh(offCorners); }, offCorners, "declares 3000000000 corners");
     const std::string offText = writeText("count.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\nthree 0 1 2\n");
     expectError([&] { prt::loadMesh(offText); }, offText, "corner count 'three'");
+    // A face index OpenMesh's stream cannot read, and a vertex split over two lines: its
+    // reader looped forever on both (tools/fuzz/crashes/mesh/openmesh-off-bad-index-loop).
+    const std::string offIndex = writeText("index.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1p 2\n");
+    expectError([&] { prt::loadMesh(offIndex); }, offIndex, "line 6: cannot parse vertex index '1p' of face 0");
+    const std::string offSplit = writeText("split.off", "OFF\n3 1 0\n0 0\n0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectError([&] { prt::loadMesh(offSplit); }, offSplit, "line 3: vertex 0 has 2 coordinates");
+    // Blank lines between records and colours after a face are fine; a comment is
+    // refused (OpenMesh reads it as numbers).
+    EXPECT_EQ(prt::loadMesh(writeText("gaps.off", "OFF\n3 1 0\n\n0 0 0\n1 0 0\n0 1 0\n\n3 0 1 2 255 0 0\n"))
+                  .triangleCount(), 1u);
+    const std::string offComment = writeText("comment.off", "OFF\n3 1 0\n0 0 0\n# c\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectError([&] { prt::loadMesh(offComment); }, offComment, "line 4: vertex 1 has 2 coordinates");
     const std::string tetra = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\n";
     for (const char* face : {"f /1 /2 /3", "f", "f 1 2 x", "f 0 2 4", "f 1//", "f 1/2/3/4 2 3", "f 1 f 3"}) {
         SCOPED_TRACE(face);
