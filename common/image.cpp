@@ -108,6 +108,13 @@ Image readImage(const std::string& path) {
         throw Error(path, "image has no pixels");
 
     const int w = spec.width, h = spec.height, c = spec.nchannels;
+    // No environment or frame of ours comes near 65536 pixels a side, and OpenImageIO's
+    // EXR reader buffers many scanlines at once: a corrupt header claiming 14 million
+    // columns made it allocate 59 GB for one strip (found by tools/fuzz).
+    if (w > kMaxImageSide || h > kMaxImageSide || c > 64)
+        throw Error(path, "the header declares " + std::to_string(w) + " x " + std::to_string(h) + " pixels of " +
+                              std::to_string(c) + " channels; at most " + std::to_string(kMaxImageSide) +
+                              " pixels a side and 64 channels are supported (corrupt header?)");
     const double bytes = double(w) * double(h) * double(c) * sizeof(float);
     const uint64_t available = availableMemoryBytes();
     if (available > 0 && bytes > double(available))

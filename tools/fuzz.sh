@@ -43,6 +43,10 @@ cmake --build "$build_dir" -j"$(nproc)" --target fuzz-all
 
 work=$build_dir/fuzz
 mkdir -p "$work/logs"
+# The targets write each input to a file (and the transport-file target saves it back,
+# with an fsync): on disk a target spent 95% of its time waiting for the disk (30 CPU
+# seconds in 650 s); in memory it runs on the CPU.
+if [ -z "${TMPDIR:-}" ] && [ -d /dev/shm ] && [ -w /dev/shm ]; then export TMPDIR=/dev/shm; fi
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=0}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$root/tools/fuzz/lsan.supp:print_suppressions=0}
