@@ -5,11 +5,13 @@ set -euo pipefail
 
 plots=0
 fuzz=0
+slurm=0
 for arg in "$@"; do
   case "$arg" in
     --plots) plots=1 ;;
     --fuzz) fuzz=1 ;;
-    -h|--help) echo "Usage: tools/setup.sh [--plots] [--fuzz]  (--plots: also python3-matplotlib, for tools/scaling.sh; --fuzz: clang + libFuzzer, for tools/fuzz.sh)"; exit 0 ;;
+    --slurm) slurm=1 ;;
+    -h|--help) echo "Usage: tools/setup.sh [--plots] [--fuzz] [--slurm]  (--plots: also python3-matplotlib, for tools/scaling.sh; --fuzz: clang + libFuzzer, for tools/fuzz.sh; --slurm: Slurm + munge, for tools/test-slurm.sh)"; exit 0 ;;
     *) echo "setup: unknown argument '$arg' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -38,6 +40,10 @@ command -v npm >/dev/null 2>&1 || packages+=(npm)
 # libFuzzer builds of tools/fuzz.sh: clang 14, its runtime (libFuzzer, ASan, UBSan) and
 # llvm-symbolizer for readable stack traces.
 [ "$fuzz" = 0 ] || packages+=(clang libclang-rt-14-dev llvm-14)
+
+# The single-node Slurm of tools/test-slurm.sh (it starts its own daemons with a private
+# configuration; tools/test.sh installs these so the test runs).
+[ "$slurm" = 0 ] || packages+=(slurmd slurmctld slurm-client munge)
 
 # Plots of tools/scaling.sh (tools/plot_scaling.py runs it with /usr/bin/python3).
 [ "$plots" = 0 ] || packages+=(python3 python3-matplotlib)

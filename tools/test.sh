@@ -5,7 +5,7 @@ set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build_dir=${BUILD_DIR:-$root/build}
 start=$(date +%s)
-"$root/tools/setup.sh"
+"$root/tools/setup.sh" --slurm
 "$root/tools/build.sh"
 cd "$build_dir"
 ctest --output-on-failure -j"$(nproc)" "$@"
