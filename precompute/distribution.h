@@ -97,6 +97,8 @@ public:
     }
     // Sums of per-process statistics (rays traced, ...), on every process.
     virtual double sum(double value) { return value; }
+    // The smallest and largest of a per-process value (each rank's busy time), on every process.
+    virtual std::pair<double, double> minMax(double value) { return {value, value}; }
     // Process 0's value, on every process (decisions all processes must share).
     virtual bool agree(bool value) { return value; }
 };

@@ -215,6 +215,12 @@ public:
         MPI_Allreduce(&value, &total, 1, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
         return total;
     }
+    std::pair<double, double> minMax(double value) override {
+        double lo = 0, hi = 0;
+        MPI_Allreduce(&value, &lo, 1, MPI_DOUBLE, MPI_MIN, MPI_COMM_WORLD);
+        MPI_Allreduce(&value, &hi, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+        return {lo, hi};
+    }
     bool agree(bool value) override {
         int v = value ? 1 : 0;
         MPI_Bcast(&v, 1, MPI_INT, 0, MPI_COMM_WORLD);

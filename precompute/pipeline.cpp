@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <optional>
 #include <sstream>
+#include <tuple>
 
 #include "common/atomic_file.h"
 #include "common/error.h"
@@ -195,11 +196,15 @@ std::string PrecomputeSummary::format() const {
         add("pass 2            %s, %.1f nodes visited per vertex, retained energy %.4f",
             formatDuration(pass2Seconds).c_str(), meanNodesVisited, vertexRetainedEnergy);
     }
-    if (ranks > 1)
+    if (ranks > 1) {
         add("exchange          pass-1 vectors %.3g MB in %s (%.0f bytes per sample), vertex "
             "vectors gathered in %s",
             pass1ExchangeBytes / 1e6, formatDuration(pass1ExchangeSeconds).c_str(),
             samples ? pass1ExchangeBytes / double(samples) : 0.0, formatDuration(gatherSeconds).c_str());
+        add("ranks busy        %s to %s (the even split's balance: %.0f%%)",
+            formatDuration(busySecondsMin).c_str(), formatDuration(busySecondsMax).c_str(),
+            busySecondsMax > 0 ? 100.0 * busySecondsMin / busySecondsMax : 100.0);
+    }
     if (components.singleScattering) {
         if (ssIsotropic)
             add("phase             isotropic (1/(4 pi) folded into one vector)");
@@ -287,6 +292,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
     }
 
     TransportFile file;
+    double busy = 0.0;  // this process's compute seconds (pass 1, pass 2, single scattering)
     std::vector<std::pair<std::string, std::string>> derived;
     std::optional<RayScene> scene;
     const size_t coefficientCount = size_t(6) * settings.cubemapSize * settings.cubemapSize;
@@ -355,6 +361,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             irradiance.eta = settings.material.eta;
             Progress p("pass 1 (irradiance transport)" + share, mine.samples.size(), "samples");
             pass1 = computeIrradianceTransport(&*scene, mine, irradiance, &p);
+            busy += pass1.seconds;
         });
         const Stopwatch exchangeStart;
         for (const SparseVector& v : pass1.vectors) summary.pass1ExchangeBytes += 8 + 8 * double(v.size());
@@ -388,6 +395,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             transport = multipleScatteringTransport(
                 tree, std::span<const glm::vec3>(mesh.positions).subspan(vertexShare.begin, vertexShare.size()),
                 settings.material, hierarchy, coefficientCount, &stats, &p);
+            busy += pass2Start.seconds();
         });
         const double vertexWeight = double(vertexShare.size()) / double(mesh.vertexCount());
         summary.meanNodesVisited = dist.sum(stats.meanNodesVisited * vertexWeight);
@@ -452,6 +460,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
                                                            vectors[size_t(k)].value);
                 },
                 &p, std::pair{vertexShare.begin, vertexShare.end});
+            busy += result.seconds;
         });
         const Stopwatch gatherStart;
         for (TransportComponent& c : ss) {
@@ -488,6 +497,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         summary.peakMemoryAfterSingleScatteringBytes = peakMemoryBytes();
     }
 
+    std::tie(summary.busySecondsMin, summary.busySecondsMax) = dist.minMax(busy);
     dist.stage([&] {
         if (!dist.writes()) return;
         // Derived values (and a shard's identity) go before the digest, which stays the

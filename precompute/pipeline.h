@@ -79,6 +79,10 @@ struct PrecomputeSummary {
     // ranks exchanged (0 in one process), the time of that exchange, and the time spent
     // gathering the per-vertex vectors at the writing process.
     double pass1ExchangeBytes = 0, pass1ExchangeSeconds = 0, gatherSeconds = 0;
+    // Seconds each process spent computing its shares (pass 1 + pass 2 + single
+    // scattering, without the exchanges), smallest and largest over the processes: their
+    // ratio is the balance of the even split.
+    double busySecondsMin = 0, busySecondsMax = 0;
     ScatteringComponents components;
     size_t vertices = 0, triangles = 0, samples = 0;
     double totalAreaMm2 = 0, sampleSpacingMm = 0;

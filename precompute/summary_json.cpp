@@ -53,6 +53,7 @@ Json settingsJson(const PrecomputeSettings& s) {
     j["phase_map_size"] = s.phaseMapSize;
     j["path_samples"] = s.pathSamples;
     j["ss_supersample"] = s.ssSupersample;
+    j["shard"] = s.shard ? Json(toString(*s.shard)) : Json(nullptr);
     return j;
 }
 
@@ -65,6 +66,13 @@ Json summaryJson(const PrecomputeSummary& r) {
     j["skipped"] = r.skipped;
     j["components"] = toString(r.components);
     if (r.skipped) return j;  // nothing was computed
+    j["distribution"] = r.distribution;
+    j["ranks"] = r.ranks;
+    j["pass1_exchange_bytes"] = r.pass1ExchangeBytes;
+    j["pass1_exchange_seconds"] = r.pass1ExchangeSeconds;
+    j["gather_seconds"] = r.gatherSeconds;
+    j["busy_seconds_min"] = r.busySecondsMin;
+    j["busy_seconds_max"] = r.busySecondsMax;
     const bool ms = r.components.multipleScattering, ss = r.components.singleScattering;
     const auto msOnly = [&](const Json& v) { return ms ? v : Json(nullptr); };
     const auto ssOnly = [&](const Json& v) { return ss ? v : Json(nullptr); };
