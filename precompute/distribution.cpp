@@ -1,5 +1,6 @@
 #include "precompute/distribution.h"
 
+#include <algorithm>
 #include <charconv>
 
 #include "common/error.h"
@@ -13,6 +14,21 @@ IndexRange evenRange(size_t count, int part, int parts) {
     const size_t base = count / n, extra = count % n;
     const size_t begin = p * base + std::min(p, extra);
     return {begin, begin + base + (p < extra ? 1 : 0)};
+}
+
+std::vector<IndexRange> interleavedBlocks(size_t count, size_t block, int part, int parts) {
+    if (parts < 1 || part < 0 || part >= parts || block < 1)
+        throw Error("interleavedBlocks", "part " + std::to_string(part) + " of " + std::to_string(parts));
+    std::vector<IndexRange> out;
+    for (size_t begin = size_t(part) * block; begin < count; begin += size_t(parts) * block)
+        out.push_back({begin, std::min(count, begin + block)});
+    return out;
+}
+
+size_t totalSize(const std::vector<IndexRange>& ranges) {
+    size_t n = 0;
+    for (const IndexRange& r : ranges) n += r.size();
+    return n;
 }
 
 namespace {
@@ -74,6 +90,18 @@ void appendVertices(SparseRgbVectors& all, const SparseRgbVectors& part) {
     all.indices.insert(all.indices.end(), part.indices.begin(), part.indices.end());
     all.values.insert(all.values.end(), part.values.begin(), part.values.end());
     all.scales.insert(all.scales.end(), part.scales.begin(), part.scales.end());
+}
+
+SparseRgbVectors sliceVertices(const SparseRgbVectors& all, size_t begin, size_t end) {
+    if (begin > end || end > all.vertexCount()) throw Error("sliceVertices", "vertex range out of bounds");
+    SparseRgbVectors part;
+    const uint32_t first = all.offsets[begin], last = all.offsets[end];
+    part.offsets.reserve(end - begin + 1);
+    for (size_t v = begin + 1; v <= end; ++v) part.offsets.push_back(all.offsets[v] - first);
+    part.indices.assign(all.indices.begin() + first, all.indices.begin() + last);
+    part.values.assign(all.values.begin() + 3 * size_t(first), all.values.begin() + 3 * size_t(last));
+    part.scales.assign(all.scales.begin() + 3 * begin, all.scales.begin() + 3 * end);
+    return part;
 }
 
 void appendEmptyVertices(SparseRgbVectors& all, size_t count) {

@@ -14,8 +14,11 @@
 //                         the ranks of MPI_COMM_WORLD, sample vectors all-gathered, vertex
 //                         vectors gathered at rank 0, which writes the file
 //
-// Ranges are contiguous and even (evenRange); what that costs in balance is measured
-// in docs/cluster.md.
+// Samples split into even contiguous ranges (evenRange). Vertices: a shard takes one
+// contiguous range (a shard file holds one vertex range); MPI ranks take interleaved
+// blocks (interleavedBlocks), because a vertex's cost follows the local thickness and
+// sample density, so contiguous ranges of a mesh's vertex order leave one rank with
+// the expensive part (measured in docs/cluster.md).
 
 #include <cstddef>
 #include <cstdint>
@@ -40,6 +43,13 @@ struct IndexRange {
 // Part `part` of `parts` of [0, count): contiguous, sizes differing by at most one,
 // the first count % parts parts one longer. Requires 0 <= part < parts.
 IndexRange evenRange(size_t count, int part, int parts);
+
+// Blocks of `block` indices of [0, count), block b going to part b mod parts: part
+// `part`'s blocks, in order. Over all parts they partition [0, count).
+std::vector<IndexRange> interleavedBlocks(size_t count, size_t block, int part, int parts);
+
+// Sum of the ranges' sizes.
+size_t totalSize(const std::vector<IndexRange>& ranges);
 
 // --shard i/n: shard i (0-based, as Slurm's array task ids 0..n-1) of n.
 struct ShardSpec {
@@ -69,7 +79,8 @@ public:
 
     // The samples (pass 1) and vertices (pass 2, single scattering) this process computes.
     virtual IndexRange sampleShare(size_t samples) const { return {0, samples}; }
-    virtual IndexRange vertexShare(size_t vertices) const { return {0, vertices}; }
+    // Vertices: ascending, disjoint ranges.
+    virtual std::vector<IndexRange> vertexShares(size_t vertices) const { return {{0, vertices}}; }
 
     // Runs one stage of the job on every process. When it throws on any process, every
     // process throws prt::Error with the lowest failing process's message (naming its
@@ -82,7 +93,8 @@ public:
         (void)total;
         return mine;
     }
-    // One component's vectors of vertexShare(vertices) -> all `vertices` of them, on
+    // One component's vectors of vertexShares(vertices) (concatenated in that order) ->
+    // all `vertices` of them, on
     // the process that writes (writes()); other processes get an empty result.
     virtual SparseRgbVectors gatherVertices(SparseRgbVectors mine, size_t vertices) {
         (void)vertices;
@@ -109,7 +121,8 @@ public:
     std::string describe() const override;
     bool partial() const override { return true; }
     bool shard() const override { return true; }
-    IndexRange vertexShare(size_t vertices) const override;
+    IndexRange vertexShare(size_t vertices) const;  // the shard's one range
+    std::vector<IndexRange> vertexShares(size_t vertices) const override { return {vertexShare(vertices)}; }
     // The shard's vectors placed in a whole-mesh array, the other vertices empty.
     SparseRgbVectors gatherVertices(SparseRgbVectors mine, size_t vertices) override;
     std::vector<std::pair<std::string, std::string>> outputParameters(size_t vertices) const override;
@@ -121,6 +134,10 @@ private:
 // Concatenates per-range vectors (in range order) into one array: the offsets are
 // rebased, everything else appended. The result equals computing all ranges at once.
 void appendVertices(SparseRgbVectors& all, const SparseRgbVectors& part);
+
+// The vertices [begin, end) of `all` as their own array (offsets rebased); the
+// inverse of appendVertices.
+SparseRgbVectors sliceVertices(const SparseRgbVectors& all, size_t begin, size_t end);
 
 // `count` vertices without coefficients (scale 0).
 void appendEmptyVertices(SparseRgbVectors& all, size_t count);

@@ -40,6 +40,13 @@ bool mpiAvailable() { return true; }
 
 namespace {
 
+// Vertices go to the ranks in interleaved blocks (distribution.h): at least 16 per rank,
+// of at most 1024 vertices (pass 2 walks a block's vertices in Morton order, so blocks
+// keep their locality).
+size_t vertexBlock(size_t vertices, int ranks) {
+    return std::clamp<size_t>(vertices / (16 * size_t(ranks)), 1, 1024);
+}
+
 // Below 1 GiB per message, so every count fits MPI's int.
 constexpr size_t kChunk = size_t(1) << 30;
 
@@ -129,7 +136,7 @@ public:
     }
     bool partial() const override { return ranks_ > 1; }
     IndexRange sampleShare(size_t samples) const override { return evenRange(samples, rank_, ranks_); }
-    IndexRange vertexShare(size_t vertices) const override { return evenRange(vertices, rank_, ranks_); }
+    std::vector<IndexRange> vertexShares(size_t vertices) const override { return vertexShares_(vertices, rank_); }
     bool writes() const override { return rank_ == 0; }
 
     void stage(const std::function<void()>& work) override {
@@ -194,18 +201,31 @@ public:
             send(out.bytes, 0, kTag);
             return {};
         }
-        SparseRgbVectors all = std::move(mine);
+        std::vector<SparseRgbVectors> parts(static_cast<size_t>(ranks_));
+        parts[0] = std::move(mine);
         for (int r = 1; r < ranks_; ++r) {
             const std::vector<char> bytes = receive(r, kTag);
             Reader in(bytes.data(), bytes.size());
-            SparseRgbVectors part;
+            SparseRgbVectors& part = parts[size_t(r)];
             in.getArray(part.offsets);
             in.getArray(part.indices);
             in.getArray(part.values);
             in.getArray(part.scales);
-            if (part.vertexCount() != vertexShare_(vertices, r).size() || !in.done())
-                throw Error("MPI", "rank " + std::to_string(r) + " sent a vertex range of the wrong size");
-            appendVertices(all, part);
+            if (part.vertexCount() != totalSize(vertexShares_(vertices, r)) || !in.done())
+                throw Error("MPI", "rank " + std::to_string(r) + " sent the wrong number of vertices");
+        }
+        // Block b of the vertex order is rank b mod R's (b / R)-th block.
+        SparseRgbVectors all;
+        size_t coefficients = 0;
+        for (const SparseRgbVectors& p : parts) coefficients += p.coefficientCount();
+        all.reserve(vertices, coefficients);
+        std::vector<size_t> next(size_t(ranks_), 0);  // next vertex of each rank's part
+        const size_t block = vertexBlock(vertices, ranks_);
+        for (size_t b = 0; b * block < vertices; ++b) {
+            const size_t r = b % size_t(ranks_);
+            const size_t n = std::min(block, vertices - b * block);
+            appendVertices(all, sliceVertices(parts[r], next[r], next[r] + n));
+            next[r] += n;
         }
         return all;
     }
@@ -239,7 +259,9 @@ private:
 
     int stage_ = 0;
     IndexRange sampleShare_(size_t samples, int r) const { return evenRange(samples, r, ranks_); }
-    IndexRange vertexShare_(size_t vertices, int r) const { return evenRange(vertices, r, ranks_); }
+    std::vector<IndexRange> vertexShares_(size_t vertices, int r) const {
+        return interleavedBlocks(vertices, vertexBlock(vertices, ranks_), r, ranks_);
+    }
 
     int rank_ = 0, ranks_ = 1;
 };

@@ -296,7 +296,8 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
     std::vector<std::pair<std::string, std::string>> derived;
     std::optional<RayScene> scene;
     const size_t coefficientCount = size_t(6) * settings.cubemapSize * settings.cubemapSize;
-    const IndexRange vertexShare = dist.vertexShare(mesh.vertexCount());
+    const std::vector<IndexRange> vertexShares = dist.vertexShares(mesh.vertexCount());
+    const size_t myVertices = totalSize(vertexShares);
     dist.stage([&] {
         const double mmPerUnit = scaleToPhysical(mesh, settings.scale);
         summary.vertices = mesh.vertexCount();
@@ -391,13 +392,17 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             hierarchy.nodeCoefficients = settings.nodeCoefficients;
             hierarchy.vertexCoefficients = settings.vertexCoefficients;
             SampleTree tree(std::move(cloud), hierarchy);
-            Progress p("pass 2 (multiple scattering)" + share, vertexShare.size(), "vertices");
-            transport = multipleScatteringTransport(
-                tree, std::span<const glm::vec3>(mesh.positions).subspan(vertexShare.begin, vertexShare.size()),
-                settings.material, hierarchy, coefficientCount, &stats, &p);
+            std::vector<glm::vec3> positions;
+            positions.reserve(myVertices);
+            for (const IndexRange& r : vertexShares)
+                positions.insert(positions.end(), mesh.positions.begin() + ptrdiff_t(r.begin),
+                                 mesh.positions.begin() + ptrdiff_t(r.end));
+            Progress p("pass 2 (multiple scattering)" + share, myVertices, "vertices");
+            transport = multipleScatteringTransport(tree, positions, settings.material, hierarchy,
+                                                    coefficientCount, &stats, &p);
             busy += pass2Start.seconds();
         });
-        const double vertexWeight = double(vertexShare.size()) / double(mesh.vertexCount());
+        const double vertexWeight = double(myVertices) / double(mesh.vertexCount());
         summary.meanNodesVisited = dist.sum(stats.meanNodesVisited * vertexWeight);
         summary.vertexRetainedEnergy = dist.sum(stats.retainedEnergyFraction * vertexWeight);
 
@@ -445,21 +450,29 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
                 ss[size_t(k)].kind = context.isotropic() ? ComponentKind::SingleScatteringIsotropic
                                                          : ComponentKind::SingleScatteringTerm;
                 ss[size_t(k)].term = context.isotropic() ? 0 : uint32_t(k);
-                ss[size_t(k)].vectors.reserve(vertexShare.size(),
-                                              vertexShare.size() * settings.vertexCoefficients);
+                ss[size_t(k)].vectors.reserve(myVertices, myVertices * settings.vertexCoefficients);
             }
             Progress p((context.isotropic() ? "single scattering (isotropic)"
                                             : "single scattering (" + std::to_string(terms) + " terms)") +
                            share,
-                       vertexShare.size(), "vertices");
-            result = computeSingleScattering(
-                context,
-                [&](size_t, const std::vector<SparseVector>& vectors) {
-                    for (int k = 0; k < terms; ++k)
-                        ss[size_t(k)].vectors.appendVertex(vectors[size_t(k)].index,
-                                                           vectors[size_t(k)].value);
-                },
-                &p, std::pair{vertexShare.begin, vertexShare.end});
+                       myVertices, "vertices");
+            double retained = 0.0;
+            for (const IndexRange& r : vertexShares) {
+                const SingleScatteringResult part = computeSingleScattering(
+                    context,
+                    [&](size_t, const std::vector<SparseVector>& vectors) {
+                        for (int k = 0; k < terms; ++k)
+                            ss[size_t(k)].vectors.appendVertex(vectors[size_t(k)].index,
+                                                               vectors[size_t(k)].value);
+                    },
+                    &p, std::pair{r.begin, r.end});
+                result.stats.add(part.stats);
+                result.seconds += part.seconds;
+                retained += part.retainedEnergyFraction * double(r.size());
+            }
+            result.isotropic = context.isotropic();
+            result.terms = terms;
+            result.retainedEnergyFraction = myVertices ? retained / double(myVertices) : 1.0;
             busy += result.seconds;
         });
         const Stopwatch gatherStart;
@@ -493,7 +506,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         summary.ssRaysPerSecond = result.seconds > 0 ? double(summary.ssRaysTraced) / result.seconds : 0.0;
         summary.ssMeanDepthMm = mesh.vertexCount() ? dist.sum(st.depthSum) / double(mesh.vertexCount()) : 0.0;
         summary.ssRetainedEnergy =
-            dist.sum(result.retainedEnergyFraction * double(vertexShare.size())) / double(mesh.vertexCount());
+            dist.sum(result.retainedEnergyFraction * double(myVertices)) / double(mesh.vertexCount());
         summary.peakMemoryAfterSingleScatteringBytes = peakMemoryBytes();
     }
 

@@ -8,18 +8,6 @@
 
 namespace prt {
 
-SparseRgbVectors sliceVertices(const SparseRgbVectors& all, size_t begin, size_t end) {
-    if (begin > end || end > all.vertexCount()) throw Error("sliceVertices", "vertex range out of bounds");
-    SparseRgbVectors part;
-    const uint32_t first = all.offsets[begin], last = all.offsets[end];
-    part.offsets.reserve(end - begin + 1);
-    for (size_t v = begin + 1; v <= end; ++v) part.offsets.push_back(all.offsets[v] - first);
-    part.indices.assign(all.indices.begin() + first, all.indices.begin() + last);
-    part.values.assign(all.values.begin() + 3 * size_t(first), all.values.begin() + 3 * size_t(last));
-    part.scales.assign(all.scales.begin() + 3 * begin, all.scales.begin() + 3 * end);
-    return part;
-}
-
 namespace {
 
 using Parameters = std::vector<std::pair<std::string, std::string>>;

@@ -21,7 +21,4 @@ namespace prt {
 // plus one shard.
 TransportFile mergeShards(const std::vector<std::string>& paths);
 
-// The vertices [begin, end) of `all` as their own array (offsets rebased).
-SparseRgbVectors sliceVertices(const SparseRgbVectors& all, size_t begin, size_t end);
-
 }  // namespace prt

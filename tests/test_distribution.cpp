@@ -96,6 +96,27 @@ TEST(EvenRange, PartitionsTheIndexSpace) {
     EXPECT_NE(errorOf([] { evenRange(10, 3, 3); }), prt::test::kNoError);
 }
 
+TEST(InterleavedBlocks, PartitionTheIndexSpace) {
+    for (size_t count : {size_t(0), size_t(5), size_t(1024), size_t(5000)})
+        for (int parts : {1, 2, 3, 4}) {
+            std::vector<int> owner(count, -1);
+            for (int p = 0; p < parts; ++p) {
+                size_t last = 0;
+                for (const IndexRange& r : interleavedBlocks(count, 100, p, parts)) {
+                    EXPECT_GE(r.begin, last);
+                    EXPECT_LE(r.size(), 100u);
+                    EXPECT_EQ(r.begin / 100 % size_t(parts), size_t(p));
+                    last = r.end;
+                    for (size_t i = r.begin; i < r.end; ++i) {
+                        EXPECT_EQ(owner[i], -1) << i;
+                        owner[i] = p;
+                    }
+                }
+            }
+            for (size_t i = 0; i < count; ++i) EXPECT_NE(owner[i], -1) << count << " " << parts << " " << i;
+        }
+}
+
 TEST(ShardSpec, ParsesAndRefuses) {
     EXPECT_EQ(parseShard("0/1"), (ShardSpec{0, 1}));
     EXPECT_EQ(parseShard("3/4"), (ShardSpec{3, 4}));
