@@ -60,7 +60,9 @@ run_target() {
   # An empty working directory: the command-line target must find no file to load.
   find "$work/cwd/$t" -mindepth 1 -delete
   cd "$work/cwd/$t"
-  local status=0 TIMEFORMAT='%U %S' leaks=1
+  local status=0
+  local TIMEFORMAT='%U %S'
+  local leaks=1
   # OpenImageIO leaks an error string on every corrupt PNG (tools/fuzz/lsan.supp); with
   # leak detection on, libFuzzer re-checks each such input with LeakSanitizer and the
   # target slows from ~100 to ~5 runs/s. Our code's leaks are the ASan test run's job.
@@ -76,7 +78,7 @@ export -f run_target
 echo "fuzz.sh: ${#targets[@]} targets x ${seconds} s, ${JOBS:-$(nproc)} at a time; logs in $work/logs/"
 start=$(date +%s)
 printf '%s\n' "${targets[@]}" |
-  xargs -P "${JOBS:-$(nproc)}" -I{} bash -c 'run_target "$@"' _ {} "$seconds" "$build_dir" "$root"
+  xargs -P "${JOBS:-$(nproc)}" -I{} bash -c 'run_target "$@"' _ {} "$seconds" "$build_dir" "$root" || true
 echo "fuzz.sh: done in $(( $(date +%s) - start )) s"
 
 found=0
@@ -88,7 +90,7 @@ for t in "${targets[@]}"; do
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | awk '{print $2}')
   corpus=$(find "$work/corpus/$t" -type f | wc -l)
   findings=$(find "$work/crashes/$t" -type f | wc -l)
-  status=$(cat "$work/logs/$t.status")
+  status=$(cat "$work/logs/$t.status" 2>/dev/null || echo "?")
   [ "$status" = 0 ] || [ "$findings" -gt 0 ] || findings="exit $status"
   [ "$findings" = 0 ] || found=1
   printf '| %s | %s | %s | %s | %s | %s |\n' "$t" "${secs:-?}" "${runs:-?}" "${cov:-?}" "$corpus" "$findings"

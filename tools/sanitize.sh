@@ -57,7 +57,7 @@ if [ ! -f "$tbb_prefix/lib/cmake/TBB/TBBConfig.cmake" ]; then
 fi
 
 tests=(core atomic_file multiple_scattering irradiance_transport pipeline single_scattering relight_kernel render
-       reference point_lights jensen_buhler irradiance_cache surface_atlas texture_space_sampling)
+       reference point_lights jensen_buhler irradiance_cache surface_atlas texture_space_sampling distribution)
 cmake -S "$root" -B "$build_dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPRT_TSAN=ON -DPRT_BUILD_VIEWER=OFF \
   -DTBB_DIR="$tbb_prefix/lib/cmake/TBB" >/dev/null
 cmake --build "$build_dir" -j"${JOBS:-$(nproc)}" --target "${tests[@]/#/test_}"
