@@ -40,8 +40,15 @@ munged --force --key-file="$tmp/munge/munge.key" --socket="$tmp/munge/munge.sock
 pids+=("$(cat "$tmp/munge/munged.pid")")
 
 # Free ports for slurmctld and slurmd.
-port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
+port() {  # a port nothing listens on (bash's /dev/tcp connects when something does)
+    local p
+    while :; do
+        p=$(( 20000 + (RANDOM * 32768 + RANDOM) % 40000 ))
+        (exec 3<> /dev/tcp/127.0.0.1/$p) 2> /dev/null || { echo $p; return; }
+    done
+}
 ctld_port=$(port) slurmd_port=$(port)
+while [ "$slurmd_port" = "$ctld_port" ]; do slurmd_port=$(port); done
 host=$(hostname -s)
 cpus=$(nproc)
 memory=$(( $(awk '/MemTotal/ {print $2}' /proc/meminfo) / 1024 / 2 ))
