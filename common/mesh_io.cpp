@@ -461,6 +461,12 @@ ScanResult scanOff(const std::string& path, std::string_view data) {
     const auto head = split(header);
     if (head.empty() || head[0].find("OFF") == std::string_view::npos)
         throw Error(path, "not an OFF file (the first line has no 'OFF' keyword)");
+    // OpenMesh reads the letters around OFF as options (C colours, N normals, ST texture
+    // coordinates, 4 homogeneous, n dimension) and then reads the records differently
+    // from the pre-scan below (found by tools/fuzz: a header 'OFF\x0414M' made it loop).
+    if (head[0] != "OFF")
+        throw Error(path, "unsupported OFF header " + shown(head[0]) +
+                              " (plain OFF only: no colour, normal, texture, 4D or nOFF variants)");
     const bool binary = head.size() > 1 && head[1] == "BINARY";
     if (!binary && head.size() > 1)
         throw Error(path, "counts on the OFF header line are not supported; put them on the next line");
@@ -529,6 +535,9 @@ ScanResult scanOff(const std::string& path, std::string_view data) {
             if (!parseCount(fields[k], index))
                 throw Error(path, at() + "cannot parse vertex index " + shown(fields[k]) + " of face " +
                                       std::to_string(i));
+            if (index >= counts[0])
+                throw Error(path, at() + "face " + std::to_string(i) + " refers to vertex " + std::to_string(index) +
+                                      " but the file has " + std::to_string(counts[0]) + " vertices");
         }
     }
     r.vertices = counts[0];
