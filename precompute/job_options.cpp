@@ -65,6 +65,11 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     app.add_option("--ss-supersample", s.ssSupersample,
                    "Single scattering: s x s sub-directions per texel")
         ->capture_default_str();
+    app.add_option("--pass1-file", s.pass1File,
+                   "Load the samples' pass-1 vectors from this file when it exists (made for the same "
+                   "pass-1 inputs), else compute and save them there: the shards of a job then compute "
+                   "pass 1 once (docs/cluster.md)");
+    app.add_flag("--pass1-only", s.pass1Only, "Stop after writing --pass1-file (no transport file)");
     app.add_option("--shard", raw.shard,
                    "i/n: compute only shard i (0-based) of n of the vertices into a shard file; "
                    "prt-merge joins the n shard files (docs/cluster.md)");

@@ -121,7 +121,7 @@ int main(int argc, char** argv) {
         const std::string command = commandLine(argc, argv);
         if (!jobFile.empty()) return runJobFile(jobFile, force, summaryJsonPath, command, dist);
         if (raw.mesh.empty()) throw Error("prt-precompute", "no mesh given (see --help)");
-        if (raw.output.empty()) throw Error("--output", "no output path given (see --help)");
+        if (raw.output.empty() && !settings.pass1Only) throw Error("--output", "no output path given (see --help)");
         const PrecomputeSettings job = settingsFromOptions(raw, settings);
         Json report = runJson(command);
         PrecomputeSummary summary = precomputeTransport(job, force, dist);

@@ -22,6 +22,7 @@
 #include "common/mesh_io.h"
 #include "precompute/distribution.h"
 #include "precompute/memory_estimate.h"
+#include "precompute/pass1_file.h"
 #include "precompute/single_scattering.h"
 #include "common/util.h"
 
@@ -81,7 +82,7 @@ size_t peakMemoryBytes() {
 
 void validateSettings(const PrecomputeSettings& s) {
     if (s.meshPath.empty()) throw Error("mesh", "no mesh file given");
-    if (s.outputPath.empty()) throw Error("--output", "no output path given");
+    if (s.outputPath.empty() && !s.pass1Only) throw Error("--output", "no output path given");
     validateMaterial(s.material);
     if (!isPowerOfTwo(s.cubemapSize) || s.cubemapSize > 64)
         throw Error("--cubemap-size", "must be a power of two between 1 and 64, got " +
@@ -118,6 +119,9 @@ void validateSettings(const PrecomputeSettings& s) {
         throw Error("--path-samples", "must be between 1 and 4096, got " + std::to_string(s.pathSamples));
     if (s.ssSupersample < 1 || s.ssSupersample > 8)
         throw Error("--ss-supersample", "must be between 1 and 8, got " + std::to_string(s.ssSupersample));
+    if (!s.pass1File.empty() && !s.components.multipleScattering)
+        throw Error("--pass1-file", "needs multiple scattering (--components ms or ms,ss): single scattering has no pass 1");
+    if (s.pass1Only && s.pass1File.empty()) throw Error("--pass1-only", "needs --pass1-file");
 }
 
 std::vector<std::pair<std::string, std::string>> settingsParameters(const PrecomputeSettings& s,
@@ -180,7 +184,9 @@ std::string PrecomputeSummary::format() const {
         add("%s: up to date (same mesh and settings), skipped", outputPath.c_str());
         return o.str();
     }
-    if (ranks > 1)
+    if (outputPath.empty())
+        add("output            none (--pass1-only)");
+    else if (ranks > 1)
         add("output            %s (%.2f MB), %d MPI ranks", outputPath.c_str(), fileBytes / 1e6, ranks);
     else if (distribution != "1 process")
         add("output            %s (%.2f MB), %s", outputPath.c_str(), fileBytes / 1e6, distribution.c_str());
@@ -190,11 +196,15 @@ std::string PrecomputeSummary::format() const {
     if (components.multipleScattering) {
         add("samples           %zu (spacing %.3f mm), %s", samples, sampleSpacingMm,
             formatDuration(samplesSeconds).c_str());
-        add("pass 1            %s, %.3g rays, %.3g rays/s, retained energy %.4f",
-            formatDuration(pass1Seconds).c_str(), double(raysTraced), pass1RaysPerSecond,
-            sampleRetainedEnergy);
-        add("pass 2            %s, %.1f nodes visited per vertex, retained energy %.4f",
-            formatDuration(pass2Seconds).c_str(), meanNodesVisited, vertexRetainedEnergy);
+        if (pass1Loaded)
+            add("pass 1            loaded from %s in %s", pass1File.c_str(), formatDuration(pass1Seconds).c_str());
+        else
+            add("pass 1            %s, %.3g rays, %.3g rays/s, retained energy %.4f%s%s",
+                formatDuration(pass1Seconds).c_str(), double(raysTraced), pass1RaysPerSecond,
+                sampleRetainedEnergy, pass1File.empty() ? "" : ", saved to ", pass1File.c_str());
+        if (!outputPath.empty())  // not with --pass1-only
+            add("pass 2            %s, %.1f nodes visited per vertex, retained energy %.4f",
+                formatDuration(pass2Seconds).c_str(), meanNodesVisited, vertexRetainedEnergy);
     }
     if (ranks > 1) {
         add("exchange          pass-1 vectors %.3g MB in %s (%.0f bytes per sample), vertex "
@@ -205,7 +215,7 @@ std::string PrecomputeSummary::format() const {
             formatDuration(busySecondsMin).c_str(), formatDuration(busySecondsMax).c_str(),
             busySecondsMax > 0 ? 100.0 * busySecondsMin / busySecondsMax : 100.0);
     }
-    if (components.singleScattering) {
+    if (components.singleScattering && !outputPath.empty()) {
         if (ssIsotropic)
             add("phase             isotropic (1/(4 pi) folded into one vector)");
         else
@@ -265,12 +275,14 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
     bool upToDate = false;
     dist.stage([&] {
         validateSettings(settings);
-        if (dist.writes()) checkOutputPath(settings.outputPath);  // now, not after an hour of passes
+        if (dist.writes() && !settings.outputPath.empty())
+            checkOutputPath(settings.outputPath);  // now, not after an hour of passes
+        if (dist.writes() && !settings.pass1File.empty()) checkOutputPath(settings.pass1File);
         mesh = loadMesh(settings.meshPath);
         fingerprint = MeshFingerprint{mesh.vertexCount(), meshFingerprint(mesh)};
         params = settingsParameters(settings, fingerprint);
         const std::string digest = params.back().second;
-        if (force || !dist.writes() || !std::filesystem::exists(settings.outputPath)) return;
+        if (force || !dist.writes() || settings.pass1Only || !std::filesystem::exists(settings.outputPath)) return;
         try {
             const TransportFileInfo info = readTransportFileInfo(settings.outputPath);
             bool same = info.parameter("input_digest") == digest && info.mesh == fingerprint;
@@ -292,6 +304,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
     }
 
     TransportFile file;
+    double mmPerUnit = 1.0;
     double busy = 0.0;  // this process's compute seconds (pass 1, pass 2, single scattering)
     std::vector<std::pair<std::string, std::string>> derived;
     std::optional<RayScene> scene;
@@ -299,7 +312,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
     const std::vector<IndexRange> vertexShares = dist.vertexShares(mesh.vertexCount());
     const size_t myVertices = totalSize(vertexShares);
     dist.stage([&] {
-        const double mmPerUnit = scaleToPhysical(mesh, settings.scale);
+        mmPerUnit = scaleToPhysical(mesh, settings.scale);
         summary.vertices = mesh.vertexCount();
         summary.triangles = mesh.triangleCount();
         summary.totalAreaMm2 = totalArea(mesh);
@@ -323,6 +336,11 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         SampleSet samples;
         IndexRange sampleShare;
         IrradianceResult pass1;
+        // A pass-1 file that exists is read by every process (rank 0 decides, so all agree).
+        summary.pass1File = settings.pass1File;
+        const bool pass1FromFile =
+            dist.agree(!settings.pass1File.empty() && std::filesystem::exists(settings.pass1File));
+        std::string pass1KeyText;
         dist.stage([&] {
             // Samples: spacing about the mean free path l_u = 1 / sigma_t' (Jensen-Buhler).
             const double spacing = settings.sampleSpacingMm > 0 ? settings.sampleSpacingMm
@@ -348,6 +366,16 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             summary.sampleSpacingMm = std::sqrt(2.0 * samples.areaPerSample / std::sqrt(3.0));
             derived.push_back({"samples", std::to_string(summary.samples)});
             derived.push_back({"sample_area_mm2", fmt(samples.areaPerSample)});
+            if (!settings.pass1File.empty())
+                pass1KeyText = pass1Key(settings, fingerprint, mmPerUnit, samples.samples.size());
+            if (pass1FromFile) {
+                const Stopwatch loadStart;
+                pass1.vectors = loadPass1File(settings.pass1File, pass1KeyText);
+                pass1.seconds = loadStart.seconds();
+                summary.pass1Loaded = true;
+                sampleShare = {0, samples.samples.size()};
+                return;
+            }
 
             // Pass 1: irradiance transport per sample (this process's share of them).
             sampleShare = dist.sampleShare(samples.samples.size());
@@ -366,7 +394,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         });
         const Stopwatch exchangeStart;
         for (const SparseVector& v : pass1.vectors) summary.pass1ExchangeBytes += 8 + 8 * double(v.size());
-        pass1.vectors = dist.gatherSamples(std::move(pass1.vectors), samples.samples.size());
+        if (!pass1FromFile) pass1.vectors = dist.gatherSamples(std::move(pass1.vectors), samples.samples.size());
         summary.pass1ExchangeBytes = dist.ranks() > 1 ? dist.sum(summary.pass1ExchangeBytes) : 0.0;
         summary.pass1ExchangeSeconds = exchangeStart.seconds();
         summary.raysTraced = uint64_t(dist.sum(double(pass1.raysTraced)));
@@ -376,6 +404,15 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         summary.sampleRetainedEnergy =
             dist.sum(pass1.retainedEnergyFraction * double(sampleShare.size())) / double(samples.samples.size());
         summary.peakMemoryAfterPass1Bytes = peakMemoryBytes();
+        if (!settings.pass1File.empty() && !pass1FromFile)
+            dist.stage([&] {
+                if (dist.writes()) savePass1File(settings.pass1File, pass1KeyText, pass1.vectors);
+            });
+        if (settings.pass1Only) {
+            summary.totalSeconds = start.seconds();
+            summary.peakMemoryBytes = peakMemoryBytes();
+            return summary;
+        }
 
         // Pass 2: hierarchical integration per vertex (this process's share of them).
         std::vector<SparseVector> transport;

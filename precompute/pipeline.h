@@ -57,6 +57,12 @@ struct PrecomputeSettings {
     // prt-merge joins (precompute/distribution.h). Not a physics setting either: the
     // shards of one job share its input_digest.
     std::optional<ShardSpec> shard;
+    // --pass1-file: the samples' pass-1 vectors are loaded from this file when it
+    // exists (and was made for this job's pass-1 inputs, precompute/pass1_file.h), else
+    // computed and saved there, so the shards of a job compute pass 1 once. With
+    // pass1Only the job stops after writing it (no transport file).
+    std::string pass1File;
+    bool pass1Only = false;
 };
 
 // Throws prt::Error naming the bad option.
@@ -73,6 +79,8 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
 struct PrecomputeSummary {
     std::string outputPath;
     bool skipped = false;  // output already up to date
+    std::string pass1File;       // --pass1-file, when given
+    bool pass1Loaded = false;    // pass 1 read from it instead of computed
     std::string distribution = "1 process";  // Distribution::describe() of this process
     int ranks = 1;
     // Work split over processes (precompute/distribution.h): bytes of pass-1 vectors all

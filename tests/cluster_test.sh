@@ -6,7 +6,8 @@
 #
 # One small job (a generated sphere, multiple + single scattering with a 2-term phase,
 # so every component kind and the view maps are split) is computed in one process; then
-#   - as 4 shards (--shard i/4) joined by prt-merge, and as 2 shards from a job file;
+#   - as 4 shards (--shard i/4) joined by prt-merge, as 3 shards loading one pass-1 file
+#     (--pass1-file, written once by --pass1-only), and as 2 shards from a job file;
 #   - under mpirun with 1, 2 and 4 ranks (--oversubscribe: this machine has 2 cores),
 #     and a job file under 2 ranks;
 # and every output must equal the single-process file byte for byte. Then failures: a
@@ -41,6 +42,15 @@ same() {  # same FILE WHAT
 for i in 3 1 0 2; do "$PRE" "${job[@]}" --shard $i/4 -o part$i.prt > /dev/null || fail "shard $i/4"; done
 "$MERGE" -o merged.prt part2.prt part0.prt part3.prt part1.prt --mesh sphere.obj > merge.log || fail "prt-merge"
 same merged.prt "4 shards merged"
+
+# Pass 1 once into a pass-1 file, shards that load it.
+"$PRE" "${job[@]}" --pass1-file job.pass1 --pass1-only > /dev/null || fail "--pass1-only"
+for i in 0 1 2; do
+    "$PRE" "${job[@]}" --pass1-file job.pass1 --shard $i/3 -o p1part$i.prt > p1part$i.log || fail "shard $i/3 with --pass1-file"
+done
+grep -q "loaded from job.pass1" p1part1.log || fail "shard 1/3 did not load pass 1: $(grep 'pass 1' p1part1.log)"
+"$MERGE" -o p1merged.prt p1part0.prt p1part1.prt p1part2.prt > /dev/null || fail "prt-merge of the pass-1 shards"
+same p1merged.prt "3 shards loading one pass-1 file, merged"
 
 # A job file targets shards too.
 cat > shards.json <<JSON
@@ -77,6 +87,8 @@ else
         same mpi$np.prt "mpirun -np $np"
     done
     grep -q "2 MPI ranks" mpi2.log || fail "the -np 2 summary does not name its ranks: $(head -1 mpi2.log)"
+    "${mpi[@]}" -np 2 "$PRE" "${job[@]}" --pass1-file job.pass1 -o mpip1.prt > /dev/null 2>&1 || fail "mpirun with --pass1-file"
+    same mpip1.prt "mpirun -np 2 loading the pass-1 file"
     cat > mpijobs.json <<JSON
 {"defaults": {"mesh": "sphere.obj", "size-mm": 20, "material": "Skin1", "components": "ms,ss", "g": 0.3,
               "phase-terms": 2, "phase-map-size": 8, "cubemap-size": 16, "samples": 2000, "path-samples": 8},

@@ -18,6 +18,7 @@
 #include "common/mesh_io.h"
 #include "common/progress.h"
 #include "common/shapes.h"
+#include "precompute/pass1_file.h"
 #include "precompute/pipeline.h"
 #include "precompute/shard_merge.h"
 #include "tests/test_support.h"
@@ -233,5 +234,80 @@ TEST(Shards, MergeRefusesShardsThatDoNotBelongTogether) {
               w.outputPath + ": is a whole transport file, not a shard (it has no 'shard' parameter)");
     EXPECT_EQ(errorOf([&] { mergeShards({}); }), "shards: no shard files given");
     EXPECT_EQ(errorOf([&] { mergeShards({c, a, b}); }), prt::test::kNoError);
+    fs::remove_all(dir);
+}
+
+TEST(Pass1File, RoundTripsAndRefusesWhatIsNotItsOwn) {
+    const fs::path dir = tempDir() / "pass1";
+    fs::create_directories(dir);
+    std::vector<SparseVector> vectors(5);
+    for (size_t i = 0; i < vectors.size(); ++i)
+        for (uint32_t k = 0; k < i; ++k) {
+            vectors[i].index.push_back(k * 3 + uint32_t(i));
+            vectors[i].value.push_back(float(i) - 0.25f * float(k));
+        }
+    const std::string path = (dir / "p.pass1").string(), key = "seed=1\nsamples=5\n";
+    savePass1File(path, key, vectors);
+    const std::vector<SparseVector> back = loadPass1File(path, key);
+    ASSERT_EQ(back.size(), vectors.size());
+    for (size_t i = 0; i < back.size(); ++i) {
+        EXPECT_EQ(back[i].index, vectors[i].index);
+        EXPECT_EQ(back[i].value, vectors[i].value);
+        EXPECT_EQ(back[i].channels, 1);
+    }
+    EXPECT_EQ(errorOf([&] { loadPass1File(path, "seed=2\nsamples=5\n"); }),
+              path + ": was made for other pass-1 inputs (file has 'seed=1', this job 'seed=2')");
+    // Every flipped byte is refused (magic, version, marker, or the CRC).
+    const std::string bytes = bytesOf(path);
+    for (size_t at = 0; at < bytes.size(); ++at) {
+        std::string bad = bytes;
+        bad[at] = char(bad[at] ^ 0x5a);
+        std::ofstream(path, std::ios::binary | std::ios::trunc) << bad;
+        EXPECT_NE(errorOf([&] { loadPass1File(path, key); }), prt::test::kNoError) << "byte " << at;
+    }
+    for (size_t cut : {size_t(0), size_t(10), bytes.size() / 2, bytes.size() - 1}) {
+        std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes.substr(0, cut);
+        EXPECT_NE(errorOf([&] { loadPass1File(path, key); }), prt::test::kNoError) << "cut at " << cut;
+    }
+    fs::remove_all(dir);
+}
+
+TEST(Pass1File, ShardsThatLoadPassOneMergeToTheSingleProcessFile) {
+    Progress::setQuiet(true);
+    const fs::path dir = tempDir() / "pass1shards";
+    fs::create_directories(dir);
+    PrecomputeSettings whole = smallJob(dir);
+    whole.outputPath = (dir / "whole.prt").string();
+    precomputeTransport(whole, true);
+
+    PrecomputeSettings first = whole;  // computes pass 1 and saves it, nothing else
+    first.pass1File = (dir / "job.pass1").string();
+    first.pass1Only = true;
+    first.outputPath.clear();
+    const PrecomputeSummary p1 = precomputeTransport(first);
+    EXPECT_FALSE(p1.pass1Loaded);
+    ASSERT_TRUE(fs::exists(first.pass1File));
+
+    std::vector<std::string> parts;
+    for (int i = 0; i < 3; ++i) {
+        PrecomputeSettings s = whole;
+        s.pass1File = first.pass1File;
+        s.shard = ShardSpec{i, 3};
+        s.outputPath = (dir / ("part" + std::to_string(i) + ".prt")).string();
+        EXPECT_TRUE(precomputeTransport(s, true).pass1Loaded);
+        parts.push_back(s.outputPath);
+    }
+    const fs::path merged = dir / "merged.prt";
+    saveTransportFile(merged.string(), mergeShards(parts));
+    EXPECT_EQ(bytesOf(merged), bytesOf(whole.outputPath));
+
+    // Another job's pass 1 is refused, not used.
+    PrecomputeSettings other = whole;
+    other.seed = 7;
+    other.pass1File = first.pass1File;
+    other.outputPath = (dir / "other.prt").string();
+    EXPECT_NE(errorOf([&] { precomputeTransport(other, true); }).find("was made for other pass-1 inputs"),
+              std::string::npos);
+    EXPECT_FALSE(fs::exists(other.outputPath));
     fs::remove_all(dir);
 }

@@ -2,7 +2,8 @@
 # The Slurm route end to end on this machine (docs/cluster.md): starts a private
 # single-node Slurm (munged, slurmctld and slurmd on localhost, with a configuration,
 # key, sockets, state and logs in a temporary directory; nothing system-wide is touched),
-# submits a job array of shards + the dependent merge job through tools/slurm/submit.sh,
+# submits pass 1, a job array of shards that load it and the dependent merge job through
+# tools/slurm/submit.sh,
 # waits, checks that the merged file equals the single-process file byte for byte, and
 # shuts everything down (also on failure or Ctrl-C).
 #
@@ -119,9 +120,10 @@ done
 if [ ! -f sliced.prt ]; then
     keep=1; echo "FAIL: the merge job wrote no sliced.prt; job logs:"; tail -n 3 "$tmp"/work/*.log; exit 1
 fi
-leftover=$(ls "$tmp"/work/sliced.shard* 2> /dev/null || true)
+leftover=$(ls "$tmp"/work/sliced.shard* "$tmp"/work/sliced.pass1 2> /dev/null || true)
 if cmp -s sliced.prt whole.prt && [ -z "$leftover" ]; then
-    echo "test-slurm: $shards array tasks + merge = one process, byte for byte ($(( $(date +%s) - start )) s)"
+    grep -q "loaded from" "$tmp"/work/prt-shard-*_0.log || { keep=1; echo "FAIL: shard 0 did not load pass 1"; exit 1; }
+    echo "test-slurm: pass 1 + $shards array tasks + merge = one process, byte for byte ($(( $(date +%s) - start )) s)"
 else
     keep=1; echo "FAIL: the merged file differs from one process's (or shards were left: $leftover)"; exit 1
 fi

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Submits a precompute as a Slurm job array of N shards plus a merge job that runs
-# when every shard succeeded (docs/cluster.md):
+# Submits a precompute as a Slurm job: pass 1 once (tools/slurm/pass1.sbatch, into
+# OUTPUT's name with .pass1; skipped for --components ss), then a job array of N shards
+# that load it, then a merge job once every shard succeeded (docs/cluster.md):
 #
 #   tools/slurm/submit.sh N OUTPUT MESH [prt-precompute options...] [-- sbatch options...]
 #
@@ -19,9 +20,20 @@ while [ $# -gt 0 ]; do
     if [ "$1" = -- ]; then shift; sbatch_args=("$@"); break; fi
     args+=("$1"); shift
 done
-array=$(sbatch --parsable --array=0-$((n - 1)) "${sbatch_args[@]}" "$here/precompute.sbatch" "$output" "$mesh" "${args[@]}")
+# Single scattering alone has no pass 1.
+pass1_job=() after_pass1=()
+if ! printf '%s\n' "${args[@]}" | paste -sd' ' | grep -qE -- '--components[= ]ss( |$)'; then
+    pass1=${output%.prt}.pass1
+    p1=$(sbatch --parsable "${sbatch_args[@]}" "$here/pass1.sbatch" "$pass1" "$mesh" "${args[@]}")
+    p1=${p1%%;*}
+    pass1_job=("pass 1 = job $p1,")
+    after_pass1=(--dependency=afterok:"$p1" --kill-on-invalid-dep=yes)
+    args+=(--pass1-file "$pass1")
+fi
+array=$(sbatch --parsable --array=0-$((n - 1)) "${after_pass1[@]}" "${sbatch_args[@]}" "$here/precompute.sbatch" \
+    "$output" "$mesh" "${args[@]}")
 array=${array%%;*}
 merge=$(sbatch --parsable --dependency=afterok:"$array" --kill-on-invalid-dep=yes "${sbatch_args[@]}" \
     "$here/merge.sbatch" "$output" "$n" "$mesh")
 merge=${merge%%;*}
-echo "submitted: shards = job array $array (0-$((n - 1))), merge = job $merge (after all shards succeed) -> $output"
+echo "submitted: ${pass1_job[*]:+${pass1_job[*]} }shards = job array $array (0-$((n - 1))), merge = job $merge (after all shards succeed) -> $output"
