@@ -526,6 +526,11 @@ ScanResult scanOff(const std::string& path, std::string_view data) {
         if (!parseCount(fields[0], corners))
             throw Error(path, at() + "cannot parse the corner count " + shown(fields[0]) + " of face " +
                                   std::to_string(i));
+        // OpenMesh reads the numbers after a face of no corners as the next face (found by
+        // tools/fuzz); faces of one or two corners are not surfaces either.
+        if (corners < 3)
+            throw Error(path, at() + "face " + std::to_string(i) + " has " + std::to_string(corners) +
+                                  " corners (a face needs at least 3)");
         if (fields.size() < corners + 1)
             throw Error(path, at() + "face " + std::to_string(i) + " declares " + std::to_string(corners) +
                                   " corners but lists " + std::to_string(fields.size() - 1) +

@@ -343,6 +343,8 @@ TEST_F(MeshFiles, MalformedHeadersAndCountsAreRefusedBeforeOpenMesh) {
     expectError([&] { prt::loadMesh(offIndex); }, offIndex, "line 6: cannot parse vertex index '1p' of face 0");
     const std::string offSplit = writeText("split.off", "OFF\n3 1 0\n0 0\n0\n1 0 0\n0 1 0\n3 0 1 2\n");
     expectError([&] { prt::loadMesh(offSplit); }, offSplit, "line 3: vertex 0 has 2 coordinates");
+    const std::string offEmptyFace = writeText("empty_face.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n0 1.5 2 3\n");
+    expectError([&] { prt::loadMesh(offEmptyFace); }, offEmptyFace, "line 6: face 0 has 0 corners (a face needs at least 3)");
     const std::string offVariant = writeText("variant.off", "COFF\n3 1 0\n0 0 0 1 1 1 1\n1 0 0 1 1 1 1\n0 1 0 1 1 1 1\n3 0 1 2\n");
     expectError([&] { prt::loadMesh(offVariant); }, offVariant, "unsupported OFF header 'COFF'");
     const std::string offRange = writeText("range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
