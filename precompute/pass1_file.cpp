@@ -9,8 +9,7 @@
 
 #include "common/atomic_file.h"
 #include "common/error.h"
-#include "common/transport_file.h"
-#include "precompute/pipeline.h"
+#include "common/transport_params.h"
 
 namespace prt {
 
@@ -49,8 +48,8 @@ std::string firstDifference(const std::string& a, const std::string& b) {
 
 }  // namespace
 
-std::string pass1Key(const PrecomputeSettings& s, const MeshFingerprint& mesh, double mmPerUnit, size_t samples) {
-    const auto parameters = settingsParameters(s, mesh);
+std::string pass1Key(const std::vector<std::pair<std::string, std::string>>& parameters, double mmPerUnit,
+                     size_t samples) {
     std::string key;
     for (const auto& [k, v] : parameters)
         if (k == "mesh_vertices" || k == "mesh_hash" || k == "seed" || k == "cubemap_size" || k == "supersample" ||

@@ -16,17 +16,16 @@
 // kept and eta. A file with another key belongs to another job and is refused.
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/haar.h"
 
 namespace prt {
 
-struct PrecomputeSettings;
-struct MeshFingerprint;
-
-// The pass-1 inputs of a job whose samples have been placed (samples = their count).
-std::string pass1Key(const PrecomputeSettings& settings, const MeshFingerprint& mesh, double mmPerUnit,
+// The pass-1 inputs among a job's parameters (pipeline.h settingsParameters), with the
+// scale applied and the number of samples placed.
+std::string pass1Key(const std::vector<std::pair<std::string, std::string>>& parameters, double mmPerUnit,
                      size_t samples);
 
 // Written atomically (common/atomic_file.h). Vectors must have one channel.

@@ -367,7 +367,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             derived.push_back({"samples", std::to_string(summary.samples)});
             derived.push_back({"sample_area_mm2", fmt(samples.areaPerSample)});
             if (!settings.pass1File.empty())
-                pass1KeyText = pass1Key(settings, fingerprint, mmPerUnit, samples.samples.size());
+                pass1KeyText = pass1Key(params, mmPerUnit, samples.samples.size());
             if (pass1FromFile) {
                 const Stopwatch loadStart;
                 pass1.vectors = loadPass1File(settings.pass1File, pass1KeyText);
