@@ -54,6 +54,8 @@ Json settingsJson(const PrecomputeSettings& s) {
     j["path_samples"] = s.pathSamples;
     j["ss_supersample"] = s.ssSupersample;
     j["shard"] = s.shard ? Json(toString(*s.shard)) : Json(nullptr);
+    j["pass1_file"] = s.pass1File.empty() ? Json(nullptr) : Json(s.pass1File);
+    j["pass1_only"] = s.pass1Only;
     return j;
 }
 
@@ -67,6 +69,7 @@ Json summaryJson(const PrecomputeSummary& r) {
     j["components"] = toString(r.components);
     if (r.skipped) return j;  // nothing was computed
     j["distribution"] = r.distribution;
+    j["pass1_loaded"] = r.pass1Loaded;
     j["ranks"] = r.ranks;
     j["pass1_exchange_bytes"] = r.pass1ExchangeBytes;
     j["pass1_exchange_seconds"] = r.pass1ExchangeSeconds;
