@@ -393,7 +393,8 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             busy += pass1.seconds;
         });
         const Stopwatch exchangeStart;
-        for (const SparseVector& v : pass1.vectors) summary.pass1ExchangeBytes += 8 + 8 * double(v.size());
+        // What MpiDistribution::gatherSamples sends: two 8-byte counts + 8 bytes per coefficient.
+        for (const SparseVector& v : pass1.vectors) summary.pass1ExchangeBytes += 16 + 8 * double(v.size());
         if (!pass1FromFile) pass1.vectors = dist.gatherSamples(std::move(pass1.vectors), samples.samples.size());
         summary.pass1ExchangeBytes = dist.ranks() > 1 ? dist.sum(summary.pass1ExchangeBytes) : 0.0;
         summary.pass1ExchangeSeconds = exchangeStart.seconds();
