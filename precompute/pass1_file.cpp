@@ -75,6 +75,7 @@ void savePass1File(const std::string& path, const std::string& key, const std::v
         if (v.channels != 1 || v.value.size() != v.index.size())
             throw Error(path, "pass-1 vectors must have one channel");
         put(out, uint32_t(v.size()));
+        if (v.empty()) continue;
         out.append(reinterpret_cast<const char*>(v.index.data()), v.index.size() * sizeof(uint32_t));
         out.append(reinterpret_cast<const char*>(v.value.data()), v.value.size() * sizeof(float));
     }
@@ -117,6 +118,7 @@ std::vector<SparseVector> loadPass1File(const std::string& path, const std::stri
         uint32_t n = 0;
         get(n);
         if (uint64_t(n) * 8 > data.size() - at - 4) throw Error(path, "truncated pass-1 file");
+        if (n == 0) continue;  // (memcpy into an empty vector's null data() is undefined)
         v.index.resize(n);
         v.value.resize(n);
         std::memcpy(v.index.data(), data.data() + at, n * sizeof(uint32_t));
