@@ -36,7 +36,6 @@ namespace prt {
 struct IndexRange {
     size_t begin = 0, end = 0;
     size_t size() const { return end - begin; }
-    bool contains(size_t i) const { return i >= begin && i < end; }
     bool operator==(const IndexRange&) const = default;
 };
 
