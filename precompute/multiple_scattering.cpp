@@ -1,5 +1,7 @@
 #include "precompute/multiple_scattering.h"
 
+#include "precompute/cell_quadrature.h"
+
 #include "common/error.h"
 #include "common/mesh.h"
 #include "common/util.h"
@@ -389,6 +391,25 @@ inline bool insideWithMargin(const SampleTree::Node& node, const glm::vec3& x) {
            x.z >= node.boundsMin.z - margin && x.z <= node.boundsMax.z + margin;
 }
 
+// Squared distance from x to the node's bounding box (0 inside).
+inline float boxDistanceSquared(const SampleTree::Node& node, const glm::vec3& x) {
+    const glm::vec3 d = glm::max(glm::max(node.boundsMin - x, x - node.boundsMax), glm::vec3(0.0f));
+    return glm::dot(d, d);
+}
+
+// Checks that the tree's samples are the quadrature's (count and cell areas).
+void checkCells(const SampleTree& tree, const CellQuadrature& cells) {
+    if (cells.sampleCount() != tree.sampleCount()) {
+        throw Error("hierarchy", "the cell quadrature has " + std::to_string(cells.sampleCount()) +
+                                     " samples, the tree " + std::to_string(tree.sampleCount()));
+    }
+    for (size_t k = 0; k < tree.sampleCount(); ++k) {
+        if (tree.sampleAreas()[k] != cells.cellArea(tree.originalIndex()[k])) {
+            throw Error("hierarchy", "the tree's sample areas are not the cell quadrature's cell areas");
+        }
+    }
+}
+
 struct VertexCounters {
     uint32_t visited = 0;
     uint32_t used = 0;
@@ -404,9 +425,17 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                                                       const HierarchyOptions& options,
                                                       size_t coefficientCount,
                                                       MultipleScatteringStats* stats,
-                                                      Progress* progress) {
+                                                      Progress* progress,
+                                                      const CellQuadrature* cells) {
     const Stopwatch start;
     const Dipoles dipoles(material);
+    if (cells) checkCells(tree, *cells);
+    // With cells, a node is used whole only when no sample's cell reaches into the near
+    // field (cell_quadrature.h), where the far kernel is not R_d.
+    const float nearReach = cells ? float(cells->outerRadius()) + cells->maxCellRadius() : 0.0f;
+    const float nearReach2 = nearReach * nearReach;
+    const auto& originalIndex = tree.originalIndex();
+    const auto& sampleAreas = tree.sampleAreas();
     if (!(options.epsilon >= 0.0) || !std::isfinite(options.epsilon)) {
         throw Error("epsilon", "must be finite and >= 0");
     }
@@ -456,13 +485,22 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                 const SampleTree::Node& node = nodes[ni];
                 ++count.visited;
                 const double d = distance(x, node.centroid);
-                if (!insideWithMargin(node, x) && double(node.area) < epsilon * d * d) {
+                if (!insideWithMargin(node, x) && double(node.area) < epsilon * d * d &&
+                    (!cells || boxDistanceSquared(node, x) >= nearReach2)) {
                     dipoles.weights(d, w);
                     accumulate(tree.nodeSum(ni), w, acc);
                     ++count.used;
                 } else if (node.isLeaf()) {
                     for (uint32_t k = node.first; k < node.first + node.count; ++k) {
-                        dipoles.weights(distance(x, positions[k]), w);
+                        if (cells) {
+                            // The entries hold A_k E_k; the cell rule's weight w_k replaces A_k R_d.
+                            const double area = sampleAreas[k];
+                            if (area <= 0.0) continue;
+                            cells->sampleWeightOverPi(originalIndex[k], x, w);
+                            for (double& wc : w) wc /= area;
+                        } else {
+                            dipoles.weights(distance(x, positions[k]), w);
+                        }
                         accumulate(tree.sampleEntries(k), w, acc);
                     }
                     count.samples += node.count;
@@ -503,8 +541,12 @@ std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
                                                        std::span<const glm::vec3> vertices,
                                                        const Material& material,
                                                        size_t coefficientCount,
-                                                       size_t vertexCoefficients) {
+                                                       size_t vertexCoefficients,
+                                                       const CellQuadrature* cells) {
     const Dipoles dipoles(material);
+    if (cells && cells->sampleCount() != cloud.positions.size()) {
+        throw Error("hierarchy", "the cell quadrature's samples are not the cloud's");
+    }
     const size_t n = cloud.positions.size();
     if (cloud.areas.size() != n || cloud.irradiance.size() != n) {
         throw Error("hierarchy", "sample cloud arrays differ in length");
@@ -526,8 +568,10 @@ std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
         for (size_t i = 0; i < n; ++i) {
             const double r = distance(vertices[v], cloud.positions[i]);
             const SparseVector& e = cloud.irradiance[i];
+            double cellWeight[3] = {0.0, 0.0, 0.0};
+            if (cells) cells->sampleWeightOverPi(i, vertices[v], cellWeight);
             for (int c = 0; c < 3; ++c) {
-                const double w = double(cloud.areas[i]) * dipoleRd(dipoles.channel[c], r) / kPi;
+                const double w = cells ? cellWeight[c] : double(cloud.areas[i]) * dipoleRd(dipoles.channel[c], r) / kPi;
                 for (size_t k = 0; k < e.index.size(); ++k) {
                     acc[size_t(e.index[k]) * 3 + size_t(c)] += w * double(e.value[k]);
                 }

@@ -11,6 +11,10 @@
 //
 //     T_d^c(x_o) = sum_i A_i R_d^c(|x_i - x_o|) E_i
 //
+// (the point rule; prt-precompute passes a CellQuadrature, which replaces A_i R_d by the
+// integral of R_d over sample i's Voronoi cell near x_o so that the sum converges at the
+// default spacing: cell_quadrature.h and QUADRATURE below)
+//
 // and STORES T_d / pi, i.e. the returned RGB vector of vertex o is
 //
 //     V_o = T_d(x_o) / pi,
@@ -106,6 +110,8 @@
 #include <vector>
 
 namespace prt {
+
+class CellQuadrature;
 
 // The input of pass 2: one entry per surface sample, all vectors of the same length.
 struct SampleCloud {
@@ -233,21 +239,32 @@ struct MultipleScatteringStats {
 // the tree (else prt::Error). Parallel over vertices (TBB); deterministic. The
 // material must be valid (validateMaterial). progress, when given, advances once per
 // vertex.
+// QUADRATURE. With cells (what prt-precompute uses), a sample in a leaf contributes
+// w_k(x_o) E_k with the cell rule's weight (cell_quadrature.h: R_d integrated over its
+// Voronoi cell near x_o, A_k R_d far away); the tree must have been built with
+// cloud.areas = cells->cellAreas() (else prt::Error), and a node is used whole only
+// when, besides (a) and (b) above, no sample's cell can reach within the near radius
+// r2 of x_o (distance to its box >= r2 + the largest cell radius). Without cells, the
+// point rule A_k R_d(|x_k - x_o|) of Jensen and Buhler (not converged at the default
+// spacing: 1.4-11.6% per point; kept for the hierarchy's tests on synthetic clouds).
 std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                                                       std::span<const glm::vec3> vertices,
                                                       const Material& material,
                                                       const HierarchyOptions& options,
                                                       size_t coefficientCount,
                                                       MultipleScatteringStats* stats = nullptr,
-                                                      Progress* progress = nullptr);
+                                                      Progress* progress = nullptr,
+                                                      const CellQuadrature* cells = nullptr);
 
 // The slow, obvious reference: for each vertex, sum over ALL samples of
-// A_i R_d^c(|x_i - x_o|) / pi E_i accumulated in double, then rounded to float and
-// truncated to vertexCoefficients entries (channels = 3). No tree. For tests.
+// A_i R_d^c(|x_i - x_o|) / pi E_i (with cells: w_i^c(x_o) / pi E_i, the cell rule)
+// accumulated in double, then rounded to float and truncated to vertexCoefficients
+// entries (channels = 3). No tree. For tests.
 std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
                                                        std::span<const glm::vec3> vertices,
                                                        const Material& material,
                                                        size_t coefficientCount,
-                                                       size_t vertexCoefficients);
+                                                       size_t vertexCoefficients,
+                                                       const CellQuadrature* cells = nullptr);
 
 }  // namespace prt

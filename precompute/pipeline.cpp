@@ -1,5 +1,7 @@
 #include "precompute/pipeline.h"
 
+#include "precompute/cell_quadrature.h"
+
 #include <sys/resource.h>
 #include <tbb/task_arena.h>
 
@@ -202,9 +204,11 @@ std::string PrecomputeSummary::format() const {
             add("pass 1            %s, %.3g rays, %.3g rays/s, retained energy %.4f%s%s",
                 formatDuration(pass1Seconds).c_str(), double(raysTraced), pass1RaysPerSecond,
                 sampleRetainedEnergy, pass1File.empty() ? "" : ", saved to ", pass1File.c_str());
-        if (!outputPath.empty())  // not with --pass1-only
+        if (!outputPath.empty()) {  // not with --pass1-only
             add("pass 2            %s, %.1f nodes visited per vertex, retained energy %.4f",
                 formatDuration(pass2Seconds).c_str(), meanNodesVisited, vertexRetainedEnergy);
+            add("  sample cells    %zu sub-points in %s", cellSubPoints, formatDuration(cellSeconds).c_str());
+        }
     }
     if (ranks > 1) {
         add("exchange          pass-1 vectors %.3g MB in %s (%.0f bytes per sample), vertex "
@@ -422,8 +426,19 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         dist.stage([&] {
             SampleCloud cloud;
             cloud.positions.reserve(samples.samples.size());
-            for (const SurfaceSample& s : samples.samples) cloud.positions.push_back(s.position);
-            cloud.areas.assign(samples.samples.size(), float(samples.areaPerSample));
+            std::vector<glm::vec3> normals;
+            normals.reserve(samples.samples.size());
+            for (const SurfaceSample& s : samples.samples) {
+                cloud.positions.push_back(s.position);
+                normals.push_back(s.geometricNormal);
+            }
+            // The converged quadrature of Eq. 7 (cell_quadrature.h): E constant over each
+            // sample's Voronoi cell, R_d integrated over the cells near each vertex.
+            const Stopwatch cellsStart;
+            const CellQuadrature cells(mesh, cloud.positions, normals, summary.sampleSpacingMm, settings.material);
+            summary.cellSeconds = cellsStart.seconds();
+            summary.cellSubPoints = cells.subPointCount();
+            cloud.areas.assign(cells.cellAreas().begin(), cells.cellAreas().end());
             cloud.irradiance = std::move(pass1.vectors);
             HierarchyOptions hierarchy;
             hierarchy.epsilon = settings.epsilon;
@@ -437,7 +452,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
                                  mesh.positions.begin() + ptrdiff_t(r.end));
             Progress p("pass 2 (multiple scattering)" + share, myVertices, "vertices");
             transport = multipleScatteringTransport(tree, positions, settings.material, hierarchy,
-                                                    coefficientCount, &stats, &p);
+                                                    coefficientCount, &stats, &p, &cells);
             busy += pass2Start.seconds();
         });
         const double vertexWeight = double(myVertices) / double(mesh.vertexCount());

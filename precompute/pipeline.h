@@ -105,6 +105,10 @@ struct PrecomputeSummary {
     double sampleRetainedEnergy = 0;  // mean kept/total energy of pass-1 truncations
     double vertexRetainedEnergy = 0;  // mean kept/total energy of the per-vertex truncations
     double meanNodesVisited = 0;
+    // Pass 2's cell quadrature (cell_quadrature.h): the time to build the sample cells
+    // (part of pass2Seconds) and their sub-points.
+    double cellSeconds = 0;
+    size_t cellSubPoints = 0;
     // Single scattering.
     int ssTerms = 0;                  // 0: not computed; 1 and ssIsotropic; or K
     bool ssIsotropic = true;

@@ -100,6 +100,8 @@ Json summaryJson(const PrecomputeSummary& r) {
     j["pass1_rays_per_second"] = msOnly(r.pass1RaysPerSecond);
     j["sample_retained_energy"] = msOnly(r.sampleRetainedEnergy);
     j["mean_nodes_visited"] = msOnly(r.meanNodesVisited);
+    j["cell_sub_points"] = msOnly(double(r.cellSubPoints));
+    j["cell_seconds"] = msOnly(r.cellSeconds);
     j["vertex_retained_energy"] = msOnly(r.vertexRetainedEnergy);
     // Single scattering.
     j["ss_terms"] = ssOnly(r.ssTerms);

@@ -1,17 +1,21 @@
-// The sample sum of the multiple-scattering reference against the exact plane
-// integral of the dipole (issue 13): sum_i A_i R_d(|x_i - x_o|) over a Poisson-disk
-// sample set must converge to int R_d dA per channel for every measured material at
-// the spacing the reference chooses (tools/reference/reference.h,
-// referenceSampleSpacing), and the same check at the precomputation's default spacing
-// (l_u = min z_r) documents how far that is.
+// The sample sums of Wang Eq. 7 against the exact plane integral of the dipole (issue
+// 13): with E_i = 1 the sum over a Poisson-disk sample set must converge to int R_d dA
+// per channel, for every measured material:
+//   - the reference's point rule (1/pi) sum_i A R_d(|x_i - x_o|) at the spacing the
+//     reference chooses (tools/reference/reference.h, referenceSampleSpacing);
+//   - the precomputation's cell rule (precompute/cell_quadrature.h: R_d integrated over
+//     each sample's Voronoi cell near x_o) at the spacing the precomputation chooses by
+//     default (l_u = min z_r), and at half and twice that;
+//   - and, so that the cell rule's test is seen to discriminate, the point rule at the
+//     precomputation's spacing, which does NOT converge there.
 //
 // Geometry: a sphere. The area of a sphere within chord distance c of a point on it
 // is exactly pi c^2 (Archimedes), so int over the sphere of R_d(chord) dA equals the
 // plane integral int_0^2rho R_d(r) 2 pi r dr (dipoleDiffuseReflectanceWithin(2 rho))
 // with no curvature error, and a closed surface has no boundary, whose different
-// sample density would bias a flat patch (measured: -1% on a square). The sum is the
-// reference's own code: MultipleScatteringReference::diffuse with E_i = 1 (exact, no
-// Monte Carlo), which is (1/pi) sum_i A_i R_d.
+// sample density would bias a flat patch (measured: -1% on a square). The point rule is
+// the reference's own code: MultipleScatteringReference::diffuse with E_i = 1 (exact,
+// no Monte Carlo).
 //
 // One Poisson-disk set on a unit icosphere, scaled per material: a Poisson-disk set
 // scaled by k is a Poisson-disk set of spacing k times (the construction is scale
@@ -31,6 +35,8 @@
 #include "common/bssrdf.h"
 #include "common/sampling.h"
 #include "common/shapes.h"
+#include "precompute/cell_quadrature.h"
+#include <memory>
 #include "tools/reference/reference.h"
 
 using namespace prt;
@@ -54,23 +60,47 @@ const UnitSet& unitSet() {
     return set;
 }
 
+// The two quadratures under test: the reference's point rule (1/pi) sum_i A R_d(|x_i -
+// x_o|) (MultipleScatteringReference::diffuse with E_i = 1, exact, no Monte Carlo), and
+// the precomputation's cell-averaged rule (1/pi) sum_i A Rbar(|x_i - x_o|)
+// (precompute/cell_averaged_dipole.h).
+enum class Rule { Point, Cells };
+
 // Per channel: the sum at 32 vertices of the sphere (on the surface, spread over it)
 // at spacing h, against dipoleDiffuseReflectanceWithin(d, 2 rho).
-std::array<ChannelError, 3> sampleSumError(const Material& m, double h) {
+std::array<ChannelError, 3> sampleSumError(const Material& m, double h, Rule rule) {
     const UnitSet& u = unitSet();
     const double unitSpacing = std::sqrt(2.0 * u.samples.areaPerSample / std::sqrt(3.0));
     const double k = h / unitSpacing;  // scale: the sphere's radius rho in mm
     std::vector<glm::vec3> positions;
     for (const SurfaceSample& s : u.samples.samples) positions.push_back(s.position * float(k));
+    const double area = u.samples.areaPerSample * k * k;
     SampleIrradiance one;
     one.value.assign(positions.size(), glm::dvec3(1.0));
     one.variance.assign(positions.size(), glm::dvec3(0.0));
-    const MultipleScatteringReference ms(m, positions, u.samples.areaPerSample * k * k, one);
+    const MultipleScatteringReference ms(m, positions, area, one);
+    std::unique_ptr<CellQuadrature> cells;
     std::array<ChannelError, 3> out;
     const int points = 32;
     for (int p = 0; p < points; ++p) {
         const glm::vec3 xo = u.sphere.positions[(size_t(p) * 7919u) % u.sphere.positions.size()] * float(k);
-        const glm::dvec3 sum = kPi * ms.diffuse(xo).value;
+        glm::dvec3 sum(0.0);
+        if (rule == Rule::Point) {
+            sum = kPi * ms.diffuse(xo).value;
+        } else if (rule == Rule::Cells) {
+            if (!cells) {
+                TriangleMesh mesh = u.sphere;
+                for (glm::vec3& p : mesh.positions) p *= float(k);
+                std::vector<glm::vec3> normals;
+                for (const SurfaceSample& s : u.samples.samples) normals.push_back(s.geometricNormal);
+                cells = std::make_unique<CellQuadrature>(mesh, positions, normals, h, m);
+            }
+            for (size_t i = 0; i < positions.size(); ++i) {
+                double w[3];
+                cells->sampleWeightOverPi(i, xo, w);
+                sum += kPi * glm::dvec3(w[0], w[1], w[2]);
+            }
+        }
         for (int c = 0; c < 3; ++c) {
             const DipoleChannel d = makeDipoleChannel(m, c);
             const double exact = dipoleDiffuseReflectanceWithin(d, 2.0 * k);
@@ -86,12 +116,13 @@ std::array<ChannelError, 3> sampleSumError(const Material& m, double h) {
 }
 
 // The table for `spacing(m)`; every channel's RMS and mean error within `tolerance`.
-void checkAllMaterials(const char* what, double (*spacing)(const Material&), double tolerance) {
+void checkAllMaterials(const char* what, double (*spacing)(const Material&), Rule rule, double tolerance,
+                       const std::vector<std::string>& names = materialNames()) {
     std::printf("%s: sample sum / exact plane integral - 1 per channel (mean, rms, worst over 32 points)\n", what);
-    for (const std::string& name : materialNames()) {
+    for (const std::string& name : names) {
         const Material m = materialByName(name);
         const double h = spacing(m);
-        const std::array<ChannelError, 3> e = sampleSumError(m, h);
+        const std::array<ChannelError, 3> e = sampleSumError(m, h, rule);
         std::printf("  %-10s h = %.4f mm (%.3f z_r,min):", name.c_str(), h, h / m.minMeanFreePath());
         for (int c = 0; c < 3; ++c) std::printf("  %c %+.4f %.4f %.4f", "RGB"[c], e[c].mean, e[c].rms, e[c].worst);
         std::printf("\n");
@@ -105,6 +136,8 @@ void checkAllMaterials(const char* what, double (*spacing)(const Material&), dou
 
 double referenceSpacing(const Material& m) { return referenceSampleSpacing(m); }
 double precomputeDefaultSpacing(const Material& m) { return m.minMeanFreePath(); }
+double halfDefaultSpacing(const Material& m) { return 0.5 * m.minMeanFreePath(); }
+double twiceDefaultSpacing(const Material& m) { return 2.0 * m.minMeanFreePath(); }
 
 }  // namespace
 
@@ -112,17 +145,41 @@ double precomputeDefaultSpacing(const Material& m) { return m.minMeanFreePath();
 // measured material is within 1%: measured RMS over points 0.11-0.96% (the blue
 // channels of the absorbing materials the largest), mean -0.11% to +0.01%, single
 // points up to 2.1%. (At 0.3 the RMS reached 1.4% with this sample set.)
-TEST(SampleSum, ConvergesToThePlaneIntegralAtTheReferenceSpacing) {
-    checkAllMaterials("reference spacing", referenceSpacing, 0.01);
+TEST(SampleSum, PointRuleConvergesAtTheReferenceSpacing) {
+    checkAllMaterials("point rule, reference spacing", referenceSpacing, Rule::Point, 0.01);
 }
 
-// The same check at the precomputation's default spacing (PrecomputeSettings::
-// sampleSpacingMm = 0 -> the material's smallest mean free path l_u = min z_r). It
-// fails for every material: RMS over points 1.4-11.6% (mean up to +1.6%, single
-// points up to 28%; Ketchup, Chicken1/2, Skin1 and Potato blue the worst: strongly
-// absorbing channels whose kernel is no wider than the spacing). Disabled until the precomputation's default
-// converges: issue 13, item 2 (do not change the default before then). Run with
-// --gtest_also_run_disabled_tests for the table (docs/reference.md).
-TEST(SampleSum, DISABLED_ConvergesToThePlaneIntegralAtThePrecomputesDefaultSpacing) {
-    checkAllMaterials("precompute default spacing", precomputeDefaultSpacing, 0.01);
+// The precomputation's cell rule at its default spacing (PrecomputeSettings::
+// sampleSpacingMm = 0 -> l_u = min z_r): every material and channel within 1%.
+// Measured: RMS over points 0.17-0.40%, mean within 0.1%, single points up to 1.24%
+// (Ketchup green). The point rule at this spacing: RMS 1.4-11.6% (next test).
+TEST(SampleSum, CellRuleConvergesAtThePrecomputesDefaultSpacing) {
+    checkAllMaterials("cell rule, precompute default spacing", precomputeDefaultSpacing, Rule::Cells, 0.01);
+}
+
+// The same at half and twice the default spacing (--sample-spacing; the near radius
+// follows the spacing, the sub-spacing the material) for the materials of the issue's
+// goals: within 1% too. (Not every material: twice the spacing makes this test's sphere
+// 4x larger in area, and Ketchup's sub-spacing, set by its narrow blue kernel, would
+// then need over 2^26 sub-points.)
+TEST(SampleSum, CellRuleConvergesAtHalfAndTwiceTheDefaultSpacing) {
+    const std::vector<std::string> names = {"Marble", "Skin1", "Wholemilk"};
+    checkAllMaterials("cell rule, half the default spacing", halfDefaultSpacing, Rule::Cells, 0.01, names);
+    checkAllMaterials("cell rule, twice the default spacing", twiceDefaultSpacing, Rule::Cells, 0.01, names);
+}
+
+// What the cell rule repairs: the point rule at the precomputation's spacing is off by
+// more than 1% RMS in some channel of every material (measured 1.4-11.6%, single points
+// up to 28%; the absorbing materials' blue channels the worst, whose kernel is no wider
+// than the spacing). Also Voronoi cell areas alone (2.7% RMS for Apple red) and R_d
+// averaged over a disk of the sample's area (3.0%) were measured and do not converge:
+// the error is the irregularity of the sample positions at the scale of R_d's peak.
+TEST(SampleSum, PointRuleDoesNotConvergeAtThePrecomputesDefaultSpacing) {
+    for (const std::string& name : materialNames()) {
+        const Material m = materialByName(name);
+        const std::array<ChannelError, 3> e = sampleSumError(m, precomputeDefaultSpacing(m), Rule::Point);
+        const double worst = std::max({e[0].rms, e[1].rms, e[2].rms});
+        std::printf("  point rule, %-10s worst channel RMS %.4f\n", name.c_str(), worst);
+        EXPECT_GT(worst, 0.01) << name;
+    }
 }

@@ -1,0 +1,188 @@
+// The cell quadrature of pass 2 (precompute/cell_quadrature.h): cells tile the mesh,
+// the near/far split is a partition of R_d, thin plates keep their sides apart, the
+// hierarchy with cells equals the brute-force cell sum at epsilon 0, bad input is
+// refused. Convergence against the exact plane integral: tests/test_sample_sum.cpp.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "common/bssrdf.h"
+#include "common/error.h"
+#include "common/materials.h"
+#include "common/mesh.h"
+#include "common/sampling.h"
+#include "common/shapes.h"
+#include "precompute/cell_quadrature.h"
+#include "precompute/multiple_scattering.h"
+
+using namespace prt;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+struct SampledMesh {
+    TriangleMesh mesh;
+    SampleSet samples;
+    std::vector<glm::vec3> positions, normals;
+    double spacing = 0.0;
+};
+
+SampledMesh makeSetup(TriangleMesh mesh, size_t count) {
+    SampledMesh s;
+    s.mesh = std::move(mesh);
+    s.samples = poissonDiskSamples(s.mesh, count, 7);
+    for (const SurfaceSample& x : s.samples.samples) {
+        s.positions.push_back(x.position);
+        s.normals.push_back(x.geometricNormal);
+    }
+    s.spacing = std::sqrt(2.0 * s.samples.areaPerSample / std::sqrt(3.0));
+    return s;
+}
+
+}  // namespace
+
+// Every sub-point belongs to one cell: the cell areas add up to the mesh area, each
+// cell's area is near A = total / N, and every sub-point lies within its cell radius.
+TEST(CellQuadrature, CellsTileTheMesh) {
+    const SampledMesh s = makeSetup(makeIcosphere(4, 3.0f), 2000);
+    const CellQuadrature q(s.mesh, s.positions, s.normals, s.spacing, materialByName("Marble"));
+    double sum = 0.0;
+    double lo = 1e30, hi = 0.0;
+    for (size_t i = 0; i < q.sampleCount(); ++i) {
+        sum += q.cellArea(i);
+        lo = std::min(lo, double(q.cellArea(i)));
+        hi = std::max(hi, double(q.cellArea(i)));
+    }
+    EXPECT_NEAR(sum / totalArea(s.mesh), 1.0, 1e-5);
+    // Poisson-disk cells vary, but not wildly.
+    EXPECT_GT(lo, 0.4 * s.samples.areaPerSample);
+    EXPECT_LT(hi, 2.0 * s.samples.areaPerSample);
+    EXPECT_LT(q.maxCellRadius(), 2.0 * s.spacing);
+    EXPECT_GT(q.subPointCount(), 10 * q.sampleCount());
+}
+
+// The near and far parts add up to R_d: a sample's weight for a far point is A_i R_d;
+// the far kernel is 0 inside r1 and R_d beyond r2.
+TEST(CellQuadrature, NearAndFarPartitionTheDipole) {
+    const Material m = materialByName("Skin1");
+    const SampledMesh s = makeSetup(makeIcosphere(4, 3.0f), 2000);
+    const CellQuadrature q(s.mesh, s.positions, s.normals, s.spacing, m);
+    double w[3];
+    q.farKernelOverPi(0.5 * q.innerRadius(), w);
+    for (double x : w) EXPECT_EQ(x, 0.0);
+    for (double r : {q.outerRadius(), 1.5 * q.outerRadius()}) {
+        q.farKernelOverPi(r, w);
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(w[c] * kPi / dipoleRd(makeDipoleChannel(m, c), r), 1.0, 1e-9);
+    }
+    // Between r1 and r2 the far kernel lies between 0 and R_d.
+    q.farKernelOverPi(0.5 * (q.innerRadius() + q.outerRadius()), w);
+    for (int c = 0; c < 3; ++c) {
+        const double rd = dipoleRd(makeDipoleChannel(m, c), 0.5 * (q.innerRadius() + q.outerRadius())) / kPi;
+        EXPECT_GT(w[c], 0.1 * rd);
+        EXPECT_LT(w[c], 0.9 * rd);
+    }
+    // A far vertex: w_i = A_i R_d(|x_i - x_o|) exactly (no near part).
+    const glm::vec3 xo = s.positions[0] + glm::vec3(0.0f, 0.0f, 4.0f * float(q.outerRadius()));
+    q.sampleWeightOverPi(0, xo, w);
+    for (int c = 0; c < 3; ++c) {
+        const double expect = q.cellArea(0) * dipoleRd(makeDipoleChannel(m, c), glm::length(s.positions[0] - xo)) / kPi;
+        EXPECT_NEAR(w[c] / expect, 1.0, 1e-6);
+    }
+}
+
+// A thin plate (0.1 spacings thick): the cells of one side hold only that side's area,
+// so the irradiance of the lit side is never read as the dark side's.
+TEST(CellQuadrature, ThinPlateSidesKeepTheirOwnCells) {
+    const TriangleMesh plate = makeBox({10.0f, 0.03f, 10.0f}, glm::ivec3(20, 1, 20));
+    const SampledMesh s = makeSetup(plate, 1500);
+    const CellQuadrature q(s.mesh, s.positions, s.normals, s.spacing, materialByName("Marble"));
+    double top = 0.0, bottom = 0.0;
+    size_t wrongSide = 0, faceSamples = 0;
+    for (size_t i = 0; i < q.sampleCount(); ++i) {
+        if (s.normals[i].y > 0.9f) top += q.cellArea(i);
+        if (s.normals[i].y < -0.9f) bottom += q.cellArea(i);
+        if (std::abs(s.normals[i].y) < 0.9f) continue;
+        ++faceSamples;
+        for (const glm::vec3& p : q.cellSubPoints(i)) {
+            if (std::abs(p.y) < 0.0149f) continue;  // the rim faces the same way as both sides
+            wrongSide += (p.y > 0.0f) != (s.normals[i].y > 0.0f);
+        }
+    }
+    EXPECT_GT(faceSamples, 1000u);
+    EXPECT_EQ(wrongSide, 0u);
+    EXPECT_NEAR(top, 100.0, 1.0);  // 10 x 10 mm per side, up to the thin rim's share
+    EXPECT_NEAR(bottom, 100.0, 1.0);
+}
+
+// The hierarchy with cells at epsilon 0 is the brute-force cell sum, and with the
+// default epsilon stays close to it.
+TEST(CellQuadrature, HierarchyMatchesTheBruteForceCellSum) {
+    const Material m = materialByName("Ketchup");
+    const SampledMesh s = makeSetup(makeIcosphere(3, 4.0f), 1500);
+    const CellQuadrature q(s.mesh, s.positions, s.normals, s.spacing, m);
+    SampleCloud cloud;
+    cloud.positions = s.positions;
+    cloud.areas.assign(q.cellAreas().begin(), q.cellAreas().end());
+    const size_t count = 6 * 4 * 4;
+    for (size_t i = 0; i < s.positions.size(); ++i) {
+        SparseVector e;
+        e.channels = 1;
+        for (uint32_t k = 0; k < count; k += 1 + uint32_t(i % 7)) {
+            e.index.push_back(k);
+            e.value.push_back(float(1.0 + 0.5 * std::sin(0.37 * double(i) + double(k))));
+        }
+        cloud.irradiance.push_back(std::move(e));
+    }
+    std::vector<glm::vec3> vertices(s.mesh.positions.begin(), s.mesh.positions.begin() + 60);
+    HierarchyOptions exact;
+    exact.epsilon = 0.0;
+    exact.vertexCoefficients = count * 3;
+    const SampleTree tree(cloud, exact);
+    const auto fast = multipleScatteringTransport(tree, vertices, m, exact, count, nullptr, nullptr, &q);
+    const auto brute = multipleScatteringBruteForce(cloud, vertices, m, count, count * 3, &q);
+    HierarchyOptions def;
+    def.vertexCoefficients = count * 3;
+    const SampleTree defTree(cloud, def);
+    const auto approx = multipleScatteringTransport(defTree, vertices, m, def, count, nullptr, nullptr, &q);
+    double diff = 0.0, norm = 0.0, approxDiff = 0.0;
+    for (size_t v = 0; v < vertices.size(); ++v) {
+        std::vector<float> a(count * 3, 0.0f), b(count * 3, 0.0f), c(count * 3, 0.0f);
+        for (size_t k = 0; k < fast[v].index.size(); ++k)
+            for (int ch = 0; ch < 3; ++ch) a[fast[v].index[k] * 3 + ch] = fast[v].value[k * 3 + ch];
+        for (size_t k = 0; k < brute[v].index.size(); ++k)
+            for (int ch = 0; ch < 3; ++ch) b[brute[v].index[k] * 3 + ch] = brute[v].value[k * 3 + ch];
+        for (size_t k = 0; k < approx[v].index.size(); ++k)
+            for (int ch = 0; ch < 3; ++ch) c[approx[v].index[k] * 3 + ch] = approx[v].value[k * 3 + ch];
+        for (size_t k = 0; k < a.size(); ++k) {
+            diff += double(a[k] - b[k]) * double(a[k] - b[k]);
+            approxDiff += double(c[k] - b[k]) * double(c[k] - b[k]);
+            norm += double(b[k]) * b[k];
+        }
+    }
+    EXPECT_GT(norm, 0.0);
+    EXPECT_LT(std::sqrt(diff / norm), 1e-5);
+    EXPECT_LT(std::sqrt(approxDiff / norm), 0.01);
+    // A tree whose areas are not the cells' is refused.
+    SampleCloud uniform = cloud;
+    uniform.areas.assign(uniform.areas.size(), float(s.samples.areaPerSample));
+    const SampleTree wrong(uniform, exact);
+    EXPECT_THROW(multipleScatteringTransport(wrong, vertices, m, exact, count, nullptr, nullptr, &q), Error);
+}
+
+TEST(CellQuadrature, RefusesBadInput) {
+    const SampledMesh s = makeSetup(makeIcosphere(2, 1.0f), 100);
+    const Material m = materialByName("Marble");
+    EXPECT_THROW(CellQuadrature(s.mesh, {}, {}, s.spacing, m), Error);
+    EXPECT_THROW(CellQuadrature(s.mesh, s.positions, std::span(s.normals).first(5), s.spacing, m), Error);
+    EXPECT_THROW(CellQuadrature(s.mesh, s.positions, s.normals, 0.0, m), Error);
+    EXPECT_THROW(CellQuadrature(s.mesh, s.positions, s.normals, NAN, m), Error);
+    CellQuadratureOptions tiny;
+    tiny.maxSubPoints = 10;
+    EXPECT_THROW(CellQuadrature(s.mesh, s.positions, s.normals, s.spacing, m, tiny), Error);
+    CellQuadratureOptions inverted;
+    inverted.innerRadius = 3.0;
+    inverted.outerRadius = 1.0;
+    EXPECT_THROW(CellQuadrature(s.mesh, s.positions, s.normals, s.spacing, m, inverted), Error);
+}
