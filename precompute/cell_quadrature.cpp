@@ -85,7 +85,22 @@ double quinticStep(double t) {
     return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
 }
 
+double narrowestKernelWidth(const Material& material) {
+    double widest = 0.0;  // max_c (sigma_t' + sigma_tr)
+    for (int c = 0; c < 3; ++c) {
+        const DipoleChannel d = makeDipoleChannel(material, c);
+        widest = std::max(widest, 1.0 / d.zr + d.sigmaTr);
+    }
+    return 1.0 / widest;
+}
+
 }  // namespace
+
+double estimateCellSubPoints(double totalAreaMm2, size_t triangles, const Material& material,
+                             const CellQuadratureOptions& options) {
+    const double s = options.subSpacingFraction * narrowestKernelWidth(material);
+    return std::max(totalAreaMm2 / (0.2 * s * s), double(triangles));
+}
 
 CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::vec3> samplePositions,
                                std::span<const glm::vec3> sampleNormals, double sampleSpacing,
@@ -101,11 +116,8 @@ CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::ve
         !(options.outerRadius > options.innerRadius) || !std::isfinite(options.outerRadius))
         throw Error("cell quadrature", "invalid options (need fraction > 0, 0 <= inner < outer)");
 
-    double widest = 0.0;  // max_c (sigma_t' + sigma_tr)
-    for (int c = 0; c < 3; ++c) {
-        channel_[c] = makeDipoleChannel(material, c);
-        widest = std::max(widest, 1.0 / channel_[c].zr + channel_[c].sigmaTr);
-    }
+    for (int c = 0; c < 3; ++c) channel_[c] = makeDipoleChannel(material, c);
+    const double widest = 1.0 / narrowestKernelWidth(material);  // max_c (sigma_t' + sigma_tr)
     subSpacing_ = options.subSpacingFraction / widest;
     r1_ = options.innerRadius * sampleSpacing;
     r2_ = options.outerRadius * sampleSpacing;

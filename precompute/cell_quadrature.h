@@ -63,6 +63,15 @@ struct CellQuadratureOptions {
     size_t maxSubPoints = size_t(1) << 26;
 };
 
+// About the sub-point count the cells of a mesh of this area and triangle count will
+// need: area / (0.2 s^2) (an equilateral sub-triangle of edge s has 0.43 s^2; real
+// triangles are thinner and n = ceil(edge / s) rounds up: the bunny at 30 mm has 680K
+// for an estimate of 700K), and at least one per triangle. The construction holds
+// kCellBytesPerSubPoint bytes per sub-point at its peak.
+double estimateCellSubPoints(double totalAreaMm2, size_t triangles, const Material& material,
+                             const CellQuadratureOptions& options = {});
+inline constexpr double kCellBytesPerSubPoint = 36.0;
+
 class CellQuadrature {
 public:
     // mesh: positions in mm (validated by the caller). samplePositions / sampleNormals:

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "precompute/cell_quadrature.h"
 
 namespace prt {
 
@@ -15,7 +16,7 @@ constexpr double kSafety = 1.5;
 }
 
 MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vertices, size_t triangles,
-                                        size_t samples, int threads) {
+                                        size_t samples, int threads, double totalAreaMm2) {
     const double texels = 6.0 * double(s.cubemapSize) * double(s.cubemapSize);
     const bool ms = s.components.multipleScattering;
     const double terms = s.components.singleScattering ? 1.0 + (s.material.g != 0.0 ? s.phaseTerms : 0) : 0.0;
@@ -25,6 +26,8 @@ MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vert
         {"samples", 200.0 * n},
         {"pass 1 vectors", n * (double(s.sampleCoefficients) * 8.0 + 64.0)},
         {"pass 2 kd-tree sums", n / 4.0 * (double(s.nodeCoefficients) * 8.0 + 64.0)},
+        {"pass 2 cell sub-points",
+         ms && totalAreaMm2 > 0.0 ? estimateCellSubPoints(totalAreaMm2, triangles, s.material) * kCellBytesPerSubPoint : 0.0},
         {"per-vertex results",
          double(vertices) * double(s.vertexCoefficients) * 16.0 * ((ms ? 1.0 : 0.0) + terms)},
         {"per-thread workspaces", double(std::max(threads, 1)) * texels * 64.0},

@@ -9,6 +9,8 @@
 //   samples (Poisson disk)     ~ 200 bytes per sample (candidates included)
 //   pass 1 vectors             samples x (sample coefficients x 8 + 64) bytes
 //   pass 2 kd-tree sums        samples / 4 nodes x (node coefficients x 8 + 64) bytes
+//   pass 2 cell sub-points     estimateCellSubPoints(area, triangles, material) x 36 bytes
+//                              (cell_quadrature.h; 0 when the area is not given)
 //   per-vertex results         vertices x vertex coefficients x 16 bytes (RGB float +
 //                              index) per component (MS, and 1 + K for single scattering)
 //   per-thread workspaces      threads x 6 N^2 x 64 bytes
@@ -32,7 +34,7 @@ struct MemoryEstimate {
 };
 
 MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vertices, size_t triangles,
-                                        size_t samples, int threads);
+                                        size_t samples, int threads, double totalAreaMm2 = 0.0);
 
 // Throws prt::Error("memory", "needs 41.2 GB (largest: ...), 23.8 GB available; use
 // --max-memory GB to allow more, or fewer samples / coefficients") when the estimate

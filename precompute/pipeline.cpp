@@ -354,8 +354,9 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
                     ? settings.sampleCount
                     : defaultSampleCount(summary.totalAreaMm2, spacing, settings.maxSamples);
             // Before any allocation that grows with the job: refuse what cannot fit.
-            const MemoryEstimate need = estimatePrecomputeMemory(settings, mesh.vertexCount(), mesh.triangleCount(),
-                                                                 sampleCount, tbb::this_task_arena::max_concurrency());
+            const MemoryEstimate need =
+                estimatePrecomputeMemory(settings, mesh.vertexCount(), mesh.triangleCount(), sampleCount,
+                                         tbb::this_task_arena::max_concurrency(), summary.totalAreaMm2);
             checkMemory(need, settings.maxMemoryGb);
             summary.estimatedMemoryBytes = need.bytes;
             const Stopwatch samplesStart;

@@ -196,15 +196,20 @@ glm::vec3 TranslucentShader::shade(const GBufferPixel& p, const VertexRadiance& 
     if (terms > 0) {
         glm::dvec3 woRefracted;
         if (refractDirection(wo, n, eta_, woRefracted)) {
+            glm::dvec3 ss(0.0);
             for (int k = 0; k < terms; ++k) {
                 const std::vector<glm::vec3>& t = radiance.terms[k];
                 if (std::max({tri.x, tri.y, tri.z}) >= t.size()) continue;
                 const double h = viewTerm(k, woRefracted);
-                sum += h * glm::dvec3(b.x * t[tri.x] + b.y * t[tri.y] + b.z * t[tri.z]);
+                ss += h * glm::dvec3(b.x * t[tri.x] + b.y * t[tri.y] + b.z * t[tri.z]);
             }
+            // The K-term phase (phase_factoring.h) has negative lobes where HG is small
+            // (g = 0.4, cos = -1: -0.015 for 0.024); single scattering is never negative.
+            sum += glm::max(ss, glm::dvec3(0.0));
         }
     }
-    return glm::vec3(ft * sum);
+    // Truncated wavelets can undershoot too; radiance is never negative.
+    return glm::vec3(ft * glm::max(sum, glm::dvec3(0.0)));
 }
 
 // ---------------------------------------------------------------------------

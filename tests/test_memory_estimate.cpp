@@ -52,6 +52,12 @@ TEST(MemoryEstimate, GrowsWithSamplesAndCoefficients) {
     EXPECT_EQ(estimatePrecomputeMemory(ss, 10000, 20000, 100000, 2).bytes,
               estimatePrecomputeMemory(ss, 10000, 20000, 0, 2).bytes);
     EXPECT_NE(estimatePrecomputeMemory(s, 10000, 20000, 1000000, 2).largest.find("pass 1 vectors"), std::string::npos);
+    // The cell quadrature's sub-points grow with the area (and the material's kernel):
+    // a 1 m^2 object of Marble needs more than the machine has, named as such.
+    EXPECT_EQ(estimatePrecomputeMemory(s, 10000, 20000, 100000, 2, 0.0).bytes, a);
+    const MemoryEstimate huge = estimatePrecomputeMemory(s, 10000, 20000, 100000, 2, 1e6);
+    EXPECT_GT(huge.bytes, 24'000'000'000ull);
+    EXPECT_NE(huge.largest.find("cell sub-points"), std::string::npos) << huge.largest;
     EXPECT_EQ(formatBytes(41'200'000'000ull), "41.2 GB");
     EXPECT_EQ(formatBytes(830'000'000ull), "830 MB");
 }

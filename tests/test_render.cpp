@@ -360,6 +360,16 @@ TEST(TranslucentShader, ViewMapsAreLookedUpAtTheRefractedViewDirection) {
     // Without view maps the terms are ignored.
     TranslucentShader plain(sphere, eta);
     EXPECT_NEAR(plain.shade(centre, rad).x, ft * 0.25, 1e-6);
+    // A negative K-term sum (the factored phase's negative lobes) adds nothing: single
+    // scattering is clamped at 0 per channel before it joins the diffuse part, and the
+    // whole radiance is never negative.
+    rad.terms.assign(2, std::vector<glm::vec3>(sphere.vertexCount(), glm::vec3(-1.0f, 0.1f, -3.0f)));
+    const glm::vec3 clamped = shader.shade(centre, rad);
+    EXPECT_NEAR(clamped.x, ft * 0.25, 1e-6);
+    EXPECT_NEAR(clamped.y, ft * (0.25 + 1.5 * 0.1), 1e-6);
+    EXPECT_NEAR(clamped.z, ft * 0.25, 1e-6);
+    rad.diffuse.assign(sphere.vertexCount(), glm::vec3(-0.25f));
+    EXPECT_EQ(shader.shade(centre, rad).x, 0.0f);
 }
 
 TEST(Specular, FresnelReflectionOfThePrefilteredEnvironment) {

@@ -143,10 +143,13 @@ void main() {
         vec3 sum = interpolated(0);
         if (uTermCount > 0) {
             vec3 wt;
-            if (refractDirection(wo, n, uEta, wt))
-                for (int k = 0; k < uTermCount; ++k) sum += viewMap(k, wt) * interpolated(k + 1);
+            if (refractDirection(wo, n, uEta, wt)) {
+                vec3 ss = vec3(0.0);
+                for (int k = 0; k < uTermCount; ++k) ss += viewMap(k, wt) * interpolated(k + 1);
+                sum += max(ss, vec3(0.0));  // the K-term phase's negative lobes, as render.cpp
+            }
         }
-        L = (1.0 - fr) * sum;
+        L = (1.0 - fr) * max(sum, vec3(0.0));
         if (uSpecular) L += fr * latLongRadiance(uPrefiltered, 2.0 * cosO * n - wo);
     }
     writeColor(L, 1.0);
