@@ -1,6 +1,7 @@
 #include "precompute/cell_quadrature.h"
 
 #include "common/error.h"
+#include "common/mesh.h"
 #include "common/util.h"
 
 #include <tbb/blocked_range.h>
@@ -113,14 +114,17 @@ CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::ve
     if (!(sampleSpacing > 0.0) || !std::isfinite(sampleSpacing))
         throw Error("cell quadrature", "sample spacing must be positive and finite");
     if (!(options.subSpacingFraction > 0.0) || !(options.innerRadius >= 0.0) ||
-        !(options.outerRadius > options.innerRadius) || !std::isfinite(options.outerRadius))
-        throw Error("cell quadrature", "invalid options (need fraction > 0, 0 <= inner < outer)");
+        !(options.outerRadius > options.innerRadius) || !std::isfinite(options.outerRadius) ||
+        !(options.maxOuterRadiusWidths > 0.0))
+        throw Error("cell quadrature", "invalid options (need fraction > 0, 0 <= inner < outer, max widths > 0)");
 
     for (int c = 0; c < 3; ++c) channel_[c] = makeDipoleChannel(material, c);
     const double widest = 1.0 / narrowestKernelWidth(material);  // max_c (sigma_t' + sigma_tr)
     subSpacing_ = options.subSpacingFraction / widest;
-    r1_ = options.innerRadius * sampleSpacing;
-    r2_ = options.outerRadius * sampleSpacing;
+    double widestWidth = 0.0;  // max_c 1 / (sigma_t' + sigma_tr)
+    for (int c = 0; c < 3; ++c) widestWidth = std::max(widestWidth, 1.0 / (1.0 / channel_[c].zr + channel_[c].sigmaTr));
+    r2_ = std::min(options.outerRadius * sampleSpacing, options.maxOuterRadiusWidths * widestWidth);
+    r1_ = r2_ * options.innerRadius / options.outerRadius;
     r2f_ = float(r2_);
 
     // Kernel tables on [0, r2].
@@ -203,6 +207,48 @@ CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::ve
         subPosition_[dst] = position[k];
         subArea_[dst] = area[k];
     }
+    // Within each cell: sub-points along a Morton curve, in chunks of kChunk with a
+    // bounding sphere, so that a vertex skips the chunks beyond r2 (large cells of a
+    // coarse sample set reach far past the near field).
+    chunkOffset_.assign(n + 1, 0);
+    for (size_t i = 0; i < n; ++i) {
+        const uint32_t count = subOffset_[i + 1] - subOffset_[i];
+        chunkOffset_[i + 1] = chunkOffset_[i] + (count + kChunk - 1) / kChunk;
+    }
+    chunkCentre_.resize(chunkOffset_[n]);
+    chunkRadius_.resize(chunkOffset_[n]);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
+        std::vector<glm::vec3> pos;
+        std::vector<float> area;
+        for (size_t i = r.begin(); i < r.end(); ++i) {
+            const uint32_t b = subOffset_[i], e = subOffset_[i + 1];
+            if (e - b > 1) {
+                const std::vector<uint32_t> order =
+                    mortonOrder(std::span(subPosition_.data() + b, e - b), "cell sub-points");
+                pos.assign(subPosition_.begin() + b, subPosition_.begin() + e);
+                area.assign(subArea_.begin() + b, subArea_.begin() + e);
+                for (uint32_t k = 0; k < e - b; ++k) {
+                    subPosition_[b + k] = pos[order[k]];
+                    subArea_[b + k] = area[order[k]];
+                }
+            }
+            for (uint32_t c = chunkOffset_[i]; c < chunkOffset_[i + 1]; ++c) {
+                const uint32_t first = b + (c - chunkOffset_[i]) * kChunk;
+                const uint32_t last = std::min(first + kChunk, e);
+                glm::vec3 lo(std::numeric_limits<float>::max()), hi(std::numeric_limits<float>::lowest());
+                for (uint32_t k = first; k < last; ++k) {
+                    lo = glm::min(lo, subPosition_[k]);
+                    hi = glm::max(hi, subPosition_[k]);
+                }
+                chunkCentre_[c] = 0.5f * (lo + hi);
+                float radius = 0.0f;
+                for (uint32_t k = first; k < last; ++k)
+                    radius = std::max(radius, glm::length(subPosition_[k] - chunkCentre_[c]));
+                chunkRadius_[c] = radius * (1.0f + 1e-5f) + 1e-6f;  // rounding margin
+            }
+        }
+    });
+
     cellArea_.assign(n, 0.0f);
     cellRadius_.assign(n, 0.0f);
     for (size_t i = 0; i < n; ++i) {
@@ -233,7 +279,13 @@ void CellQuadrature::farKernelOverPi(double r, double w[3]) const {
 void CellQuadrature::nearWeightOverPi(size_t i, const glm::vec3& xo, double w[3]) const {
     double s0 = 0.0, s1 = 0.0, s2 = 0.0;
     const double limit = r2_ * r2_;
-    for (uint32_t k = subOffset_[i]; k < subOffset_[i + 1]; ++k) {
+    for (uint32_t c = chunkOffset_[i]; c < chunkOffset_[i + 1]; ++c) {
+      const float reach = r2f_ + chunkRadius_[c];
+      const glm::vec3 dc = chunkCentre_[c] - xo;
+      if (glm::dot(dc, dc) >= reach * reach) continue;
+      const uint32_t first = subOffset_[i] + (c - chunkOffset_[i]) * kChunk;
+      const uint32_t last = std::min(first + kChunk, subOffset_[i + 1]);
+      for (uint32_t k = first; k < last; ++k) {
         const glm::vec3 d = subPosition_[k] - xo;
         const double d2 = double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z;
         if (d2 >= limit) continue;
@@ -245,6 +297,7 @@ void CellQuadrature::nearWeightOverPi(size_t i, const glm::vec3& xo, double w[3]
         s0 += a * (p[0] + f * (p[3] - p[0]));
         s1 += a * (p[1] + f * (p[4] - p[1]));
         s2 += a * (p[2] + f * (p[5] - p[2]));
+      }
     }
     w[0] = s0;
     w[1] = s1;
@@ -263,7 +316,9 @@ size_t CellQuadrature::bytes() const {
     return (nearTable_.capacity() + farTable_.capacity()) * sizeof(double) +
            samplePosition_.capacity() * sizeof(glm::vec3) +
            (cellArea_.capacity() + cellRadius_.capacity() + subArea_.capacity()) * sizeof(float) +
-           subOffset_.capacity() * sizeof(uint32_t) + subPosition_.capacity() * sizeof(glm::vec3);
+           subOffset_.capacity() * sizeof(uint32_t) + subPosition_.capacity() * sizeof(glm::vec3) +
+           chunkOffset_.capacity() * sizeof(uint32_t) + chunkCentre_.capacity() * sizeof(glm::vec3) +
+           chunkRadius_.capacity() * sizeof(float);
 }
 
 }  // namespace prt

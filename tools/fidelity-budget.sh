@@ -1,47 +1,74 @@
 #!/usr/bin/env bash
-# The error budget of docs/fidelity.md: the bunny (30 mm) precomputed with the defaults
-# and with one approximation relaxed at a time, rendered at 256 x 256 under forest and
-# city, each compared with prt-reference's independent render (made once per
-# environment, a few minutes each). Prints one line per variant and environment.
-#   tools/fidelity-budget.sh [MATERIAL] [OUT_DIR]      (defaults: Marble, out/budget)
+# The error budget of docs/fidelity.md: the bunny (30 mm) precomputed with the defaults,
+# with one approximation relaxed at a time, and swept over coefficients per vertex and
+# over sample density; each rendered at 256 x 256 under forest and city and compared
+# with prt-reference's independent render (made once per environment, a few minutes
+# each, kept in OUT_DIR). Prints one line per run and writes OUT_DIR/MATERIAL.tsv
+# (material, kind, name, option value, environment, rel RMSE, precompute seconds) for
+# tools/plot_fidelity.py.
+#   tools/fidelity-budget.sh [MATERIAL] [OUT_DIR] [MESH] [SIZE_MM]
+#   (defaults: Marble, out/budget, data/meshes/bunny.off, 30)
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 bin=${BUILD_DIR:-$root/build}
 mat=${1:-Marble}
 out=${2:-$root/out/budget}
-mesh=$root/data/meshes/bunny.off
+mesh=${3:-$root/data/meshes/bunny.off}
+size=${4:-30}
+tag=${mat}_$(basename "$mesh" | cut -d. -f1)
 mkdir -p "$out"
-precompute() { "$bin/precompute/prt-precompute" "$mesh" --size-mm 30 --material "$mat" --force "$@"; }
+tsv=$out/$tag.tsv
+printf 'material\tkind\tname\tvalue\tenvironment\trel_rmse\tprecompute_s\n' > "$tsv"
+precompute() { "$bin/precompute/prt-precompute" "$mesh" --size-mm "$size" --material "$mat" --force "$@"; }
 
-precompute -o "$out/${mat}_default.prt" > "$out/${mat}_default.log"
+precompute -o "$out/${tag}_default.prt" > "$out/${tag}_default.log"
 for env in forest city; do
-    ref=$out/ref_${mat}_$env
-    [[ -f $ref.exr ]] || "$bin/tools/prt-reference" "$mesh" -t "$out/${mat}_default.prt" \
+    ref=$out/ref_${tag}_$env
+    [[ -f $ref.exr ]] || "$bin/tools/prt-reference" "$mesh" -t "$out/${tag}_default.prt" \
         -e "$root/data/envmaps/$env.exr" -W 256 -H 256 -o "$ref" > "$ref.log"
 done
 
-spacing=$(awk '/^samples  / {gsub(/[(),]/, ""); print $4}' "$out/${mat}_default.log")
-half=$(awk -v s="$spacing" 'BEGIN { printf "%.5f", s / 2 }')
-variants=(
-    "default|"
-    "k512|--coefficients 512"
-    "sample1024|--sample-coefficients 1024 --node-coefficients 1024"
-    "eps001|--epsilon 0.01"
-    "cube64|--cubemap-size 64"
-    "spacing_half|--sample-spacing $half"
-    "all1024|--coefficients 1024 --sample-coefficients 1024 --node-coefficients 1024"
+spacing=$(awk '/^samples  / {gsub(/[(),]/, ""); print $4}' "$out/${tag}_default.log")
+scaled() { awk -v s="$spacing" -v f="$1" 'BEGIN { printf "%.5f", s * f }'; }
+
+# kind|name|value|options
+runs=(
+    "budget|default|0|"
+    "budget|coefficients 512|512|--coefficients 512"
+    "budget|sample + node coefficients 1024|1024|--sample-coefficients 1024 --node-coefficients 1024"
+    "budget|epsilon 0.01|0.01|--epsilon 0.01"
+    "budget|cubemap 64|64|--cubemap-size 64"
+    "budget|half spacing|$(scaled 0.5)|--sample-spacing $(scaled 0.5)"
+    "budget|all truncations 1024|1024|--coefficients 1024 --sample-coefficients 1024 --node-coefficients 1024"
+    "coefficients|k 32|32|--coefficients 32"
+    "coefficients|k 64|64|--coefficients 64"
+    "coefficients|k 128|128|"
+    "coefficients|k 256|256|--coefficients 256"
+    "coefficients|k 512|512|--coefficients 512"
+    "density|spacing x2|$(scaled 2)|--sample-spacing $(scaled 2)"
+    "density|spacing x1|$spacing|"
+    "density|spacing x0.5|$(scaled 0.5)|--sample-spacing $(scaled 0.5)"
 )
-for v in "${variants[@]}"; do
-    name=${v%%|*}
-    read -r -a opts <<< "${v#*|}"
-    file=$out/${mat}_$name.prt
-    [[ $name == default ]] || precompute -o "$file" "${opts[@]}" > "$out/${mat}_$name.log"
-    total=$(awk '/^total/ {print $2, $3}' "$out/${mat}_$name.log")
+for r in "${runs[@]}"; do
+    IFS='|' read -r kind name value options <<< "$r"
+    read -r -a opts <<< "$options"
+    slug=$(echo "$name" | tr ' +.' '___')
+    file=$out/${tag}_$slug.prt
+    if [[ -z $options ]]; then
+        file=$out/${tag}_default.prt
+        log=$out/${tag}_default.log
+    else
+        log=$out/${tag}_$slug.log
+        [[ -f $file ]] || precompute -o "$file" "${opts[@]}" > "$log"
+    fi
+    seconds=$(awk '/^total/ { t = $2; if ($3 == "min") t = t * 60 + $4; print t }' "$log")
     for env in forest city; do
+        img=$out/r_${tag}_${slug}_$env
         "$bin/relight/prt-relight" render "$mesh" -t "$file" -e "$root/data/envmaps/$env.exr" \
-            -W 256 -H 256 -o "$out/r_${mat}_${name}_$env" > /dev/null
-        err=$("$bin/tools/prt-compare" "$out/r_${mat}_${name}_$env.exr" "$out/ref_${mat}_$env.exr" |
-              awk '/^overall/ {print $2}')
-        printf '%-8s %-14s %-7s rel RMSE %s  precompute %s\n' "$mat" "$name" "$env" "$err" "$total"
+            -W 256 -H 256 -o "$img" > /dev/null
+        err=$("$bin/tools/prt-compare" "$img.exr" "$out/ref_${tag}_$env.exr" | awk '/^overall/ {print $2}')
+        printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$mat" "$kind" "$name" "$value" "$env" "$err" "$seconds" >> "$tsv"
+        printf '%-10s %-13s %-36s %-7s rel RMSE %s  precompute %s s\n' "$mat" "$kind" "$name" "$env" "$err" "$seconds"
     done
 done
+echo "table: $tsv (plots: /usr/bin/python3 tools/plot_fidelity.py $tsv)"
