@@ -60,7 +60,16 @@ public:
             const float seen = float(ring) * cell;
             if (facing != UINT32_MAX && bestFacing <= seen * seen) return facing;
         }
-        return facing != UINT32_MAX ? facing : any;
+        if (facing != UINT32_MAX) return facing;
+        if (any != UINT32_MAX) return any;
+        // Nothing within kMaxRings cells: a part of the mesh too small to have received a
+        // sample of its own (a detached speck). Its area goes to the nearest sample.
+        for (uint32_t s = 0; s < positions_.size(); ++s) {
+            const glm::vec3 d = positions_[s] - p;
+            const float d2 = glm::dot(d, d);
+            if (d2 < bestAny) bestAny = d2, any = s;
+        }
+        return any;
     }
 
     static constexpr int kMaxRings = 4;

@@ -171,6 +171,22 @@ TEST(CellQuadrature, HierarchyMatchesTheBruteForceCellSum) {
     EXPECT_THROW(multipleScatteringTransport(wrong, vertices, m, exact, count, nullptr, nullptr, &q), Error);
 }
 
+// A detached speck far from every sample (too small to receive one) still belongs to a
+// cell: the nearest sample's, found by a full search beyond the grid's rings.
+TEST(CellQuadrature, DetachedSpeckJoinsTheNearestCell) {
+    SampledMesh s = makeSetup(makeIcosphere(3, 2.0f), 300);
+    TriangleMesh speck = makeIcosphere(0, 0.01f);
+    const uint32_t base = uint32_t(s.mesh.positions.size());
+    for (const glm::vec3& p : speck.positions) s.mesh.positions.push_back(p + glm::vec3(50.0f, 0.0f, 0.0f));
+    for (const glm::vec3& n : speck.normals) s.mesh.normals.push_back(n);
+    for (const glm::uvec3& t : speck.triangles) s.mesh.triangles.push_back(t + glm::uvec3(base));
+    const CellQuadrature q(s.mesh, s.positions, s.normals, s.spacing, materialByName("Marble"));
+    double sum = 0.0;
+    for (size_t i = 0; i < q.sampleCount(); ++i) sum += q.cellArea(i);
+    EXPECT_NEAR(sum / totalArea(s.mesh), 1.0, 1e-5);
+    EXPECT_GT(q.maxCellRadius(), 45.0f);  // the speck's sub-points joined a sphere sample's cell
+}
+
 TEST(CellQuadrature, RefusesBadInput) {
     const SampledMesh s = makeSetup(makeIcosphere(2, 1.0f), 100);
     const Material m = materialByName("Marble");
