@@ -3,6 +3,7 @@
 reference as a function of coefficients per vertex and of sample spacing.
 
 Usage: /usr/bin/python3 tools/plot_fidelity.py OUT/MATERIAL_MESH.tsv [...] --plots docs/images
+       /usr/bin/python3 tools/plot_fidelity.py OUT/*.tsv --table   (the budget table, markdown)
 
 Reads the TSV files (material, kind, name, value, environment, rel_rmse,
 precompute_s); rows of kind "coefficients" go to fidelity_coefficients.png, rows of
@@ -18,11 +19,38 @@ import sys
 from collections import defaultdict
 
 
+def print_budget_table(paths):
+    values, variants, materials = {}, [], []
+    for path in paths:
+        with open(path, newline="") as f:
+            for row in csv.DictReader(f, delimiter="\t"):
+                if row["kind"] != "budget":
+                    continue
+                if row["name"] not in variants:
+                    variants.append(row["name"])
+                if row["material"] not in materials:
+                    materials.append(row["material"])
+                values[(row["name"], row["material"], row["environment"])] = 100.0 * float(row["rel_rmse"])
+    print("| variant | " + " | ".join(f"{m} forest | {m} city" for m in materials) + " |")
+    print("|---|" + "---|---|" * len(materials))
+    for v in variants:
+        cells = []
+        for m in materials:
+            for env in ("forest", "city"):
+                x = values.get((v, m, env))
+                cells.append("" if x is None else f"{x:.2f}%")
+        print(f"| {v} | " + " | ".join(cells) + " |")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("tsv", nargs="+")
     parser.add_argument("--plots", default="docs/images")
+    parser.add_argument("--table", action="store_true", help="print the budget rows as a markdown table, no plots")
     args = parser.parse_args()
+    if args.table:
+        print_budget_table(args.tsv)
+        return
     try:
         import matplotlib
         matplotlib.use("Agg")
