@@ -289,24 +289,24 @@ void CellQuadrature::nearWeightOverPi(size_t i, const glm::vec3& xo, double w[3]
     double s0 = 0.0, s1 = 0.0, s2 = 0.0;
     const double limit = r2_ * r2_;
     for (uint32_t c = chunkOffset_[i]; c < chunkOffset_[i + 1]; ++c) {
-      const float reach = r2f_ + chunkRadius_[c];
-      const glm::vec3 dc = chunkCentre_[c] - xo;
-      if (glm::dot(dc, dc) >= reach * reach) continue;
-      const uint32_t first = subOffset_[i] + (c - chunkOffset_[i]) * kChunk;
-      const uint32_t last = std::min(first + kChunk, subOffset_[i + 1]);
-      for (uint32_t k = first; k < last; ++k) {
-        const glm::vec3 d = subPosition_[k] - xo;
-        const double d2 = double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z;
-        if (d2 >= limit) continue;
-        const double x = std::sqrt(d2) * inverseStep_;
-        const size_t e = std::min(size_t(x), lastInterval_);
-        const double f = x - double(e);
-        const double* p = nearTable_.data() + 3 * e;
-        const double a = subArea_[k];
-        s0 += a * (p[0] + f * (p[3] - p[0]));
-        s1 += a * (p[1] + f * (p[4] - p[1]));
-        s2 += a * (p[2] + f * (p[5] - p[2]));
-      }
+        const float reach = r2f_ + chunkRadius_[c];
+        const glm::vec3 dc = chunkCentre_[c] - xo;
+        if (glm::dot(dc, dc) >= reach * reach) continue;
+        const uint32_t first = subOffset_[i] + (c - chunkOffset_[i]) * kChunk;
+        const uint32_t last = std::min(first + kChunk, subOffset_[i + 1]);
+        for (uint32_t k = first; k < last; ++k) {
+            const glm::vec3 d = subPosition_[k] - xo;
+            const double d2 = double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z;
+            if (d2 >= limit) continue;
+            const double x = std::sqrt(d2) * inverseStep_;
+            const size_t e = std::min(size_t(x), lastInterval_);
+            const double f = x - double(e);
+            const double* p = nearTable_.data() + 3 * e;
+            const double a = subArea_[k];
+            s0 += a * (p[0] + f * (p[3] - p[0]));
+            s1 += a * (p[1] + f * (p[4] - p[1]));
+            s2 += a * (p[2] + f * (p[5] - p[2]));
+        }
     }
     w[0] = s0;
     w[1] = s1;

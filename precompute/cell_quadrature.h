@@ -11,7 +11,7 @@
 // first reciprocal vector sees R_d's spectrum at e^(-7.3 z_r / h)); the error is the
 // irregularity of a Poisson-disk set, so neither a per-sample area (Voronoi areas) nor
 // a per-sample filter (R_d averaged over a disk) repairs it: both were measured and
-// leave 1-9% (tests/test_sample_sum.cpp). What converges is a finer, structured
+// leave 1-9% per point (docs/fidelity.md). What converges is a finer, structured
 // quadrature of R_d near x_o, while E keeps its coarse samples:
 //
 //     T(x_o) = int R_d(|y - x_o|) E(y) dy,   E(y) = E_{nearest sample to y}
@@ -23,19 +23,23 @@
 // way (geometric normals at less than 120 degrees, as poissonDiskSamples treats thin
 // plates; the plain nearest sample when none does). A sample's cell area A_i is the sum
 // of its sub-points' areas (the areas of all cells add up to the mesh area exactly).
-// The sub-spacing s = kSubSpacingFraction / max_c(sigma_t' + sigma_tr) follows the
-// narrowest channel's kernel (the width that the reference's convergence rule uses).
+// The sub-spacing s = options.subSpacingFraction (0.25) / max_c(sigma_t' + sigma_tr)
+// follows the narrowest channel's kernel (the width the reference's convergence rule
+// uses). Within a cell the sub-points lie along a Morton curve in chunks of 16 with a
+// bounding sphere, so that a vertex visits only the chunks that reach its near field.
 //
 // THE SPLIT. R_d = R_d chi + R_d (1 - chi), chi(r) = 1 for r <= r1, 0 for r >= r2,
 // a C^2 quintic step between (r1 = h, r2 = 3 h, h the sample spacing; r2 at most 6
-// widths of the widest channel's kernel, r1 = r2 / 3 then). The NEAR part R_d chi is integrated with the sub-points (the sub-point rule
-// on a per-triangle regular grid is accurate for any kernel wider than s); the FAR part
+// widths of the widest channel's kernel, r1 = r2 / 3 then). The NEAR part R_d chi is
+// integrated with the sub-points (the sub-point rule on a per-triangle regular grid is
+// accurate for any kernel wider than s); the FAR part
 // R_d (1 - chi), zero near x_o and smooth at the scale of r1, with the point rule at
 // the samples and their cell areas. So
 //
 //     w_i(x_o) = sum_{y in cell_i} a_y R_d chi(|y - x_o|) + A_i R_d (1 - chi)(|x_i - x_o|),
 //
-// the first sum skipped when the cell lies beyond r2 (|x_i - x_o| - cellRadius_i >= r2).
+// the first sum skipped when the cell lies beyond r2 (|x_i - x_o| - cellRadius_i >= r2)
+// and, within it, every chunk that does.
 // The far kernel is what the hierarchy's nodes use (they are never within r2 of x_o:
 // multiple_scattering.h). Both kernels are tabulated (linear interpolation, relative
 // error < 1e-4 on [0, r2]; R_d itself beyond).
@@ -63,10 +67,11 @@ struct CellQuadratureOptions {
     // (r1 scaled with it): the near part is there to resolve R_d's peak, and a coarse
     // sample set would otherwise put most of the object's sub-points into every
     // vertex's near field (bunny, Marble, --samples 64, h = 3.9 mm: pass 2 took 3 min
-    // with r2 = 3 h, 47 s at 12 widths, 14 s at 6). At the default spacing r2 = 3 h is
+    // with r2 = 3 h, 47 s at 12 widths, 16 s at 6). At the default spacing r2 = 3 h is
     // below 6 widths for every measured material.
     double maxOuterRadiusWidths = 6.0;
-    // Refuse to build more sub-points than this (memory: 16 bytes each).
+    // Refuse to build more sub-points than this (16 bytes each once built, 36 while
+    // being built; the default is 2^26, about 2.4 GB at the peak).
     size_t maxSubPoints = size_t(1) << 26;
 };
 
