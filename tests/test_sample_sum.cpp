@@ -36,7 +36,7 @@
 #include "common/sampling.h"
 #include "common/shapes.h"
 #include "precompute/cell_quadrature.h"
-#include <memory>
+#include <optional>
 #include "tools/reference/reference.h"
 
 using namespace prt;
@@ -79,7 +79,14 @@ std::array<ChannelError, 3> sampleSumError(const Material& m, double h, Rule rul
     one.value.assign(positions.size(), glm::dvec3(1.0));
     one.variance.assign(positions.size(), glm::dvec3(0.0));
     const MultipleScatteringReference ms(m, positions, area, one);
-    std::unique_ptr<CellQuadrature> cells;
+    std::optional<CellQuadrature> cells;
+    if (rule == Rule::Cells) {
+        TriangleMesh mesh = u.sphere;
+        for (glm::vec3& p : mesh.positions) p *= float(k);
+        std::vector<glm::vec3> normals;
+        for (const SurfaceSample& s : u.samples.samples) normals.push_back(s.geometricNormal);
+        cells.emplace(mesh, positions, normals, h, m);
+    }
     std::array<ChannelError, 3> out;
     const int points = 32;
     for (int p = 0; p < points; ++p) {
@@ -87,14 +94,7 @@ std::array<ChannelError, 3> sampleSumError(const Material& m, double h, Rule rul
         glm::dvec3 sum(0.0);
         if (rule == Rule::Point) {
             sum = kPi * ms.diffuse(xo).value;
-        } else if (rule == Rule::Cells) {
-            if (!cells) {
-                TriangleMesh mesh = u.sphere;
-                for (glm::vec3& p : mesh.positions) p *= float(k);
-                std::vector<glm::vec3> normals;
-                for (const SurfaceSample& s : u.samples.samples) normals.push_back(s.geometricNormal);
-                cells = std::make_unique<CellQuadrature>(mesh, positions, normals, h, m);
-            }
+        } else {
             for (size_t i = 0; i < positions.size(); ++i) {
                 double w[3];
                 cells->sampleWeightOverPi(i, xo, w);
