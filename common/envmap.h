@@ -141,7 +141,9 @@ public:
 
     // Cubemap of face size n, one channel per lat-long channel, of `latlong` (width x
     // height, any channel count) turned by rotationY(rotationYDegrees): see above.
-    // Single-threaded. Throws prt::Error for an inconsistent or empty image, a size other
+    // Multithreaded over texels (the result does not depend on the thread count); for
+    // RGB the loop is AVX2 where the CPU has it (the same double sums, so the same
+    // cubemap up to the order of the final rounding). Throws prt::Error for an inconsistent or empty image, a size other
     // than the filter's, or a non-finite angle.
     Cubemap apply(const Image& latlong, double rotationYDegrees = 0.0) const;
 
@@ -156,11 +158,13 @@ public:
     // keeps the 4 most recently used filters (holders keep theirs alive).
     static std::shared_ptr<const LatLongCubemapFilter> shared(int width, int height, int n);
 
-private:
+    // One stored weight (public for apply's SIMD loop in envmap.cpp).
     struct Entry {
         std::uint16_t x, y;  // lat-long pixel at rotation identity
         float weight;        // its share of the texel's area (a texel's weights sum to 1)
     };
+
+private:
     int width_ = 0, height_ = 0, n_ = 0;
     std::vector<std::uint32_t> begin_;  // 6 n^2 + 1 offsets into entries_
     std::vector<Entry> entries_;
