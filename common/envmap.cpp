@@ -697,18 +697,6 @@ namespace {
 // for a 1024 x 512 map, so a task is ~50K entries).
 constexpr size_t kTexelGrain = 512;
 
-bool cpuHasAvx2Fma() {
-#if defined(__x86_64__) && defined(__GNUC__)
-    static const bool has = [] {
-        __builtin_cpu_init();
-        return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-    }();
-    return has;
-#else
-    return false;
-#endif
-}
-
 #if defined(__x86_64__) && defined(__GNUC__)
 // LatLongCubemapFilter::apply's RGB sums for texels [tBegin, tEnd): per entry, the
 // pixel's R, G, B (and one float beyond, multiplied into an ignored lane) widened to

@@ -14,6 +14,18 @@ std::string toLower(std::string s) {
     return s;
 }
 
+bool cpuHasAvx2Fma() {
+#if defined(__x86_64__) && defined(__GNUC__)
+    static const bool has = [] {
+        __builtin_cpu_init();
+        return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    }();
+    return has;
+#else
+    return false;
+#endif
+}
+
 std::string formatBytes(uint64_t bytes) {
     char buf[64];
     const double b = double(bytes);

@@ -1,6 +1,6 @@
 #pragma once
 // Small helpers that several modules need, in one place: the constant pi, ASCII
-// lowercasing, memory sizes (available memory, "41.2 GB"), and a wall-clock stopwatch
+// lowercasing, memory sizes (available memory, "41.2 GB"), the CPU's AVX2 + FMA support, and a wall-clock stopwatch
 // for the per-stage times the tools report.
 
 #include <chrono>
@@ -23,6 +23,10 @@ uint64_t availableMemoryBytes();
 
 // "41.2 GB", "830 MB", "12 kB" (decimal units).
 std::string formatBytes(uint64_t bytes);
+
+// Whether this CPU runs AVX2 + FMA code (x86-64-v3), for the kernels compiled with a
+// target attribute and chosen at run time; false on other architectures. Cached.
+bool cpuHasAvx2Fma();
 
 // Wall-clock time since construction or the last restart(), on the steady clock
 // (never goes backwards when the system clock is set), and the process's CPU time

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "common/error.h"
+#include "common/util.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -320,13 +321,6 @@ __attribute__((target("avx2,fma"))) bool relightRangeAvx2(const Stream& s, size_
     return true;
 }
 
-bool cpuHasAvx2Fma() {
-    static const bool has = [] {
-        __builtin_cpu_init();
-        return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-    }();
-    return has;
-}
 #endif
 
 using RangeFn = bool (*)(const Stream&, size_t, size_t, const float*, uint32_t, glm::vec3*,

@@ -1,6 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
+#include <sstream>
+#include <string>
 #include <thread>
 
 #include "common/util.h"
@@ -24,4 +27,21 @@ TEST(Util, StopwatchMeasuresElapsedTime) {
     EXPECT_NEAR(w.milliseconds(), 1e3 * w.seconds(), 5.0);
     w.restart();
     EXPECT_LT(w.seconds(), t);
+}
+
+TEST(Util, CpuAvx2FmaAgreesWithTheKernelsFlags) {
+    // On Linux x86-64 the kernel lists the CPU's features: AVX2 + FMA support must be
+    // reported exactly when both flags are there (the SIMD kernels rely on it).
+    std::ifstream in("/proc/cpuinfo");
+    std::string line;
+    while (std::getline(in, line) && line.rfind("flags", 0) != 0) {
+    }
+    if (line.empty()) GTEST_SKIP() << "no /proc/cpuinfo flags on this machine";
+    std::istringstream flags(line.substr(line.find(':') + 1));
+    bool avx2 = false, fma = false;
+    for (std::string f; flags >> f;) {
+        avx2 = avx2 || f == "avx2";
+        fma = fma || f == "fma";
+    }
+    EXPECT_EQ(prt::cpuHasAvx2Fma(), avx2 && fma);
 }
