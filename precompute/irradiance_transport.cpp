@@ -4,8 +4,12 @@
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstddef>
+#include <limits>
+#include <string>
 
 #include "common/bssrdf.h"
 #include "common/cubemap.h"
@@ -42,9 +46,102 @@ TexelDirections makeTexelDirections(int n, int s) {
     return d;
 }
 
+VisibilitySampling parseVisibilitySampling(const std::string& text) {
+    if (text == "every") return VisibilitySampling::Every;
+    if (text == "coherent") return VisibilitySampling::Coherent;
+    throw Error("--pass1-visibility", "expected every or coherent, got '" + text + "'");
+}
+
+const char* toString(VisibilitySampling mode) {
+    return mode == VisibilitySampling::Every ? "every" : "coherent";
+}
+
+namespace {
+
+// VisibilitySampling::Coherent for the m gathered rays of one sample (texel order, as
+// irradianceTransport gathers them): probes, then the texels that need all their rays.
+// Returns the rays traced; fills sc.occluded[0, m).
+uint64_t traceCoherent(const RayScene& scene, const glm::vec3& org, const TexelDirections& dirs,
+                       size_t m, IrradianceScratch& sc) {
+    const int n = dirs.size;
+    const size_t texels = size_t(kCubeFaces) * size_t(n) * size_t(n);
+    const uint32_t sub = uint32_t(dirs.subPerTexel());
+    sc.firstRay.assign(texels, 0);
+    sc.rayCount.assign(texels, 0);
+    for (size_t r = m; r-- > 0;) {
+        sc.firstRay[sc.texel[r]] = uint32_t(r);
+        ++sc.rayCount[sc.texel[r]];
+    }
+    const auto trace = [&](size_t count) {
+        sc.batchX.resize(count);
+        sc.batchY.resize(count);
+        sc.batchZ.resize(count);
+        sc.batchOccluded.resize(count);
+        for (size_t b = 0; b < count; ++b) {
+            sc.batchX[b] = sc.dirX[sc.batch[b]];
+            sc.batchY[b] = sc.dirY[sc.batch[b]];
+            sc.batchZ[b] = sc.dirZ[sc.batch[b]];
+        }
+        scene.occludedFromPoint(org, sc.batchX.data(), sc.batchY.data(), sc.batchZ.data(), count, 0.0f,
+                                std::numeric_limits<float>::infinity(), sc.batchOccluded.data());
+        for (size_t b = 0; b < count; ++b) sc.occluded[sc.batch[b]] = sc.batchOccluded[b];
+    };
+
+    // Texels in 4 x 4 tiles per face, so a 16-ray packet of probes spans a compact cone
+    // (rows of 16 texels made packets 4x wider than Every's, and Embree slower per ray).
+    thread_local std::vector<uint32_t> tileOrder;
+    if (tileOrder.size() != texels) {
+        tileOrder.clear();
+        const int tile = std::min(n, 4);
+        for (int f = 0; f < kCubeFaces; ++f)
+            for (int tj = 0; tj < n; tj += tile)
+                for (int ti = 0; ti < n; ti += tile)
+                    for (int j = tj; j < tj + tile; ++j)
+                        for (int i = ti; i < ti + tile; ++i)
+                            tileOrder.push_back(uint32_t((f * n + j) * n + i));
+    }
+
+    // Probes: the first ray of every texel that has one.
+    sc.batch.clear();
+    for (const uint32_t t : tileOrder)
+        if (sc.rayCount[t] > 0) sc.batch.push_back(sc.firstRay[t]);
+    const size_t probes = sc.batch.size();
+    trace(probes);
+    sc.probe.assign(texels, 0);
+    for (size_t t = 0; t < texels; ++t)
+        if (sc.rayCount[t] > 0) sc.probe[t] = sc.occluded[sc.firstRay[t]] ? 2 : 1;
+
+    // A texel is coherent when it is whole above the horizon and its 8 neighbours on the
+    // face exist (no face border) and carry the same probe value.
+    sc.batch.clear();
+    for (const uint32_t tt : tileOrder) {
+                const size_t t = tt;
+                const int i = int(t % size_t(n)), j = int(t / size_t(n) % size_t(n));
+                if (sc.rayCount[t] == 0) continue;
+                bool coherent = sc.rayCount[t] == sub && i > 0 && j > 0 && i + 1 < n && j + 1 < n;
+                for (int dj = -1; coherent && dj <= 1; ++dj)
+                    for (int di = -1; di <= 1; ++di)
+                        if (sc.probe[t + size_t(std::ptrdiff_t(dj) * n + di)] != sc.probe[t]) {
+                            coherent = false;
+                            break;
+                        }
+                const uint32_t first = sc.firstRay[t], end = first + sc.rayCount[t];
+                if (coherent) {
+                    for (uint32_t r = first + 1; r < end; ++r) sc.occluded[r] = sc.occluded[first];
+                } else {
+                    for (uint32_t r = first + 1; r < end; ++r) sc.batch.push_back(r);
+                }
+    }
+    const size_t refined = sc.batch.size();
+    trace(refined);
+    return probes + refined;
+}
+
+}  // namespace
+
 uint64_t irradianceTransport(const RayScene* scene, const SurfaceSample& sample,
                              const TexelDirections& dirs, double eta, float* out,
-                             IrradianceScratch& sc) {
+                             IrradianceScratch& sc, VisibilitySampling sampling) {
     const size_t texels = size_t(kCubeFaces) * dirs.size * dirs.size;
     const size_t sub = dirs.subPerTexel();
     const glm::vec3 n = sample.normal;
@@ -68,12 +165,18 @@ uint64_t irradianceTransport(const RayScene* scene, const SurfaceSample& sample,
         ++m;
     }
 
+    uint64_t traced = 0;
     if (scene && m > 0) {
         // All rays share one origin: offset it off the surface to the front side of
         // the triangle (the side the shading normal faces).
         const glm::vec3 org = scene->offsetRayOrigin(sample.position, sample.geometricNormal, n);
-        scene->occludedFromPoint(org, sc.dirX.data(), sc.dirY.data(), sc.dirZ.data(), m, 0.0f,
-                                 std::numeric_limits<float>::infinity(), sc.occluded.data());
+        if (sampling == VisibilitySampling::Coherent && sub > 1) {
+            traced = traceCoherent(*scene, org, dirs, m, sc);
+        } else {
+            scene->occludedFromPoint(org, sc.dirX.data(), sc.dirY.data(), sc.dirZ.data(), m, 0.0f,
+                                     std::numeric_limits<float>::infinity(), sc.occluded.data());
+            traced = m;
+        }
     } else {
         std::fill_n(sc.occluded.begin(), m, uint8_t(0));
     }
@@ -81,7 +184,7 @@ uint64_t irradianceTransport(const RayScene* scene, const SurfaceSample& sample,
     std::fill_n(out, texels, 0.0f);
     for (size_t r = 0; r < m; ++r)
         if (!sc.occluded[r]) out[sc.texel[r]] += sc.weight[r];
-    return scene ? m : 0;
+    return traced;
 }
 
 IrradianceResult computeIrradianceTransport(const RayScene* scene, const SampleSet& samples,
@@ -113,7 +216,7 @@ IrradianceResult computeIrradianceTransport(const RayScene* scene, const SampleS
         float* dense = st.scratch.dense.data();
         for (size_t i = r.begin(); i != r.end(); ++i) {
             st.rays += irradianceTransport(visScene, samples.samples[i], dirs, options.eta, dense,
-                                           st.scratch);
+                                           st.scratch, options.sampling);
             for (int f = 0; f < kCubeFaces; ++f) haarForwardFace(dense + size_t(f) * n * n, n);
             const double total = energy(dense, texels);
             result.vectors[i] = truncateLargest(dense, texels, 1, options.keepCoefficients);

@@ -142,6 +142,7 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
         {"components", toString(s.components)},
         {"cubemap_size", std::to_string(s.cubemapSize)},
         {"supersample", std::to_string(s.supersample)},
+        {"pass1_visibility", toString(s.pass1Visibility)},
         {"sample_coefficients", std::to_string(s.sampleCoefficients)},
         {"node_coefficients", std::to_string(s.nodeCoefficients)},
         {"coefficients", std::to_string(s.vertexCoefficients)},
@@ -391,6 +392,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             IrradianceOptions irradiance;
             irradiance.cubemapSize = settings.cubemapSize;
             irradiance.supersample = settings.supersample;
+            irradiance.sampling = settings.pass1Visibility;
             irradiance.keepCoefficients = settings.sampleCoefficients;
             irradiance.eta = settings.material.eta;
             Progress p("pass 1 (irradiance transport)" + share, mine.samples.size(), "samples");

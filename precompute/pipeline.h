@@ -25,6 +25,7 @@
 #include "common/transport_file.h"
 #include "common/transport_params.h"
 #include "precompute/distribution.h"
+#include "precompute/irradiance_transport.h"
 
 namespace prt {
 
@@ -35,6 +36,7 @@ struct PrecomputeSettings {
     Material material;            // with eta and g
     int cubemapSize = 32;         // N of the 6 x N x N lighting cubemap (<= 64)
     int supersample = 2;          // s x s stratified sub-directions per texel
+    VisibilitySampling pass1Visibility = VisibilitySampling::Every;  // how pass 1 traces them
     size_t sampleCoefficients = 128;  // Haar terms kept per sample (pass 1)
     size_t nodeCoefficients = 256;    // per kd-tree node (pass 2)
     size_t vertexCoefficients = 128;  // per vertex in the file

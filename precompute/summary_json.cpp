@@ -41,6 +41,7 @@ Json settingsJson(const PrecomputeSettings& s) {
     j["components"] = toString(s.components);
     j["cubemap_size"] = s.cubemapSize;
     j["supersample"] = s.supersample;
+    j["pass1_visibility"] = toString(s.pass1Visibility);
     j["sample_coefficients"] = s.sampleCoefficients;
     j["node_coefficients"] = s.nodeCoefficients;
     j["coefficients"] = s.vertexCoefficients;

@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <vector>
 #include <cstdio>
 
 #include "common/bssrdf.h"
@@ -97,10 +99,38 @@ int main(int argc, char** argv) {
         options.cubemapSize = cubemapSize;
         options.supersample = supersample;
         options.eta = materialByName(material).eta;
-        // Warm-up, then the measured pass 1 (everything: rays, Fresnel, Haar, truncation).
-        computeIrradianceTransport(&scene, SampleSet{{samples.samples.begin(), samples.samples.begin() + std::min<size_t>(64, count)}, 0, 0, 0}, options);
-        IrradianceResult pass1 = computeIrradianceTransport(&scene, samples, options);
+        // Warm-up, then the measured pass 1 (everything: rays, Fresnel, Haar, truncation),
+        // once tracing every sub-direction and once with coherent visibility.
+        const auto runPass1 = [&](VisibilitySampling sampling) {
+            options.sampling = sampling;
+            computeIrradianceTransport(&scene, SampleSet{{samples.samples.begin(), samples.samples.begin() + std::min<size_t>(64, count)}, 0, 0, 0}, options);
+            return computeIrradianceTransport(&scene, samples, options);
+        };
+        const IrradianceResult pass1 = runPass1(VisibilitySampling::Every);
+        const IrradianceResult coherent = runPass1(VisibilitySampling::Coherent);
         const double achieved = pass1.raysTraced / pass1.seconds;
+        // What coherent visibility delivers, counted as the rays it stands for (every
+        // sub-direction above the horizon) per second.
+        const double effective = pass1.raysTraced / coherent.seconds;
+        double change2 = 0.0, total2 = 0.0, worst = 0.0;
+        {
+            const size_t texels = size_t(6) * cubemapSize * cubemapSize;
+            std::vector<float> a(texels), b(texels);
+            for (size_t i = 0; i < count; ++i) {
+                std::fill(a.begin(), a.end(), 0.0f);
+                std::fill(b.begin(), b.end(), 0.0f);
+                addTo(pass1.vectors[i], 1.0f, a.data());
+                addTo(coherent.vectors[i], 1.0f, b.data());
+                double d2 = 0.0, n2 = 0.0;
+                for (size_t t = 0; t < texels; ++t) {
+                    d2 += double(a[t] - b[t]) * (a[t] - b[t]);
+                    n2 += double(a[t]) * a[t];
+                }
+                change2 += d2;
+                total2 += n2;
+                if (n2 > 0) worst = std::max(worst, std::sqrt(d2 / n2));
+            }
+        }
 
         uint64_t rays16 = 0, rays1 = 0;
         const double packet = rawRate(scene, samples, dirs, OcclusionKernel::Auto, rays16);
@@ -109,13 +139,20 @@ int main(int argc, char** argv) {
         std::printf("mesh               %s (%zu triangles, %.0f mm)\n", meshPath.c_str(), mesh.triangleCount(), sizeMm);
         std::printf("samples            %zu, cubemap 6x%dx%d, %dx%d sub-directions\n", count, cubemapSize,
                     cubemapSize, supersample, supersample);
-        std::printf("rays               %llu (pass 1) / %llu (raw)\n", (unsigned long long)pass1.raysTraced,
-                    (unsigned long long)rays16);
-        std::printf("pass 1             %.3g rays/s (%.2f s)\n", achieved, pass1.seconds);
+        std::printf("rays               %llu (pass 1, every) / %llu (raw) / %llu (pass 1, coherent: %.1f%%)\n",
+                    (unsigned long long)pass1.raysTraced, (unsigned long long)rays16,
+                    (unsigned long long)coherent.raysTraced, 100.0 * double(coherent.raysTraced) / double(pass1.raysTraced));
+        std::printf("pass 1, every      %.3g rays/s (%.2f s)\n", achieved, pass1.seconds);
+        std::printf("pass 1, coherent   %.2f s: %.3g rays/s traced, %.3g effective (every's rays / its time)\n",
+                    coherent.seconds, coherent.raysTraced / coherent.seconds, effective);
         std::printf("raw Embree packet  %.3g rays/s (%s, coherent)\n", packet, toString(defaultOcclusionKernel()));
         std::printf("raw Embree single  %.3g rays/s (rtcOccluded1)\n", single);
         std::printf("ratio              %.3f pass 1 / raw packet, %.3f pass 1 / raw single\n", achieved / packet,
                     achieved / single);
+        std::printf("ratio, coherent    %.3f effective / raw packet (%.2fx every's time)\n", effective / packet,
+                    pass1.seconds / coherent.seconds);
+        std::printf("coherent vs every  truncated sample vectors: relative L2 change %.2e over all samples, "
+                    "worst sample %.2e\n", std::sqrt(change2 / std::max(total2, 1e-300)), worst);
         return 0;
     });
 }
