@@ -248,6 +248,7 @@ private:
 
     // Frame timing.
     double fps_ = 0.0, frameMs_ = 0.0;
+    double relightRate_ = 0.0;  // completed relights per second over the last window
     RunningStats stillFrames_, busyFrames_;
 };
 
@@ -916,8 +917,8 @@ void Viewer::drawPanel() {
         ImGui::Text("relight %.0f ms = light %.0f + kernel %.1f + upload %.1f",
                     front_.lightMs + front_.relightMs + lastUploadMs_, front_.lightMs, front_.relightMs,
                     lastUploadMs_);
-    ImGui::Text("%zu relights, mean %.0f ms%s", relightStats_.count, relightStats_.mean(),
-                worker_->busy() ? ", relighting..." : "");
+    ImGui::Text("%zu relights (%.0f per second completed), mean %.0f ms%s", relightStats_.count,
+                relightRate_, relightStats_.mean(), worker_->busy() ? ", relighting..." : "");
     ImGui::TextDisabled("%zu vertices, %zu triangles, %s", mesh.vertexCount(), mesh.triangleCount(),
                         glRenderer_.substr(0, glRenderer_.find(' ')).c_str());
 
@@ -1024,10 +1025,11 @@ void Viewer::printSummary(double seconds) const {
         std::printf("; while relighting: %zu frames, %.1f fps", busyFrames_.count, 1000.0 / busyFrames_.mean());
     std::printf("\n");
     if (relightStats_.count)
-        std::printf("relights: %zu, mean %.1f ms (light vector %.1f + kernel %.1f + upload %.1f), min %.1f, "
-                    "max %.1f ms\n",
-                    relightStats_.count, relightStats_.mean(), lightStats_.mean(), kernelStats_.mean(),
-                    uploadStats_.mean(), relightStats_.min, relightStats_.max);
+        std::printf("relights: %zu completed (%.1f per second), mean %.1f ms (light vector %.1f + kernel %.1f + "
+                    "upload %.1f), min %.1f, max %.1f ms\n",
+                    relightStats_.count, seconds > 0.0 ? double(relightStats_.count) / seconds : 0.0,
+                    relightStats_.mean(), lightStats_.mean(), kernelStats_.mean(), uploadStats_.mean(),
+                    relightStats_.min, relightStats_.max);
     if (pointStats_.count)
         std::printf("point-light updates: %zu, mean %.1f ms (irradiance map, shadow maps, draws and per-vertex sums; "
                     "last: %.1f ms, N = %d, %s), min %.1f, max %.1f ms\n",
@@ -1071,6 +1073,7 @@ int Viewer::run() {
     auto previousFrame = start;
     double fpsWindowStart = 0.0;
     int fpsWindowFrames = 0;
+    size_t fpsWindowRelights = 0;  // relightStats_.count at the window's start
 
     while (!glfwWindowShouldClose(window_)) {
         glfwPollEvents();
@@ -1216,6 +1219,8 @@ int Viewer::run() {
         if (t - fpsWindowStart >= 0.5) {
             fps_ = fpsWindowFrames / (t - fpsWindowStart);
             frameMs_ = 1000.0 * (t - fpsWindowStart) / fpsWindowFrames;
+            relightRate_ = double(relightStats_.count - fpsWindowRelights) / (t - fpsWindowStart);
+            fpsWindowRelights = relightStats_.count;
             fpsWindowStart = t;
             fpsWindowFrames = 0;
         }
