@@ -128,6 +128,12 @@ struct SingleScatteringOptions {
     // L2 change of a vertex's dense transport <= 3e-5 (docs/single-scattering.md).
     double minThroughput = 1e-4;
     bool visibility = true;        // false: V = 1 (no occlusion rays; tests, ablations)
+    // Trace the exit and occlusion rays as COHERENT 16-ray packets (Embree's
+    // RTC_INTERSECT_CONTEXT_FLAG_COHERENT) on the context's own copy of the scene; each
+    // packet holds one direction from 16 neighbouring points, which is what that flag is
+    // for. false: RayScene::intersectBatch / occludedBatch (incoherent packets). Same
+    // hits; ~1.8x the exit-ray rate (docs/single-scattering.md).
+    bool coherentRays = true;
 };
 
 // Everything the kernel needs that does not depend on the vertex, prepared once.
@@ -135,6 +141,9 @@ struct SingleScatteringOptions {
 // mesh.triangles) and both must outlive the context.
 class SingleScatteringContext {
 public:
+    SingleScatteringContext(const SingleScatteringContext&) = delete;
+    SingleScatteringContext& operator=(const SingleScatteringContext&) = delete;
+    ~SingleScatteringContext();
     // phase == nullptr: isotropic (requires material.g == 0); otherwise its K light
     // maps are used and phase->g must equal material.g. Throws prt::Error on a bad
     // option, a mesh without per-vertex normals or a phase/material mismatch.
@@ -179,6 +188,15 @@ public:
     const TriangleMesh& mesh() const { return *mesh_; }
     const Material& material() const { return material_; }
 
+    // coherentRays: hits[i] = the closest hit of ray (org[i], dir[i]) for t in [0, inf)
+    // (as RayScene::intersectBatch), occluded[i] = whether it hits anything (as
+    // RayScene::occludedBatch), in coherent packets of the context's own Embree scene.
+    // The rays of one packet should share a direction.
+    void intersectCoherent(const float* orgX, const float* orgY, const float* orgZ, const float* dirX,
+                           const float* dirY, const float* dirZ, size_t count, Hit* hits) const;
+    void occludedCoherent(const float* orgX, const float* orgY, const float* orgZ, const float* dirX,
+                          const float* dirY, const float* dirZ, size_t count, uint8_t* occluded) const;
+
 private:
     const RayScene* scene_;
     const TriangleMesh* mesh_;
@@ -194,6 +212,12 @@ private:
     double depthCap_ = 0.0;
     static constexpr int kFresnelTableSize = 4096;
     std::vector<float> fresnelTable_;
+    // coherentRays: the context's own Embree scene of the mesh (same build settings as
+    // the pipeline's single-scattering RayScene: high quality, not robust) and the unit
+    // geometric normals of its triangles (as RayScene's).
+    RTCSceneTy* coherentScene_ = nullptr;
+    void buildCoherentScene();
+    std::vector<glm::vec3> faceNormals_;
 };
 
 // Counters of one or many vertices.

@@ -609,6 +609,56 @@ TEST(SingleScattering, RobustToInconsistentOrientation) {
     }
 }
 
+TEST(SingleScattering, CoherentPacketsTraceTheSameRays) {
+    // coherentRays (the default) traces the exit and occlusion rays in coherent packets
+    // on the context's own Embree scene (robust traversal); the hits, hence the
+    // transport, must be those of a robust RayScene's incoherent batches. A torus (concave: exits through the far side of the
+    // ring, self-occlusion) with a sphere floating over it (occluders), Marble, every
+    // vertex of the torus; the per-vertex dense vectors agree to float rounding and
+    // the ray counts (which depend on every exit and cut-off decision) are equal.
+    const Material m = materialByName("Marble");
+    const TriangleMesh torus = makeTorus(6.0f, 2.5f, 24, 12);
+    const TriangleMesh scene = merge(torus, translated(makeIcosphere(2, 2.0f), {0, 6, 0}));
+    const RayScene rays(scene, RaySceneOptions{RayBuildQuality::High, true});
+    SingleScatteringOptions o;
+    o.cubemapSize = 8;
+    o.coherentRays = true;
+    const SingleScatteringContext coherent(rays, scene, m, nullptr, o);
+    o.coherentRays = false;
+    const SingleScatteringContext incoherent(rays, scene, m, nullptr, o);
+    SingleScatteringStats sa, sb;
+    double worst = 0.0, total = 0.0;
+    for (size_t v = 0; v < torus.positions.size(); v += 3) {
+        SingleScatteringStats a1, b1;
+        const std::vector<float> a = denseAt(coherent, v, &a1), b = denseAt(incoherent, v, &b1);
+        sa.add(a1);
+        sb.add(b1);
+        double d2 = 0.0, r2 = 0.0;
+        for (size_t k = 0; k < a.size(); ++k) {
+            d2 += double(a[k] - b[k]) * (a[k] - b[k]);
+            r2 += double(b[k]) * b[k];
+        }
+        ASSERT_GT(r2, 0.0);
+        worst = std::max(worst, std::sqrt(d2 / r2));
+        total += r2;
+    }
+    EXPECT_LT(worst, 1e-5);
+    EXPECT_EQ(sa.exitRays, sb.exitRays);
+    EXPECT_EQ(sa.occlusionRays, sb.occlusionRays);
+    EXPECT_EQ(sa.culledRays, sb.culledRays);
+    EXPECT_EQ(sa.escapedRays, sb.escapedRays);
+    EXPECT_GT(sa.occlusionRays, 0u);
+    // The sphere does shadow the torus: without visibility the transport is larger.
+    o.coherentRays = true;
+    o.visibility = false;
+    const SingleScatteringContext noVis(rays, scene, m, nullptr, o);
+    const size_t top = findVertex(torus, {0, 2.5f, 6.0f}, {0, 1, 0});
+    const std::vector<float> lit = denseAt(noVis, top), shadowed = denseAt(coherent, top);
+    double sumLit = 0, sumShadowed = 0;
+    for (size_t k = 0; k < lit.size(); ++k) sumLit += lit[k], sumShadowed += shadowed[k];
+    EXPECT_LT(sumShadowed, 0.99 * sumLit);
+}
+
 TEST(SingleScattering, ResultDoesNotDependOnTheThreadCount) {
     const Material m = materialByName("Ketchup");
     const TriangleMesh sphere = makeIcosphere(2, 5.0f);
