@@ -69,7 +69,10 @@ def main():
 
     pass1_ratio_packet = grab(r"^ratio\s+([0-9.]+) pass 1 / raw packet")
     pass1_ratio_single = grab(r"pass 1 / raw packet, ([0-9.]+) pass 1 / raw single")
-    pass1_rate = grab(r"^pass 1\s+([0-9.e+]+) rays/s")
+    pass1_rate = grab(r"^pass 1(?:, every)?\s+([0-9.e+]+) rays/s")
+    pass1_coherent_ratio = grab(r"^ratio, coherent\s+([0-9.]+) effective / raw packet")
+    pass1_coherent_speedup = grab(r"^ratio, coherent .*\(([0-9.]+)x every's time\)")
+    pass1_coherent_change = grab(r"^coherent vs every .*relative L2 change ([0-9.e+-]+) over all samples")
     packet_rate = grab(r"^raw Embree packet\s+([0-9.e+]+) rays/s")
     m = re.search(r"^samples\s+(\d+), cubemap (\S+), (\S+) sub-directions", pass1_log, re.M)
     pass1_setup = f"{int(m.group(1)):,} samples, {m.group(2)}, {m.group(3)}" if m else ""
@@ -115,6 +118,11 @@ def main():
     row("pass 1 / raw single-ray Embree (rtcOccluded1) on the same rays",
         f"{pass1_ratio_single:.3f}" if pass1_ratio_single is not None else "n/a", "", "pass1")
     row("pass 1 rays/s (raw packet rays/s)", f"{sci(pass1_rate)} ({sci(packet_rate)})", "", "pass1")
+    if pass1_coherent_ratio is not None:
+        row("pass 1 with --pass1-visibility coherent: every's rays per second of its time / raw packet rays/s; "
+            "speed-up; change of the sample vectors (relative L2)",
+            f"{pass1_coherent_ratio:.3f}; {pass1_coherent_speedup:.2f}x; {pass1_coherent_change:.2e}",
+            "> 1 by tracing fewer rays", "pass1")
 
     v = s["vertices"]
     mesh = os.path.basename(pre["settings"]["mesh"])
