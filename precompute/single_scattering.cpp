@@ -258,6 +258,10 @@ SingleScatteringContext::~SingleScatteringContext() {
 void SingleScatteringContext::intersectCoherent(const float* ox, const float* oy, const float* oz,
                                                 const float* dx, const float* dy, const float* dz,
                                                 size_t count, Hit* out) const {
+    if (!coherentScene_) {
+        scene_->intersectBatch(ox, oy, oz, dx, dy, dz, count, 0.0f, std::numeric_limits<float>::infinity(), out);
+        return;
+    }
     RTCIntersectContext c;
     rtcInitIntersectContext(&c);
     c.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
@@ -304,6 +308,10 @@ void SingleScatteringContext::intersectCoherent(const float* ox, const float* oy
 void SingleScatteringContext::occludedCoherent(const float* ox, const float* oy, const float* oz,
                                                const float* dx, const float* dy, const float* dz,
                                                size_t count, uint8_t* out) const {
+    if (!coherentScene_) {
+        scene_->occludedBatch(ox, oy, oz, dx, dy, dz, count, 0.0f, std::numeric_limits<float>::infinity(), out);
+        return;
+    }
     RTCIntersectContext c;
     rtcInitIntersectContext(&c);
     c.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
@@ -377,7 +385,6 @@ namespace {
 size_t traceExits(const SingleScatteringContext& ctx, const glm::vec3& position,
                   const glm::vec3& inward, double dm, SingleScatteringScratch& sc,
                   SingleScatteringStats& stats) {
-    const RayScene& scene = ctx.scene();
     const Material& mat = ctx.material();
     const SingleScatteringContext::Directions& dirs = ctx.tracedDirections();
     const glm::vec3 sigmaT(mat.sigmaT());
@@ -415,13 +422,8 @@ size_t traceExits(const SingleScatteringContext& ctx, const glm::vec3& position,
             sc.dirY[q] = dirs.y[r];
             sc.dirZ[q] = dirs.z[r];
         }
-    if (ctx.options().coherentRays)
-        ctx.intersectCoherent(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
-                              sc.dirY.data(), sc.dirZ.data(), total, sc.hits.data());
-    else
-        scene.intersectBatch(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
-                             sc.dirY.data(), sc.dirZ.data(), total, 0.0f,
-                             std::numeric_limits<float>::infinity(), sc.hits.data());
+    ctx.intersectCoherent(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
+                          sc.dirY.data(), sc.dirZ.data(), total, sc.hits.data());
     stats.exitRays += total;
 
     // Votes: back faces for, misses against.
@@ -570,13 +572,8 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
 
     // V: does anything block the light before it reaches x_i?
     if (opt.visibility) {
-        if (opt.coherentRays)
-            ctx.occludedCoherent(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
-                                 sc.dirY.data(), sc.dirZ.data(), m, sc.occluded.data());
-        else
-            scene.occludedBatch(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
-                                sc.dirY.data(), sc.dirZ.data(), m, 0.0f,
-                                std::numeric_limits<float>::infinity(), sc.occluded.data());
+        ctx.occludedCoherent(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
+                             sc.dirY.data(), sc.dirZ.data(), m, sc.occluded.data());
         stats.occlusionRays += m;
     } else {
         std::fill_n(sc.occluded.begin(), m, uint8_t(0));
