@@ -232,9 +232,9 @@ void occludedFromPointPackets(RTCScene scene, bool coherent, const glm::vec3& or
 template <int N>
 void occludedBatchPackets(RTCScene scene, const float* ox, const float* oy, const float* oz,
                           const float* dx, const float* dy, const float* dz, size_t count,
-                          float tnear, float tfar, uint8_t* out) {
+                          float tnear, float tfar, uint8_t* out, bool coherent) {
     using P = Packet<N>;
-    RTCIntersectContext ctx = makeContext(false);
+    RTCIntersectContext ctx = makeContext(coherent);
     alignas(64) typename P::Ray ray;
     alignas(64) int valid[N];
     for (int k = 0; k < N; ++k) initLane(ray, k, tnear);
@@ -601,7 +601,7 @@ void RayScene::occludedFromPointWith(OcclusionKernel kernel, bool coherent, cons
 void RayScene::occludedBatch(const float* orgX, const float* orgY, const float* orgZ,
                              const float* dirX, const float* dirY, const float* dirZ,
                              size_t count, float tnear, float tfar,
-                             uint8_t* occludedOut) const {
+                             uint8_t* occludedOut, bool coherent) const {
     tnear = std::max(tnear, 0.0f);
     if (inactive(tnear, tfar)) {
         std::fill(occludedOut, occludedOut + count, uint8_t(0));
@@ -611,15 +611,15 @@ void RayScene::occludedBatch(const float* orgX, const float* orgY, const float* 
     switch (defaultOcclusionKernel()) {
         case OcclusionKernel::Packet16:
             occludedBatchPackets<16>(scene, orgX, orgY, orgZ, dirX, dirY, dirZ, count, tnear,
-                                     tfar, occludedOut);
+                                     tfar, occludedOut, coherent);
             return;
         case OcclusionKernel::Packet8:
             occludedBatchPackets<8>(scene, orgX, orgY, orgZ, dirX, dirY, dirZ, count, tnear,
-                                    tfar, occludedOut);
+                                     tfar, occludedOut, coherent);
             return;
         case OcclusionKernel::Packet4:
             occludedBatchPackets<4>(scene, orgX, orgY, orgZ, dirX, dirY, dirZ, count, tnear,
-                                    tfar, occludedOut);
+                                     tfar, occludedOut, coherent);
             return;
         default:
             for (size_t i = 0; i < count; ++i)
@@ -636,9 +636,9 @@ namespace {
 template <int N, typename FillHit>
 void intersectBatchPackets(RTCScene scene, const float* ox, const float* oy, const float* oz,
                            const float* dx, const float* dy, const float* dz, size_t count,
-                           float tnear, float tfar, Hit* out, const FillHit& fill) {
+                           float tnear, float tfar, Hit* out, const FillHit& fill, bool coherent) {
     using P = Packet<N>;
-    RTCIntersectContext ctx = makeContext(false);
+    RTCIntersectContext ctx = makeContext(coherent);
     alignas(64) typename P::RayHit rh;
     alignas(64) int valid[N];
     for (int k = 0; k < N; ++k) initLane(rh.ray, k, tnear);
@@ -672,7 +672,8 @@ void intersectBatchPackets(RTCScene scene, const float* ox, const float* oy, con
 
 void RayScene::intersectBatch(const float* orgX, const float* orgY, const float* orgZ,
                               const float* dirX, const float* dirY, const float* dirZ,
-                              size_t count, float tnear, float tfar, Hit* hitsOut) const {
+                              size_t count, float tnear, float tfar, Hit* hitsOut,
+                              bool coherent) const {
     tnear = std::max(tnear, 0.0f);
     if (inactive(tnear, tfar)) {
         std::fill(hitsOut, hitsOut + count, Hit{});
@@ -685,15 +686,15 @@ void RayScene::intersectBatch(const float* orgX, const float* orgY, const float*
     switch (defaultOcclusionKernel()) {
         case OcclusionKernel::Packet16:
             intersectBatchPackets<16>(scene, orgX, orgY, orgZ, dirX, dirY, dirZ, count, tnear,
-                                      tfar, hitsOut, fill);
+                                      tfar, hitsOut, fill, coherent);
             return;
         case OcclusionKernel::Packet8:
             intersectBatchPackets<8>(scene, orgX, orgY, orgZ, dirX, dirY, dirZ, count, tnear,
-                                     tfar, hitsOut, fill);
+                                      tfar, hitsOut, fill, coherent);
             return;
         case OcclusionKernel::Packet4:
             intersectBatchPackets<4>(scene, orgX, orgY, orgZ, dirX, dirY, dirZ, count, tnear,
-                                     tfar, hitsOut, fill);
+                                      tfar, hitsOut, fill, coherent);
             return;
         default:
             for (size_t i = 0; i < count; ++i)

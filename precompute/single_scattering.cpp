@@ -4,8 +4,6 @@
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 
-#include <embree3/rtcore.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -187,159 +185,20 @@ SingleScatteringContext::SingleScatteringContext(const RayScene& scene, const Tr
     fresnelTable_[kFresnelTableSize + 1] = fresnelTable_[kFresnelTableSize];
     sigma_ = samplingExtinction(material_);
     depthCap_ = options.depthCapMeanFreePaths / sigma_;
-    if (options.coherentRays) buildCoherentScene();
-}
-
-namespace {
-
-// The process-wide Embree device of the coherent single-scattering rays (created on
-// first use, never released, like RayScene's).
-RTCDevice coherentDevice() {
-    static RTCDevice device = [] {
-        RTCDevice d = rtcNewDevice(nullptr);
-        if (!d) throw Error("single scattering", "cannot create an Embree device");
-        if (rtcGetDeviceProperty(d, RTC_DEVICE_PROPERTY_BACKFACE_CULLING_ENABLED))
-            throw Error("single scattering", "Embree was built with back-face culling");
-        return d;
-    }();
-    return device;
-}
-
-}  // namespace
-
-void SingleScatteringContext::buildCoherentScene() {
-    const TriangleMesh& mesh = *mesh_;
-    RTCDevice dev = coherentDevice();
-    RTCScene scene = rtcNewScene(dev);
-    RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                           3 * sizeof(float), mesh.positions.size()));
-    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                              3 * sizeof(unsigned), mesh.triangles.size()));
-    if (!vb || !ib) {
-        rtcReleaseGeometry(geom);
-        rtcReleaseScene(scene);
-        throw Error("single scattering", "Embree could not allocate the scene's buffers");
-    }
-    for (size_t i = 0; i < mesh.positions.size(); ++i) {
-        vb[3 * i] = mesh.positions[i].x;
-        vb[3 * i + 1] = mesh.positions[i].y;
-        vb[3 * i + 2] = mesh.positions[i].z;
-    }
-    faceNormals_.resize(mesh.triangles.size());
-    for (size_t t = 0; t < mesh.triangles.size(); ++t) {
-        const glm::uvec3& tri = mesh.triangles[t];
-        ib[3 * t] = tri.x;
-        ib[3 * t + 1] = tri.y;
-        ib[3 * t + 2] = tri.z;
-        const glm::dvec3 p0(mesh.positions[tri.x]), p1(mesh.positions[tri.y]), p2(mesh.positions[tri.z]);
-        const glm::dvec3 c = glm::cross(p1 - p0, p2 - p0);
-        const double len = glm::length(c);
-        faceNormals_[t] = len > 0.0 ? glm::vec3(c / len) : glm::vec3(0.0f);
-    }
-    rtcSetGeometryBuildQuality(geom, RTC_BUILD_QUALITY_HIGH);
-    rtcCommitGeometry(geom);
-    rtcAttachGeometry(scene, geom);
-    rtcReleaseGeometry(geom);
-    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
-    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
-    rtcCommitScene(scene);
-    if (rtcGetDeviceError(dev) != RTC_ERROR_NONE) {
-        rtcReleaseScene(scene);
-        throw Error("single scattering", "Embree failed to build the scene");
-    }
-    coherentScene_ = scene;
-}
-
-SingleScatteringContext::~SingleScatteringContext() {
-    if (coherentScene_) rtcReleaseScene(coherentScene_);
 }
 
 void SingleScatteringContext::intersectCoherent(const float* ox, const float* oy, const float* oz,
                                                 const float* dx, const float* dy, const float* dz,
                                                 size_t count, Hit* out) const {
-    if (!coherentScene_) {
-        scene_->intersectBatch(ox, oy, oz, dx, dy, dz, count, 0.0f, std::numeric_limits<float>::infinity(), out);
-        return;
-    }
-    RTCIntersectContext c;
-    rtcInitIntersectContext(&c);
-    c.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    alignas(64) RTCRayHit16 rh;
-    alignas(64) int valid[16];
-    for (int k = 0; k < 16; ++k) {
-        rh.ray.tnear[k] = 0.0f;
-        rh.ray.time[k] = 0.0f;
-        rh.ray.mask[k] = 0xffffffffu;
-        rh.ray.id[k] = unsigned(k);
-        rh.ray.flags[k] = 0u;
-    }
-    for (size_t base = 0; base < count; base += 16) {
-        const int n = int(std::min<size_t>(16, count - base));
-        for (int k = 0; k < 16; ++k) {
-            const size_t i = base + size_t(std::min(k, n - 1));
-            rh.ray.org_x[k] = ox[i];
-            rh.ray.org_y[k] = oy[i];
-            rh.ray.org_z[k] = oz[i];
-            rh.ray.dir_x[k] = dx[i];
-            rh.ray.dir_y[k] = dy[i];
-            rh.ray.dir_z[k] = dz[i];
-            rh.ray.tfar[k] = std::numeric_limits<float>::infinity();
-            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
-            rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
-            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
-            valid[k] = k < n ? -1 : 0;
-        }
-        rtcIntersect16(valid, coherentScene_, &c, &rh);
-        for (int k = 0; k < n; ++k) {
-            Hit& h = out[base + size_t(k)];
-            h = Hit{};
-            if (rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID) continue;
-            h.hit = true;
-            h.t = rh.ray.tfar[k];
-            h.triangle = rh.hit.primID[k];
-            h.u = rh.hit.u[k];
-            h.v = rh.hit.v[k];
-            h.geometricNormal = faceNormals_[h.triangle];
-        }
-    }
+    scene_->intersectBatch(ox, oy, oz, dx, dy, dz, count, 0.0f, std::numeric_limits<float>::infinity(), out,
+                           options_.coherentRays);
 }
 
 void SingleScatteringContext::occludedCoherent(const float* ox, const float* oy, const float* oz,
                                                const float* dx, const float* dy, const float* dz,
                                                size_t count, uint8_t* out) const {
-    if (!coherentScene_) {
-        scene_->occludedBatch(ox, oy, oz, dx, dy, dz, count, 0.0f, std::numeric_limits<float>::infinity(), out);
-        return;
-    }
-    RTCIntersectContext c;
-    rtcInitIntersectContext(&c);
-    c.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    alignas(64) RTCRay16 ray;
-    alignas(64) int valid[16];
-    for (int k = 0; k < 16; ++k) {
-        ray.tnear[k] = 0.0f;
-        ray.time[k] = 0.0f;
-        ray.mask[k] = 0xffffffffu;
-        ray.id[k] = unsigned(k);
-        ray.flags[k] = 0u;
-    }
-    for (size_t base = 0; base < count; base += 16) {
-        const int n = int(std::min<size_t>(16, count - base));
-        for (int k = 0; k < 16; ++k) {
-            const size_t i = base + size_t(std::min(k, n - 1));
-            ray.org_x[k] = ox[i];
-            ray.org_y[k] = oy[i];
-            ray.org_z[k] = oz[i];
-            ray.dir_x[k] = dx[i];
-            ray.dir_y[k] = dy[i];
-            ray.dir_z[k] = dz[i];
-            ray.tfar[k] = std::numeric_limits<float>::infinity();
-            valid[k] = k < n ? -1 : 0;
-        }
-        rtcOccluded16(valid, coherentScene_, &c, &ray);
-        for (int k = 0; k < n; ++k) out[base + size_t(k)] = ray.tfar[k] < 0.0f ? 1 : 0;
-    }
+    scene_->occludedBatch(ox, oy, oz, dx, dy, dz, count, 0.0f, std::numeric_limits<float>::infinity(), out,
+                          options_.coherentRays);
 }
 
 float SingleScatteringContext::fresnel(float cosTheta) const {

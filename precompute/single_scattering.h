@@ -129,11 +129,10 @@ struct SingleScatteringOptions {
     double minThroughput = 1e-4;
     bool visibility = true;        // false: V = 1 (no occlusion rays; tests, ablations)
     // Trace the exit and occlusion rays as COHERENT 16-ray packets (Embree's
-    // RTC_INTERSECT_CONTEXT_FLAG_COHERENT) on the context's own copy of the scene; each
+    // RTC_INTERSECT_CONTEXT_FLAG_COHERENT, RayScene's batches with coherent = true); each
     // packet holds one direction from 16 neighbouring points, which is what that flag is
-    // for. false: RayScene::intersectBatch / occludedBatch (incoherent packets). The hits
-    // are those of a robust RayScene (tested); ~1.8x the exit-ray rate, 1.26x the whole
-    // pass (docs/single-scattering.md, "Speed").
+    // for. The hits are the same either way (tested); ~1.8x the exit-ray rate, 1.26x the
+    // whole pass on a robust scene (docs/single-scattering.md, "Speed").
     bool coherentRays = true;
 };
 
@@ -142,9 +141,6 @@ struct SingleScatteringOptions {
 // mesh.triangles) and both must outlive the context.
 class SingleScatteringContext {
 public:
-    SingleScatteringContext(const SingleScatteringContext&) = delete;
-    SingleScatteringContext& operator=(const SingleScatteringContext&) = delete;
-    ~SingleScatteringContext();
     // phase == nullptr: isotropic (requires material.g == 0); otherwise its K light
     // maps are used and phase->g must equal material.g. Throws prt::Error on a bad
     // option, a mesh without per-vertex normals or a phase/material mismatch.
@@ -189,11 +185,9 @@ public:
     const TriangleMesh& mesh() const { return *mesh_; }
     const Material& material() const { return material_; }
 
-    // coherentRays: hits[i] = the closest hit of ray (org[i], dir[i]) for t in [0, inf)
-    // (as RayScene::intersectBatch), occluded[i] = whether it hits anything (as
-    // RayScene::occludedBatch), in coherent packets of the context's own Embree scene.
-    // The rays of one packet should share a direction. Without coherentRays they go to
-    // the RayScene's batches instead.
+    // hits[i] = the closest hit of ray (org[i], dir[i]) for t in [0, inf), occluded[i] =
+    // whether it hits anything: the scene's batches, coherent when coherentRays (the rays
+    // of one packet should then share a direction).
     void intersectCoherent(const float* orgX, const float* orgY, const float* orgZ, const float* dirX,
                            const float* dirY, const float* dirZ, size_t count, Hit* hits) const;
     void occludedCoherent(const float* orgX, const float* orgY, const float* orgZ, const float* dirX,
@@ -214,13 +208,6 @@ private:
     double depthCap_ = 0.0;
     static constexpr int kFresnelTableSize = 4096;
     std::vector<float> fresnelTable_;
-    // coherentRays: the context's own Embree scene of the mesh (high build quality,
-    // robust traversal: fewer rays slip through shared edges than through the
-    // pipeline's non-robust RayScene) and the unit geometric normals of its triangles
-    // (computed as RayScene's).
-    RTCSceneTy* coherentScene_ = nullptr;
-    void buildCoherentScene();
-    std::vector<glm::vec3> faceNormals_;
 };
 
 // Counters of one or many vertices.

@@ -611,8 +611,8 @@ TEST(SingleScattering, RobustToInconsistentOrientation) {
 
 TEST(SingleScattering, CoherentPacketsTraceTheSameRays) {
     // coherentRays (the default) traces the exit and occlusion rays in coherent packets
-    // on the context's own Embree scene (robust traversal); the hits, hence the
-    // transport, must be those of a robust RayScene's incoherent batches. A torus (concave: exits through the far side of the
+    // (Embree's coherent flag on the RayScene's batches); the hits, hence the transport,
+    // must be those of the same robust RayScene's incoherent batches. A torus (concave: exits through the far side of the
     // ring, self-occlusion) with a sphere floating over it (occluders), Marble, every
     // vertex of the torus; the per-vertex dense vectors agree to float rounding and
     // the ray counts (which depend on every exit and cut-off decision) are equal.
