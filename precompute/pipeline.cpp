@@ -167,6 +167,9 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
         p.push_back({"ss_path", "inward normal, deterministic importance samples (Wang 2005 Eqs. 10-11)"});
         p.push_back({"ss_depth_cap_mfp", fmt(o.depthCapMeanFreePaths)});
         p.push_back({"ss_min_throughput", fmt(o.minThroughput)});
+        // How the rays are traced changes the result slightly (robust traversal), so it
+        // is part of the input digest: files made with the non-robust scene are redone.
+        p.push_back({"ss_rays", o.coherentRays ? "robust scene, coherent packets" : "robust scene, incoherent packets"});
         p.push_back({"ss_normalisation",
                      isotropic ? "1/(4 pi) folded in (radiance = F_t(w_o) * dot(vector, light))"
                                : "radiance = F_t(w_o) * sum_k h_k(w_o') * dot(term_k, light), "
