@@ -712,18 +712,20 @@ __attribute__((target("avx2,fma"))) void sumTexelsRgbAvx2(
     const float* lastPixel = pixels + pixelFloats - 3;
     alignas(16) const float lastCopy[4] = {lastPixel[0], lastPixel[1], lastPixel[2], 0.0f};
 #define PRT_LOAD_PIXEL(p) _mm256_cvtps_pd(_mm_loadu_ps((p) == lastPixel ? lastCopy : (p)))
+    // The pixel column an entry reads after the turn by k whole pixels.
+    const auto column = [W, k](const LatLongCubemapFilter::Entry& en) {
+        const int x = int(en.x) + k;
+        return x >= W ? x - W : x;
+    };
     for (size_t t = tBegin; t < tEnd; ++t) {
-        // Independent accumulators (the FMA latency, not the loads, would bound one), added
-        // pairwise at the end.
-        __m256d acc0 = _mm256_setzero_pd(), acc1 = acc0, acc2 = acc0, acc3 = acc0;
+        // Two independent accumulators (the FMA latency, not the loads, would bound one).
+        __m256d acc0 = _mm256_setzero_pd(), acc1 = acc0;
         std::uint32_t e = begin[t];
         const std::uint32_t eEnd = begin[t + 1];
         if (blend) {
             for (; e < eEnd; ++e) {
                 const LatLongCubemapFilter::Entry en = entries[e];
-                int x = int(en.x) + k;
-                if (x >= W) x -= W;
-                const int x1 = x + 1 < W ? x + 1 : 0;
+                const int x = column(en), x1 = x + 1 < W ? x + 1 : 0;
                 const float* row = pixels + size_t(en.y) * rowStride;
                 const double w = en.weight;
                 acc0 = _mm256_fmadd_pd(_mm256_set1_pd(w * a0), PRT_LOAD_PIXEL(row + size_t(x) * 3), acc0);
@@ -731,9 +733,7 @@ __attribute__((target("avx2,fma"))) void sumTexelsRgbAvx2(
             }
         } else {
             const auto address = [&](const LatLongCubemapFilter::Entry& en) {
-                int x = int(en.x) + k;
-                if (x >= W) x -= W;
-                return pixels + size_t(en.y) * rowStride + size_t(x) * 3;
+                return pixels + size_t(en.y) * rowStride + size_t(column(en)) * 3;
             };
             for (; e + 2 <= eEnd; e += 2) {
                 const LatLongCubemapFilter::Entry p = entries[e], q = entries[e + 1];
@@ -741,14 +741,14 @@ __attribute__((target("avx2,fma"))) void sumTexelsRgbAvx2(
                 acc1 = _mm256_fmadd_pd(_mm256_set1_pd(double(q.weight)), PRT_LOAD_PIXEL(address(q)), acc1);
             }
             if (e < eEnd)
-                acc2 = _mm256_fmadd_pd(_mm256_set1_pd(double(entries[e].weight)),
-                                       PRT_LOAD_PIXEL(address(entries[e])), acc2);
+                acc0 = _mm256_fmadd_pd(_mm256_set1_pd(double(entries[e].weight)),
+                                       PRT_LOAD_PIXEL(address(entries[e])), acc0);
         }
-#undef PRT_LOAD_PIXEL
         alignas(32) double sum[4];
-        _mm256_store_pd(sum, _mm256_add_pd(_mm256_add_pd(acc0, acc1), _mm256_add_pd(acc2, acc3)));
+        _mm256_store_pd(sum, _mm256_add_pd(acc0, acc1));
         for (int c = 0; c < 3; ++c) out[t * 3 + size_t(c)] = float(sum[c]);
     }
+#undef PRT_LOAD_PIXEL
 }
 #else
 void sumTexelsRgbAvx2(const LatLongCubemapFilter::Entry*, const std::uint32_t*, size_t, size_t,

@@ -114,23 +114,18 @@ uint64_t traceCoherent(const RayScene& scene, const glm::vec3& org, const TexelD
     // A texel is coherent when it is whole above the horizon and its 8 neighbours on the
     // face exist (no face border) and carry the same probe value.
     sc.batch.clear();
-    for (const uint32_t tt : tileOrder) {
-                const size_t t = tt;
-                const int i = int(t % size_t(n)), j = int(t / size_t(n) % size_t(n));
-                if (sc.rayCount[t] == 0) continue;
-                bool coherent = sc.rayCount[t] == sub && i > 0 && j > 0 && i + 1 < n && j + 1 < n;
-                for (int dj = -1; coherent && dj <= 1; ++dj)
-                    for (int di = -1; di <= 1; ++di)
-                        if (sc.probe[t + size_t(std::ptrdiff_t(dj) * n + di)] != sc.probe[t]) {
-                            coherent = false;
-                            break;
-                        }
-                const uint32_t first = sc.firstRay[t], end = first + sc.rayCount[t];
-                if (coherent) {
-                    for (uint32_t r = first + 1; r < end; ++r) sc.occluded[r] = sc.occluded[first];
-                } else {
-                    for (uint32_t r = first + 1; r < end; ++r) sc.batch.push_back(r);
-                }
+    for (const uint32_t t : tileOrder) {
+        if (sc.rayCount[t] == 0) continue;
+        const int i = int(t % uint32_t(n)), j = int(t / uint32_t(n) % uint32_t(n));
+        bool coherent = sc.rayCount[t] == sub && i > 0 && j > 0 && i + 1 < n && j + 1 < n;
+        for (int dj = -1; coherent && dj <= 1; ++dj)
+            for (int di = -1; coherent && di <= 1; ++di)
+                coherent = sc.probe[size_t(std::ptrdiff_t(t) + std::ptrdiff_t(dj) * n + di)] == sc.probe[t];
+        const uint32_t first = sc.firstRay[t], end = first + sc.rayCount[t];
+        for (uint32_t r = first + 1; r < end; ++r) {
+            if (coherent) sc.occluded[r] = sc.occluded[first];
+            else sc.batch.push_back(r);
+        }
     }
     const size_t refined = sc.batch.size();
     trace(refined);

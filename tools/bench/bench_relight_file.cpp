@@ -117,8 +117,8 @@ int main(int argc, char** argv) {
         // environment spin), or synthetic.
         LightVector light;
         std::vector<double> lightTimes;
+        const Image env = envPath.empty() ? Image() : loadEnvironment(envPath, NonFinitePolicy::ClampNegative);
         if (!envPath.empty()) {
-            const Image env = loadEnvironment(envPath, NonFinitePolicy::ClampNegative);
             for (int i = 0; i < lightIterations; ++i) {
                 t0 = Clock::now();
                 light = makeLightVector(env, n, rotationY(360.0 * i / lightIterations), lightTerms);
@@ -161,7 +161,6 @@ int main(int argc, char** argv) {
         // spin) and the relight kernel, back to back.
         std::vector<double> changeTimes, changeLightTimes;
         if (!envPath.empty()) {
-            const Image env = loadEnvironment(envPath, NonFinitePolicy::ClampNegative);
             const auto changesStart = Clock::now();
             for (int i = 0; i < iterations || secondsSince(changesStart) < minSeconds; ++i) {
                 t0 = Clock::now();
