@@ -26,6 +26,8 @@
 #include <utility>
 #include <vector>
 
+#include "common/blocked_vectors.h"
+
 namespace prt {
 
 // Identifies the mesh a transport file was computed for: its vertex count and a hash
@@ -88,10 +90,22 @@ struct SparseRgbVectors {
 // Bound of |v - dequantized v| / max_n |v_nc| (see SparseRgbVectors).
 inline constexpr double kQuantizationMaxRelativeError = 0.5 / 32767.0 + 1.0 / 8388608.0;
 
+// A component holds its vectors in one of two encodings: per vertex (`vectors`, the
+// default) or in blocks of 16 vertices sharing their indices (`blocks`,
+// common/blocked_vectors.h; prt-precompute --block-coefficients). A blocked component
+// has blocks.vertices > 0 and empty `vectors`.
 struct TransportComponent {
     ComponentKind kind = ComponentKind::MultipleScattering;
     uint32_t term = 0;  // 0 unless SingleScatteringTerm
     SparseRgbVectors vectors;
+    BlockedRgbVectors blocks;
+
+    bool blocked() const { return blocks.vertices > 0; }
+    size_t vertexCount() const { return blocked() ? blocks.vertexCount() : vectors.vertexCount(); }
+    // Vertex v's indices and dequantized RGB values, whichever the encoding.
+    void dequantizeVertex(size_t v, std::vector<uint32_t>& idx, std::vector<float>& rgb) const {
+        blocked() ? blocks.dequantizeVertex(v, idx, rgb) : vectors.dequantizeVertex(v, idx, rgb);
+    }
     bool operator==(const TransportComponent&) const = default;
 };
 

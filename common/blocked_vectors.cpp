@@ -1,0 +1,298 @@
+#include "common/blocked_vectors.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <glm/common.hpp>
+#include <glm/vec3.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include "common/error.h"
+#include "common/transport_file.h"
+
+namespace prt {
+
+namespace {
+
+constexpr double kInt8Max = 127.0;
+const char* kSubject = "blocked transport vectors";
+
+}  // namespace
+
+void BlockedRgbVectors::appendBlock(const std::vector<uint32_t>& idx, const std::vector<float>& rgb,
+                                    const std::vector<uint32_t>& laneVertices) {
+    const uint32_t lanes = uint32_t(laneVertices.size());
+    if (lanes < 1 || lanes > kVertexBlock)
+        throw Error(kSubject, "a block holds 1 to 16 vertices, got " + std::to_string(lanes));
+    if (vertices % kVertexBlock != 0)
+        throw Error(kSubject, "a block after a partial block (vertex " + std::to_string(vertices) + ")");
+    if (rgb.size() != size_t(3) * lanes * idx.size())
+        throw Error(kSubject, "appendBlock got " + std::to_string(idx.size()) + " indices and " +
+                                  std::to_string(rgb.size()) + " values for " + std::to_string(lanes) +
+                                  " vertices (expected 3 per index and vertex)");
+    if (uint64_t(indices.size()) + idx.size() > UINT32_MAX)
+        throw Error(kSubject, "more than 2^32 - 1 indices in one component");
+    for (size_t n = 0; n < idx.size(); ++n) {
+        if (idx[n] > UINT16_MAX)
+            throw Error(kSubject, "coefficient index " + std::to_string(idx[n]) + " does not fit 16 bits");
+        if (n > 0 && idx[n] <= idx[n - 1])
+            throw Error(kSubject, "block indices are not strictly increasing at " + std::to_string(idx[n]));
+    }
+    for (float x : rgb)
+        if (!std::isfinite(x)) throw Error(kSubject, "appendBlock got a non-finite value");
+
+    float scale[3][kVertexBlock] = {};
+    for (uint32_t lane = 0; lane < lanes; ++lane)
+        for (int c = 0; c < 3; ++c) {
+            float maxAbs = 0.0f;
+            for (size_t n = 0; n < idx.size(); ++n)
+                maxAbs = std::max(maxAbs, std::fabs(rgb[(n * lanes + lane) * 3 + c]));
+            // A maximum below 127 * FLT_MIN (subnormal scale) is stored as zero.
+            scale[c][lane] = double(maxAbs) < kInt8Max * double(std::numeric_limits<float>::min())
+                                 ? 0.0f
+                                 : float(double(maxAbs) / kInt8Max);
+        }
+    const size_t base = indices.size();
+    indices.insert(indices.end(), idx.begin(), idx.end());
+    values.resize((base + idx.size()) * kBlockValuesPerIndex, 0);
+    for (size_t n = 0; n < idx.size(); ++n)
+        for (uint32_t lane = 0; lane < lanes; ++lane)
+            for (int c = 0; c < 3; ++c) {
+                int q = 0;
+                if (scale[c][lane] > 0.0f) {
+                    const double r = std::nearbyint(double(rgb[(n * lanes + lane) * 3 + c]) / double(scale[c][lane]));
+                    q = int(std::clamp(r, -kInt8Max, kInt8Max));
+                }
+                values[(base + n) * kBlockValuesPerIndex + 16 * size_t(c) + lane] = int8_t(q);
+            }
+    if (offsets.empty()) offsets.push_back(0);
+    offsets.push_back(uint32_t(indices.size()));
+    for (int c = 0; c < 3; ++c)
+        for (uint32_t lane = 0; lane < kVertexBlock; ++lane) scales.push_back(scale[c][lane]);
+    for (uint32_t lane = 0; lane < lanes; ++lane) {
+        const uint32_t v = laneVertices[lane];
+        if (v >= slotOf.size()) slotOf.resize(size_t(v) + 1, UINT32_MAX);
+        slotOf[v] = uint32_t(vertices + lane);
+        order.push_back(v);
+    }
+    vertices += lanes;
+}
+
+void BlockedRgbVectors::indexSlots() {
+    slotOf.assign(order.size(), UINT32_MAX);
+    for (size_t s = 0; s < order.size(); ++s)
+        if (order[s] < slotOf.size()) slotOf[order[s]] = uint32_t(s);
+}
+
+void BlockedRgbVectors::dequantizeVertex(size_t v, std::vector<uint32_t>& idx, std::vector<float>& rgb) const {
+    if (v >= vertexCount())
+        throw std::out_of_range("BlockedRgbVectors::dequantizeVertex: vertex " + std::to_string(v) + " of " +
+                                std::to_string(vertexCount()));
+    if (v >= slotOf.size() || slotOf[v] == UINT32_MAX)
+        throw std::out_of_range("BlockedRgbVectors::dequantizeVertex: vertex " + std::to_string(v) + " has no lane");
+    const size_t b = slotOf[v] / kVertexBlock, lane = slotOf[v] % kVertexBlock;
+    const uint32_t begin = offsets[b], end = offsets[b + 1];
+    idx.assign(indices.begin() + begin, indices.begin() + end);
+    rgb.resize(3 * size_t(end - begin));
+    for (uint32_t n = begin; n < end; ++n)
+        for (size_t c = 0; c < 3; ++c)
+            rgb[3 * size_t(n - begin) + c] = float(values[n * kBlockValuesPerIndex + 16 * c + lane]) *
+                                             scales[b * kBlockValuesPerIndex + 16 * c + lane];
+}
+
+void BlockedRgbVectors::clear() { *this = BlockedRgbVectors(); }
+
+size_t BlockedRgbVectors::byteSize() const {
+    return offsets.size() * sizeof(uint32_t) + indices.size() * sizeof(uint16_t) + values.size() +
+           scales.size() * sizeof(float);
+}
+
+namespace {
+
+// One block of the joint truncation: its chosen indices and the lanes' values there.
+struct Block {
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;  // (n * lanes + lane) * 3 + c
+    std::vector<uint32_t> lanes;  // the block's vertices
+};
+
+Block chooseBlock(const SparseRgbVectors& src, const uint32_t* laneVertices, uint32_t lanes, size_t keep) {
+    Block out;
+    out.lanes.assign(laneVertices, laneVertices + lanes);
+    std::vector<uint32_t> idx[kVertexBlock];
+    std::vector<float> rgb[kVertexBlock];
+    // Union of the supports, each vertex's energy-normalised contribution per index.
+    std::vector<uint32_t> all;
+    for (uint32_t lane = 0; lane < lanes; ++lane) {
+        src.dequantizeVertex(laneVertices[lane], idx[lane], rgb[lane]);
+        all.insert(all.end(), idx[lane].begin(), idx[lane].end());
+    }
+    std::sort(all.begin(), all.end());
+    all.erase(std::unique(all.begin(), all.end()), all.end());
+    std::vector<double> score(all.size(), 0.0);
+    for (uint32_t lane = 0; lane < lanes; ++lane) {
+        double energy = 0.0;
+        for (float x : rgb[lane]) energy += double(x) * x;
+        if (energy <= 0.0) continue;
+        for (size_t n = 0; n < idx[lane].size(); ++n) {
+            const size_t at = size_t(std::lower_bound(all.begin(), all.end(), idx[lane][n]) - all.begin());
+            double e = 0.0;
+            for (int c = 0; c < 3; ++c) e += double(rgb[lane][3 * n + c]) * rgb[lane][3 * n + c];
+            score[at] += e / energy;
+        }
+    }
+    std::vector<uint32_t> order(all.size());
+    std::iota(order.begin(), order.end(), 0u);
+    const size_t kept = std::min(keep, order.size());
+    // Highest score first, ties by lower index; indices with zero score are never kept.
+    std::partial_sort(order.begin(), order.begin() + ptrdiff_t(kept), order.end(),
+                      [&](uint32_t a, uint32_t b) { return score[a] != score[b] ? score[a] > score[b] : a < b; });
+    order.resize(kept);
+    order.erase(std::remove_if(order.begin(), order.end(), [&](uint32_t a) { return score[a] <= 0.0; }),
+                order.end());
+    std::sort(order.begin(), order.end());
+    out.idx.resize(order.size());
+    out.rgb.assign(order.size() * lanes * 3, 0.0f);
+    for (size_t n = 0; n < order.size(); ++n) out.idx[n] = all[order[n]];
+    for (uint32_t lane = 0; lane < lanes; ++lane) {
+        // Both lists are sorted: one merge.
+        size_t n = 0;
+        for (size_t m = 0; m < idx[lane].size() && n < out.idx.size(); ++m) {
+            while (n < out.idx.size() && out.idx[n] < idx[lane][m]) ++n;
+            if (n < out.idx.size() && out.idx[n] == idx[lane][m])
+                for (int c = 0; c < 3; ++c) out.rgb[(n * lanes + lane) * 3 + c] = rgb[lane][3 * m + c];
+        }
+    }
+    return out;
+}
+
+}  // namespace
+
+BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
+                                const std::vector<uint32_t>& order) {
+    if (keep < 1) throw Error(kSubject, "a block must keep at least one coefficient");
+    const size_t vertices = perVertex.vertexCount();
+    if (order.size() != vertices) throw Error(kSubject, "block order of " + std::to_string(order.size()) +
+                                                            " vertices for " + std::to_string(vertices));
+    {
+        std::vector<bool> seen(vertices, false);
+        for (uint32_t v : order) {
+            if (v >= vertices || seen[v]) throw Error(kSubject, "block order is not a permutation of the vertices");
+            seen[v] = true;
+        }
+    }
+    const size_t blocks = (vertices + kVertexBlock - 1) / kVertexBlock;
+    std::vector<Block> chosen(blocks);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 64), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t b = r.begin(); b != r.end(); ++b) {
+            const size_t first = b * kVertexBlock;
+            const uint32_t lanes = uint32_t(std::min<size_t>(kVertexBlock, vertices - first));
+            chosen[b] = chooseBlock(perVertex, order.data() + first, lanes, keep);
+        }
+    });
+    BlockedRgbVectors out;
+    size_t total = 0;
+    for (const Block& b : chosen) total += b.idx.size();
+    out.offsets.reserve(blocks + 1);
+    out.indices.reserve(total);
+    out.values.reserve(total * kBlockValuesPerIndex);
+    out.scales.reserve(blocks * kBlockValuesPerIndex);
+    for (Block& b : chosen) {
+        out.appendBlock(b.idx, b.rgb, b.lanes);
+        b = Block();
+    }
+    return out;
+}
+
+std::string checkBlockedVectors(const BlockedRgbVectors& b, uint32_t lightCount) {
+    const uint64_t blocks = (b.vertices + kVertexBlock - 1) / kVertexBlock;
+    if (b.order.size() != b.vertices) return "block order has " + std::to_string(b.order.size()) +
+                                              " entries for " + std::to_string(b.vertices) + " vertices";
+    if (b.offsets.size() != blocks + 1 || b.offsets.front() != 0 || b.offsets.back() != b.indices.size())
+        return "block offsets inconsistent with " + std::to_string(blocks) + " blocks and " +
+               std::to_string(b.indices.size()) + " indices";
+    if (b.values.size() != b.indices.size() * kBlockValuesPerIndex)
+        return "blocked values hold " + std::to_string(b.values.size()) + " bytes, expected 48 per index";
+    if (b.scales.size() != blocks * kBlockValuesPerIndex)
+        return "blocked scales hold " + std::to_string(b.scales.size()) + " floats, expected 48 per block";
+    std::vector<bool> seen(b.vertices, false);
+    for (uint32_t v : b.order) {
+        if (v >= b.vertices || seen[v]) return "block order is not a permutation of the vertices";
+        seen[v] = true;
+    }
+    for (uint64_t k = 0; k < blocks; ++k) {
+        const uint32_t begin = b.offsets[k], end = b.offsets[k + 1];
+        if (begin > end) return "block offsets decrease at block " + std::to_string(k);
+        for (uint32_t n = begin; n < end; ++n) {
+            if (b.indices[n] >= lightCount)
+                return "coefficient index " + std::to_string(b.indices[n]) + " >= 6 N^2 = " + std::to_string(lightCount);
+            if (n > begin && b.indices[n] <= b.indices[n - 1])
+                return "block " + std::to_string(k) + " indices not strictly increasing";
+        }
+        for (int c = 0; c < 3; ++c)
+            for (uint32_t lane = 0; lane < kVertexBlock; ++lane) {
+                const float s = b.scales[k * kBlockValuesPerIndex + 16 * size_t(c) + lane];
+                if (!std::isfinite(s) || s < 0.0f) return "block scale not finite and >= 0";
+                if (k * kVertexBlock + lane >= b.vertices && s != 0.0f) return "padding lane with a non-zero scale";
+            }
+    }
+    return {};
+}
+
+std::vector<uint32_t> spatialBlockOrder(const std::vector<glm::vec3>& positions) {
+    std::vector<uint32_t> order(positions.size());
+    std::iota(order.begin(), order.end(), 0u);
+    // Explicit stack of [begin, end) ranges; the lower part of each split is a multiple
+    // of 16, so only the range holding the last vertex can end in a partial block.
+    std::vector<std::pair<size_t, size_t>> todo{{0, order.size()}};
+    while (!todo.empty()) {
+        const auto [begin, end] = todo.back();
+        todo.pop_back();
+        if (end - begin <= kVertexBlock) continue;
+        glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+        for (size_t i = begin; i < end; ++i) {
+            lo = glm::min(lo, positions[order[i]]);
+            hi = glm::max(hi, positions[order[i]]);
+        }
+        const glm::vec3 d = hi - lo;
+        const int axis = d.x >= d.y ? (d.x >= d.z ? 0 : 2) : (d.y >= d.z ? 1 : 2);
+        const size_t half = (end - begin) / 2;
+        const size_t mid = begin + std::max<size_t>(kVertexBlock, (half + kVertexBlock - 1) / kVertexBlock * kVertexBlock);
+        std::nth_element(order.begin() + ptrdiff_t(begin), order.begin() + ptrdiff_t(mid), order.begin() + ptrdiff_t(end),
+                         [&](uint32_t a, uint32_t b) {
+                             const float pa = positions[a][axis], pb = positions[b][axis];
+                             return pa != pb ? pa < pb : a < b;
+                         });
+        todo.push_back({mid, end});
+        todo.push_back({begin, mid});
+    }
+    return order;
+}
+
+double retainedEnergyFraction(const SparseRgbVectors& perVertex, const BlockedRgbVectors& blocks) {
+    if (perVertex.vertexCount() != blocks.vertexCount())
+        throw Error(kSubject, "retained energy of " + std::to_string(blocks.vertexCount()) +
+                                  " blocked vertices against " + std::to_string(perVertex.vertexCount()));
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    double sum = 0.0;
+    for (size_t v = 0; v < perVertex.vertexCount(); ++v) {
+        perVertex.dequantizeVertex(v, idx, rgb);
+        double total = 0.0;
+        for (float x : rgb) total += double(x) * x;
+        blocks.dequantizeVertex(v, idx, rgb);
+        double kept = 0.0;
+        for (float x : rgb) kept += double(x) * x;
+        sum += total > 0.0 ? std::min(1.0, kept / total) : 1.0;
+    }
+    return perVertex.vertexCount() ? sum / double(perVertex.vertexCount()) : 1.0;
+}
+
+}  // namespace prt

@@ -1,0 +1,126 @@
+#pragma once
+// Blocked transport vectors: blocks of 16 consecutive vertices share one list of Haar
+// coefficient indices, chosen jointly for the block, with 8-bit values (issue 16,
+// "compressed transport"; measurements in docs/performance.md).
+//
+// WHY. The per-vertex kernel (relight/relight_kernel.h) does, per coefficient, one
+// index-dependent load of the light, a conversion and a multiply-add; halving its bytes
+// (8-bit values, delta-coded indices) measured no faster. Sharing the index list of a
+// block lets the kernel load the light once per index for 16 vertices and do the 16
+// multiply-adds as one vector operation, so it streams ~0.6x the bytes with far less
+// work per byte. The indices are chosen jointly (jointTruncate below), so a block
+// keeping M indices is not the union of 16 per-vertex lists: measured on the dragon
+// res3 against 1,024-term vectors, 192 per block of 16 matches each vertex keeping its
+// own 128 (forest 1.06% vs 1.38%, city 2.59% vs 2.55%).
+//
+// BLOCKS. A block is 16 vertices that are close on the surface: `order` lists the
+// vertices block after block (spatialBlockOrder: median splits of the positions into
+// leaves of 16). Measured on the bunny (Marble, 1,024-term source vectors): blocks of
+// 16 consecutive file indices sharing 160 lose to each vertex keeping 128 (forest 1.32%
+// vs 1.07%, city 3.20% vs 2.18%); spatial blocks sharing 160 beat it (0.91%, 1.87%).
+//
+// LAYOUT. Block b holds the vertices order[16 b + lane], lane 0..15 (only the last block
+// may be partial: lanes past the vertex count are padding with zero values and zero
+// scales, and order has exactly V entries, a permutation of 0..V-1) and the indices
+// [offsets[b], offsets[b+1]), strictly increasing, each < 6 N^2. For the n-th index of
+// the whole array, values[48 n + 16 c + lane] is the int8 value of channel c for that
+// lane; scales[48 b + 16 c + lane] is the lane's per-channel scale. The value of
+// channel c of vertex 16 b + lane at index indices[n] is
+//     values[48 n + 16 c + lane] * scales[48 b + 16 c + lane].
+// So relighting a block is, per index, one light load and three 16-wide multiply-adds.
+//
+// QUANTIZATION. Per vertex and channel, scale = max |v_nc| / 127 over the block's
+// indices (float), q = round(v / scale) in [-127, 127] (-128 is never written). The
+// error of a value is at most half a step, max |v_nc| / 254 of the vertex's channel
+// maximum, plus float rounding (kBlockQuantizationMaxRelativeError). A channel that is
+// zero at every kept index has scale 0.
+
+#include <glm/vec3.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace prt {
+
+struct SparseRgbVectors;
+
+inline constexpr uint32_t kVertexBlock = 16;  // vertices per block (lanes)
+inline constexpr size_t kBlockValuesPerIndex = 3 * kVertexBlock;  // 48 int8 per index
+
+// Bound of |v - dequantized v| / max_n |v_nc| for blocked values.
+inline constexpr double kBlockQuantizationMaxRelativeError = 0.5 / 127.0 + 1.0 / 8388608.0;
+
+struct BlockedRgbVectors {
+    uint64_t vertices = 0;               // V; blocks = ceil(V / 16)
+    std::vector<uint32_t> order;         // V: the vertex in each lane, block after block
+    std::vector<uint32_t> offsets{0};    // blocks + 1
+    std::vector<uint16_t> indices;       // shared by the block's vertices
+    std::vector<int8_t> values;          // 48 per index: [16 c + lane]
+    std::vector<float> scales;           // 48 per block: [16 c + lane]
+
+    size_t vertexCount() const { return size_t(vertices); }
+    size_t blockCount() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+    size_t indexCount() const { return indices.size(); }
+    bool empty() const { return vertices == 0; }
+
+    // Appends the next block: the vertices `lanes` (1..16 of them) that share the indices idx
+    // (strictly increasing, each < 65536) with their values rgb[(n * lanes + lane) * 3 + c]
+    // (finite). Quantizes per vertex and channel as described above. Throws prt::Error
+    // on a size mismatch, unsorted or duplicate index, non-finite value, a block after a
+    // partial one, or more than 2^32 - 1 indices in total.
+    // (Vertex numbers are not checked here; checkBlockedVectors checks the permutation.)
+    void appendBlock(const std::vector<uint32_t>& idx, const std::vector<float>& rgb,
+                     const std::vector<uint32_t>& lanes);
+
+    // Vertex v's indices (its block's) and dequantized RGB values (3 per index),
+    // replacing idx and rgb. Throws std::out_of_range if v >= vertexCount() or has no
+    // slot (an incomplete permutation).
+    void dequantizeVertex(size_t v, std::vector<uint32_t>& idx, std::vector<float>& rgb) const;
+    // Rebuilds slotOf from order (after filling the arrays directly, e.g. a file reader).
+    void indexSlots();
+
+    void clear();  // back to zero vertices
+    // Bytes of the four arrays in memory (what a relight pass streams).
+    size_t byteSize() const;
+
+    bool operator==(const BlockedRgbVectors& o) const {
+        return vertices == o.vertices && order == o.order && offsets == o.offsets &&
+               indices == o.indices && values == o.values && scales == o.scales;
+    }
+
+    // Derived, not compared: the inverse of order, slotOf[vertex] = 16 b + lane
+    // (UINT32_MAX where no lane holds the vertex). appendBlock and indexSlots keep it.
+    std::vector<uint32_t> slotOf;
+};
+
+// Empty when the arrays are consistent (sizes; offsets monotone from 0 to the index
+// count; indices strictly increasing per block and < lightCount; order a permutation of
+// 0..V-1; padding lanes zero); otherwise a one-line reason.
+std::string checkBlockedVectors(const BlockedRgbVectors& b, uint32_t lightCount);
+
+// The vertices in blocks of 16 close together: recursive median splits along the
+// longest axis of the bounding box, the lower part a multiple of 16 vertices, down to
+// leaves of 16 (deterministic). Returns a permutation of 0..positions.size()-1.
+std::vector<uint32_t> spatialBlockOrder(const std::vector<glm::vec3>& positions);
+
+// The joint choice of a block's indices (the blocked layout's truncation): for the
+// block's vertices with per-vertex vectors T_v (any sparse support), each index i
+// scores
+//     score(i) = sum_v ||T_v(i)||^2 / sum_j ||T_v(j)||^2      (||.|| over RGB)
+// so every vertex has the same say whatever its brightness; the `keep` indices of
+// highest score are kept (ties: lower index), fewer when the union of the supports is
+// smaller. For `keep` >= the union it is lossless up to quantization.
+//
+// Converts whole per-vertex vectors (e.g. a precompute's 512-term vectors) to blocks of
+// the vertices in `order` (a permutation of the vertices, e.g. spatialBlockOrder), each
+// keeping `keep` indices (>= 1). Deterministic, independent of the number of threads.
+BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
+                                const std::vector<uint32_t>& order);
+
+// Mean over vertices of kept / total energy (sum of squares over RGB, per vertex,
+// vertices with zero energy count as 1) of a jointTruncate result against its source.
+double retainedEnergyFraction(const SparseRgbVectors& perVertex, const BlockedRgbVectors& blocks);
+
+}  // namespace prt
