@@ -1,0 +1,206 @@
+// Blocked transport vectors (common/blocked_vectors.h): quantization bound, the joint
+// truncation against a brute-force choice, the spatial order, round trips and the
+// validity check.
+
+#include <gtest/gtest.h>
+
+#include <glm/common.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <random>
+#include <set>
+#include <vector>
+
+#include "common/blocked_vectors.h"
+#include "common/error.h"
+#include "common/transport_file.h"
+
+namespace prt {
+namespace {
+
+// Random per-vertex vectors: `terms` distinct indices below `count` per vertex,
+// neighbouring vertices drawing from overlapping index ranges (like real transport).
+SparseRgbVectors randomVectors(size_t vertices, size_t terms, uint32_t count, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<float> value(0.0f, 1.0f);
+    SparseRgbVectors out;
+    for (size_t v = 0; v < vertices; ++v) {
+        std::set<uint32_t> chosen;
+        std::uniform_int_distribution<uint32_t> pick(0, count - 1);
+        while (chosen.size() < terms) chosen.insert(pick(rng));
+        std::vector<uint32_t> idx(chosen.begin(), chosen.end());
+        std::vector<float> rgb;
+        for (size_t n = 0; n < idx.size(); ++n)
+            for (int c = 0; c < 3; ++c) rgb.push_back(value(rng) / float(1 + idx[n] % 17));
+        out.appendVertex(idx, rgb);
+    }
+    return out;
+}
+
+std::vector<uint32_t> identityOrder(size_t n) {
+    std::vector<uint32_t> o(n);
+    std::iota(o.begin(), o.end(), 0u);
+    return o;
+}
+
+TEST(BlockedVectors, KeepingTheUnionIsLosslessUpToTheInt8Bound) {
+    const SparseRgbVectors src = randomVectors(37, 20, 384, 1);  // last block partial (5 lanes)
+    std::vector<uint32_t> order = identityOrder(37);
+    std::shuffle(order.begin(), order.end(), std::mt19937(2));
+    const BlockedRgbVectors b = jointTruncate(src, 100000, order);
+    EXPECT_EQ(b.vertexCount(), 37u);
+    EXPECT_EQ(b.blockCount(), 3u);
+    EXPECT_EQ(checkBlockedVectors(b, 384), "");
+    std::vector<uint32_t> si, bi;
+    std::vector<float> sv, bv;
+    for (size_t v = 0; v < 37; ++v) {
+        src.dequantizeVertex(v, si, sv);
+        b.dequantizeVertex(v, bi, bv);
+        float maxAbs[3] = {};
+        for (size_t n = 0; n < si.size(); ++n)
+            for (int c = 0; c < 3; ++c) maxAbs[c] = std::max(maxAbs[c], std::fabs(sv[3 * n + c]));
+        std::map<uint32_t, size_t> at;
+        for (size_t n = 0; n < bi.size(); ++n) at[bi[n]] = n;
+        for (size_t n = 0; n < si.size(); ++n) {
+            ASSERT_TRUE(at.count(si[n])) << "vertex " << v << " lost index " << si[n];
+            for (int c = 0; c < 3; ++c)
+                EXPECT_LE(std::fabs(bv[3 * at[si[n]] + c] - sv[3 * n + c]),
+                          kBlockQuantizationMaxRelativeError * maxAbs[c] * 1.0001f);
+        }
+        // Indices outside the vertex's own support are exact zeros.
+        std::set<uint32_t> own(si.begin(), si.end());
+        for (size_t n = 0; n < bi.size(); ++n)
+            if (!own.count(bi[n]))
+                for (int c = 0; c < 3; ++c) EXPECT_EQ(bv[3 * n + c], 0.0f);
+    }
+    EXPECT_NEAR(retainedEnergyFraction(src, b), 1.0, 1e-3);
+}
+
+TEST(BlockedVectors, JointChoiceMatchesBruteForceScores) {
+    const SparseRgbVectors src = randomVectors(16, 12, 64, 3);
+    const size_t keep = 10;
+    const BlockedRgbVectors b = jointTruncate(src, keep, identityOrder(16));
+    // Brute force: energy-normalised score per index over the 16 vertices.
+    std::map<uint32_t, double> score;
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    for (size_t v = 0; v < 16; ++v) {
+        src.dequantizeVertex(v, idx, rgb);
+        double e = 0;
+        for (float x : rgb) e += double(x) * x;
+        for (size_t n = 0; n < idx.size(); ++n) {
+            double s = 0;
+            for (int c = 0; c < 3; ++c) s += double(rgb[3 * n + c]) * rgb[3 * n + c];
+            score[idx[n]] += s / e;
+        }
+    }
+    std::vector<std::pair<double, uint32_t>> ranked;
+    for (auto [i, s] : score) ranked.push_back({-s, i});
+    std::sort(ranked.begin(), ranked.end());
+    std::vector<uint32_t> expected;
+    for (size_t k = 0; k < keep; ++k) expected.push_back(ranked[k].second);
+    std::sort(expected.begin(), expected.end());
+    EXPECT_EQ(std::vector<uint32_t>(b.indices.begin(), b.indices.end()), expected);
+}
+
+TEST(BlockedVectors, JointTruncationKeepsAtLeastTheEnergyOfTheBestShare) {
+    // The joint choice maximises the summed retained fraction over the block, so it keeps
+    // at least what every vertex keeping its own top keep/16 would (a feasible choice).
+    const SparseRgbVectors src = randomVectors(64, 40, 512, 4);
+    const size_t keep = 96;
+    const BlockedRgbVectors b = jointTruncate(src, keep, identityOrder(64));
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    double share = 0;
+    for (size_t v = 0; v < 64; ++v) {
+        src.dequantizeVertex(v, idx, rgb);
+        std::vector<double> e(idx.size());
+        double total = 0;
+        for (size_t n = 0; n < idx.size(); ++n) {
+            for (int c = 0; c < 3; ++c) e[n] += double(rgb[3 * n + c]) * rgb[3 * n + c];
+            total += e[n];
+        }
+        std::sort(e.rbegin(), e.rend());
+        share += std::accumulate(e.begin(), e.begin() + keep / 16, 0.0) / total;
+    }
+    share /= 64;
+    // Tolerance: int8 quantization of the kept values changes their energy by < 1%.
+    EXPECT_GE(retainedEnergyFraction(src, b), share * 0.99);
+    EXPECT_LT(retainedEnergyFraction(src, b), 1.0);
+}
+
+TEST(BlockedVectors, SpatialOrderIsAPermutationOfCompactBlocks) {
+    // A 40 x 25 grid of points: every full block's bounding box is far smaller than the
+    // grid, and the order is a permutation with only the last block partial.
+    std::vector<glm::vec3> p;
+    for (int j = 0; j < 25; ++j)
+        for (int i = 0; i < 40; ++i) p.push_back(glm::vec3(float(i), float(j), 0.0f));
+    const std::vector<uint32_t> order = spatialBlockOrder(p);
+    ASSERT_EQ(order.size(), p.size());
+    std::vector<uint32_t> sorted = order;
+    std::sort(sorted.begin(), sorted.end());
+    EXPECT_EQ(sorted, identityOrder(p.size()));
+    for (size_t b = 0; b + kVertexBlock <= order.size(); b += kVertexBlock) {
+        glm::vec3 lo(1e9f), hi(-1e9f);
+        for (size_t k = b; k < b + kVertexBlock; ++k) {
+            lo = glm::min(lo, p[order[k]]);
+            hi = glm::max(hi, p[order[k]]);
+        }
+        // 16 grid points: at best 4 x 4 (extent 3 + 3); median splits give at most 8 x 2.
+        EXPECT_LE((hi.x - lo.x) + (hi.y - lo.y), 10.0f) << "block at " << b;
+    }
+    EXPECT_EQ(spatialBlockOrder(p), order);  // deterministic
+    EXPECT_TRUE(spatialBlockOrder({}).empty());
+}
+
+TEST(BlockedVectors, ChecksRefuseInconsistentArrays) {
+    const SparseRgbVectors src = randomVectors(20, 8, 96, 5);
+    const BlockedRgbVectors good = jointTruncate(src, 24, identityOrder(20));
+    ASSERT_EQ(checkBlockedVectors(good, 96), "");
+    EXPECT_NE(checkBlockedVectors(good, 10), "");  // an index >= 6 N^2
+    BlockedRgbVectors b = good;
+    b.order[3] = b.order[4];
+    EXPECT_NE(checkBlockedVectors(b, 96), "");
+    b = good;
+    b.values.pop_back();
+    EXPECT_NE(checkBlockedVectors(b, 96), "");
+    b = good;
+    b.scales.back() = 1.0f;  // a padding lane (20 vertices: lanes 4..15 of block 1)
+    EXPECT_NE(checkBlockedVectors(b, 96), "");
+    b = good;
+    std::swap(b.indices[0], b.indices[1]);
+    EXPECT_NE(checkBlockedVectors(b, 96), "");
+    // Bad inputs to the builders.
+    EXPECT_THROW(jointTruncate(src, 0, identityOrder(20)), Error);
+    EXPECT_THROW(jointTruncate(src, 8, identityOrder(19)), Error);
+    std::vector<uint32_t> dup = identityOrder(20);
+    dup[0] = 1;
+    EXPECT_THROW(jointTruncate(src, 8, dup), Error);
+    BlockedRgbVectors a;
+    EXPECT_THROW(a.appendBlock({2, 1}, std::vector<float>(6, 0.0f), {0}), Error);
+    EXPECT_THROW(a.appendBlock({1}, {std::nanf(""), 0.0f, 0.0f}, {0}), Error);
+    a.appendBlock({1}, {1.0f, 0.0f, 0.0f}, {0});  // a partial block ...
+    EXPECT_THROW(a.appendBlock({1}, {1.0f, 0.0f, 0.0f}, {1}), Error);  // ... must be the last
+}
+
+TEST(BlockedVectors, ComponentDispatchesOnTheEncoding) {
+    const SparseRgbVectors src = randomVectors(18, 6, 96, 6);
+    TransportComponent perVertex;
+    perVertex.vectors = src;
+    TransportComponent blocked;
+    blocked.blocks = jointTruncate(src, 1000, identityOrder(18));
+    EXPECT_FALSE(perVertex.blocked());
+    EXPECT_TRUE(blocked.blocked());
+    EXPECT_EQ(blocked.vertexCount(), 18u);
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    blocked.dequantizeVertex(17, idx, rgb);
+    EXPECT_GE(idx.size(), 6u);
+    EXPECT_THROW(blocked.dequantizeVertex(18, idx, rgb), std::out_of_range);
+}
+
+}  // namespace
+}  // namespace prt
