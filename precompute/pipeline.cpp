@@ -100,6 +100,11 @@ void validateSettings(const PrecomputeSettings& s) {
     checkTerms("--sample-coefficients", s.sampleCoefficients);
     checkTerms("--node-coefficients", s.nodeCoefficients);
     checkTerms("--coefficients", s.vertexCoefficients);
+    if (s.blockCoefficients > 0) {
+        checkTerms("--block-coefficients", s.blockCoefficients);
+        if (s.shard)
+            throw Error("--block-coefficients", "shard files are per vertex (prt-merge does not join blocked shards yet)");
+    }
     if (!(s.epsilon >= 0) || !std::isfinite(s.epsilon))
         throw Error("--epsilon", "must be a finite number >= 0, got " + fmt(s.epsilon));
     if (!(s.sampleSpacingMm >= 0) || !std::isfinite(s.sampleSpacingMm))
@@ -154,6 +159,8 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
         {"ms_normalisation", "T_d/pi (radiance = F_t(w_o) * dot(vector, light))"},
     };
     p.insert(p.end(), passes.begin(), passes.end());
+    // Only blocked files carry it, so per-vertex files (and their digests) are unchanged.
+    if (s.blockCoefficients > 0) p.push_back({"block_coefficients", std::to_string(s.blockCoefficients)});
     if (s.components.singleScattering) {
         const SingleScatteringOptions o = singleScatteringOptions(s);
         const bool isotropic = s.material.g == 0.0;
@@ -214,6 +221,10 @@ std::string PrecomputeSummary::format() const {
             add("  sample cells    %zu sub-points in %s", cellSubPoints, formatDuration(cellSeconds).c_str());
         }
     }
+    if (blockCoefficients > 0 && !outputPath.empty())
+        add("blocks            16 nearby vertices share %zu terms chosen jointly from %zu per vertex, "
+            "8-bit values: %s, retained energy %.4f",
+            blockCoefficients, blockSourceCoefficients, formatDuration(blockSeconds).c_str(), blockRetainedEnergy);
     if (ranks > 1) {
         add("exchange          pass-1 vectors %.3g MB in %s (%.0f bytes per sample), vertex "
             "vectors gathered in %s",
@@ -270,6 +281,8 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
     PrecomputeSummary summary;
     summary.outputPath = settings.outputPath;
     summary.components = settings.components;
+    summary.blockCoefficients = settings.blockCoefficients;
+    summary.blockSourceCoefficients = settings.vertexCoefficients;
     summary.distribution = dist.describe();
     summary.ranks = dist.ranks();
     // A label suffix for the progress lines of a share of the work ("pass 1 [MPI rank 0
@@ -576,6 +589,24 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         if (!dist.writes()) return;
         // Derived values (and a shard's identity) go before the digest, which stays the
         // last parameter.
+        if (settings.blockCoefficients > 0) {
+            // The joint choice needs every vertex's vectors: after the gather, on the writer.
+            const Stopwatch blockStart;
+            const std::vector<uint32_t> order = spatialBlockOrder(mesh.positions);
+            double retained = 0.0;
+            for (TransportComponent& c : file.components) {
+                c.blocks = jointTruncate(c.vectors, settings.blockCoefficients, order);
+                retained += retainedEnergyFraction(c.vectors, c.blocks);
+                c.vectors.clear();
+                c.vectors.offsets.shrink_to_fit();
+                c.vectors.indices.shrink_to_fit();
+                c.vectors.values.shrink_to_fit();
+                c.vectors.scales.shrink_to_fit();
+            }
+            summary.blockSeconds = blockStart.seconds();
+            summary.blockRetainedEnergy = file.components.empty() ? 1.0 : retained / double(file.components.size());
+            derived.push_back({"block_retained_energy", fmt(summary.blockRetainedEnergy)});
+        }
         const auto shard = dist.outputParameters(mesh.vertexCount());
         derived.insert(derived.end(), shard.begin(), shard.end());
         file.parameters.insert(file.parameters.end() - 1, derived.begin(), derived.end());

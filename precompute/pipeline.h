@@ -39,7 +39,10 @@ struct PrecomputeSettings {
     VisibilitySampling pass1Visibility = VisibilitySampling::Every;  // how pass 1 traces them
     size_t sampleCoefficients = 128;  // Haar terms kept per sample (pass 1)
     size_t nodeCoefficients = 256;    // per kd-tree node (pass 2)
-    size_t vertexCoefficients = 128;  // per vertex in the file
+    size_t vertexCoefficients = 128;  // per vertex (in the file, or before the joint choice)
+    // > 0: the file stores blocks of 16 nearby vertices sharing this many jointly chosen
+    // terms, picked from each vertex's vertexCoefficients (common/blocked_vectors.h).
+    size_t blockCoefficients = 0;
     double epsilon = 0.05;        // kd-tree solid-angle threshold A / r^2 (0: exact sum)
     size_t sampleCount = 0;       // 0: from sampleSpacingMm
     double sampleSpacingMm = 0;   // 0: the material's smallest mean free path l_u
@@ -106,6 +109,10 @@ struct PrecomputeSummary {
     double pass1RaysPerSecond = 0;
     double sampleRetainedEnergy = 0;  // mean kept/total energy of pass-1 truncations
     double vertexRetainedEnergy = 0;  // mean kept/total energy of the per-vertex truncations
+    // With blockCoefficients: the joint choice of every component (after the per-vertex
+    // truncations), its time and its mean kept/total energy against the per-vertex vectors.
+    size_t blockCoefficients = 0, blockSourceCoefficients = 0;
+    double blockSeconds = 0, blockRetainedEnergy = 0;
     double meanNodesVisited = 0;
     // Pass 2's cell quadrature (cell_quadrature.h): the time to build the sample cells
     // (part of pass2Seconds) and their sub-points.

@@ -104,6 +104,11 @@ Json summaryJson(const PrecomputeSummary& r) {
     j["cell_sub_points"] = msOnly(double(r.cellSubPoints));
     j["cell_seconds"] = msOnly(r.cellSeconds);
     j["vertex_retained_energy"] = msOnly(r.vertexRetainedEnergy);
+    // Blocks (null for per-vertex files).
+    const bool blocked = r.blockCoefficients > 0;
+    j["block_coefficients"] = blocked ? Json(r.blockCoefficients) : Json(nullptr);
+    j["block_seconds"] = blocked ? Json(r.blockSeconds) : Json(nullptr);
+    j["block_retained_energy"] = blocked ? Json(r.blockRetainedEnergy) : Json(nullptr);
     // Single scattering.
     j["ss_terms"] = ssOnly(r.ssTerms);
     j["ss_isotropic"] = ssOnly(r.ssIsotropic);
