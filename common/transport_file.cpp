@@ -36,7 +36,13 @@ namespace prt {
 namespace {
 
 constexpr std::array<char, 8> kMagic = {'P', 'R', 'T', 'X', 'P', 'O', 'R', 'T'};
+// Version 1 holds per-vertex components (COMP) only; version 2 adds blocked
+// components (BLKC). The writer writes version 2 only for a file that has a blocked
+// component, so every other file stays version 1 byte for byte and older readers keep
+// reading it; a reader refuses BLKC in a version-1 file and a version-2 file without
+// one (so no single corrupted byte of a version field is accepted).
 constexpr uint32_t kFormatVersion = 1;
+constexpr uint32_t kBlockedFormatVersion = 2;
 constexpr uint32_t kEndianMarker = 0x01020304u;
 constexpr uint64_t kAlignment = 64;
 constexpr uint64_t kPreambleBytes = 16;
@@ -44,6 +50,7 @@ constexpr uint64_t kSectionHeaderBytes = 16;
 constexpr uint64_t kChecksumBytes = 4;
 constexpr uint64_t kHeadBytes = 40;
 constexpr uint64_t kComponentFixedBytes = 64;
+constexpr uint64_t kBlockedFixedBytes = 64;
 constexpr uint64_t kViewFixedBytes = 64;
 constexpr uint64_t kMaxParameterBytes = uint64_t(16) << 20;
 constexpr uint32_t kMaxCubemapSize = 64;
@@ -52,13 +59,14 @@ constexpr uint32_t kMaxViewMapSize = 4096;
 constexpr uint32_t kMaxViewMapTerms = 4096;
 constexpr int kQuantMax = 32767;
 
-enum class Section { Head, Parameters, Component, ViewMaps, End };
+enum class Section { Head, Parameters, Component, BlockedComponent, ViewMaps, End };
 
 const char* tagOf(Section s) {
     switch (s) {
         case Section::Head: return "HEAD";
         case Section::Parameters: return "PARM";
         case Section::Component: return "COMP";
+        case Section::BlockedComponent: return "BLKC";
         case Section::ViewMaps: return "VIEW";
         case Section::End: return "END ";
     }
@@ -72,6 +80,9 @@ std::string sectionLabel(Section s, size_t index = 0, size_t count = 0) {
         case Section::Parameters: return label + " (parameters)";
         case Section::Component:
             return label + " (component " + std::to_string(index + 1) + " of " +
+                   std::to_string(count) + ")";
+        case Section::BlockedComponent:
+            return label + " (blocked component " + std::to_string(index + 1) + " of " +
                    std::to_string(count) + ")";
         case Section::ViewMaps: return label + " (view maps)";
         case Section::End: return label + " (end marker)";
@@ -154,6 +165,27 @@ ComponentLayout componentLayout(uint64_t vertices, uint64_t coefficients) {
     l.values = alignUp(l.indices + coefficients * sizeof(uint16_t));
     l.scales = alignUp(l.values + 3 * coefficients * sizeof(int16_t));
     l.total = l.scales + 3 * vertices * sizeof(float);
+    return l;
+}
+
+// Blocks of kVertexBlock vertices (the last one may be partial).
+uint64_t blockCountOf(uint64_t vertices) { return (vertices + kVertexBlock - 1) / kVertexBlock; }
+
+// Byte offsets, relative to the payload start, of a blocked component section's arrays.
+struct BlockedLayout {
+    uint64_t order = 0, offsets = 0, indices = 0, values = 0, scales = 0, total = 0;
+};
+
+// Requires vertices <= kMaxVertices and indices <= UINT32_MAX (no overflow).
+BlockedLayout blockedLayout(uint64_t vertices, uint64_t indices) {
+    const uint64_t blocks = blockCountOf(vertices);
+    BlockedLayout l;
+    l.order = kBlockedFixedBytes;
+    l.offsets = alignUp(l.order + vertices * sizeof(uint32_t));
+    l.indices = alignUp(l.offsets + (blocks + 1) * sizeof(uint32_t));
+    l.values = alignUp(l.indices + indices * sizeof(uint16_t));
+    l.scales = alignUp(l.values + indices * kBlockValuesPerIndex * sizeof(int8_t));
+    l.total = l.scales + blocks * kBlockValuesPerIndex * sizeof(float);
     return l;
 }
 
@@ -250,6 +282,40 @@ std::string checkVectors(const SparseRgbVectors& s, uint64_t vertices, uint32_t 
     return {};
 }
 
+std::string checkBlocked(const BlockedRgbVectors& b, uint64_t vertices, uint32_t cubemapSize) {
+    if (b.vertices != vertices)
+        return "has " + u64(b.vertices) + " blocked vertices, expected " + u64(vertices);
+    if (vertices == 0) return "a blocked component has no vertices";
+    // Lane numbers 16 b + lane (and slotOf's "no lane" marker UINT32_MAX) are u32.
+    if (vertices > UINT32_MAX)
+        return "has " + u64(vertices) + " vertices, a blocked component holds at most 2^32 - 1";
+    // checkBlockedVectors walks each block's index range without bounding it first, so
+    // the offsets are checked to be monotone up to the index count here.
+    const uint64_t blocks = blockCountOf(vertices);
+    if (b.offsets.size() != blocks + 1)
+        return "has " + u64(b.offsets.size()) + " block offsets, expected " + u64(blocks + 1) +
+               " (block count + 1)";
+    if (b.offsets[0] != 0) return "block offsets[0] is " + u64(b.offsets[0]) + ", not 0";
+    if (b.offsets[blocks] != b.indices.size())
+        return "block offsets end at " + u64(b.offsets[blocks]) + " but there are " +
+               u64(b.indices.size()) + " indices";
+    for (uint64_t k = 0; k < blocks; ++k)
+        if (b.offsets[k + 1] < b.offsets[k])
+            return "block offsets decrease at block " + u64(k) + " (" + u64(b.offsets[k]) +
+                   " then " + u64(b.offsets[k + 1]) + ")";
+    std::string reason = checkBlockedVectors(b, 6 * cubemapSize * cubemapSize);
+    if (!reason.empty()) return reason;
+    // checkBlockedVectors checks the padding lanes' scales; their values are zero too
+    // (appendBlock writes zeros), so equal data has equal bytes.
+    const uint64_t lanes = vertices - (blocks - 1) * kVertexBlock;
+    for (uint32_t n = b.offsets[blocks - 1]; n < b.offsets[blocks]; ++n)
+        for (size_t c = 0; c < 3; ++c)
+            for (uint64_t lane = lanes; lane < kVertexBlock; ++lane)
+                if (b.values[n * kBlockValuesPerIndex + kVertexBlock * c + lane] != 0)
+                    return "padding lane " + u64(lane) + " of the last block has a non-zero value";
+    return {};
+}
+
 std::string checkViewMaps(const ViewMaps& m) {
     if (m.size < 1 || uint32_t(m.size) > kMaxViewMapSize)
         return "view map size " + std::to_string(m.size) + " outside 1.." +
@@ -302,10 +368,20 @@ std::string checkFile(const TransportFile& f, size_t* componentIndex = nullptr) 
             return name + ": term " + u64(c.term) + " on a component that has no terms";
         if (!seen.insert({uint32_t(c.kind), c.term}).second) return name + ": appears twice";
         if (c.kind == ComponentKind::SingleScatteringTerm) terms.insert(c.term);
-        if (c.vectors.vertexCount() != f.mesh.vertexCount)
-            return name + ": has " + u64(c.vectors.vertexCount()) +
+        if (c.vertexCount() != f.mesh.vertexCount)
+            return name + ": has " + u64(c.vertexCount()) +
                    " vertices, the mesh fingerprint has " + u64(f.mesh.vertexCount);
-        std::string reason = checkVectors(c.vectors, f.mesh.vertexCount, f.cubemapSize);
+        // Exactly one encoding holds data: the other would be dropped by the writer.
+        const SparseRgbVectors& v = c.vectors;
+        const BlockedRgbVectors& b = c.blocks;
+        if (c.blocked() && (v.vertexCount() != 0 || !v.indices.empty() || !v.values.empty() ||
+                            !v.scales.empty()))
+            return name + ": a blocked component also holds per-vertex vectors";
+        if (!c.blocked() && (!b.order.empty() || b.offsets.size() > 1 || !b.indices.empty() ||
+                             !b.values.empty() || !b.scales.empty()))
+            return name + ": blocked arrays without blocked vertices";
+        std::string reason = c.blocked() ? checkBlocked(b, f.mesh.vertexCount, f.cubemapSize)
+                                         : checkVectors(v, f.mesh.vertexCount, f.cubemapSize);
         if (!reason.empty()) return name + ": " + reason;
     }
     if (componentIndex) *componentIndex = SIZE_MAX;
@@ -437,10 +513,38 @@ private:
     uint64_t sectionStart_ = 0, sectionBytes_ = 0;
 };
 
+uint32_t formatVersionOf(const TransportFile& f) {
+    const bool blocked = std::any_of(f.components.begin(), f.components.end(),
+                                     [](const TransportComponent& c) { return c.blocked(); });
+    return blocked ? kBlockedFormatVersion : kFormatVersion;
+}
+
+void writeBlockedComponent(FileWriter& w, const TransportComponent& c) {
+    const BlockedRgbVectors& b = c.blocks;
+    const BlockedLayout l = blockedLayout(b.vertices, b.indexCount());
+    w.beginSection(Section::BlockedComponent, l.total);
+    w.u32(uint32_t(c.kind));
+    w.u32(c.term);
+    w.u64(b.vertices);
+    w.u64(b.blockCount());
+    w.u64(b.indexCount());
+    w.padTo(l.order);
+    w.array(b.order);
+    w.padTo(l.offsets);
+    w.array(b.offsets);
+    w.padTo(l.indices);
+    w.array(b.indices);
+    w.padTo(l.values);
+    w.array(b.values);
+    w.padTo(l.scales);
+    w.array(b.scales);
+    w.endSection();
+}
+
 void writeFile(FileWriter& w, const TransportFile& f) {
     // Preamble.
     w.write(kMagic.data(), kMagic.size());
-    w.u32(kFormatVersion);
+    w.u32(formatVersionOf(f));
     w.u32(kEndianMarker);
 
     // Header.
@@ -471,6 +575,10 @@ void writeFile(FileWriter& w, const TransportFile& f) {
 
     // Components.
     for (const TransportComponent& c : f.components) {
+        if (c.blocked()) {
+            writeBlockedComponent(w, c);
+            continue;
+        }
         const uint64_t vertices = c.vectors.vertexCount();
         const uint64_t coefficients = c.vectors.coefficientCount();
         const ComponentLayout l = componentLayout(vertices, coefficients);
@@ -579,24 +687,50 @@ struct OpenSection {
     uint64_t consumed = 0;  // payload bytes read so far
 };
 
-OpenSection openSection(FileReader& r, Section kind, std::string label) {
+// A section that may take the place of the expected one (a blocked component where a
+// component is due), with its label. With a refusal it may not (a blocked component in
+// a version-1 file): finding it fails with that reason, and messages do not offer it.
+struct AlternativeSection {
+    Section kind;
+    std::string label;
+    std::string refusal;
+};
+
+// Opens the next section, which must be `kind` or, if given, `alternative` (s.kind
+// tells which was found).
+OpenSection openSection(FileReader& r, Section kind, std::string label,
+                        const AlternativeSection* alternative = nullptr) {
     OpenSection s;
     s.kind = kind;
     s.label = std::move(label);
+    // What the messages call the section before its tag is known.
+    const std::string expected = alternative && alternative->refusal.empty()
+                                     ? s.label + " or " + alternative->label
+                                     : s.label;
     const uint64_t pad = paddingBefore(r.pos());
     s.headerOffset = r.pos() + pad;
     if (r.remaining() < pad + kSectionHeaderBytes)
         r.fail("truncated: the file ends at byte " + u64(r.size()) + ", before the " +
-               u64(kSectionHeaderBytes) + "-byte header of " + s.label + " expected at offset " +
+               u64(kSectionHeaderBytes) + "-byte header of " + expected + " expected at offset " +
                u64(s.headerOffset));
     uint8_t buf[kAlignment + kSectionHeaderBytes];
     r.read(buf, pad + kSectionHeaderBytes);
-    if (!allZero(buf, size_t(pad)))
-        r.fail("corrupt: non-zero padding bytes before " + s.label + " at offset " +
-               u64(s.headerOffset - pad));
     const uint8_t* h = buf + pad;
-    if (std::memcmp(h, tagOf(kind), 4) != 0)
-        r.fail("corrupt: expected " + s.label + " at offset " + u64(s.headerOffset) +
+    const bool isKind = std::memcmp(h, tagOf(kind), 4) == 0;
+    const bool isAlternative = alternative && std::memcmp(h, tagOf(alternative->kind), 4) == 0;
+    if (isAlternative) {
+        s.kind = alternative->kind;
+        s.label = alternative->label;
+    }
+    if (!allZero(buf, size_t(pad)))
+        r.fail("corrupt: non-zero padding bytes before " +
+               (isKind || isAlternative ? s.label : expected) + " at offset " +
+               u64(s.headerOffset - pad));
+    if (isAlternative && !alternative->refusal.empty())
+        r.fail("corrupt: " + s.label + " at offset " + u64(s.headerOffset) + ": " +
+               alternative->refusal);
+    if (!isKind && !isAlternative)
+        r.fail("corrupt: expected " + expected + " at offset " + u64(s.headerOffset) +
                ", found tag " + printableTag(h));
     s.flags = getU32(h + 4);
     s.length = getU64(h + 8);
@@ -679,6 +813,7 @@ void skipSection(FileReader& r, OpenSection& s) {
 }
 
 struct HeadFields {
+    uint32_t version = 0;  // from the preamble
     uint32_t cubemapSize = 0;
     uint32_t componentCount = 0;
     MeshFingerprint mesh;
@@ -686,7 +821,8 @@ struct HeadFields {
     bool hasViewMaps = false;
 };
 
-void readPreamble(FileReader& r) {
+// Returns the format version (1 or 2).
+uint32_t readPreamble(FileReader& r) {
     const uint64_t size = r.size();
     if (size == 0) r.fail("truncated: the file is empty (not a transport file)");
     uint8_t b[kPreambleBytes];
@@ -704,12 +840,14 @@ void readPreamble(FileReader& r) {
                "big-endian; transport files are little-endian");
     if (marker != kEndianMarker)
         r.fail("bad endianness marker " + hex32(marker) + " (expected 0x01020304): corrupt file");
-    if (version != kFormatVersion)
+    if (version != kFormatVersion && version != kBlockedFormatVersion)
         r.fail("unsupported transport file format version " + u64(version) +
-               " (this build reads version " + u64(kFormatVersion) + ")");
+               " (this build reads versions " + u64(kFormatVersion) + " and " +
+               u64(kBlockedFormatVersion) + ")");
+    return version;
 }
 
-HeadFields readHead(FileReader& r) {
+HeadFields readHead(FileReader& r, uint32_t version) {
     OpenSection s = openSection(r, Section::Head, sectionLabel(Section::Head));
     if (s.length != kHeadBytes)
         failAfterChecksum(r, s, "payload is " + u64(s.length) + " bytes, expected " +
@@ -718,6 +856,7 @@ HeadFields readHead(FileReader& r) {
     readPayload(r, s, b, kHeadBytes);
     closeSection(r, s);
     HeadFields h;
+    h.version = version;
     h.cubemapSize = getU32(b);
     h.componentCount = getU32(b + 4);
     h.mesh.vertexCount = getU64(b + 8);
@@ -778,12 +917,98 @@ std::vector<std::pair<std::string, std::string>> readParameters(FileReader& r) {
     return out;
 }
 
-// Reads one component section. In info mode only the fixed part is read and the
-// arrays are skipped (the returned vectors are left empty).
+// The checks of a component's kind, term and reserved bytes (COMP and BLKC alike),
+// made after the section's checksum.
+void checkComponentHeader(FileReader& r, const OpenSection& s, uint32_t kind, uint32_t term,
+                          bool reservedZero) {
+    const std::string where = "inconsistent: " + s.label + ": ";
+    if (!validKind(kind)) r.fail(where + "unknown component kind " + u64(kind));
+    if (ComponentKind(kind) != ComponentKind::SingleScatteringTerm && term != 0)
+        r.fail(where + "term " + u64(term) + " on a component that has no terms");
+    if (!reservedZero) r.fail(where + "reserved header bytes are not zero");
+}
+
+// Reads the rest of a BLKC section opened by readComponent.
+TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const HeadFields& h,
+                                        bool infoOnly, TransportFileInfo::Component* info) {
+    if (s.length < kBlockedFixedBytes)
+        failAfterChecksum(r, s, "payload is " + u64(s.length) + " bytes, less than the " +
+                                    u64(kBlockedFixedBytes) + "-byte blocked component header");
+    uint8_t b[kBlockedFixedBytes];
+    readPayload(r, s, b, kBlockedFixedBytes);
+    const uint32_t kind = getU32(b);
+    const uint32_t term = getU32(b + 4);
+    const uint64_t vertices = getU64(b + 8);
+    const uint64_t blocks = getU64(b + 16);
+    const uint64_t indices = getU64(b + 24);
+    const bool reservedZero = allZero(b + 32, size_t(kBlockedFixedBytes - 32));
+
+    auto fail = [&](const std::string& reason) {
+        if (infoOnly) r.fail("inconsistent: " + s.label + ": " + reason);
+        failAfterChecksum(r, s, reason);
+    };
+    // The vertex count is bounded by the header's (<= 2^40), the index count by 2^32,
+    // so the layout cannot overflow and its total is checked against the section
+    // length (itself within the file) before anything is allocated.
+    if (vertices != h.mesh.vertexCount)
+        fail("has " + u64(vertices) + " vertices, the header says " + u64(h.mesh.vertexCount));
+    if (vertices > UINT32_MAX)
+        fail(u64(vertices) + " vertices exceed the 32-bit block order");
+    if (blocks != blockCountOf(vertices))
+        fail(u64(blocks) + " blocks for " + u64(vertices) + " vertices, expected " +
+             u64(blockCountOf(vertices)) + " (16 per block)");
+    if (indices > UINT32_MAX) fail(u64(indices) + " indices exceed the 32-bit offsets");
+    const BlockedLayout l = blockedLayout(vertices, indices);
+    if (l.total != s.length)
+        fail(u64(vertices) + " vertices and " + u64(indices) + " block indices need a " +
+             u64(l.total) + "-byte payload, the section has " + u64(s.length));
+
+    TransportComponent c;
+    c.kind = ComponentKind(kind);
+    c.term = term;
+    if (info) *info = {ComponentKind(kind), term, vertices, indices, s.length, true, blocks};
+    if (infoOnly) {
+        skipSection(r, s);
+    } else {
+        BlockedRgbVectors& v = c.blocks;
+        v.vertices = vertices;
+        bool paddingZero = readPaddingTo(r, s, l.order);
+        readArray(r, s, v.order, vertices);
+        paddingZero &= readPaddingTo(r, s, l.offsets);
+        readArray(r, s, v.offsets, blocks + 1);
+        paddingZero &= readPaddingTo(r, s, l.indices);
+        readArray(r, s, v.indices, indices);
+        paddingZero &= readPaddingTo(r, s, l.values);
+        readArray(r, s, v.values, indices * kBlockValuesPerIndex);
+        paddingZero &= readPaddingTo(r, s, l.scales);
+        readArray(r, s, v.scales, blocks * kBlockValuesPerIndex);
+        closeSection(r, s);
+        if (!paddingZero) r.fail("inconsistent: " + s.label + ": non-zero padding between arrays");
+    }
+    checkComponentHeader(r, s, kind, term, reservedZero);
+    if (!infoOnly) {
+        const std::string reason = checkBlocked(c.blocks, vertices, h.cubemapSize);
+        if (!reason.empty()) r.fail("inconsistent: " + s.label + ": " + reason);
+        c.blocks.indexSlots();
+    }
+    return c;
+}
+
+// Reads one component section: COMP, or in a version-2 file also BLKC. In info mode
+// only the fixed part is read and the arrays are skipped (the returned vectors are
+// left empty).
 TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t index, bool infoOnly,
                                  TransportFileInfo::Component* info) {
+    const AlternativeSection blocked{
+        Section::BlockedComponent,
+        sectionLabel(Section::BlockedComponent, index, h.componentCount),
+        h.version >= kBlockedFormatVersion
+            ? std::string()
+            : "a blocked component in a format version " + u64(h.version) +
+                  " file (blocked components need version " + u64(kBlockedFormatVersion) + ")"};
     OpenSection s = openSection(r, Section::Component,
-                                sectionLabel(Section::Component, index, h.componentCount));
+                                sectionLabel(Section::Component, index, h.componentCount), &blocked);
+    if (s.kind == Section::BlockedComponent) return readBlockedComponent(r, s, h, infoOnly, info);
     if (s.length < kComponentFixedBytes)
         failAfterChecksum(r, s, "payload is " + u64(s.length) + " bytes, less than the " +
                                     u64(kComponentFixedBytes) + "-byte component header");
@@ -826,16 +1051,24 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
         closeSection(r, s);
         if (!paddingZero) r.fail("inconsistent: " + s.label + ": non-zero padding between arrays");
     }
-    const std::string where = "inconsistent: " + s.label + ": ";
-    if (!validKind(kind)) r.fail(where + "unknown component kind " + u64(kind));
-    if (c.kind != ComponentKind::SingleScatteringTerm && term != 0)
-        r.fail(where + "term " + u64(term) + " on a component that has no terms");
-    if (!reservedZero) r.fail(where + "reserved header bytes are not zero");
+    checkComponentHeader(r, s, kind, term, reservedZero);
     if (!infoOnly) {
         const std::string reason = checkVectors(c.vectors, vertices, h.cubemapSize);
-        if (!reason.empty()) r.fail(where + reason);
+        if (!reason.empty()) r.fail("inconsistent: " + s.label + ": " + reason);
     }
     return c;
+}
+
+// A version-2 file without a blocked component is refused: the writer writes such a
+// file as version 1, so this is a corrupted version field.
+template <class Components, class IsBlocked>
+void checkVersionMatchesComponents(FileReader& r, const HeadFields& h, const Components& components,
+                                   IsBlocked isBlocked) {
+    if (h.version == kBlockedFormatVersion &&
+        std::none_of(components.begin(), components.end(), isBlocked))
+        r.fail("inconsistent: format version " + u64(h.version) +
+               " but no blocked component (a file without one is version " + u64(kFormatVersion) +
+               ")");
 }
 
 ViewMaps readViewMaps(FileReader& r, bool infoOnly) {
@@ -899,8 +1132,8 @@ bool containsParameter(const std::vector<std::pair<std::string, std::string>>& p
 
 TransportFile loadImpl(const std::string& path, const MeshFingerprint* expected) {
     FileReader r(path);
-    readPreamble(r);
-    const HeadFields h = readHead(r);
+    const uint32_t version = readPreamble(r);
+    const HeadFields h = readHead(r, version);
     if (expected) checkFingerprint(r, h.mesh, *expected);
     TransportFile f;
     f.cubemapSize = h.cubemapSize;
@@ -914,6 +1147,8 @@ TransportFile loadImpl(const std::string& path, const MeshFingerprint* expected)
                               "prt-merge");
     for (size_t i = 0; i < h.componentCount; ++i)
         f.components.push_back(readComponent(r, h, i, false, nullptr));
+    checkVersionMatchesComponents(r, h, f.components,
+                                  [](const TransportComponent& c) { return c.blocked(); });
     if (h.hasViewMaps) f.viewMaps = readViewMaps(r, false);
     readEnd(r);
     size_t bad = SIZE_MAX;
@@ -933,6 +1168,29 @@ bool containsParameter(const std::vector<std::pair<std::string, std::string>>& p
                        const std::string& key) {
     return std::any_of(parameters.begin(), parameters.end(),
                        [&](const auto& p) { return p.first == key; });
+}
+
+std::string bytesPerVertex(uint64_t bytes, uint64_t vertices) {
+    char buf[48];
+    std::snprintf(buf, sizeof buf, "%.1f B per vertex",
+                  vertices ? double(bytes) / double(vertices) : 0.0);
+    return buf;
+}
+
+// "100000 vertices, blocked: 6250 blocks of 16 sharing 1200000 indices (192.0 mean,
+// 192 max per block), 55.0 MiB (576.2 B per vertex)"; the max only when known.
+std::string describeBlocked(uint64_t vertices, uint64_t blocks, uint64_t indices,
+                            const uint64_t* maxPerBlock, uint64_t bytes) {
+    const double mean = blocks ? double(indices) / double(blocks) : 0.0;
+    char stats[96];
+    if (maxPerBlock)
+        std::snprintf(stats, sizeof stats, "%.1f mean, %" PRIu64 " max per block", mean,
+                      *maxPerBlock);
+    else
+        std::snprintf(stats, sizeof stats, "%.1f mean per block", mean);
+    return u64(vertices) + " vertices, blocked: " + u64(blocks) + " blocks of " +
+           u64(kVertexBlock) + " sharing " + u64(indices) + " indices (" + stats + "), " +
+           formatBytes(bytes) + " (" + bytesPerVertex(bytes, vertices) + ")";
 }
 
 void describeCommon(std::string& out, uint32_t n, const MeshFingerprint& mesh, double mmPerUnit,
@@ -1101,10 +1359,10 @@ TransportFile loadTransportFile(const std::string& path, const MeshFingerprint& 
 
 TransportFileInfo readTransportFileInfo(const std::string& path) {
     FileReader r(path);
-    readPreamble(r);
-    const HeadFields h = readHead(r);
+    const uint32_t version = readPreamble(r);
+    const HeadFields h = readHead(r, version);
     TransportFileInfo info;
-    info.version = kFormatVersion;
+    info.version = version;
     info.cubemapSize = h.cubemapSize;
     info.mesh = h.mesh;
     info.mmPerUnit = h.mmPerUnit;
@@ -1115,6 +1373,8 @@ TransportFileInfo readTransportFileInfo(const std::string& path) {
         readComponent(r, h, i, true, &c);
         info.components.push_back(c);
     }
+    checkVersionMatchesComponents(r, h, info.components,
+                                  [](const TransportFileInfo::Component& c) { return c.blocked; });
     if (h.hasViewMaps) {
         const ViewMaps m = readViewMaps(r, true);
         info.viewMapSize = m.size;
@@ -1130,6 +1390,18 @@ std::string describe(const TransportFile& file) {
     out += "components (" + u64(file.components.size()) + "):\n";
     uint64_t total = 0;
     for (const TransportComponent& c : file.components) {
+        if (c.blocked()) {
+            const BlockedRgbVectors& b = c.blocks;
+            uint64_t maxPerBlock = 0;
+            for (size_t k = 0; k < b.blockCount(); ++k)
+                maxPerBlock = std::max<uint64_t>(maxPerBlock, b.offsets[k + 1] - b.offsets[k]);
+            out += "  " + componentName(c.kind, c.term) + ": " +
+                   describeBlocked(b.vertexCount(), b.blockCount(), b.indexCount(), &maxPerBlock,
+                                   b.byteSize()) +
+                   "\n";
+            total += b.byteSize();
+            continue;
+        }
         const SparseRgbVectors& v = c.vectors;
         uint64_t maxPerVertex = 0;
         for (size_t i = 0; i < v.vertexCount(); ++i)
@@ -1141,7 +1413,8 @@ std::string describe(const TransportFile& file) {
                       maxPerVertex);
         out += "  " + componentName(c.kind, c.term) + ": " + u64(v.vertexCount()) +
                " vertices, " + u64(v.coefficientCount()) + " coefficients (" + stats + "), " +
-               formatBytes(v.byteSize()) + "\n";
+               formatBytes(v.byteSize()) + " (" + bytesPerVertex(v.byteSize(), v.vertexCount()) +
+               ")\n";
         total += v.byteSize();
     }
     if (file.viewMaps)
@@ -1160,13 +1433,21 @@ std::string describe(const TransportFileInfo& info) {
     describeCommon(out, info.cubemapSize, info.mesh, info.mmPerUnit, info.parameters);
     out += "components (" + u64(info.components.size()) + "):\n";
     for (const TransportFileInfo::Component& c : info.components) {
+        if (c.blocked) {
+            out += "  " + componentName(c.kind, c.term) + ": " +
+                   describeBlocked(c.vertexCount, c.blockCount, c.coefficientCount, nullptr,
+                                   c.payloadBytes) +
+                   "\n";
+            continue;
+        }
         const double mean =
             c.vertexCount ? double(c.coefficientCount) / double(c.vertexCount) : 0.0;
         char stats[64];
         std::snprintf(stats, sizeof stats, "%.1f mean per vertex", mean);
         out += "  " + componentName(c.kind, c.term) + ": " + u64(c.vertexCount) + " vertices, " +
                u64(c.coefficientCount) + " coefficients (" + stats + "), " +
-               formatBytes(c.payloadBytes) + "\n";
+               formatBytes(c.payloadBytes) + " (" + bytesPerVertex(c.payloadBytes, c.vertexCount) +
+               ")\n";
     }
     if (info.viewMapTerms > 0)
         out += "view maps: " + std::to_string(info.viewMapTerms) + " terms of 6 x " +

@@ -150,10 +150,12 @@ inline constexpr const char* kShardVerticesParameter = "shard_vertices";
 
 // Writes `file` to `path` atomically: validates it (one vertex count everywhere,
 // equal to mesh.vertexCount; indices < 6 N^2 and increasing; view maps present iff
-// term components exist, one term component per view-map term; finite values), then
+// term components exist, one term component per view-map term; finite values; a
+// blocked component passes checkBlockedVectors and has empty `vectors`), then
 // writes through writeAtomically (common/atomic_file.h): on any failure an existing
 // file at `path` is untouched, no temporary file is left and prt::Error(path, reason)
-// is thrown.
+// is thrown. A file with a blocked component is format version 2, any other file
+// version 1 (the same bytes as before blocked components existed).
 void saveTransportFile(const std::string& path, const TransportFile& file);
 
 // Reads and verifies the whole file (every section's checksum, every count and
@@ -168,7 +170,7 @@ TransportFile loadTransportFile(const std::string& path, const MeshFingerprint& 
 
 // What readTransportFileInfo returns: everything except the vectors and view maps.
 struct TransportFileInfo {
-    uint32_t version = 0;
+    uint32_t version = 0;  // the file's format version: 2 when it has blocked components, else 1
     uint32_t cubemapSize = 0;
     MeshFingerprint mesh;
     double mmPerUnit = 1.0;
@@ -177,8 +179,12 @@ struct TransportFileInfo {
         ComponentKind kind = ComponentKind::MultipleScattering;
         uint32_t term = 0;
         uint64_t vertexCount = 0;
+        // Per vertex: the coefficient count. Blocked: the count of shared indices (each
+        // stands for one coefficient of each of the block's 16 lanes).
         uint64_t coefficientCount = 0;
         uint64_t payloadBytes = 0;  // bytes of the section's payload in the file
+        bool blocked = false;       // a BLKC section (blocks of 16 vertices sharing indices)
+        uint64_t blockCount = 0;    // blocked only: ceil(vertexCount / 16)
     };
     std::vector<Component> components;
     int viewMapSize = 0;   // 0 when the file has no view maps
@@ -197,7 +203,8 @@ struct TransportFileInfo {
 TransportFileInfo readTransportFileInfo(const std::string& path);
 
 // Multi-line human-readable summary: N, mesh, parameters, components with vertex and
-// coefficient counts (mean / max per vertex) and bytes, view maps.
+// coefficient counts (per vertex, or for a blocked component blocks and indices per
+// block; mean, and max where the arrays are at hand) and bytes, view maps.
 std::string describe(const TransportFile& file);
 std::string describe(const TransportFileInfo& info);
 

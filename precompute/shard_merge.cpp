@@ -25,10 +25,19 @@ struct ShardInfo {
     IndexRange range;
 };
 
+// The merge slices and appends per-vertex vectors (one CSR range per shard); blocks
+// of 16 vertices would need the blocks re-formed across shard boundaries.
+[[noreturn]] void refuseBlocked(const std::string& path, ComponentKind kind, uint32_t term) {
+    throw Error(path, "has a blocked " + componentName(kind, term) +
+                          " component; merging blocked shards is not supported yet (shards are per vertex)");
+}
+
 ShardInfo readShardInfo(const std::string& path) {
     const TransportFileInfo info = readTransportFileInfo(path);
     if (!info.hasParameter(kShardParameter))
         throw Error(path, "is a whole transport file, not a shard (it has no 'shard' parameter)");
+    for (const TransportFileInfo::Component& c : info.components)
+        if (c.blocked) refuseBlocked(path, c.kind, c.term);
     ShardInfo s;
     s.path = path;
     try {
@@ -108,6 +117,8 @@ TransportFile mergeShards(const std::vector<std::string>& paths) {
             checkSameJob(whole, firstPath, f, s.path);
         }
         for (size_t c = 0; c < f.components.size(); ++c) {
+            // (readShardInfo refused blocked shards; the file may have changed since.)
+            if (f.components[c].blocked()) refuseBlocked(s.path, f.components[c].kind, f.components[c].term);
             const SparseRgbVectors& v = f.components[c].vectors;
             if (v.offsets[s.range.begin] != 0 || v.offsets[s.range.end] != v.coefficientCount())
                 throw Error(s.path, "has coefficients outside its vertex range " + std::to_string(s.range.begin) +

@@ -199,6 +199,95 @@ TransportFile makeFile(std::mt19937& rng, size_t vertices, uint32_t n, size_t ma
     return f;
 }
 
+// A random permutation of the vertices (blocks of arbitrary vertices: the file keeps
+// whatever order it is given).
+std::vector<uint32_t> shuffledOrder(std::mt19937& rng, size_t vertices) {
+    std::vector<uint32_t> order(vertices);
+    for (size_t v = 0; v < vertices; ++v) order[v] = uint32_t(v);
+    std::shuffle(order.begin(), order.end(), rng);
+    return order;
+}
+
+// Replaces component i's per-vertex vectors by blocks keeping `keep` indices each.
+void makeBlocked(std::mt19937& rng, TransportFile& f, size_t i, size_t keep) {
+    TransportComponent& c = f.components[i];
+    c.blocks = jointTruncate(c.vectors, keep, shuffledOrder(rng, c.vectors.vertexCount()));
+    c.vectors = SparseRgbVectors();
+}
+
+// makeFile with a blocked multiple-scattering component (the others per vertex).
+TransportFile makeBlockedFile(std::mt19937& rng, size_t vertices, uint32_t n, size_t maxCoefficients,
+                              int terms, size_t keep = 24) {
+    TransportFile f = makeFile(rng, vertices, n, maxCoefficients, terms);
+    makeBlocked(rng, f, 0, keep);
+    return f;
+}
+
+// A file built from formulas only (no random distributions, whose output may differ
+// between standard libraries), for a byte-exact comparison with a golden checksum.
+SparseRgbVectors formulaVectors(uint32_t vertices, uint32_t limit, uint32_t salt) {
+    SparseRgbVectors s;
+    for (uint32_t v = 0; v < vertices; ++v) {
+        std::vector<uint32_t> idx;
+        std::vector<float> rgb;
+        const uint32_t count = (v * 7 + salt) % 13;
+        for (uint32_t k = 0; k < count; ++k) {
+            idx.push_back((v * 31 + k * 17 + salt * 5) % limit);  // distinct: 17 is odd
+            for (uint32_t c = 0; c < 3; ++c)
+                rgb.push_back(float(int((v + 3 * k + c + salt) % 19) - 9) *
+                              std::ldexp(1.0f, -int(c + salt)));
+        }
+        s.appendVertex(idx, rgb);
+    }
+    return s;
+}
+
+TransportFile formulaFile() {
+    TransportFile f;
+    f.cubemapSize = 4;
+    f.mesh = {37, 0x0123456789abcdefull};
+    f.mmPerUnit = 0.5;
+    f.parameters = {{"material", "Marble"}, {"terms", "2"}, {"empty", ""}};
+    const ComponentKind kinds[] = {ComponentKind::MultipleScattering,
+                                   ComponentKind::SingleScatteringIsotropic,
+                                   ComponentKind::SingleScatteringTerm,
+                                   ComponentKind::SingleScatteringTerm};
+    for (uint32_t i = 0; i < 4; ++i) {
+        TransportComponent c;
+        c.kind = kinds[i];
+        c.term = i >= 2 ? 3 - i : 0;
+        c.vectors = formulaVectors(37, 96, i);
+        f.components.push_back(std::move(c));
+    }
+    ViewMaps m;
+    m.size = 2;
+    m.terms = 2;
+    for (int i = 0; i < 2 * 6 * 2 * 2; ++i) m.data.push_back(float(i % 7) - 3.0f);
+    f.viewMaps = m;
+    return f;
+}
+
+// Where a BLKC payload's arrays are (docs/transport-format.md), from its fixed part.
+struct BlkcLayout {
+    uint64_t vertices = 0, blocks = 0, indices = 0;
+    size_t order = 0, offsets = 0, idx = 0, values = 0, scales = 0, total = 0;
+};
+
+BlkcLayout blkcLayout(const Bytes& b, const Sec& s) {
+    auto up = [](size_t x) { return (x + 63) / 64 * 64; };
+    BlkcLayout l;
+    l.vertices = le64(&b[s.payload + 8]);
+    l.blocks = le64(&b[s.payload + 16]);
+    l.indices = le64(&b[s.payload + 24]);
+    l.order = 64;
+    l.offsets = up(l.order + 4 * l.vertices);
+    l.idx = up(l.offsets + 4 * (l.blocks + 1));
+    l.values = up(l.idx + 2 * l.indices);
+    l.scales = up(l.values + 48 * l.indices);
+    l.total = l.scales + 4 * 48 * l.blocks;
+    return l;
+}
+
 class TransportTest : public ::testing::Test {
 protected:
     void SetUp() override {
@@ -731,8 +820,11 @@ TEST_F(TransportTest, ForeignFilesAreRefusedClearly) {
     refused(Bytes{'P', 'K', 3, 4, 0, 0}, "not a transport file");
     refused(Bytes{}, "empty");
     x = b;
+    putLe32(&x[8], 3);
+    refused(x, "unsupported transport file format version 3 (this build reads versions 1 and 2)");
+    x = b;  // version 2 is only written for files with a blocked component
     putLe32(&x[8], 2);
-    refused(x, "unsupported transport file format version 2 (this build reads version 1)");
+    refused(x, "format version 2 but no blocked component");
     x = b;
     putLe32(&x[8], 0);
     refused(x, "version 0");
@@ -932,6 +1024,399 @@ TEST_F(TransportTest, InvalidDataIsRefusedOnSave) {
     for (const Case& c : cases) {
         TransportFile f = good;
         c.edit(f);
+        const std::string e = errorOf([&] { saveTransportFile(p, f); });
+        EXPECT_TRUE(contains(e, "invalid transport data")) << e;
+        EXPECT_TRUE(contains(e, c.expected)) << "expected '" << c.expected << "' in: " << e;
+        EXPECT_FALSE(fs::exists(p)) << c.expected;
+    }
+    EXPECT_TRUE(tempFiles().empty());
+}
+
+// ---- blocked components (format version 2) ---------------------------------------
+
+// Every vertex of two components reads back the same indices and values.
+void expectSameVertices(const TransportComponent& a, const TransportComponent& b) {
+    ASSERT_EQ(a.vertexCount(), b.vertexCount());
+    std::vector<uint32_t> ia, ib;
+    std::vector<float> ra, rb;
+    for (size_t v = 0; v < a.vertexCount(); ++v) {
+        a.dequantizeVertex(v, ia, ra);
+        b.dequantizeVertex(v, ib, rb);
+        ASSERT_EQ(ia, ib) << "vertex " << v;
+        ASSERT_EQ(ra, rb) << "vertex " << v;
+    }
+}
+
+TEST_F(TransportTest, BlockedRoundTrip) {
+    std::mt19937 rng(20);
+    // A partial last block (37 = 2 x 16 + 5), whole blocks only, a single vertex, and
+    // N = 64 with the largest index 6 N^2 - 1 in every block.
+    const std::vector<std::pair<size_t, uint32_t>> cases = {{37, 8}, {32, 8}, {1, 1}, {50, 64}};
+    for (const auto& [vertices, n] : cases) {
+        TransportFile f = makeFile(rng, vertices, n, n == 64 ? 300 : 20, 0);
+        f.components.resize(1);
+        if (n == 64) {
+            SparseRgbVectors s;
+            for (size_t v = 0; v < vertices; ++v)
+                s.appendVertex(std::vector<uint32_t>{0, 6 * n * n - 1},
+                               std::vector<float>{1, 2, 3, -4, -5, float(v)});
+            f.components[0].vectors = s;
+        }
+        makeBlocked(rng, f, 0, n == 64 ? 200 : 16);
+        ASSERT_TRUE(f.components[0].blocked());
+        const std::string p = path("b" + std::to_string(vertices) + "-" + std::to_string(n));
+        saveTransportFile(p, f);
+        const Bytes b = readBytes(p);
+        EXPECT_EQ(le32(&b[8]), 2u) << "a file with a blocked component is version 2";
+        const TransportFile g = loadTransportFile(p);
+        EXPECT_EQ(g, f) << vertices << " vertices, N = " << n;
+        ASSERT_TRUE(g.components[0].blocked());
+        EXPECT_EQ(g.components[0].vectors, SparseRgbVectors());
+        expectSameVertices(g.components[0], f.components[0]);  // slotOf rebuilt on load
+        if (n == 64) {
+            EXPECT_EQ(g.components[0].blocks.indices.back(), 6 * n * n - 1);
+        }
+        EXPECT_EQ(loadTransportFile(p, f.mesh), f);
+        // Saving what was loaded writes the same bytes.
+        saveTransportFile(path("again"), g);
+        EXPECT_EQ(readBytes(path("again")), b);
+    }
+    EXPECT_TRUE(tempFiles().empty());
+}
+
+TEST_F(TransportTest, BlockedMultipleScatteringWithPerVertexTermsAndViewMaps) {
+    std::mt19937 rng(21);
+    TransportFile f = makeBlockedFile(rng, 300, 16, 128, 4, 64);
+    const std::string p = path("mixed");
+    saveTransportFile(p, f);
+    TransportFile g = loadTransportFile(p);
+    EXPECT_EQ(g, f);
+    ASSERT_EQ(g.components.size(), 6u);
+    EXPECT_TRUE(g.components[0].blocked());
+    for (size_t i = 1; i < g.components.size(); ++i) {
+        EXPECT_FALSE(g.components[i].blocked()) << i;
+        EXPECT_EQ(g.components[i].vectors, f.components[i].vectors) << i;
+    }
+    ASSERT_TRUE(g.viewMaps.has_value());
+    EXPECT_EQ(*g.viewMaps, *f.viewMaps);
+    expectSameVertices(g.components[0], f.components[0]);
+    EXPECT_EQ(g.find(ComponentKind::MultipleScattering), &g.components[0]);
+
+    // Every component blocked, the term components included.
+    for (size_t i = 1; i < f.components.size(); ++i) makeBlocked(rng, f, i, 32);
+    saveTransportFile(p, f);
+    g = loadTransportFile(p);
+    EXPECT_EQ(g, f);
+    for (size_t i = 0; i < g.components.size(); ++i) expectSameVertices(g.components[i], f.components[i]);
+}
+
+TEST_F(TransportTest, FileWithoutBlockedComponentsIsVersion1ByteForByte) {
+    const std::string p = path("golden");
+    saveTransportFile(p, formulaFile());
+    const Bytes b = readBytes(p);
+    EXPECT_EQ(le32(&b[8]), 1u);
+    // Size and zlib crc32 of the whole file as written before format version 2 existed
+    // (commit d228fb0): adding blocked components changed no byte of other files.
+    EXPECT_EQ(b.size(), 11076u);
+    EXPECT_EQ(uint32_t(crc32(crc32(0L, Z_NULL, 0), b.data(), uInt(b.size()))), 0xd9d0f5e2u);
+    EXPECT_EQ(readTransportFileInfo(p).version, 1u);
+    EXPECT_EQ(loadTransportFile(p), formulaFile());
+}
+
+TEST_F(TransportTest, BlockedLayoutMatchesTheFormatDocument) {
+    std::mt19937 rng(22);
+    const TransportFile f = makeBlockedFile(rng, 37, 8, 20, 2, 12);
+    const std::string p = path("blayout");
+    saveTransportFile(p, f);
+    const Bytes b = readBytes(p);
+    Bytes recomputed = b;
+    EXPECT_EQ(std::string(b.begin(), b.begin() + 8), "PRTXPORT");
+    EXPECT_EQ(le32(&b[8]), 2u);
+    EXPECT_EQ(le32(&b[12]), 0x01020304u);
+    const std::vector<Sec> secs = walk(b);
+    std::vector<std::string> tags;
+    for (const Sec& s : secs) tags.push_back(s.tag);
+    EXPECT_EQ(tags, (std::vector<std::string>{"HEAD", "PARM", "BLKC", "COMP", "COMP", "COMP",
+                                              "VIEW", "END "}));
+    EXPECT_EQ(secs.back().end, b.size());
+    for (const Sec& s : secs) {
+        EXPECT_EQ(s.payload % 64, 0u) << s.tag;
+        EXPECT_EQ(le32(&b[s.header + 4]), 0u) << s.tag;
+        for (size_t i = s.regionStart; i < s.header; ++i) EXPECT_EQ(b[i], 0) << "padding";
+        fixChecksum(recomputed, s);
+    }
+    EXPECT_EQ(recomputed, b);
+    EXPECT_EQ(le32(&b[secs[0].payload + 4]), 4u);  // HEAD counts the blocked component
+
+    // BLKC: fixed part, then order, offsets, indices, values, scales, each 64-byte
+    // aligned, zero padding between them.
+    const Sec& c = secs[2];
+    const uint8_t* q = &b[c.payload];
+    const BlockedRgbVectors& v = f.components[0].blocks;
+    const size_t vertices = 37, blocks = 3, m = v.indexCount();
+    EXPECT_EQ(le32(q), 1u);      // multiple scattering
+    EXPECT_EQ(le32(q + 4), 0u);  // term
+    EXPECT_EQ(le64(q + 8), vertices);
+    EXPECT_EQ(le64(q + 16), blocks);
+    EXPECT_EQ(le64(q + 24), m);
+    for (size_t i = 32; i < 64; ++i) EXPECT_EQ(q[i], 0) << "reserved byte " << i;
+    auto up = [](size_t x) { return (x + 63) / 64 * 64; };
+    const size_t offOrder = 64, offOffsets = up(offOrder + 4 * vertices),
+                 offIndices = up(offOffsets + 4 * (blocks + 1)), offValues = up(offIndices + 2 * m),
+                 offScales = up(offValues + 48 * m);
+    EXPECT_EQ(c.length, offScales + 4 * 48 * blocks);
+    ASSERT_EQ(v.order.size(), vertices);
+    for (size_t i = 0; i < vertices; ++i) EXPECT_EQ(le32(q + offOrder + 4 * i), v.order[i]);
+    for (size_t i = 0; i <= blocks; ++i) EXPECT_EQ(le32(q + offOffsets + 4 * i), v.offsets[i]);
+    for (size_t i = 0; i < m; ++i)
+        EXPECT_EQ(uint16_t(q[offIndices + 2 * i] | q[offIndices + 2 * i + 1] << 8), v.indices[i]);
+    for (size_t i = 0; i < 48 * m; ++i) EXPECT_EQ(int8_t(q[offValues + i]), v.values[i]);
+    for (size_t i = 0; i < 48 * blocks; ++i) {
+        const uint32_t bits = le32(q + offScales + 4 * i);
+        float x;
+        std::memcpy(&x, &bits, 4);
+        EXPECT_EQ(x, v.scales[i]);
+    }
+    const std::vector<std::pair<size_t, size_t>> gaps = {{offOrder + 4 * vertices, offOffsets},
+                                                         {offOffsets + 4 * (blocks + 1), offIndices},
+                                                         {offIndices + 2 * m, offValues},
+                                                         {offValues + 48 * m, offScales}};
+    for (const auto& [from, to] : gaps)
+        for (size_t i = from; i < to; ++i) EXPECT_EQ(q[i], 0) << "padding at payload + " << i;
+    // Lane l of block k is vertex order[16 k + l]: its value of channel ch at the block's
+    // n-th index is values[48 n + 16 ch + l] * scales[48 k + 16 ch + l].
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    const size_t k = 2, lane = 4, vertex = v.order[16 * k + lane];
+    f.components[0].dequantizeVertex(vertex, idx, rgb);
+    const uint32_t first = le32(q + offOffsets + 4 * k), last = le32(q + offOffsets + 4 * (k + 1));
+    ASSERT_EQ(idx.size(), last - first);
+    for (uint32_t n = first; n < last; ++n)
+        for (size_t ch = 0; ch < 3; ++ch) {
+            const uint32_t bits = le32(q + offScales + 4 * (48 * k + 16 * ch + lane));
+            float scale;
+            std::memcpy(&scale, &bits, 4);
+            EXPECT_EQ(rgb[3 * (n - first) + ch], float(int8_t(q[offValues + 48 * n + 16 * ch + lane])) * scale);
+        }
+}
+
+TEST_F(TransportTest, BlockedInfoAndDescribe) {
+    std::mt19937 rng(23);
+    const TransportFile f = makeBlockedFile(rng, 120, 8, 30, 2, 20);
+    const std::string p = path("binfo");
+    saveTransportFile(p, f);
+    const std::vector<Sec> secs = walk(readBytes(p));
+    const TransportFileInfo info = readTransportFileInfo(p);
+    EXPECT_EQ(info.version, 2u);
+    ASSERT_EQ(info.components.size(), 4u);
+    const TransportFileInfo::Component& c = info.components[0];
+    EXPECT_TRUE(c.blocked);
+    EXPECT_EQ(c.kind, ComponentKind::MultipleScattering);
+    EXPECT_EQ(c.vertexCount, 120u);
+    EXPECT_EQ(c.blockCount, 8u);
+    EXPECT_EQ(c.coefficientCount, f.components[0].blocks.indexCount());
+    EXPECT_EQ(c.payloadBytes, secs[2].length);
+    for (size_t i = 1; i < 4; ++i) {
+        EXPECT_FALSE(info.components[i].blocked);
+        EXPECT_EQ(info.components[i].blockCount, 0u);
+        EXPECT_EQ(info.components[i].coefficientCount, f.components[i].vectors.coefficientCount());
+    }
+    EXPECT_EQ(info.viewMapTerms, 2);
+
+    const std::string di = describe(info);
+    EXPECT_TRUE(contains(di, "format version 2")) << di;
+    EXPECT_TRUE(contains(di, "multiple scattering: 120 vertices, blocked: 8 blocks of 16 sharing")) << di;
+    EXPECT_TRUE(contains(di, "mean per block")) << di;
+    EXPECT_TRUE(contains(di, "B per vertex")) << di;
+    EXPECT_TRUE(contains(di, "single scattering term 1: 120 vertices, ")) << di;
+    const std::string d = describe(f);
+    EXPECT_TRUE(contains(d, "blocked: 8 blocks of 16")) << d;
+    EXPECT_TRUE(contains(d, "max per block")) << d;
+    EXPECT_TRUE(contains(d, "max per vertex")) << d;
+}
+
+TEST_F(TransportTest, BlockedTruncatedOrFlippedIsRefusedNamingTheSection) {
+    std::mt19937 rng(24);
+    const TransportFile f = makeBlockedFile(rng, 24, 4, 12, 2, 8);
+    const std::string good = path("good");
+    saveTransportFile(good, f);
+    const Bytes b = readBytes(good);
+    const std::vector<Sec> secs = walk(b);
+    ASSERT_EQ(secs[2].tag, "BLKC");
+    const std::string p = path("cut");
+    writeBytes(p, b);
+    for (size_t len = b.size(); len-- > 0;) {
+        fs::resize_file(p, len);
+        const std::string e1 = errorOf([&] { loadTransportFile(p); });
+        ASSERT_TRUE(contains(e1, "truncated")) << "length " << len << ": " << e1;
+        const std::string e2 = errorOf([&] { readTransportFileInfo(p); });
+        ASSERT_TRUE(contains(e2, "truncated")) << "info, length " << len << ": " << e2;
+    }
+    for (const Sec& s : secs) {
+        writeBytes(p, Bytes(b.begin(), b.begin() + long(s.payload)));
+        std::string e = errorOf([&] { loadTransportFile(p); });
+        EXPECT_TRUE(contains(e, "'" + s.tag + "'")) << e;
+        EXPECT_TRUE(contains(e, "needs " + std::to_string(s.length + 4) + " bytes")) << e;
+        writeBytes(p, Bytes(b.begin(), b.begin() + long(s.regionStart)));
+        e = errorOf([&] { loadTransportFile(p); });
+        EXPECT_TRUE(contains(e, "'" + s.tag + "'")) << e;
+    }
+
+    writeBytes(p, b);
+    std::fstream io(p, std::ios::in | std::ios::out | std::ios::binary);
+    ASSERT_TRUE(io.good());
+    auto poke = [&](size_t at, uint8_t value) {
+        io.seekp(std::streamoff(at));
+        io.put(char(value));
+        io.flush();
+    };
+    for (size_t at = 0; at < b.size(); ++at) {
+        for (uint8_t mask : {uint8_t(0x01), uint8_t(0x80)}) {
+            poke(at, uint8_t(b[at] ^ mask));
+            const std::string e = errorOf([&] { loadTransportFile(p); });
+            poke(at, b[at]);
+            ASSERT_NE(e, "<no error>") << "byte " << at << " ^ " << int(mask) << " accepted";
+            if (at < 16) continue;
+            const Sec& s = *std::find_if(secs.begin(), secs.end(),
+                                         [&](const Sec& x) { return at < x.end; });
+            ASSERT_TRUE(contains(e, "'" + s.tag + "'")) << "byte " << at << ": " << e;
+            if (at >= s.payload || (at >= s.header + 4 && at < s.header + 8)) {
+                ASSERT_TRUE(contains(e, "checksum mismatch")) << "byte " << at << ": " << e;
+            }
+        }
+    }
+    EXPECT_EQ(loadTransportFile(p), f);
+}
+
+TEST_F(TransportTest, BlockedValidChecksumButInconsistentContentsIsRefused) {
+    std::mt19937 rng(25);
+    const TransportFile f = makeBlockedFile(rng, 24, 4, 12, 2, 8);  // blocks of 16 and 8 lanes
+    const std::string p = path("bad");
+    saveTransportFile(p, f);
+    const Bytes b = readBytes(p);
+    const std::vector<Sec> secs = walk(b);
+    const Sec& c = secs[2];
+    ASSERT_EQ(c.tag, "BLKC");
+    const BlockedRgbVectors& v = f.components[0].blocks;
+    ASSERT_GE(v.offsets[1], 2u) << "test needs block 0 with two indices";
+    ASSERT_GT(v.offsets[2], v.offsets[1]) << "test needs an index in the partial block";
+    const BlkcLayout l = blkcLayout(b, c);
+    ASSERT_EQ(l.total, c.length);
+    const size_t at = c.payload;
+
+    auto refusedWith = [&](const std::function<void(Bytes&)>& edit, const std::string& expected) {
+        Bytes x = b;
+        edit(x);
+        fixChecksum(x, c);
+        writeBytes(p, x);
+        const std::string e = errorOf([&] { loadTransportFile(p); });
+        EXPECT_TRUE(contains(e, expected)) << "expected '" << expected << "' in: " << e;
+        EXPECT_TRUE(contains(e, "'BLKC'")) << e;
+        EXPECT_FALSE(contains(e, "checksum")) << e;
+    };
+    auto putFloat = [](uint8_t* q, float x) {
+        uint32_t bits;
+        std::memcpy(&bits, &x, 4);
+        putLe32(q, bits);
+    };
+    refusedWith([&](Bytes& x) { putLe32(&x[at + l.order + 4], v.order[0]); }, "not a permutation");
+    refusedWith([&](Bytes& x) { putLe32(&x[at + l.order], 24); }, "not a permutation");
+    refusedWith([&](Bytes& x) { x[at + l.idx] = 96, x[at + l.idx + 1] = 0; }, "coefficient index 96");
+    refusedWith([&](Bytes& x) {
+        x[at + l.idx + 2] = x[at + l.idx], x[at + l.idx + 3] = x[at + l.idx + 1];
+    }, "not strictly increasing");
+    refusedWith([&](Bytes& x) { putLe32(&x[at + l.offsets + 4], 0xfffff); }, "block offsets decrease");
+    refusedWith([&](Bytes& x) { putLe32(&x[at + l.offsets + 8], v.offsets[2] - 1); },
+                "block offsets end at");
+    refusedWith([&](Bytes& x) { putFloat(&x[at + l.scales + 4], std::nanf("")); }, "scale");
+    refusedWith([&](Bytes& x) { putFloat(&x[at + l.scales + 4], -1.0f); }, "scale");
+    // Block 1 holds vertices 16..23 in lanes 0..7; lanes 8..15 are padding.
+    refusedWith([&](Bytes& x) { putFloat(&x[at + l.scales + 4 * (48 + 16 + 9)], 1.0f); }, "padding lane");
+    refusedWith([&](Bytes& x) { x[at + l.values + 48 * v.offsets[1] + 32 + 15] = 1; },
+                "padding lane 15 of the last block has a non-zero value");
+    refusedWith([&](Bytes& x) { x[at + l.order + 4 * 24 + 1] = 1; }, "non-zero padding between arrays");
+    refusedWith([&](Bytes& x) { putLe64(&x[at + 8], 25); }, "has 25 vertices, the header says 24");
+    refusedWith([&](Bytes& x) { putLe64(&x[at + 16], 3); }, "3 blocks for 24 vertices, expected 2");
+    refusedWith([&](Bytes& x) { putLe64(&x[at + 24], l.indices + 1); }, "need a");
+    refusedWith([&](Bytes& x) { putLe32(&x[at], 7); }, "unknown component kind 7");
+    refusedWith([&](Bytes& x) { putLe32(&x[at + 4], 2); }, "no terms");
+    refusedWith([&](Bytes& x) { x[at + 63] = 1; }, "reserved");
+    // Huge counts never reach an allocation (nor a checksum complaint: it is valid).
+    for (const auto& [offset, value] : std::vector<std::pair<size_t, uint64_t>>{
+             {8, ~uint64_t(0)}, {8, uint64_t(1) << 39}, {16, ~uint64_t(0)}, {16, uint64_t(1) << 35},
+             {16, 0}, {24, ~uint64_t(0)}, {24, uint64_t(1) << 31}, {24, 0}}) {
+        Bytes x = b;
+        putLe64(&x[at + offset], value);
+        fixChecksum(x, c);
+        writeBytes(p, x);
+        const std::string e = errorOf([&] { loadTransportFile(p); });
+        EXPECT_TRUE(contains(e, "inconsistent: section 'BLKC'")) << e;
+        EXPECT_TRUE(contains(errorOf([&] { readTransportFileInfo(p); }), "'BLKC'"));
+    }
+    // The section's length field: truncation or a corrupt checksum, never an allocation.
+    for (int byte = 0; byte < 8; ++byte) {
+        Bytes x = b;
+        x[c.header + 8 + size_t(byte)] ^= 0x40;
+        writeBytes(p, x);
+        EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "'BLKC'"));
+        errorOf([&] { readTransportFileInfo(p); });
+    }
+
+    // Format versions: a BLKC section in a version-1 file is corrupt (older writers
+    // never wrote one); version 3 is unknown.
+    Bytes x = b;
+    putLe32(&x[8], 1);
+    writeBytes(p, x);
+    for (const std::string& e : {errorOf([&] { loadTransportFile(p); }),
+                                 errorOf([&] { readTransportFileInfo(p); })}) {
+        EXPECT_TRUE(contains(e, "corrupt: section 'BLKC' (blocked component 1 of 4)")) << e;
+        EXPECT_TRUE(contains(e, "format version 1 file")) << e;
+    }
+    putLe32(&x[8], 3);
+    writeBytes(p, x);
+    EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "unsupported transport file format version 3"));
+}
+
+TEST_F(TransportTest, InvalidBlockedDataIsRefusedOnSave) {
+    std::mt19937 rng(26);
+    const TransportFile good = makeBlockedFile(rng, 24, 4, 12, 2, 8);
+    const BlockedRgbVectors& gb = good.components[0].blocks;
+    ASSERT_GE(gb.offsets[1], 2u);
+    ASSERT_GT(gb.offsets[2], gb.offsets[1]);
+    const std::string p = path("v");
+    saveTransportFile(p, good);
+    fs::remove(p);
+    struct Case {
+        std::string expected;
+        std::function<void(BlockedRgbVectors&, TransportFile&)> edit;
+    };
+    const std::vector<Case> cases = {
+        {"a blocked component also holds per-vertex vectors",
+         [](BlockedRgbVectors&, TransportFile& f) { f.components[0].vectors = f.components[1].vectors; }},
+        {"blocked arrays without blocked vertices",
+         [](BlockedRgbVectors&, TransportFile& f) { f.components[1].blocks.order = {0}; }},
+        {"has 23 vertices, the mesh fingerprint has 24", [](BlockedRgbVectors& b, TransportFile&) { b.vertices = 23; }},
+        {"not a permutation", [](BlockedRgbVectors& b, TransportFile&) { b.order[1] = b.order[0]; }},
+        {"block order has 23 entries", [](BlockedRgbVectors& b, TransportFile&) { b.order.pop_back(); }},
+        {"coefficient index 96", [](BlockedRgbVectors& b, TransportFile&) { b.indices[0] = 96; }},
+        {"not strictly increasing", [](BlockedRgbVectors& b, TransportFile&) { b.indices[1] = b.indices[0]; }},
+        {"block offsets decrease", [](BlockedRgbVectors& b, TransportFile&) { b.offsets[1] = b.offsets[2] + 1; }},
+        {"has 2 block offsets, expected 3", [](BlockedRgbVectors& b, TransportFile&) { b.offsets.pop_back(); }},
+        {"blocked values", [](BlockedRgbVectors& b, TransportFile&) { b.values.pop_back(); }},
+        {"blocked scales", [](BlockedRgbVectors& b, TransportFile&) { b.scales.pop_back(); }},
+        {"scale not finite", [](BlockedRgbVectors& b, TransportFile&) {
+             b.scales[0] = std::numeric_limits<float>::infinity();
+         }},
+        {"scale not finite", [](BlockedRgbVectors& b, TransportFile&) { b.scales[0] = -1.0f; }},
+        {"padding lane with a non-zero scale", [](BlockedRgbVectors& b, TransportFile&) { b.scales[48 + 8] = 1.0f; }},
+        {"padding lane 8 of the last block has a non-zero value",
+         [](BlockedRgbVectors& b, TransportFile&) { b.values[48 * size_t(b.offsets[1]) + 8] = 1; }},
+        {"component 1 (multiple scattering): coefficient index",
+         [](BlockedRgbVectors&, TransportFile& f) { f.cubemapSize = 1; }},
+    };
+    for (const Case& c : cases) {
+        TransportFile f = good;
+        c.edit(f.components[0].blocks, f);
         const std::string e = errorOf([&] { saveTransportFile(p, f); });
         EXPECT_TRUE(contains(e, "invalid transport data")) << e;
         EXPECT_TRUE(contains(e, c.expected)) << "expected '" << c.expected << "' in: " << e;
