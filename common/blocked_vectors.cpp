@@ -222,6 +222,9 @@ std::string checkBlockedVectors(const BlockedRgbVectors& b, uint32_t lightCount)
         return "blocked values hold " + std::to_string(b.values.size()) + " bytes, expected 48 per index";
     if (b.scales.size() != blocks * kBlockValuesPerIndex)
         return "blocked scales hold " + std::to_string(b.scales.size()) + " floats, expected 48 per block";
+    // Offsets first: every later loop indexes through them.
+    for (uint64_t k = 0; k < blocks; ++k)
+        if (b.offsets[k] > b.offsets[k + 1]) return "block offsets decrease at block " + std::to_string(k);
     std::vector<bool> seen(b.vertices, false);
     for (uint32_t v : b.order) {
         if (v >= b.vertices || seen[v]) return "block order is not a permutation of the vertices";
@@ -229,8 +232,12 @@ std::string checkBlockedVectors(const BlockedRgbVectors& b, uint32_t lightCount)
     }
     for (uint64_t k = 0; k < blocks; ++k) {
         const uint32_t begin = b.offsets[k], end = b.offsets[k + 1];
-        if (begin > end) return "block offsets decrease at block " + std::to_string(k);
+        const uint64_t lanes = std::min<uint64_t>(kVertexBlock, b.vertices - k * kVertexBlock);
         for (uint32_t n = begin; n < end; ++n) {
+            for (uint64_t lane = lanes; lane < kVertexBlock; ++lane)
+                for (size_t c = 0; c < 3; ++c)
+                    if (b.values[n * kBlockValuesPerIndex + 16 * c + lane] != 0)
+                        return "padding lane with a non-zero value in block " + std::to_string(k);
             if (b.indices[n] >= lightCount)
                 return "coefficient index " + std::to_string(b.indices[n]) + " >= 6 N^2 = " + std::to_string(lightCount);
             if (n > begin && b.indices[n] <= b.indices[n - 1])

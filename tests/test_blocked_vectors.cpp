@@ -72,9 +72,10 @@ TEST(BlockedVectors, KeepingTheUnionIsLosslessUpToTheInt8Bound) {
         }
         // Indices outside the vertex's own support are exact zeros.
         std::set<uint32_t> own(si.begin(), si.end());
-        for (size_t n = 0; n < bi.size(); ++n)
-            if (!own.count(bi[n]))
-                for (int c = 0; c < 3; ++c) EXPECT_EQ(bv[3 * n + c], 0.0f);
+        for (size_t n = 0; n < bi.size(); ++n) {
+            if (own.count(bi[n])) continue;
+            for (int c = 0; c < 3; ++c) EXPECT_EQ(bv[3 * n + c], 0.0f);
+        }
     }
     EXPECT_NEAR(retainedEnergyFraction(src, b), 1.0, 1e-3);
 }
@@ -169,6 +170,12 @@ TEST(BlockedVectors, ChecksRefuseInconsistentArrays) {
     EXPECT_NE(checkBlockedVectors(b, 96), "");
     b = good;
     b.scales.back() = 1.0f;  // a padding lane (20 vertices: lanes 4..15 of block 1)
+    EXPECT_NE(checkBlockedVectors(b, 96), "");
+    b = good;
+    b.values[b.offsets[1] * kBlockValuesPerIndex + 15] = 1;  // a padding lane's value
+    EXPECT_NE(checkBlockedVectors(b, 96), "");
+    b = good;
+    b.offsets[1] = b.offsets[2] + 1;  // decreasing offsets, refused before any index read
     EXPECT_NE(checkBlockedVectors(b, 96), "");
     b = good;
     std::swap(b.indices[0], b.indices[1]);

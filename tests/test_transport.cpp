@@ -1333,7 +1333,7 @@ TEST_F(TransportTest, BlockedValidChecksumButInconsistentContentsIsRefused) {
     // Block 1 holds vertices 16..23 in lanes 0..7; lanes 8..15 are padding.
     refusedWith([&](Bytes& x) { putFloat(&x[at + l.scales + 4 * (48 + 16 + 9)], 1.0f); }, "padding lane");
     refusedWith([&](Bytes& x) { x[at + l.values + 48 * v.offsets[1] + 32 + 15] = 1; },
-                "padding lane 15 of the last block has a non-zero value");
+                "padding lane with a non-zero value in block 1");
     refusedWith([&](Bytes& x) { x[at + l.order + 4 * 24 + 1] = 1; }, "non-zero padding between arrays");
     refusedWith([&](Bytes& x) { putLe64(&x[at + 8], 25); }, "has 25 vertices, the header says 24");
     refusedWith([&](Bytes& x) { putLe64(&x[at + 16], 3); }, "3 blocks for 24 vertices, expected 2");
@@ -1409,7 +1409,7 @@ TEST_F(TransportTest, InvalidBlockedDataIsRefusedOnSave) {
          }},
         {"scale not finite", [](BlockedRgbVectors& b, TransportFile&) { b.scales[0] = -1.0f; }},
         {"padding lane with a non-zero scale", [](BlockedRgbVectors& b, TransportFile&) { b.scales[48 + 8] = 1.0f; }},
-        {"padding lane 8 of the last block has a non-zero value",
+        {"padding lane with a non-zero value in block 1",
          [](BlockedRgbVectors& b, TransportFile&) { b.values[48 * size_t(b.offsets[1]) + 8] = 1; }},
         {"component 1 (multiple scattering): coefficient index",
          [](BlockedRgbVectors&, TransportFile& f) { f.cubemapSize = 1; }},
