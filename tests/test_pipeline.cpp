@@ -182,3 +182,55 @@ TEST(Precompute, AnUnwritableOutputIsRefusedBeforeAnyWork) {
     }
     EXPECT_FALSE(fs::exists(tempDir() / "no"));
 }
+
+TEST(Precompute, BlockedOutputIsTheJointTruncationOfThePerVertexVectors) {
+    // --block-coefficients M is the per-vertex job (same -k) followed by jointTruncate
+    // over spatialBlockOrder of the mesh: every component, exactly, so the blocked file
+    // adds no other approximation. The box has 2 partial rows of blocks' worth of
+    // vertices (not a multiple of 16), so the last block is partial.
+    Progress::setEnabled(false);
+    const fs::path dir = tempDir();
+    PrecomputeSettings s;
+    s.meshPath = (dir / "box.obj").string();
+    const TriangleMesh box = makeBox({10, 6, 4}, glm::ivec3(5, 4, 3));
+    saveMesh(box, s.meshPath);
+    s.scale.mmPerUnit = 1.0;
+    s.material = materialByName("Skin1");
+    s.material.g = 0.3;  // single scattering with K = 2 term components
+    s.components = ScatteringComponents::all();
+    s.phaseTerms = 2;
+    s.phaseMapSize = 4;
+    s.pathSamples = 4;
+    s.cubemapSize = 4;
+    s.sampleCount = 200;
+    s.sampleCoefficients = s.nodeCoefficients = 32;
+    s.vertexCoefficients = 40;
+    s.outputPath = (dir / "per_vertex.prt").string();
+    precomputeTransport(s, /*force=*/true);
+    s.blockCoefficients = 24;
+    s.outputPath = (dir / "blocked.prt").string();
+    const PrecomputeSummary summary = precomputeTransport(s, /*force=*/true);
+    EXPECT_GT(summary.blockRetainedEnergy, 0.5);
+    EXPECT_LT(summary.blockRetainedEnergy, 1.0);
+
+    const TransportFile perVertex = loadTransportFile((dir / "per_vertex.prt").string());
+    const TransportFile blocked = loadTransportFile((dir / "blocked.prt").string());
+    ASSERT_EQ(blocked.components.size(), 3u);  // ms + 2 terms
+    ASSERT_EQ(perVertex.components.size(), 3u);
+    EXPECT_NE(blocked.mesh.vertexCount % kVertexBlock, 0u);
+    const TriangleMesh loaded = loadMesh(s.meshPath);
+    const std::vector<uint32_t> order = spatialBlockOrder(loaded.positions);
+    for (size_t c = 0; c < 3; ++c) {
+        EXPECT_TRUE(blocked.components[c].blocked());
+        EXPECT_FALSE(perVertex.components[c].blocked());
+        EXPECT_EQ(blocked.components[c].blocks, jointTruncate(perVertex.components[c].vectors, 24, order))
+            << componentName(blocked.components[c].kind, blocked.components[c].term);
+    }
+    EXPECT_EQ(blocked.parameter("block_coefficients"), "24");
+    EXPECT_FALSE(perVertex.hasParameter("block_coefficients"));
+    EXPECT_EQ(blocked.viewMaps, perVertex.viewMaps);
+    // Shard jobs refuse blocks (prt-merge joins per-vertex shards only).
+    s.shard = ShardSpec{0, 2};
+    EXPECT_THROW(validateSettings(s), Error);
+    fs::remove_all(dir);
+}

@@ -40,6 +40,8 @@ runs=(
     "budget|cubemap 64|64|--cubemap-size 64"
     "budget|half spacing|$(scaled 0.5)|--sample-spacing $(scaled 0.5)"
     "budget|all truncations 1024|1024|--coefficients 1024 --sample-coefficients 1024 --node-coefficients 1024"
+    "blocks|blocks of 16 sharing 160|160|--block-coefficients 160"
+    "blocks|blocks of 16 sharing 192|192|--block-coefficients 192"
     "coefficients|k 32|32|--coefficients 32"
     "coefficients|k 64|64|--coefficients 64"
     "coefficients|k 128|128|"
