@@ -28,15 +28,23 @@ struct VertexRadiance {
     std::vector<std::vector<glm::vec3>> terms;  // [k][vertex], empty without K-term SS
 };
 
-// Fast path: multithreaded (TBB) over blocks of vertices, streaming each component's
-// CSR arrays once; int16 values are dequantized on the fly. Throws prt::Error when
-// the light vector's N differs from the file's cubemap size.
+// Fast path: multithreaded (TBB), streaming each component's arrays once, whichever its
+// encoding (a file may mix them):
+//   per vertex (CSR, TransportComponent::vectors): over ranges of vertices, int16 values
+//     dequantized on the fly;
+//   blocked (TransportComponent::blocks, common/blocked_vectors.h): over ranges of blocks
+//     of 16 vertices; per index of a block the light's RGB is loaded once and multiplied
+//     into the 16 vertices' int8 values (three 16-wide multiply-adds), and the block's 16
+//     results are scattered to their vertices order[16 b + lane] (padding lanes skipped).
+// Throws prt::Error when the light vector's N differs from the file's cubemap size.
 //
 // OUTPUT. out.diffuse always has one entry per vertex (zeros when no diffuse
 // component is selected or present); out.terms has one vector per SingleScatteringTerm
 // component of the file, ordered by term index (slot k = term k in a valid file), when
-// singleScattering is selected, and is empty otherwise. The vertex count is the
-// components' (they must agree; mesh.vertexCount only when there are none). `out` is
+// singleScattering is selected, and is empty otherwise. The diffuse components sum in a
+// fixed order: the per-vertex ones, then the blocked ones, each in the file's order (the
+// first stores, the others add). The vertex count is the components' (vertexCount();
+// they must agree; mesh.vertexCount only when there are none). `out` is
 // resize()d, so its capacity is kept and reusing it across frames does not reallocate
 // (a few small per-call allocations remain: the light in gather layout, ~100 KB at N=32).
 //
@@ -46,13 +54,23 @@ struct VertexRadiance {
 // at most about (n/4 + 3) * 2^-24 * sum_n |v_n L_n| for n coefficients (plus the float
 // rounding of the scale): ~2e-6 of the absolute sum for n = 128, far below the 16-bit
 // quantization error (kQuantizationMaxRelativeError ~ 1.5e-5 of the vertex's maximum).
-// Each vertex is computed by the same instruction sequence whatever the blocking, so
-// the result is bitwise independent of the number of threads.
+// Blocked components: per lane and channel the sum of q_n * L_n (int8 value times float
+// light) is accumulated in one float accumulator in index order, then multiplied by the
+// lane's scale: the error is at most about (n + 3) * 2^-24 * sum_n |v_n L_n| for a block
+// of n indices (~1e-5 of the absolute sum for n = 160), far below the 8-bit
+// quantization error (kBlockQuantizationMaxRelativeError ~ 3.9e-3 of the vertex's
+// channel maximum).
+// Each vertex (block) is computed by the same instruction sequence whatever the
+// partition into tasks, so the result is bitwise independent of the number of threads.
 //
-// VALIDATION. Per call, O(1) per component plus one comparison per vertex: array sizes,
-// offsets, and the largest (= last, indices increase) coefficient index of each vertex
-// against 6 N^2, so a corrupt in-memory file raises prt::Error instead of reading out
-// of bounds. Components with different vertex counts or a duplicated term are refused.
+// VALIDATION. Per call, O(1) per component plus one comparison per vertex (per-vertex
+// components) or per block and lane (blocked): array sizes, offsets, the largest (=
+// last, indices increase) coefficient index of each vertex or block against 6 N^2, and
+// a blocked component's `order` entries against the vertex count, so a corrupt in-memory
+// file raises prt::Error instead of reading or writing out of bounds. (That `order` is
+// a permutation is not checked per call: a duplicate gives wrong results in bounds;
+// checkBlockedVectors and the file reader check it.) Components with different vertex
+// counts or a duplicated term are refused.
 void relightVertices(const TransportFile& file, const LightVector& light,
                      const ScatteringComponents& components, VertexRadiance& out);
 
@@ -62,13 +80,19 @@ void relightVertices(const TransportFile& file, const LightVector& light,
 //     Rgb4: 4 floats (R, G, B, 0) per coefficient: one aligned 16-byte load, never
 //           straddling a cache line;
 //     Rgb3: 3 floats per coefficient, an unaligned 16-byte load (25% less cache).
-//   isa: Baseline is SSE2 (any x86-64; portable scalar code elsewhere); Avx2Fma is
-//     compiled with a target attribute and needs a CPU with AVX2 and FMA (x86-64-v3);
-//     Best takes Avx2Fma when the CPU has it. FMA rounds once per product-sum, so the
-//     two differ in the last bits (both within the PRECISION bound above); the choice
-//     is fixed per process, so results are reproducible on one machine.
+//     (Blocked components read the light with three scalar broadcasts per index in
+//     either layout.)
+//   isa: Baseline is SSE2 (any x86-64; portable scalar code elsewhere), for both
+//     encodings (blocked: 16 lanes = four xmm per channel); Avx2Fma is compiled with a
+//     target attribute and needs a CPU with AVX2 and FMA (x86-64-v3), 16 lanes = two ymm
+//     per channel for blocked components;
+//     Avx512 needs AVX-512 F, BW and VL besides AVX2 + FMA and changes only the blocked
+//     kernel (16 lanes = one zmm per channel; per-vertex components run the AVX2 kernel);
+//     Best takes the best of these the CPU has. FMA rounds once per product-sum, so the
+//     kernels differ in the last bits (all within the PRECISION bounds above); the
+//     choice is fixed per process, so results are reproducible on one machine.
 enum class RelightLayout { Rgb3, Rgb4 };
-enum class RelightIsa { Best, Baseline, Avx2Fma };
+enum class RelightIsa { Best, Baseline, Avx2Fma, Avx512 };
 struct RelightOptions {
     RelightLayout layout = RelightLayout::Rgb4;
     RelightIsa isa = RelightIsa::Best;
@@ -81,11 +105,14 @@ void relightVertices(const TransportFile& file, const LightVector& light,
                      const RelightOptions& options);
 
 // The slow obvious version (dequantize each vertex, dot in double), kept for tests.
+// Validates blocked components whole first (checkBlockedVectors) and reads them through
+// TransportComponent::dequantizeVertex (slotOf), not through `order` as the fast path.
 void relightVerticesReference(const TransportFile& file, const LightVector& light,
                               const ScatteringComponents& components, VertexRadiance& out);
 
 // Bytes the fast path streams for one evaluation (offsets, indices, values, scales of
-// the selected components): the numerator of the bandwidth ratio in SPEC section 8.
+// the selected components, and `order` of blocked ones: BlockedRgbVectors::byteSize()
+// + 4 bytes per vertex): the numerator of the bandwidth ratio in SPEC section 8.
 size_t relightStreamBytes(const TransportFile& file, const ScatteringComponents& components);
 
 }  // namespace prt

@@ -399,7 +399,7 @@ Expected expectedRadiance(const TransportFile& file, const LightVector& light, c
         if (!selected) continue;
         const bool term = c.kind == ComponentKind::SingleScatteringTerm;
         for (size_t v = 0; v < vertices; ++v) {
-            c.vectors.dequantizeVertex(v, idx, rgb);
+            c.dequantizeVertex(v, idx, rgb);  // per-vertex or blocked
             glm::dvec3 s(0.0), a(0.0);
             for (size_t k = 0; k < idx.size(); ++k)
                 for (int ch = 0; ch < 3; ++ch) {
@@ -447,14 +447,16 @@ bool bitwiseEqual(const VertexRadiance& a, const VertexRadiance& b) {
 // Every fast-path variant this machine can run.
 std::vector<prt::RelightOptions> variants() {
     std::vector<prt::RelightOptions> out;
-    for (prt::RelightIsa isa : {prt::RelightIsa::Baseline, prt::RelightIsa::Avx2Fma})
+    for (prt::RelightIsa isa : {prt::RelightIsa::Baseline, prt::RelightIsa::Avx2Fma, prt::RelightIsa::Avx512})
         for (prt::RelightLayout layout : {prt::RelightLayout::Rgb3, prt::RelightLayout::Rgb4})
             if (prt::relightIsaSupported(isa)) out.push_back({layout, isa});
     return out;
 }
 
 std::string variantName(const prt::RelightOptions& o) {
-    return std::string(o.isa == prt::RelightIsa::Avx2Fma ? "avx2" : "baseline") +
+    return std::string(o.isa == prt::RelightIsa::Avx512    ? "avx512"
+                       : o.isa == prt::RelightIsa::Avx2Fma ? "avx2"
+                                                           : "baseline") +
            (o.layout == prt::RelightLayout::Rgb3 ? " rgb3" : " rgb4");
 }
 
@@ -658,6 +660,16 @@ TEST(Relight, StreamBytesCountTheSelectedComponents) {
 TEST(Relight, VariantsAreAvailable) {
     EXPECT_TRUE(prt::relightIsaSupported(prt::RelightIsa::Best));
     EXPECT_TRUE(prt::relightIsaSupported(prt::RelightIsa::Baseline));
+    if (prt::relightIsaSupported(prt::RelightIsa::Avx512)) {
+        EXPECT_TRUE(prt::relightIsaSupported(prt::RelightIsa::Avx2Fma));  // it runs per-vertex components
+    } else {
+        const TransportFile file = randomFile(4, 10, {true, false, 0}, 1, 5);
+        VertexRadiance out;
+        EXPECT_THROW(prt::relightVertices(file, prt::makeLightVector(randomCubemap(4, 1)), {true, true},
+                                          out, {prt::RelightLayout::Rgb4, prt::RelightIsa::Avx512}),
+                     prt::Error);
+        std::printf("[ info ] no AVX-512 (F, BW, VL): the blocked AVX-512 kernel is not tested\n");
+    }
     if (!prt::relightIsaSupported(prt::RelightIsa::Avx2Fma)) {
         const TransportFile file = randomFile(4, 10, {true, false, 0}, 1, 5);
         VertexRadiance out;
@@ -666,6 +678,307 @@ TEST(Relight, VariantsAreAvailable) {
                      prt::Error);
         GTEST_SKIP() << "no AVX2 + FMA: only the baseline kernel is tested";
     }
+}
+
+// ---------------------------------------------------------------------------------
+// Blocked components (common/blocked_vectors.h)
+
+// A shuffled vertex order: blocks are not runs of consecutive vertices, and with V not a
+// multiple of 16 the last block is partial.
+std::vector<uint32_t> shuffledOrder(size_t vertices, uint32_t seed) {
+    std::vector<uint32_t> order(vertices);
+    std::iota(order.begin(), order.end(), 0u);
+    std::mt19937 rng(seed);
+    std::shuffle(order.begin(), order.end(), rng);
+    return order;
+}
+
+// `file` with the components `which` selects converted to blocks keeping `keep` indices
+// per block (jointTruncate of their per-vertex vectors, in a shuffled order).
+TransportFile blockedCopy(TransportFile file, size_t keep, uint32_t seed,
+                          const std::function<bool(const TransportComponent&)>& which) {
+    const std::vector<uint32_t> order = shuffledOrder(file.mesh.vertexCount, seed);
+    for (TransportComponent& c : file.components) {
+        if (!which(c)) continue;
+        c.blocks = prt::jointTruncate(c.vectors, keep, order);
+        c.vectors.clear();
+        EXPECT_EQ(prt::checkBlockedVectors(c.blocks, 6 * file.cubemapSize * file.cubemapSize), "");
+    }
+    return file;
+}
+
+bool everyComponent(const TransportComponent&) { return true; }
+
+// The float error of the blocked kernel (relight_kernel.h, PRECISION): at most
+// (n + 3) 2^-24 of sum |v_n L_n| for a block of n <= keep indices; adding the diffuse
+// components costs a rounding of the running sum each (<= 3 of them here), and the
+// reference's own float output half an ulp.
+double blockedTolerance(size_t keep) { return (double(keep) + 3.0 + 3.0 + 1.0) * 0x1p-24; }
+
+TEST(RelightBlocked, FastKernelMatchesReferenceOnRandomBlocks) {
+    struct Case {
+        uint32_t n;
+        size_t vertices, maxCoefficients, keep;
+        int lightTerms;  // 0: full light vector
+    };
+    // 1000 = 62 x 16 + 8 vertices: a partial last block. N = 32 with a truncated light:
+    // larger indices, zero light coefficients.
+    const Case cases[] = {{8, 1000, 200, 100, 0}, {32, 1000, 300, 160, 400}, {4, 37, 6, 64, 0}};
+    uint32_t seed = 300;
+    for (const Case& k : cases) {
+        const LightVector light = prt::makeLightVector(randomCubemap(int(k.n), seed), size_t(k.lightTerms));
+        const TransportFile file =
+            blockedCopy(randomFile(k.n, k.vertices, {true, true, 3}, seed, k.maxCoefficients), k.keep, seed + 1,
+                        everyComponent);
+        ++seed;
+        for (const ScatteringComponents& set : kSets) {
+            const std::string what = "N " + std::to_string(k.n) + " keep " + std::to_string(k.keep) + ", set " +
+                                     setName(set);
+            SCOPED_TRACE(what);
+            const Expected e = expectedRadiance(file, light, set);
+            VertexRadiance reference, fast;
+            prt::relightVerticesReference(file, light, set, reference);
+            prt::relightVertices(file, light, set, fast);
+            expectMatches(reference, e, 1e-7, "reference");
+            expectMatches(fast, e, blockedTolerance(k.keep), "fast");
+            EXPECT_EQ(fast.terms.size(), set.singleScattering ? 3u : 0u);
+            for (const prt::RelightOptions& options : variants()) {
+                VertexRadiance v;
+                prt::relightVertices(file, light, set, v, options);
+                expectMatches(v, e, blockedTolerance(k.keep), variantName(options));
+            }
+        }
+    }
+}
+
+TEST(RelightBlocked, MatchesPerVertexWhenNothingIsDropped) {
+    // Per-vertex vectors of at most 5 coefficients from 40 indices, so a block's union
+    // (<= 40) is within keep = 48: jointTruncate keeps everything and the blocked result
+    // differs from the per-vertex one of the same source vectors only by the 8-bit
+    // quantization: |v - dequantized v| <= kBlockQuantizationMaxRelativeError max_n |v_nc|
+    // per value, so per vertex and channel the sum moves by at most that times
+    // max_n |v_nc| sum_n |L_nc|, plus both kernels' float error (blockedTolerance of the
+    // sum of |v_n L_n|). The vertices in the first block of the order have no
+    // coefficients at all (an empty block: zero output).
+    const uint32_t n = 8;
+    const size_t vertices = 999;
+    const LightVector light = prt::makeLightVector(randomCubemap(int(n), 17));
+    const std::vector<uint32_t> order = shuffledOrder(vertices, 18);
+    std::vector<bool> empty(vertices, false);
+    for (size_t s = 0; s < 16; ++s) empty[order[s]] = true;
+    TransportFile perVertex;
+    perVertex.cubemapSize = n;
+    perVertex.mesh.vertexCount = vertices;
+    TransportComponent ms;
+    std::mt19937 rng(19);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f), decade(-2.0f, 1.0f);
+    std::vector<uint32_t> pool(40);
+    for (uint32_t& x : pool) x = std::uniform_int_distribution<uint32_t>(0, 6 * n * n - 1)(rng);
+    std::sort(pool.begin(), pool.end());
+    pool.erase(std::unique(pool.begin(), pool.end()), pool.end());
+    for (size_t v = 0; v < vertices; ++v) {
+        std::shuffle(pool.begin(), pool.end(), rng);
+        const size_t m = empty[v] ? 0 : std::uniform_int_distribution<size_t>(1, 5)(rng);
+        std::vector<float> rgb(3 * m);
+        for (float& x : rgb) x = unit(rng) * std::pow(10.0f, decade(rng));
+        ms.vectors.appendVertex(std::span<const uint32_t>(pool.data(), m), rgb);
+    }
+    perVertex.components.push_back(ms);
+    const size_t keep = 48;
+    TransportFile blocked = perVertex;
+    blocked.components[0].blocks = prt::jointTruncate(ms.vectors, keep, order);
+    blocked.components[0].vectors.clear();
+    ASSERT_EQ(blocked.components[0].blocks.offsets[1], 0u) << "the first block should be empty";
+    std::vector<uint32_t> idx, kept;
+    std::vector<float> rgb;
+    for (size_t v = 0; v < vertices; ++v) {  // every vertex keeps all its indices
+        ms.vectors.dequantizeVertex(v, idx, rgb);
+        blocked.components[0].blocks.dequantizeVertex(v, kept, rgb);
+        ASSERT_TRUE(std::includes(kept.begin(), kept.end(), idx.begin(), idx.end())) << "vertex " << v;
+    }
+
+    VertexRadiance want;
+    prt::relightVertices(perVertex, light, {true, true}, want);
+    for (const prt::RelightOptions& options : variants()) {
+        SCOPED_TRACE(variantName(options));
+        VertexRadiance got;
+        prt::relightVertices(blocked, light, {true, true}, got, options);
+        ASSERT_EQ(got.diffuse.size(), vertices);
+        size_t failures = 0;
+        bool quantizationVisible = false;
+        for (size_t v = 0; v < vertices && failures < 5; ++v) {
+            ms.vectors.dequantizeVertex(v, idx, rgb);
+            for (int c = 0; c < 3; ++c) {
+                double maxV = 0.0, sumL = 0.0, sumVL = 0.0;
+                for (size_t k = 0; k < idx.size(); ++k) {
+                    const double l = std::abs(light.rgb[3 * size_t(idx[k]) + size_t(c)]);
+                    maxV = std::max(maxV, double(std::abs(rgb[3 * k + size_t(c)])));
+                    sumL += l;
+                    sumVL += std::abs(rgb[3 * k + size_t(c)]) * l;
+                }
+                const double bound = prt::kBlockQuantizationMaxRelativeError * maxV * sumL +
+                                     2.0 * blockedTolerance(keep) * sumVL;
+                const double diff = std::abs(double(got.diffuse[v][c]) - want.diffuse[v][c]);
+                if (empty[v]) {
+                    EXPECT_EQ(got.diffuse[v][c], 0.0f);
+                } else if (!(diff <= bound)) {
+                    ADD_FAILURE() << "vertex " << v << " channel " << c << ": " << got.diffuse[v][c] << " vs "
+                                  << want.diffuse[v][c] << " (bound " << bound << ")";
+                    ++failures;
+                }
+                if (diff > 1e-3 * sumVL) quantizationVisible = true;
+            }
+        }
+        EXPECT_TRUE(quantizationVisible) << "the test should exercise the 8-bit quantization";
+    }
+}
+
+TEST(RelightBlocked, MixedFileAndThreadIndependence) {
+    // Blocked multiple scattering beside per-vertex isotropic single scattering and
+    // per-vertex SS terms (and the other way round): the diffuse sum mixes both
+    // encodings; all blocked, in one or two orders; a blocked diffuse component alone. The result does not depend on the number of threads, and an output
+    // holding another result is overwritten everywhere.
+    const uint32_t n = 16;
+    const size_t keep = 128;
+    const LightVector light = prt::makeLightVector(randomCubemap(int(n), 23));
+    const TransportFile source = randomFile(n, 3001, {true, true, 4}, 24, 128);
+    const auto isMs = [](const TransportComponent& c) { return c.kind == ComponentKind::MultipleScattering; };
+    const TransportFile msBlocked = blockedCopy(source, keep, 25, isMs);
+    const TransportFile ssBlocked = blockedCopy(source, keep, 26, [&](const TransportComponent& c) { return !isMs(c); });
+    // Every component blocked in one order (MS and isotropic SS summed block by block in
+    // one pass), and MS and isotropic SS blocked in different orders (one pass each).
+    const TransportFile allBlocked = blockedCopy(source, keep, 27, everyComponent);
+    const TransportFile twoOrders = blockedCopy(msBlocked, keep, 28, [](const TransportComponent& c) {
+        return c.kind == ComponentKind::SingleScatteringIsotropic;
+    });
+    TransportFile msOnly = msBlocked;  // the only diffuse component is blocked: it stores
+    msOnly.components.erase(std::remove_if(msOnly.components.begin(), msOnly.components.end(),
+                                           [&](const TransportComponent& c) { return !isMs(c); }),
+                            msOnly.components.end());
+    msOnly.viewMaps.reset();
+    int checked = 0;
+    for (const TransportFile* file : std::vector<const TransportFile*>{&msBlocked, &ssBlocked, &allBlocked, &twoOrders, &msOnly}) {
+        SCOPED_TRACE(checked++);
+        ASSERT_TRUE(std::any_of(file->components.begin(), file->components.end(),
+                                [](const TransportComponent& c) { return c.blocked(); }));
+        for (const ScatteringComponents& set : kSets) {
+            SCOPED_TRACE(setName(set));
+            const Expected e = expectedRadiance(*file, light, set);
+            VertexRadiance reference;
+            prt::relightVerticesReference(*file, light, set, reference);
+            expectMatches(reference, e, 1e-7, "reference");
+            for (const prt::RelightOptions& options : variants()) {
+                SCOPED_TRACE(variantName(options));
+                VertexRadiance one, two, reused;
+                tbb::task_arena(1).execute([&] { prt::relightVertices(*file, light, set, one, options); });
+                tbb::task_arena(2).execute([&] { prt::relightVertices(*file, light, set, two, options); });
+                reused.diffuse.assign(5000, glm::vec3(7.0f));
+                reused.terms.assign(6, std::vector<glm::vec3>(5000, glm::vec3(-1.0f)));
+                prt::relightVertices(*file, light, set, reused, options);
+                expectMatches(one, e, blockedTolerance(keep), "fast");
+                EXPECT_TRUE(bitwiseEqual(one, two));
+                EXPECT_TRUE(bitwiseEqual(one, reused));
+            }
+        }
+    }
+}
+
+TEST(RelightBlocked, CorruptInMemoryBlocksAreRefusedNotRead) {
+    const uint32_t n = 4;
+    const uint32_t count = 6 * n * n;
+    const TransportFile good =
+        blockedCopy(randomFile(n, 1000, {true, false, 0}, 31, 40), 32, 32, everyComponent);
+    const LightVector light = prt::makeLightVector(randomCubemap(int(n), 33));
+    VertexRadiance out;
+    EXPECT_NO_THROW(prt::relightVertices(good, light, {true, true}, out));
+    EXPECT_NO_THROW(prt::relightVerticesReference(good, light, {true, true}, out));
+    const auto refused = [&](const TransportFile& file, const char* what) {
+        SCOPED_TRACE(what);
+        for (const prt::RelightOptions& options : variants())
+            EXPECT_THROW(prt::relightVertices(file, light, {true, true}, out, options), prt::Error)
+                << variantName(options);
+        EXPECT_THROW(prt::relightVerticesReference(file, light, {true, true}, out), prt::Error);
+        EXPECT_NO_THROW(prt::relightVertices(file, light, {false, true}, out));  // not selected
+    };
+    {
+        TransportFile f = good;  // an index >= 6 N^2 at the end of a block
+        prt::BlockedRgbVectors& b = f.components[0].blocks;
+        size_t k = 40;
+        while (b.offsets[k + 1] == b.offsets[k]) ++k;
+        b.indices[b.offsets[k + 1] - 1] = uint16_t(count);
+        refused(f, "index = 6 N^2");
+        b.indices[b.offsets[k + 1] - 1] = uint16_t(65535);
+        refused(f, "index 65535");
+    }
+    {
+        TransportFile f = good;  // a vertex number past the vertex count, in the partial last block
+        f.components[0].blocks.order.back() = 1000;
+        refused(f, "order entry = V");
+        f.components[0].blocks.order[5] = UINT32_MAX;
+        refused(f, "order entry 2^32 - 1");
+    }
+    {
+        TransportFile f = good;  // offsets out of order
+        prt::BlockedRgbVectors& b = f.components[0].blocks;
+        b.offsets[10] = b.offsets[11] + 1;
+        refused(f, "decreasing offsets");
+    }
+    {
+        TransportFile f = good;  // offsets past the index count (the last one too large)
+        prt::BlockedRgbVectors& b = f.components[0].blocks;
+        b.offsets[20] = uint32_t(b.indices.size()) + 100;
+        refused(f, "offset past the indices");
+    }
+    const auto sizes = [&](const std::function<void(prt::BlockedRgbVectors&)>& corrupt, const char* what) {
+        TransportFile f = good;
+        corrupt(f.components[0].blocks);
+        refused(f, what);
+    };
+    sizes([](prt::BlockedRgbVectors& b) { b.values.pop_back(); }, "values size");
+    sizes([](prt::BlockedRgbVectors& b) { b.scales.resize(b.scales.size() - 48); }, "scales size");
+    sizes([](prt::BlockedRgbVectors& b) { b.order.pop_back(); }, "order size");
+    sizes([](prt::BlockedRgbVectors& b) { b.offsets.pop_back(); }, "offsets size");
+    sizes([](prt::BlockedRgbVectors& b) { b.indices.push_back(0); }, "indices size");
+    sizes([](prt::BlockedRgbVectors& b) { b.vertices += 16; }, "vertex count");
+    {
+        // A duplicated vertex in `order` stays in bounds: the fast path does not check the
+        // permutation per call (relight_kernel.h), the reference does.
+        TransportFile f = good;
+        f.components[0].blocks.order[3] = f.components[0].blocks.order[4];
+        EXPECT_NO_THROW(prt::relightVertices(f, light, {true, true}, out));
+        EXPECT_THROW(prt::relightVerticesReference(f, light, {true, true}, out), prt::Error);
+    }
+    {
+        // A blocked component whose vertex count differs from another component's.
+        TransportFile f = blockedCopy(randomFile(n, 1000, {true, true, 0}, 34, 20), 16, 35, everyComponent);
+        f.components[1] = blockedCopy(randomFile(n, 1001, {false, true, 0}, 36, 20), 16, 37,
+                                      everyComponent).components[0];
+        EXPECT_THROW(prt::relightVertices(f, light, {true, true}, out), prt::Error);
+        EXPECT_THROW(prt::relightVerticesReference(f, light, {true, true}, out), prt::Error);
+    }
+}
+
+TEST(RelightBlocked, StreamBytesCountTheBlockedArrays) {
+    const TransportFile source = randomFile(4, 300, {true, true, 2}, 41, 30);
+    const TransportFile file = blockedCopy(source, 24, 42, [](const TransportComponent& c) {
+        return c.kind == ComponentKind::MultipleScattering;
+    });
+    size_t ms = 0, ss = 0;
+    for (const TransportComponent& c : file.components) {
+        if (c.kind == ComponentKind::MultipleScattering) {
+            ASSERT_TRUE(c.blocked());
+            // byteSize (offsets, indices, values, scales) + order, 4 bytes per vertex
+            ms += c.blocks.byteSize() + 4 * 300;
+            EXPECT_EQ(c.blocks.byteSize(),
+                      4 * (19 + 1) + 2 * c.blocks.indices.size() + 48 * c.blocks.indices.size() + 4 * 48 * 19);
+        } else {
+            ASSERT_FALSE(c.blocked());
+            ss += c.vectors.byteSize();
+        }
+    }
+    EXPECT_EQ(prt::relightStreamBytes(file, {true, false}), ms);
+    EXPECT_EQ(prt::relightStreamBytes(file, {false, true}), ss);
+    EXPECT_EQ(prt::relightStreamBytes(file, {true, true}), ms + ss);
 }
 
 }  // namespace

@@ -4,6 +4,8 @@
 // back to back ("warm": a file smaller than the last-level cache is then read from
 // cache) and each after reading a 1 GiB array ("cold": from memory).
 // Used by tools/scaling.sh for the relight time per frame of every precomputed file.
+// Per-vertex and blocked components (common/blocked_vectors.h) alike; "coefficients"
+// counts each vertex's coefficients (a blocked vertex has its block's indices).
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -109,9 +111,24 @@ int main(int argc, char** argv) {
         int terms = 0;
         for (const TransportComponent& c : file.components) terms += c.kind == ComponentKind::SingleScatteringTerm;
         const int n = int(file.cubemapSize);
-        const size_t vertices = file.components.empty() ? 0 : file.components[0].vectors.vertexCount();
-        size_t coefficients = 0;
-        for (const TransportComponent& c : file.components) coefficients += c.vectors.coefficientCount();
+        const size_t vertices = file.components.empty() ? 0 : file.components[0].vertexCount();
+        // Coefficients per vertex summed over vertices: a blocked component's vertex has
+        // its block's indices (each stored once per block of 16: blockIndices).
+        size_t coefficients = 0, blockIndices = 0, blockedCoefficients = 0;
+        int blockedComponents = 0;
+        for (const TransportComponent& c : file.components) {
+            if (!c.blocked()) {
+                coefficients += c.vectors.coefficientCount();
+                continue;
+            }
+            const BlockedRgbVectors& b = c.blocks;
+            ++blockedComponents;
+            blockIndices += b.indexCount();
+            for (size_t k = 0; k + 1 < b.offsets.size(); ++k)
+                blockedCoefficients += size_t(b.offsets[k + 1] - b.offsets[k]) *
+                                       std::min<size_t>(kVertexBlock, b.vertexCount() - k * kVertexBlock);
+        }
+        coefficients += blockedCoefficients;
 
         // Light vector: from the environment (timed, rotated each run like an
         // environment spin), or synthetic.
@@ -183,6 +200,11 @@ int main(int argc, char** argv) {
 
         std::printf("file          %s: %zu vertices, %zu components (%d view terms), N = %d, %.1f MB\n",
                     path.c_str(), vertices, file.components.size(), terms, n, fileBytes / 1e6);
+        if (blockedComponents > 0)
+            std::printf("blocked       %d component(s) in blocks of %u vertices sharing their indices (%zu "
+                        "indices, %.1f per vertex and component)\n",
+                        blockedComponents, kVertexBlock, blockIndices,
+                        vertices ? double(blockedCoefficients) / double(vertices) / blockedComponents : 0.0);
         std::printf("load          %.1f ms (%.0f MB/s; as cached: a file just written is in the page cache)\n",
                     1e3 * loadSeconds, fileBytes / 1e6 / loadSeconds);
         if (!lightTimes.empty())
@@ -215,6 +237,8 @@ int main(int argc, char** argv) {
             j["components"] = file.components.size();
             j["view_terms"] = terms;
             j["coefficients"] = coefficients;
+            j["blocked_components"] = blockedComponents;
+            j["block_indices"] = blockIndices;
             j["file_bytes"] = fileBytes;
             j["load_ms"] = 1e3 * loadSeconds;
             j["load_MBps"] = fileBytes / 1e6 / loadSeconds;
