@@ -110,8 +110,8 @@ void BlockedRgbVectors::dequantizeVertex(size_t v, std::vector<uint32_t>& idx, s
 void BlockedRgbVectors::clear() { *this = BlockedRgbVectors(); }
 
 size_t BlockedRgbVectors::byteSize() const {
-    return offsets.size() * sizeof(uint32_t) + indices.size() * sizeof(uint16_t) + values.size() +
-           scales.size() * sizeof(float);
+    return (order.size() + offsets.size()) * sizeof(uint32_t) + indices.size() * sizeof(uint16_t) +
+           values.size() + scales.size() * sizeof(float);
 }
 
 namespace {

@@ -82,7 +82,7 @@ struct BlockedRgbVectors {
     void indexSlots();
 
     void clear();  // back to zero vertices
-    // Bytes of the four arrays in memory (what a relight pass streams).
+    // Bytes of the five arrays in memory (what a relight pass streams; slotOf is not read).
     size_t byteSize() const;
 
     bool operator==(const BlockedRgbVectors& o) const {

@@ -94,7 +94,7 @@ PrecomputeSettings settingsFromOptions(const JobOptions& raw, PrecomputeSettings
     s.scale = makeScale(raw.scale);
     s.material = makeMaterial(raw.material);
     if (!raw.shard.empty()) s.shard = parseShard(raw.shard);
-    s.vertexCoefficients = raw.coefficients ? raw.coefficients : s.blockCoefficients ? 512 : 128;
+    s.vertexCoefficients = raw.coefficients ? *raw.coefficients : s.blockCoefficients ? 512 : 128;
     return s;
 }
 

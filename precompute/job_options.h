@@ -25,7 +25,7 @@ struct JobOptions {
     MaterialOptions material;
     std::string components = "ms";
     std::string shard;  // "i/n" or empty
-    size_t coefficients = 0;  // -k; 0: 128, or 512 with --block-coefficients
+    std::optional<size_t> coefficients;  // -k; absent: 128, or 512 with --block-coefficients
 };
 
 // Declares every per-job option on `app`, bound to `raw` and `s`.

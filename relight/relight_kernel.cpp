@@ -847,11 +847,7 @@ size_t relightStreamBytes(const TransportFile& file, const ScatteringComponents&
         const bool selected = c.kind == ComponentKind::MultipleScattering
                                   ? components.multipleScattering
                                   : components.singleScattering;
-        // A blocked component's relight also reads `order` (4 bytes per vertex), which
-        // BlockedRgbVectors::byteSize does not count.
-        if (selected)
-            bytes += c.blocked() ? c.blocks.byteSize() + c.blocks.order.size() * sizeof(uint32_t)
-                                 : c.vectors.byteSize();
+        if (selected) bytes += c.blocked() ? c.blocks.byteSize() : c.vectors.byteSize();
     }
     return bytes;
 }

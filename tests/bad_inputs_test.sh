@@ -117,6 +117,8 @@ expect "precompute: negative size" "--size-mm" $O $P "$S/torus.ply" --size-mm -5
 expect "precompute: unknown material" "Unobtainium: unknown material" $O $P "$S/torus.ply" -m Unobtainium -q -o $O
 expect "precompute: cubemap not a power of two" "--cubemap-size" $O $P "$S/torus.ply" --cubemap-size 33 -q -o $O
 expect "precompute: zero coefficients" "--coefficients" $O $P "$S/torus.ply" --coefficients 0 -q -o $O
+expect "precompute: block coefficients beyond 6 N^2" "--block-coefficients" $O $P "$S/torus.ply" --block-coefficients 7000 -q -o $O
+expect "precompute: blocks in a shard job" "--block-coefficients: shard" $O $P "$S/torus.ply" --block-coefficients 160 --shard 0/2 -q -o $O
 expect "precompute: negative threads" "--threads" $O $P "$S/torus.ply" --threads -1 -q -o $O
 expect "precompute: eta out of range" "eta: .*0\.5, 2\.5" $O $P "$S/torus.ply" --eta 0 -q -o $O
 expect "precompute: negative epsilon" "--epsilon" $O $P "$S/torus.ply" --epsilon -1 -q -o $O

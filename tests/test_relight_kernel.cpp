@@ -967,10 +967,10 @@ TEST(RelightBlocked, StreamBytesCountTheBlockedArrays) {
     for (const TransportComponent& c : file.components) {
         if (c.kind == ComponentKind::MultipleScattering) {
             ASSERT_TRUE(c.blocked());
-            // byteSize (offsets, indices, values, scales) + order, 4 bytes per vertex
-            ms += c.blocks.byteSize() + 4 * 300;
-            EXPECT_EQ(c.blocks.byteSize(),
-                      4 * (19 + 1) + 2 * c.blocks.indices.size() + 48 * c.blocks.indices.size() + 4 * 48 * 19);
+            // order (4 bytes per vertex), offsets, indices, values, scales
+            ms += c.blocks.byteSize();
+            EXPECT_EQ(c.blocks.byteSize(), 4 * 300 + 4 * (19 + 1) + 2 * c.blocks.indices.size() +
+                                               48 * c.blocks.indices.size() + 4 * 48 * 19);
         } else {
             ASSERT_FALSE(c.blocked());
             ss += c.vectors.byteSize();
