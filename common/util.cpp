@@ -26,6 +26,19 @@ bool cpuHasAvx2Fma() {
 #endif
 }
 
+bool cpuHasAvx512() {
+#if defined(__x86_64__) && defined(__GNUC__)
+    static const bool has = [] {
+        __builtin_cpu_init();
+        return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+               __builtin_cpu_supports("avx512vl");
+    }();
+    return has && cpuHasAvx2Fma();
+#else
+    return false;
+#endif
+}
+
 std::string formatBytes(uint64_t bytes) {
     char buf[64];
     const double b = double(bytes);

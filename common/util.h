@@ -27,6 +27,8 @@ std::string formatBytes(uint64_t bytes);
 // Whether this CPU runs AVX2 + FMA code (x86-64-v3), for the kernels compiled with a
 // target attribute and chosen at run time; false on other architectures. Cached.
 bool cpuHasAvx2Fma();
+// Whether it also runs AVX-512 F, BW and VL code (the blocked relight kernel). Cached.
+bool cpuHasAvx512();
 
 // Wall-clock time since construction or the last restart(), on the steady clock
 // (never goes backwards when the system clock is set), and the process's CPU time

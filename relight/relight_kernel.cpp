@@ -566,18 +566,7 @@ __attribute__((target("avx512f,avx512bw,avx512vl,avx2,fma"))) bool relightBlocks
 }
 #endif
 
-bool cpuHasAvx512() {
-#if PRT_RELIGHT_AVX512
-    static const bool has = [] {
-        __builtin_cpu_init();
-        return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
-               __builtin_cpu_supports("avx512vl");
-    }();
-    return has && cpuHasAvx2Fma();
-#else
-    return false;
-#endif
-}
+
 
 using RangeFn = bool (*)(const Stream&, size_t, size_t, const float*, uint32_t, glm::vec3*,
                          size_t&);
@@ -770,7 +759,7 @@ bool relightIsaSupported(RelightIsa isa) {
 #else
             return false;
 #endif
-        case RelightIsa::Avx512: return cpuHasAvx512();
+        case RelightIsa::Avx512: return PRT_RELIGHT_AVX512 && cpuHasAvx512();
     }
     return false;
 }

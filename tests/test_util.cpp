@@ -38,10 +38,14 @@ TEST(Util, CpuAvx2FmaAgreesWithTheKernelsFlags) {
     }
     if (line.empty()) GTEST_SKIP() << "no /proc/cpuinfo flags on this machine";
     std::istringstream flags(line.substr(line.find(':') + 1));
-    bool avx2 = false, fma = false;
+    bool avx2 = false, fma = false, f512 = false, bw = false, vl = false;
     for (std::string f; flags >> f;) {
         avx2 = avx2 || f == "avx2";
         fma = fma || f == "fma";
+        f512 = f512 || f == "avx512f";
+        bw = bw || f == "avx512bw";
+        vl = vl || f == "avx512vl";
     }
     EXPECT_EQ(prt::cpuHasAvx2Fma(), avx2 && fma);
+    EXPECT_EQ(prt::cpuHasAvx512(), avx2 && fma && f512 && bw && vl);
 }
