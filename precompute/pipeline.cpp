@@ -597,11 +597,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             for (TransportComponent& c : file.components) {
                 c.blocks = jointTruncate(c.vectors, settings.blockCoefficients, order);
                 retained += retainedEnergyFraction(c.vectors, c.blocks);
-                c.vectors.clear();
-                c.vectors.offsets.shrink_to_fit();
-                c.vectors.indices.shrink_to_fit();
-                c.vectors.values.shrink_to_fit();
-                c.vectors.scales.shrink_to_fit();
+                c.vectors = SparseRgbVectors();  // frees the 512-term arrays
             }
             summary.blockSeconds = blockStart.seconds();
             summary.blockRetainedEnergy = file.components.empty() ? 1.0 : retained / double(file.components.size());

@@ -201,6 +201,26 @@ const BlockedWorkload& blockedWorkload(int terms = 0) {
     return built.emplace(terms, std::move(b)).first->second;
 }
 
+// The timed loop of BM_Relight and BM_BlockedRelight: relight `file` (all components)
+// on `threads` threads (0 = all, TBB's default), bytes per iteration = streamBytes.
+void relightLoop(benchmark::State& state, const prt::TransportFile& file, const prt::LightVector& light,
+                 const prt::RelightOptions& options, int threads, size_t streamBytes) {
+    prt::VertexRadiance out;
+    const auto run = [&] { prt::relightVertices(file, light, {true, true}, out, options); };
+    std::unique_ptr<tbb::task_arena> arena;
+    if (threads > 0) arena = std::make_unique<tbb::task_arena>(threads);
+    for (auto _ : state) {
+        if (arena)
+            arena->execute(run);
+        else
+            run();
+        benchmark::DoNotOptimize(out.diffuse.data());
+        benchmark::ClobberMemory();
+    }
+    state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(streamBytes));
+    state.counters["stream_MB"] = double(streamBytes) / 1e6;
+}
+
 // range(0): layout (3 or 4 floats per light coefficient); range(1): kernel (0 baseline
 // SSE2, 1 AVX2 + FMA); range(2): threads (0 = all, TBB's default).
 void BM_Relight(benchmark::State& state) {
@@ -213,20 +233,7 @@ void BM_Relight(benchmark::State& state) {
         return;
     }
     const int threads = int(state.range(2));
-    prt::VertexRadiance out;
-    const auto run = [&] { prt::relightVertices(w.file, w.light, {true, true}, out, options); };
-    std::unique_ptr<tbb::task_arena> arena;
-    if (threads > 0) arena = std::make_unique<tbb::task_arena>(threads);
-    for (auto _ : state) {
-        if (arena)
-            arena->execute(run);
-        else
-            run();
-        benchmark::DoNotOptimize(out.diffuse.data());
-        benchmark::ClobberMemory();
-    }
-    state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(w.streamBytes));
-    state.counters["stream_MB"] = double(w.streamBytes) / 1e6;
+    relightLoop(state, w.file, w.light, options, threads, w.streamBytes);
     state.SetLabel(std::string(state.range(1) == 1 ? "avx2+fma, " : "sse2, ") +
                    (options.layout == prt::RelightLayout::Rgb3 ? "rgb3" : "rgb4") +
                    (threads > 0 ? ", " + std::to_string(threads) + " thread(s)" : ", all threads"));
@@ -252,20 +259,7 @@ void BM_BlockedRelight(benchmark::State& state) {
         return;
     }
     const int threads = int(state.range(1));
-    prt::VertexRadiance out;
-    const auto run = [&] { prt::relightVertices(b.file, w.light, {true, true}, out, options); };
-    std::unique_ptr<tbb::task_arena> arena;
-    if (threads > 0) arena = std::make_unique<tbb::task_arena>(threads);
-    for (auto _ : state) {
-        if (arena)
-            arena->execute(run);
-        else
-            run();
-        benchmark::DoNotOptimize(out.diffuse.data());
-        benchmark::ClobberMemory();
-    }
-    state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(b.streamBytes));
-    state.counters["stream_MB"] = double(b.streamBytes) / 1e6;
+    relightLoop(state, b.file, w.light, options, threads, b.streamBytes);
     state.SetLabel(std::string(names[state.range(0)]) + ", " + std::to_string(gBlockCoefficients) +
                    " per block" + (threads > 0 ? ", " + std::to_string(threads) + " thread(s)" : ", all threads"));
 }
