@@ -71,9 +71,15 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     app.add_option("--phase-map-size", s.phaseMapSize,
                    "Face size M of the 6 x M x M phase light/view maps")
         ->capture_default_str();
-    app.add_option("--path-samples", s.pathSamples,
+    app.add_option("--path-samples", raw.pathSamples,
                    "Single scattering: deterministic importance samples along the inward normal")
-        ->capture_default_str();
+        ->default_str(std::to_string(defaultPathSamples(PathQuadrature::GaussLegendre)) + " with gauss, " +
+                      std::to_string(defaultPathSamples(PathQuadrature::Midpoint)) + " with midpoint");
+    app.add_option_function<std::string>(
+           "--path-quadrature", [&s](const std::string& v) { s.pathQuadrature = parsePathQuadrature(v); },
+           "Single scattering: rule of the path samples in the sampled mass xi: gauss (Gauss-Legendre) "
+           "or midpoint (Wang 2005; with 16 samples the rule before issue 16)")
+        ->default_str(toString(kDefaultPathQuadrature));
     app.add_option("--ss-supersample", s.ssSupersample,
                    "Single scattering: s x s sub-directions per texel")
         ->capture_default_str();
@@ -95,6 +101,7 @@ PrecomputeSettings settingsFromOptions(const JobOptions& raw, PrecomputeSettings
     s.material = makeMaterial(raw.material);
     if (!raw.shard.empty()) s.shard = parseShard(raw.shard);
     s.vertexCoefficients = raw.coefficients ? *raw.coefficients : s.blockCoefficients ? 512 : 128;
+    s.pathSamples = raw.pathSamples ? *raw.pathSamples : defaultPathSamples(s.pathQuadrature);
     return s;
 }
 

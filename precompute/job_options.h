@@ -26,6 +26,7 @@ struct JobOptions {
     std::string components = "ms";
     std::string shard;  // "i/n" or empty
     std::optional<size_t> coefficients;  // -k; absent: 128, or 512 with --block-coefficients
+    std::optional<int> pathSamples;      // --path-samples; absent: defaultPathSamples(--path-quadrature)
 };
 
 // Declares every per-job option on `app`, bound to `raw` and `s`.

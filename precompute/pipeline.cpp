@@ -70,6 +70,7 @@ SingleScatteringOptions singleScatteringOptions(const PrecomputeSettings& s) {
     o.cubemapSize = s.cubemapSize;
     o.supersample = s.ssSupersample;
     o.pathSamples = s.pathSamples;
+    o.pathQuadrature = s.pathQuadrature;
     o.keepCoefficients = s.vertexCoefficients;
     return o;
 }
@@ -170,6 +171,7 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
             p.push_back({"phase_map_size", std::to_string(s.phaseMapSize)});
         }
         p.push_back({"path_samples", std::to_string(o.pathSamples)});
+        p.push_back({"path_quadrature", toString(o.pathQuadrature)});
         p.push_back({"ss_supersample", std::to_string(o.supersample)});
         p.push_back({"ss_path", "inward normal, deterministic importance samples (Wang 2005 Eqs. 10-11)"});
         p.push_back({"ss_depth_cap_mfp", fmt(o.depthCapMeanFreePaths)});

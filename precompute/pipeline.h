@@ -26,6 +26,7 @@
 #include "common/transport_params.h"
 #include "precompute/distribution.h"
 #include "precompute/irradiance_transport.h"
+#include "precompute/single_scattering.h"
 
 namespace prt {
 
@@ -52,7 +53,10 @@ struct PrecomputeSettings {
     ScatteringComponents components;  // default: multiple scattering only
     int phaseTerms = 4;           // K of the SVD-factored HG phase when g != 0 (g = 0: isotropic)
     int phaseMapSize = 16;        // M of the 6 x M x M light / view maps
-    int pathSamples = 16;         // deterministic samples along -n_o
+    // Deterministic samples along -n_o and their rule in xi (single_scattering.h); the
+    // command line's default N depends on the rule (defaultPathSamples).
+    PathQuadrature pathQuadrature = kDefaultPathQuadrature;
+    int pathSamples = defaultPathSamples(kDefaultPathQuadrature);
     int ssSupersample = 1;        // s x s sub-directions per texel in single scattering
     // Refuse the job up front when its estimated memory (memory_estimate.h) exceeds this
     // many GB; 0 = the machine's available memory. Not a physics setting: not stored in

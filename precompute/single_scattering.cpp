@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "common/error.h"
 #include "common/mesh.h"
@@ -34,20 +35,78 @@ double pathSamplePdf(double sigma, double dm, double s) {
     return sigma * std::exp(-sigma * s) / pathSampleLambda(sigma, dm);
 }
 
-std::vector<PathSample> makePathSamples(double sigma, double dm, int count) {
+const char* toString(PathQuadrature q) {
+    return q == PathQuadrature::GaussLegendre ? "gauss" : "midpoint";
+}
+
+PathQuadrature parsePathQuadrature(const std::string& text) {
+    if (text == "midpoint") return PathQuadrature::Midpoint;
+    if (text == "gauss") return PathQuadrature::GaussLegendre;
+    throw Error("--path-quadrature", "must be midpoint or gauss, got '" + text + "'");
+}
+
+std::vector<QuadratureNode> pathQuadratureRule(PathQuadrature rule, int count) {
+    if (count < 1 || count > 4096)
+        throw Error("--path-samples", "must be between 1 and 4096, got " + std::to_string(count));
+    const size_t n = size_t(count);
+    std::vector<QuadratureNode> out(n);
+    if (rule == PathQuadrature::Midpoint) {
+        for (int i = 1; i <= count; ++i) out[size_t(i - 1)] = {(i - 0.5) / count, 1.0 / count};
+        return out;
+    }
+    // Gauss-Legendre on [-1, 1]: the roots of P_N by Newton's iteration from the
+    // classic initial guess cos(pi (i - 1/4) / (N + 1/2)), weights 2 / ((1 - x^2) P_N'(x)^2);
+    // then x -> (1 - x) / 2 (root i = 1 is the largest x, so xi increases with i).
+    auto legendre = [count](double x) {  // {P_N(x), P_N'(x)} by the three-term recurrence
+        double p0 = 1.0, p1 = x;
+        for (int k = 2; k <= count; ++k) {
+            const double p2 = ((2 * k - 1) * x * p1 - (k - 1) * p0) / k;
+            p0 = p1;
+            p1 = p2;
+        }
+        return std::pair{p1, count * (x * p1 - p0) / (x * x - 1.0)};
+    };
+    for (int i = 1; i <= count; ++i) {
+        double x = std::cos(kPi * (i - 0.25) / (count + 0.5));
+        for (int iter = 0; iter < 100; ++iter) {
+            const auto [p, dp] = legendre(x);
+            const double dx = p / dp;
+            x -= dx;
+            if (std::abs(dx) < 1e-15) break;
+        }
+        const double dp = legendre(x).second;
+        out[size_t(i - 1)] = {0.5 * (1.0 - x), 1.0 / ((1.0 - x * x) * dp * dp)};
+    }
+    return out;
+}
+
+void makePathSamples(double sigma, double dm, const std::vector<QuadratureNode>& rule,
+                     PathQuadrature kind, std::vector<PathSample>& out) {
     if (!(sigma > 0) || !std::isfinite(sigma))
         throw Error("single scattering", "|sigma_t| must be a positive number");
     if (!(dm > 0) || !std::isfinite(dm))
         throw Error("single scattering", "the path length d_m must be a positive number");
-    if (count < 1) throw Error("--path-samples", "must be at least 1");
+    if (rule.empty()) throw Error("--path-samples", "must be at least 1");
     const double lambda = pathSampleLambda(sigma, dm);
-    std::vector<PathSample> out(static_cast<size_t>(count));
-    for (int i = 1; i <= count; ++i) {
-        const double xi = (i - 0.5) / count;
+    const size_t count = rule.size();
+    out.resize(count);
+    for (size_t i = 0; i < count; ++i) {
+        const double xi = rule[i].xi;
         const double s = -std::log1p(-lambda * xi) / sigma;
-        // 1 / (N pdf(s)) = lambda e^(sigma s) / (N sigma) = lambda / ((1 - lambda xi) N sigma).
-        out[size_t(i - 1)] = {s, lambda / ((1.0 - lambda * xi) * count * sigma)};
+        // w / pdf(s) = w lambda e^(sigma s) / sigma = w lambda / ((1 - lambda xi) sigma).
+        // The midpoint rule keeps its historical expression (w = 1 / N folded into the
+        // denominator), so its samples are bit-identical to the rule before issue 16.
+        const double weight = kind == PathQuadrature::Midpoint
+                                  ? lambda / ((1.0 - lambda * xi) * double(count) * sigma)
+                                  : rule[i].weight * lambda / ((1.0 - lambda * xi) * sigma);
+        out[i] = {s, weight};
     }
+}
+
+std::vector<PathSample> makePathSamples(double sigma, double dm, int count, PathQuadrature rule) {
+    if (count < 1) throw Error("--path-samples", "must be at least 1");
+    std::vector<PathSample> out;
+    makePathSamples(sigma, dm, pathQuadratureRule(rule, count), rule, out);
     return out;
 }
 
@@ -86,6 +145,7 @@ void SingleScatteringStats::add(const SingleScatteringStats& o) {
     depthRays += o.depthRays;
     exitRays += o.exitRays;
     occlusionRays += o.occlusionRays;
+    sharedVisibility += o.sharedVisibility;
     culledRays += o.culledRays;
     escapedRays += o.escapedRays;
     reversedHits += o.reversedHits;
@@ -185,6 +245,7 @@ SingleScatteringContext::SingleScatteringContext(const RayScene& scene, const Tr
     fresnelTable_[kFresnelTableSize + 1] = fresnelTable_[kFresnelTableSize];
     sigma_ = samplingExtinction(material_);
     depthCap_ = options.depthCapMeanFreePaths / sigma_;
+    pathRule_ = pathQuadratureRule(options.pathQuadrature, options.pathSamples);
 }
 
 void SingleScatteringContext::intersectCoherent(const float* ox, const float* oy, const float* oz,
@@ -248,11 +309,11 @@ size_t traceExits(const SingleScatteringContext& ctx, const glm::vec3& position,
     const SingleScatteringContext::Directions& dirs = ctx.tracedDirections();
     const glm::vec3 sigmaT(mat.sigmaT());
     const glm::dvec3 sigmaS = mat.sigmaS();
-    const std::vector<PathSample> samples =
-        makePathSamples(ctx.samplingSigma(), dm, ctx.options().pathSamples);
+    makePathSamples(ctx.samplingSigma(), dm, ctx.pathRule(), ctx.options().pathQuadrature, sc.samples);
+    const std::vector<PathSample>& samples = sc.samples;
     const size_t ns = samples.size(), count = dirs.x.size(), total = ns * count;
 
-    // Per-sample origin x_p and estimator weight sigma_s e^(-sigma_t s) / (N pdf(s)).
+    // Per-sample origin x_p and estimator weight sigma_s e^(-sigma_t s) w_i / pdf(s).
     sc.samplePoint.resize(ns);
     sc.sampleWeight.resize(ns);
     for (size_t i = 0; i < ns; ++i) {
@@ -304,6 +365,70 @@ size_t traceExits(const SingleScatteringContext& ctx, const glm::vec3& position,
         inside += sc.inside[i];
     }
     return inside;
+}
+
+// Traces the occlusion rays of the candidates listed in sc.traced (indices into the
+// compacted candidate arrays) as one coherent batch and stores V in sc.occluded.
+void traceListed(const SingleScatteringContext& ctx, SingleScatteringScratch& sc,
+                 SingleScatteringStats& stats) {
+    const size_t k = sc.traced.size();
+    if (k == 0) return;
+    sc.visX.resize(k);
+    sc.visY.resize(k);
+    sc.visZ.resize(k);
+    sc.visDX.resize(k);
+    sc.visDY.resize(k);
+    sc.visDZ.resize(k);
+    sc.visOccluded.resize(k);
+    for (size_t j = 0; j < k; ++j) {
+        const uint32_t q = sc.traced[j];
+        sc.visX[j] = sc.orgX[q];
+        sc.visY[j] = sc.orgY[q];
+        sc.visZ[j] = sc.orgZ[q];
+        sc.visDX[j] = sc.dirX[q];
+        sc.visDY[j] = sc.dirY[q];
+        sc.visDZ[j] = sc.dirZ[q];
+    }
+    ctx.occludedCoherent(sc.visX.data(), sc.visY.data(), sc.visZ.data(), sc.visDX.data(),
+                         sc.visDY.data(), sc.visDZ.data(), k, sc.visOccluded.data());
+    stats.occlusionRays += k;
+    for (size_t j = 0; j < k; ++j) sc.occluded[sc.traced[j]] = sc.visOccluded[j];
+}
+
+// Shared visibility (SingleScatteringOptions::sharedVisibility) for the m compacted
+// candidates, which are in direction-major order (the candidates of one direction are
+// contiguous, shallowest sample first). Round 1 traces the two ends of every run of
+// one direction; round 2 the inner candidates of the runs whose ends disagree. A run
+// whose ends agree gives its inner candidates the ends' V: their exit points lie on
+// parallel rays between the two ends' (a few mean free paths apart), so only a shadow
+// edge that enters and leaves between them is missed.
+void sharedOcclusion(const SingleScatteringContext& ctx, size_t m, SingleScatteringScratch& sc,
+                     SingleScatteringStats& stats) {
+    sc.traced.clear();
+    for (size_t a = 0; a < m;) {
+        size_t b = a + 1;
+        while (b < m && sc.direction[b] == sc.direction[a]) ++b;
+        sc.traced.push_back(uint32_t(a));
+        if (b - a > 1) sc.traced.push_back(uint32_t(b - 1));
+        a = b;
+    }
+    traceListed(ctx, sc, stats);
+    sc.traced.clear();
+    for (size_t a = 0; a < m;) {
+        size_t b = a + 1;
+        while (b < m && sc.direction[b] == sc.direction[a]) ++b;
+        if (b - a > 2) {
+            if (sc.occluded[a] == sc.occluded[b - 1]) {
+                std::fill(sc.occluded.begin() + std::ptrdiff_t(a + 1),
+                          sc.occluded.begin() + std::ptrdiff_t(b - 1), sc.occluded[a]);
+                stats.sharedVisibility += b - a - 2;
+            } else {
+                for (size_t q = a + 1; q + 1 < b; ++q) sc.traced.push_back(uint32_t(q));
+            }
+        }
+        a = b;
+    }
+    traceListed(ctx, sc, stats);
 }
 
 }  // namespace
@@ -358,6 +483,7 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
     const size_t total = ns * count;
     sc.occluded.resize(total);
     sc.texel.resize(total);
+    sc.direction.resize(total);
     sc.value.resize(total * 3);
     sc.phase.resize(total * size_t(terms));
 
@@ -422,6 +548,7 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
         sc.dirY[m] = w.y;
         sc.dirZ[m] = w.z;
         sc.texel[m] = dirs.texel[r];
+        sc.direction[m] = uint32_t(r);
         sc.value[3 * m] = value.x;
         sc.value[3 * m + 1] = value.y;
         sc.value[3 * m + 2] = value.z;
@@ -430,7 +557,9 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
     if (m == 0) return;
 
     // V: does anything block the light before it reaches x_i?
-    if (opt.visibility) {
+    if (opt.visibility && opt.sharedVisibility) {
+        sharedOcclusion(ctx, m, sc, stats);
+    } else if (opt.visibility) {
         ctx.occludedCoherent(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
                              sc.dirY.data(), sc.dirZ.data(), m, sc.occluded.data());
         stats.occlusionRays += m;

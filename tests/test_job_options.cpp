@@ -73,6 +73,28 @@ TEST(JobOptions, DefaultsAndContradictions) {
     EXPECT_NE(errorOf([] { fromCommandLine({"m", "--eta", "9"}); }).find("eta"), std::string::npos);
 }
 
+TEST(JobOptions, PathQuadratureChoosesTheDefaultPathSamples) {
+    // Gauss-Legendre is the default rule; --path-samples defaults per rule, so
+    // --path-quadrature midpoint alone is the rule before issue 16 (16 midpoints).
+    const PrecomputeSettings d = fromCommandLine({"m.obj", "-o", "o"});
+    EXPECT_EQ(d.pathQuadrature, PathQuadrature::GaussLegendre);
+    EXPECT_EQ(d.pathSamples, defaultPathSamples(PathQuadrature::GaussLegendre));
+    EXPECT_EQ(d.pathSamples, PrecomputeSettings{}.pathSamples);
+    const PrecomputeSettings mid = fromCommandLine({"m.obj", "-o", "o", "--path-quadrature", "midpoint"});
+    EXPECT_EQ(mid.pathQuadrature, PathQuadrature::Midpoint);
+    EXPECT_EQ(mid.pathSamples, 16);
+    const PrecomputeSettings g8 =
+        fromCommandLine({"m.obj", "-o", "o", "--path-samples", "8", "--path-quadrature", "gauss"});
+    EXPECT_EQ(g8.pathQuadrature, PathQuadrature::GaussLegendre);
+    EXPECT_EQ(g8.pathSamples, 8);
+    const PrecomputeSettings json = parseJob({{"path-quadrature", "midpoint"}}, {{"mesh", "m.obj"}, {"output", "o"}}, "j");
+    EXPECT_EQ(json.pathQuadrature, PathQuadrature::Midpoint);
+    EXPECT_EQ(json.pathSamples, 16);
+    const std::string bad = errorOf([] { fromCommandLine({"m", "--path-quadrature", "simpson"}); });
+    EXPECT_NE(bad.find("--path-quadrature"), std::string::npos) << bad;
+    EXPECT_NE(bad.find("midpoint or gauss"), std::string::npos) << bad;
+}
+
 TEST(JobOptions, BadJobsNameWhereTheyAre) {
     const std::string unknown = errorOf([] { parseJob({}, {{"mesh", "m"}, {"colour", "red"}}, "jobs.json: job 3"); });
     EXPECT_EQ(unknown.rfind("jobs.json: job 3: ", 0), 0u) << unknown;

@@ -8,6 +8,9 @@
 #
 # Defaults: data/meshes/dragon_vrip_res4.ply.gz, 2 runs each, --size-mm 30
 # --components ss (single scattering alone: no samples, no multiple scattering).
+# BEFORE_OPTIONS / AFTER_OPTIONS (space-separated) go to one binary only, so one build
+# can be timed against itself, e.g. the path rule before issue 16 against the default:
+#   BEFORE_OPTIONS="--path-quadrature midpoint" tools/ss-bench.sh B B mesh 2
 # Outputs go to ${OUT:-out/ss-bench}.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -28,9 +31,11 @@ name="${name%%.*}"
 # One run: prints "seconds cpu rays_per_vertex rays_per_second".
 run() {
     local bin="$1" tag="$2"
+    local own=()
+    if [[ "$tag" == before ]]; then read -r -a own <<< "${BEFORE_OPTIONS:-}"; else read -r -a own <<< "${AFTER_OPTIONS:-}"; fi
     local json="$out/${name}_${tag}.json" prt="$out/${name}_${tag}.prt"
     /usr/bin/time -f "%U %S" -o "$out/time.txt" \
-        "$bin" "$mesh" --size-mm 30 --components ss -q --force -o "$prt" --summary-json "$json" "${extra[@]}" \
+        "$bin" "$mesh" --size-mm 30 --components ss -q --force -o "$prt" --summary-json "$json" "${extra[@]}" "${own[@]}" \
         > "$out/${name}_${tag}.txt" 2>&1
     python3 - "$json" "$out/time.txt" <<'EOF'
 import json, sys
@@ -41,7 +46,7 @@ print(f"{sec:.2f} {u + s:.2f} {rays / verts:.0f} {rays / sec:.3g}")
 EOF
 }
 
-echo "mesh $mesh, $runs runs each, options: --size-mm 30 --components ss ${extra[*]}"
+echo "mesh $mesh, $runs runs each, options: --size-mm 30 --components ss ${extra[*]}; before: ${BEFORE_OPTIONS:-}; after: ${AFTER_OPTIONS:-}"
 printf "%-7s %-3s %10s %10s %14s %10s\n" binary run "SS s" "CPU s" "rays/vertex" "rays/s"
 ratios=()
 for ((k = 1; k <= runs; ++k)); do
