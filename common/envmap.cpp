@@ -678,20 +678,154 @@ LatLongCubemapFilter::LatLongCubemapFilter(int width, int height, int n)
         entries_[e] = {std::uint16_t(fb.x), std::uint16_t(fb.y), 0.0f};
         area[e] = 1.0;
     }
+    std::vector<double>& weight = area;  // normalised in place
     for (size_t t = 0; t < texels; ++t) {
         double sum = 0.0;
         for (std::uint32_t e = begin_[t]; e < begin_[t + 1]; ++e) sum += area[e];
-        for (std::uint32_t e = begin_[t]; e < begin_[t + 1]; ++e)
-            entries_[e].weight = float(area[e] / sum);
+        for (std::uint32_t e = begin_[t]; e < begin_[t + 1]; ++e) {
+            weight[e] = area[e] / sum;
+            entries_[e].weight = float(weight[e]);
+        }
     }
+    buildRuns(weight);
+}
+
+namespace {
+
+// Consecutive columns of one row of one texel, unwrapped (first + i for
+// i < weights.size(); first + i >= width means column first + i - width).
+struct ColumnSegment {
+    int first = 0;
+    std::vector<double> weights;
+};
+
+// Splits one row's entries of one texel (columns ascending, distinct) into segments of
+// consecutive columns; a segment reaching the right edge continues with the one starting
+// at column 0 (the row is periodic), unless the texel covers the whole row.
+void columnSegments(const std::vector<int>& xs, const std::vector<double>& ws, int width,
+                    std::vector<ColumnSegment>& segments) {
+    segments.clear();
+    for (size_t i = 0; i < xs.size(); ++i) {
+        if (segments.empty() || xs[i] != segments.back().first + int(segments.back().weights.size()))
+            segments.push_back({xs[i], {}});
+        segments.back().weights.push_back(ws[i]);
+    }
+    if (segments.size() > 1 && segments.front().first == 0 &&
+        segments.back().first + int(segments.back().weights.size()) == width) {
+        std::vector<double>& last = segments.back().weights;
+        last.insert(last.end(), segments.front().weights.begin(), segments.front().weights.end());
+        segments.erase(segments.begin());
+    }
+}
+
+// Cuts a segment into runs (first, equal interior, last), greedily: a run's interior
+// continues while the weight stays the same (bit for bit: pixels wholly inside a texel
+// get identical area sums), and the pixel that breaks it ends the run as its `last`.
+void appendRuns(const ColumnSegment& segment, int y, std::vector<LatLongCubemapFilter::Run>& runs) {
+    const std::vector<double>& w = segment.weights;
+    const size_t m = w.size();
+    for (size_t i = 0; i < m;) {
+        LatLongCubemapFilter::Run run{std::uint32_t(segment.first + int(i)), std::uint16_t(y), 1,
+                                      float(w[i]), 0.0f, 0.0f};
+        if (i + 1 < m) {
+            size_t j = i + 1;  // the interior is i + 1 .. j
+            while (j + 1 < m && w[j + 1] == w[i + 1]) ++j;
+            if (j + 1 < m) ++j;  // the pixel breaking the interior ends the run
+            run.len = std::uint16_t(j - i + 1);
+            run.interior = run.len > 2 ? float(w[i + 1]) : 0.0f;
+            run.last = float(w[j]);
+        }
+        runs.push_back(run);
+        i += run.len;
+    }
+}
+
+}  // namespace
+
+void LatLongCubemapFilter::buildRuns(const std::vector<double>& weights) {
+    const size_t texels = begin_.size() - 1;
+    runBegin_.assign(texels + 1, 0);
+    runs_.clear();
+    std::vector<int> xs;
+    std::vector<double> ws;
+    std::vector<ColumnSegment> segments;
+    for (size_t t = 0; t < texels; ++t) {
+        runBegin_[t] = std::uint32_t(runs_.size());
+        // Entries are in (row, column) order: one pass per row.
+        for (std::uint32_t e = begin_[t]; e < begin_[t + 1];) {
+            const int y = entries_[e].y;
+            xs.clear();
+            ws.clear();
+            for (; e < begin_[t + 1] && entries_[e].y == y; ++e) {
+                xs.push_back(entries_[e].x);
+                ws.push_back(weights[e]);
+            }
+            columnSegments(xs, ws, width_, segments);
+            for (const ColumnSegment& segment : segments) appendRuns(segment, y, runs_);
+        }
+    }
+    if (runs_.size() > std::numeric_limits<std::uint32_t>::max())
+        throw Error("lat-long filter", "too many runs");
+    runBegin_[texels] = std::uint32_t(runs_.size());
 }
 
 size_t LatLongCubemapFilter::memoryBytes() const {
     return sizeof(*this) + entries_.capacity() * sizeof(Entry) +
-           begin_.capacity() * sizeof(std::uint32_t);
+           begin_.capacity() * sizeof(std::uint32_t) + runs_.capacity() * sizeof(Run) +
+           runBegin_.capacity() * sizeof(std::uint32_t);
+}
+
+LatLongRowSums::LatLongRowSums(const Image& latlong)
+    : width_(latlong.width), height_(latlong.height), channels_(latlong.channels) {
+    requireUsable(latlong, "environment");
+    const size_t C = size_t(channels_), W = size_t(width_), entries = rowEntries(width_);
+    sums_.assign(size_t(height_) * entries * C + 8, 0.0);
+    std::atomic<int> badRow{-1};
+    tbb::parallel_for(tbb::blocked_range<int>(0, height_, 16), [&](const tbb::blocked_range<int>& r) {
+        for (int y = r.begin(); y < r.end(); ++y) {
+            const float* row = latlong.pixel(0, y);
+            double* s = &sums_[size_t(y) * entries * C];  // s[0 .. C) stays 0
+            // Entry j + 1 adds column (j mod W): two periods, then the one more.
+            for (size_t j = 0; j + 1 < entries; ++j) {
+                const float* p = row + (j < W ? j : j < 2 * W ? j - W : j - 2 * W) * C;
+                for (size_t c = 0; c < C; ++c) s[(j + 1) * C + c] = s[j * C + c] + double(p[c]);
+            }
+            for (size_t c = 0; c < C; ++c)
+                if (!std::isfinite(s[W * C + c])) badRow = y;
+        }
+    });
+    if (badRow >= 0)
+        throw Error("environment", "row " + std::to_string(badRow.load()) +
+                                       " of the lat-long map sums to a non-finite value (NaN, infinite "
+                                       "or too large values)");
 }
 
 namespace {
+
+// A turn about +Y as a shift of lat-long columns: whole pixels in [0, width) plus a
+// fraction in [0, 1) (0 within kIntegerShiftTolerance of a whole pixel).
+struct ColumnShift {
+    int whole = 0;
+    double frac = 0.0;
+};
+
+ColumnShift columnShift(double rotationYDegrees, int W) {
+    if (!std::isfinite(rotationYDegrees))
+        throw Error("lat-long filter", "rotation angle is not finite");
+    // rotationY(a) moves the content of longitude u to u - a / 360 (L'(d) = L(R^T d)),
+    // so the rotated map's column x holds the original's column x + a W / 360.
+    double shift = std::fmod(rotationYDegrees, 360.0) / 360.0 * W;  // (-W, W); fmod is exact
+    if (shift < 0.0) shift += W;                                      // [0, W]
+    int k = int(std::floor(shift));
+    double frac = shift - k;
+    if (frac < LatLongCubemapFilter::kIntegerShiftTolerance) {
+        frac = 0.0;
+    } else if (frac > 1.0 - LatLongCubemapFilter::kIntegerShiftTolerance) {
+        frac = 0.0;
+        ++k;
+    }
+    return {k % W, frac};
+}
 
 // Texels per parallel task of LatLongCubemapFilter::apply (~100 entries each at N = 32
 // for a 1024 x 512 map, so a task is ~50K entries).
@@ -763,24 +897,10 @@ Cubemap LatLongCubemapFilter::apply(const Image& latlong, double rotationYDegree
         throw Error("lat-long filter", "environment is " + std::to_string(latlong.width) + " x " +
                                            std::to_string(latlong.height) + ", the filter was built for " +
                                            std::to_string(width_) + " x " + std::to_string(height_));
-    if (!std::isfinite(rotationYDegrees))
-        throw Error("lat-long filter", "rotation angle is not finite");
     const int W = width_, C = latlong.channels;
-
-    // rotationY(a) moves the content of longitude u to u - a / 360 (L'(d) = L(R^T d)),
-    // so the rotated map's column x holds the original's column x + a W / 360.
-    double shift = std::fmod(rotationYDegrees, 360.0) / 360.0 * W;  // (-W, W); fmod is exact
-    if (shift < 0.0) shift += W;                                      // [0, W]
-    int k = int(std::floor(shift));
-    double frac = shift - k;
-    if (frac < kIntegerShiftTolerance) {
-        frac = 0.0;
-    } else if (frac > 1.0 - kIntegerShiftTolerance) {
-        frac = 0.0;
-        ++k;
-    }
-    k %= W;
-    const double a0 = 1.0 - frac, a1 = frac;
+    const ColumnShift turn = columnShift(rotationYDegrees, W);
+    const int k = turn.whole;
+    const double frac = turn.frac, a0 = 1.0 - frac, a1 = frac;
 
     Cubemap cube(n_, C);
     float* out = cube.data().data();
@@ -850,6 +970,126 @@ Cubemap LatLongCubemapFilter::apply(const Image& latlong, double rotationYDegree
         }
         for (int c = 0; c < C; ++c) out[t * size_t(C) + size_t(c)] = float(acc[size_t(c)]);
     }
+    return cube;
+}
+
+namespace {
+
+// Texels per parallel task of the running-sum apply.
+constexpr size_t kRunTexelGrain = 256;
+
+// Where a run's running sums start at a turn by k whole pixels, as an entry index of
+// LatLongRowSums: one period earlier when the run would read past the row's 2 W + 2
+// sums (it reads up to x + len + k + 1; a period earlier every sum it reads is less by
+// the row's total, which its differences cancel).
+inline std::uint64_t runEntry(const LatLongCubemapFilter::Run& run, int k, int W, std::uint64_t rowEntries) {
+    const std::int64_t x = std::int64_t(run.x) + k;
+    return std::uint64_t(run.y) * rowEntries +
+           std::uint64_t(x + std::int64_t(run.len) > 2 * std::int64_t(W) ? x - W : x);
+}
+
+// Texels [tBegin, tEnd) from the running sums, any channel count: each run's weighted
+// differences of P at its start (acc0) and, for a fractional turn, one column further
+// (acc1); the texel is (1 - f) acc0 + f acc1.
+template <bool kBlend>
+void sumRunsScalar(const LatLongCubemapFilter::Run* runs, const std::uint32_t* begin, size_t tBegin,
+                   size_t tEnd, const double* sums, int C, int W, int k, double a0, double a1, float* out) {
+    const std::uint64_t rowEntries = LatLongRowSums::rowEntries(W);
+    std::vector<double> acc0(static_cast<size_t>(C)), acc1(static_cast<size_t>(C));
+    // One run at the running sums from p: its first pixel ends at p + C, its interior at
+    // q = p + (len - 1) C, its last pixel at q + C.
+    const auto runSum = [C](const LatLongCubemapFilter::Run& run, const double* p, int c) {
+        const double* q = p + size_t(run.len - 1) * size_t(C);
+        return double(run.first) * (p[C + c] - p[c]) + double(run.interior) * (q[c] - p[C + c]) +
+               double(run.last) * (q[C + c] - q[c]);
+    };
+    for (size_t t = tBegin; t < tEnd; ++t) {
+        std::fill(acc0.begin(), acc0.end(), 0.0);
+        std::fill(acc1.begin(), acc1.end(), 0.0);
+        for (std::uint32_t e = begin[t]; e < begin[t + 1]; ++e) {
+            const double* p = sums + runEntry(runs[e], k, W, rowEntries) * std::uint64_t(C);
+            for (int c = 0; c < C; ++c) {
+                acc0[size_t(c)] += runSum(runs[e], p, c);
+                if constexpr (kBlend) acc1[size_t(c)] += runSum(runs[e], p + C, c);
+            }
+        }
+        for (int c = 0; c < C; ++c)
+            out[t * size_t(C) + size_t(c)] =
+                float(kBlend ? a0 * acc0[size_t(c)] + a1 * acc1[size_t(c)] : acc0[size_t(c)]);
+    }
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+// sumRunsScalar for RGB, one 4-wide register per running sum (the fourth lane reads the
+// next entry's R or the padding and is ignored).
+template <bool kBlend>
+__attribute__((target("avx2,fma"))) void sumRunsRgbAvx2(const LatLongCubemapFilter::Run* runs,
+                                                        const std::uint32_t* begin, size_t tBegin,
+                                                        size_t tEnd, const double* sums, int W, int k,
+                                                        double a0, double a1, float* out) {
+    const std::uint64_t rowEntries = LatLongRowSums::rowEntries(W);
+    for (size_t t = tBegin; t < tEnd; ++t) {
+        __m256d s0 = _mm256_setzero_pd(), s1 = s0;
+        for (std::uint32_t e = begin[t]; e < begin[t + 1]; ++e) {
+            const LatLongCubemapFilter::Run& run = runs[e];
+            const double* p = sums + runEntry(run, k, W, rowEntries) * 3;
+            const double* q = p + size_t(run.len - 1) * 3;
+            const __m256d wf = _mm256_set1_pd(run.first), wi = _mm256_set1_pd(run.interior),
+                          wl = _mm256_set1_pd(run.last);
+            const __m256d p0 = _mm256_loadu_pd(p), p1 = _mm256_loadu_pd(p + 3);
+            const __m256d q0 = _mm256_loadu_pd(q), q1 = _mm256_loadu_pd(q + 3);
+            __m256d r = _mm256_mul_pd(wf, _mm256_sub_pd(p1, p0));
+            r = _mm256_fmadd_pd(wi, _mm256_sub_pd(q0, p1), r);
+            r = _mm256_fmadd_pd(wl, _mm256_sub_pd(q1, q0), r);
+            s0 = _mm256_add_pd(s0, r);
+            if constexpr (kBlend) {
+                const __m256d p2 = _mm256_loadu_pd(p + 6), q2 = _mm256_loadu_pd(q + 6);
+                __m256d u = _mm256_mul_pd(wf, _mm256_sub_pd(p2, p1));
+                u = _mm256_fmadd_pd(wi, _mm256_sub_pd(q1, p2), u);
+                u = _mm256_fmadd_pd(wl, _mm256_sub_pd(q2, q1), u);
+                s1 = _mm256_add_pd(s1, u);
+            }
+        }
+        if constexpr (kBlend)
+            s0 = _mm256_fmadd_pd(_mm256_set1_pd(a0), s0, _mm256_mul_pd(_mm256_set1_pd(a1), s1));
+        alignas(32) double v[4];
+        _mm256_store_pd(v, s0);
+        for (int c = 0; c < 3; ++c) out[t * 3 + size_t(c)] = float(v[c]);
+    }
+}
+#endif
+
+}  // namespace
+
+Cubemap LatLongCubemapFilter::apply(const LatLongRowSums& sums, double rotationYDegrees) const {
+    if (sums.width() != width_ || sums.height() != height_)
+        throw Error("lat-long filter", "environment is " + std::to_string(sums.width()) + " x " +
+                                           std::to_string(sums.height()) + ", the filter was built for " +
+                                           std::to_string(width_) + " x " + std::to_string(height_));
+    const int W = width_, C = sums.channels();
+    const ColumnShift turn = columnShift(rotationYDegrees, W);
+    const int k = turn.whole;
+    const bool blend = turn.frac != 0.0;
+    const double a0 = 1.0 - turn.frac, a1 = turn.frac;
+
+    Cubemap cube(n_, C);
+    float* out = cube.data().data();
+    const double* data = sums.data();
+    [[maybe_unused]] const bool avx2 = C == 3 && cpuHasAvx2Fma();
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, cube.texelCount(), kRunTexelGrain),
+                      [&](const tbb::blocked_range<size_t>& r) {
+        const Run* runs = runs_.data();
+        const std::uint32_t* begin = runBegin_.data();
+#if defined(__x86_64__) && defined(__GNUC__)
+        if (avx2) {
+            if (blend) sumRunsRgbAvx2<true>(runs, begin, r.begin(), r.end(), data, W, k, a0, a1, out);
+            else sumRunsRgbAvx2<false>(runs, begin, r.begin(), r.end(), data, W, k, a0, a1, out);
+            return;
+        }
+#endif
+        if (blend) sumRunsScalar<true>(runs, begin, r.begin(), r.end(), data, C, W, k, a0, a1, out);
+        else sumRunsScalar<false>(runs, begin, r.begin(), r.end(), data, C, W, k, a0, a1, out);
+    });
     return cube;
 }
 

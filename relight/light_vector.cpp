@@ -3,6 +3,7 @@
 #include <cmath>
 #include <memory>
 #include <string>
+#include <utility>
 
 #include "common/envmap.h"
 #include "common/error.h"
@@ -10,23 +11,64 @@
 
 namespace prt {
 
-LightVector makeLightVector(const Image& latlong, int n, const glm::dmat3& rotation,
-                            size_t keepTerms) {
+namespace {
+
+void requireRgb(const Image& latlong) {
     if (latlong.channels != 3)
         throw Error("light vector", "the environment has " + std::to_string(latlong.channels) +
                                         " channels, expected RGB (3)");
+}
+
+// Whether the sparse filter can take this map and N; input it cannot take, and that the
+// exact path rejects, goes to latLongToCubemap for its messages.
+bool filterFits(const Image& latlong, int n) {
+    return latlong.consistent() && !latlong.empty() && isPowerOfTwo(n) &&
+           latlong.width <= LatLongCubemapFilter::kMaxLatLongSize &&
+           latlong.height <= LatLongCubemapFilter::kMaxLatLongSize;
+}
+
+}  // namespace
+
+LightVector makeLightVector(const Image& latlong, int n, const glm::dmat3& rotation,
+                            size_t keepTerms) {
+    requireRgb(latlong);
     // Rotations about +Y (all the viewer and prt-relight use) take the cached sparse
-    // filter: a few ms instead of ~100+ ms. Anything else, and input the exact path
-    // rejects (with its messages), goes to latLongToCubemap.
+    // filter: about 1 ms instead of ~100 ms.
     double degrees = 0.0;
-    if (latlong.consistent() && !latlong.empty() && isPowerOfTwo(n) &&
-        latlong.width <= LatLongCubemapFilter::kMaxLatLongSize &&
-        latlong.height <= LatLongCubemapFilter::kMaxLatLongSize && rotationAboutY(rotation, degrees)) {
+    if (filterFits(latlong, n) && rotationAboutY(rotation, degrees)) {
         const std::shared_ptr<const LatLongCubemapFilter> filter =
             LatLongCubemapFilter::shared(latlong.width, latlong.height, n);
         return makeLightVector(filter->apply(latlong, degrees), keepTerms);
     }
     return makeLightVector(latLongToCubemap(latlong, n, rotation), keepTerms);
+}
+
+EnvironmentLight::EnvironmentLight(Image latlong, int n) : latlong_(std::move(latlong)), n_(n) {
+    requireRgb(latlong_);
+    if (!latlong_.consistent() || latlong_.empty())
+        throw Error("light vector", "empty or inconsistent environment image (" +
+                                        std::to_string(latlong_.width) + " x " + std::to_string(latlong_.height) +
+                                        ", " + std::to_string(latlong_.pixels.size()) + " values)");
+    if (!isPowerOfTwo(n_))
+        throw Error("light vector", "cubemap size " + std::to_string(n_) + " is not a power of two");
+    if (!filterFits(latlong_, n_)) return;  // beyond the filter's size limit: always exact
+    sums_ = std::make_unique<const LatLongRowSums>(latlong_);
+    filter_ = LatLongCubemapFilter::shared(latlong_.width, latlong_.height, n_);
+}
+
+EnvironmentLight::~EnvironmentLight() = default;
+EnvironmentLight::EnvironmentLight(EnvironmentLight&&) noexcept = default;
+EnvironmentLight& EnvironmentLight::operator=(EnvironmentLight&&) noexcept = default;
+
+LightVector EnvironmentLight::lightVector(const glm::dmat3& rotation, size_t keepTerms) const {
+    double degrees = 0.0;
+    if (filter_ && rotationAboutY(rotation, degrees))
+        return makeLightVector(filter_->apply(*sums_, degrees), keepTerms);
+    return makeLightVector(latLongToCubemap(latlong_, n_, rotation), keepTerms);
+}
+
+size_t EnvironmentLight::memoryBytes() const {
+    return sizeof(*this) + latlong_.pixels.capacity() * sizeof(float) + (sums_ ? sums_->memoryBytes() : 0);
 }
 
 LightVector makeLightVector(const Cubemap& radiance, size_t keepTerms) {

@@ -11,12 +11,16 @@
 #include <glm/glm.hpp>
 
 #include <cstddef>
+#include <memory>
 #include <vector>
 
 #include "common/cubemap.h"
 #include "common/image.h"
 
 namespace prt {
+
+class LatLongCubemapFilter;
+class LatLongRowSums;
 
 struct LightVector {
     int size = 0;                 // N
@@ -44,7 +48,44 @@ LightVector makeLightVector(const Image& latlong, int n, const glm::dmat3& rotat
 // From an RGB radiance cubemap (3 channels).
 LightVector makeLightVector(const Cubemap& radiance, size_t keepTerms = 0);
 //
-// Both: keepTerms >= 6 N^2 is the same as 0. Zero coefficients are never "kept", so
+// An environment prepared for many light vectors under turns about +Y (the viewer's
+// slider, prt-relight's spin and turntable frames, benchmarks): it keeps the map, the
+// shared LatLongCubemapFilter for its size and N, and the map's row running sums
+// (LatLongRowSums), so each light vector costs the filter's running-sum apply (0.4 of
+// makeLightVector(latlong, ...)'s time at N = 32 for 1024 x 512) and the Haar transform.
+//
+// lightVector(rotation, keepTerms) equals makeLightVector(image(), n, rotation, keepTerms)
+// up to float rounding for every rotation: about +Y through the running sums, anything
+// else through latLongToCubemap like makeLightVector. Building costs one pass over the
+// map for the running sums (a few ms) plus, for the first (width, height, N) in the
+// process, the filter (~100 ms at 1024 x 512). Memory: the image, the running sums
+// (8 (2 width + 2) height x 3 bytes, 25 MB for 1024 x 512) and a share of the filter.
+//
+// Thread-safe: lightVector may be called concurrently (everything is immutable after
+// construction). The constructor throws prt::Error("light vector", ...) for an image
+// that is not RGB, empty or inconsistent, or an n that is not a power of two, and
+// LatLongRowSums' error for a row with a non-finite sum.
+class EnvironmentLight {
+public:
+    EnvironmentLight(Image latlong, int n);
+    ~EnvironmentLight();
+    EnvironmentLight(EnvironmentLight&&) noexcept;
+    EnvironmentLight& operator=(EnvironmentLight&&) noexcept;
+
+    LightVector lightVector(const glm::dmat3& rotation = glm::dmat3(1.0), size_t keepTerms = 0) const;
+
+    const Image& image() const { return latlong_; }
+    int size() const { return n_; }
+    size_t memoryBytes() const;  // the image and the running sums (not the shared filter)
+
+private:
+    Image latlong_;
+    int n_ = 0;
+    std::shared_ptr<const LatLongCubemapFilter> filter_;  // null beyond the filter's size limit
+    std::unique_ptr<const LatLongRowSums> sums_;          // with filter_
+};
+
+// All three: keepTerms >= 6 N^2 is the same as 0. Zero coefficients are never "kept", so
 // keptTerms can be below keepTerms (a constant environment has 6 non-zero terms).
 // Ties in magnitude go to the lower index (truncateLargest). relativeL2Error is 0 for
 // an all-zero environment. Throws prt::Error("light vector", ...) for input that is

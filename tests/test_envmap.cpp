@@ -1,6 +1,7 @@
 #include "common/envmap.h"
 
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -641,6 +642,170 @@ TEST(LatLongFilter, DeterministicValidatedAndShared) {
     EXPECT_EQ(prt::LatLongCubemapFilter::shared(64, 32, 8).get(), got[0].get());
     EXPECT_THROW(prt::LatLongCubemapFilter::shared(64, 32, 3), prt::Error);
     EXPECT_THROW(prt::LatLongCubemapFilter::shared(64, 32, 3), prt::Error);  // not cached
+}
+
+// ---------------------------------------------------------------- running-sum apply
+
+namespace {
+
+// Any size and channel count (the filter takes any width and height): log-uniform noise
+// over six decades plus a few pixels 1e4 times brighter.
+Image noiseMap(int width, int height, int channels, unsigned seed) {
+    Image img(width, height, channels);
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> expo(-3.0f, 3.0f);
+    for (float& v : img.pixels) v = std::pow(10.0f, expo(rng));
+    std::uniform_int_distribution<size_t> any(0, img.pixels.size() - 1);
+    for (int k = 0; k < 3; ++k) img.pixels[any(rng)] = 1.0e7f;
+    return img;
+}
+
+// Column x of the map linearly interpolated in longitude: (1 - f) L(x) + f L(x + 1).
+Image lerpColumns(const Image& env, double f) {
+    Image out(env.width, env.height, env.channels);
+    for (int y = 0; y < env.height; ++y)
+        for (int x = 0; x < env.width; ++x)
+            for (int c = 0; c < env.channels; ++c)
+                out.at(x, y, c) = float((1 - f) * env.at(x, y, c) + f * env.at((x + 1) % env.width, y, c));
+    return out;
+}
+
+// Tolerances of the running-sum apply against the reference paths. Both applies use the
+// same float weights with double sums, so against apply(const Image&) only the running
+// sums' rounding shows: ~1e-16 of a row's total per texel (envmap.h), here at most
+// 1e-16 x 1e7 x (a few pixels of weight ~1) against texels of >= ~1e-3, 1e-6 relative
+// with a floor of 1e-12 of the brightest texel. Against latLongToCubemap the float
+// weights add ~1e-7 relative (the existing filter tests' 1e-6, with their floor).
+constexpr double kSameWeightsTolerance = 1e-6, kSameWeightsFloor = 1e-12;
+constexpr double kExactTolerance = 1e-6;
+
+// The running-sum apply of env at each of `shifts` (pixels) against apply(const Image&)
+// and against latLongToCubemap: turned by the shift when whole, else of the map
+// interpolated between columns turned by its whole part.
+void expectRowSumsMatch(const Image& env, int n, const std::vector<double>& shifts, const std::string& what) {
+    const prt::LatLongCubemapFilter filter(env.width, env.height, n);
+    const prt::LatLongRowSums sums(env);
+    for (double shift : shifts) {
+        SCOPED_TRACE(what + ", N = " + std::to_string(n) + ", shift " + std::to_string(shift) + " px");
+        const double degrees = 360.0 * shift / env.width;
+        const Cubemap fast = filter.apply(sums, degrees);
+        ASSERT_EQ(fast.channels(), env.channels);
+        EXPECT_LT(worstRelativeDifference(fast, filter.apply(env, degrees), kSameWeightsFloor),
+                  kSameWeightsTolerance);
+        const int k = int(std::floor(shift));
+        const double f = shift - k;
+        const Cubemap exact = f == 0.0 ? prt::latLongToCubemap(env, n, prt::rotationY(degrees))
+                                       : prt::latLongToCubemap(lerpColumns(env, f), n,
+                                                               prt::rotationY(360.0 * k / env.width));
+        EXPECT_LT(worstRelativeDifference(fast, exact), kExactTolerance);
+    }
+}
+
+}  // namespace
+
+TEST(LatLongFilter, RowSumsMatchReferenceAtWholeAndFractionalShifts) {
+    // Whole shifts (0, 1, the last column, i.e. runs crossing the right edge after the
+    // turn), fractional ones (one blending the last column with column 0), N = 1 .. 64.
+    const Image env = noiseMap(256, 128, 3, 61);
+    for (int n : {1, 2, 8, 32, 64})
+        expectRowSumsMatch(env, n, {0.0, 1.0, 255.0, 100.0, 0.25, 37.5, 255.5, 254.999}, "256 x 128");
+}
+
+TEST(LatLongFilter, RowSumsMatchReferenceOnOddAndTinyMaps) {
+    // Odd widths and heights (runs of odd lengths, a row straddling the horizon) and maps
+    // smaller than the cubemap (one-pixel runs, texels sharing pixels, whole-row runs).
+    struct Size {
+        int width, height;
+    };
+    for (Size s : {Size{129, 64}, Size{77, 39}, Size{8, 4}, Size{3, 2}, Size{2, 1}, Size{1, 1}, Size{5, 1}})
+        for (int n : {1, 4, 16})
+            expectRowSumsMatch(noiseMap(s.width, s.height, 3, unsigned(s.width * 100 + s.height)), n,
+                               {0.0, 1.0, double(s.width - 1), 0.5, s.width - 0.25},
+                               std::to_string(s.width) + " x " + std::to_string(s.height));
+}
+
+TEST(LatLongFilter, RowSumsAnyChannelCount) {
+    for (int channels : {1, 2, 4, 5})
+        expectRowSumsMatch(noiseMap(64, 32, channels, unsigned(channels)), 8, {0.0, 9.0, 9.5, 63.5},
+                           std::to_string(channels) + " channels");
+}
+
+TEST(LatLongFilter, RowSumsMatchEntriesOnForestIfPresent) {
+    const std::string path = std::string(PRT_SOURCE_DIR) + "/data/envmaps/forest.exr";
+    if (!fs::exists(path)) GTEST_SKIP() << path << " not present (run tools/fetch-data.sh)";
+    const Image env = prt::loadEnvironment(path, prt::NonFinitePolicy::ClampNegative);
+    const auto filter = prt::LatLongCubemapFilter::shared(env.width, env.height, 32);
+    const prt::LatLongRowSums sums(env);
+    double worst = 0.0;
+    for (int i = 0; i < 12; ++i) {
+        const double degrees = 0.37 + 31.01 * i;  // fresh, not whole-pixel angles
+        worst = std::max(worst, worstRelativeDifference(filter->apply(sums, degrees), filter->apply(env, degrees),
+                                                        kSameWeightsFloor));
+    }
+    EXPECT_LT(worst, kSameWeightsTolerance);
+    // Runs are what make it fast: fewer than a third of the entries.
+    EXPECT_LT(3 * filter->runCount(), filter->entryCount());
+    std::printf("[ info ] forest N=32: %zu runs for %zu entries; worst relative texel difference %.2e\n",
+                filter->runCount(), filter->entryCount(), worst);
+}
+
+TEST(LatLongFilter, RowSumsConstantMapAndFullTurns) {
+    const prt::LatLongCubemapFilter filter(96, 48, 8);
+    const Image cst = prt::constantEnvironment(96, {0.5f, 2.0f, 4.0f});
+    const prt::LatLongRowSums constant(cst);
+    for (double degrees : {0.0, 33.3, 90.0, 359.9}) {
+        const Cubemap c = filter.apply(constant, degrees);
+        for (size_t t = 0; t < c.texelCount(); ++t)
+            for (int ch = 0; ch < 3; ++ch)
+                ASSERT_NEAR(c.data()[3 * t + size_t(ch)], cst.at(0, 0, ch), 1e-6 * cst.at(0, 0, ch)) << degrees;
+    }
+    const prt::LatLongRowSums sums(noiseMap(96, 48, 3, 7));
+    EXPECT_EQ(filter.apply(sums, 360.0 + 45.0).data(), filter.apply(sums, 45.0).data());
+    EXPECT_EQ(filter.apply(sums, -315.0).data(), filter.apply(sums, 45.0).data());
+    EXPECT_EQ(filter.apply(sums, 360.0 * (5 + 1e-12) / 96).data(), filter.apply(sums, 360.0 * 5 / 96).data());
+}
+
+TEST(LatLongFilter, RowSumsIndependentOfThreadCount) {
+    const Image env = noiseMap(256, 128, 3, 8);
+    const prt::LatLongCubemapFilter filter(256, 128, 32);
+    const prt::LatLongRowSums sums(env);
+    const Cubemap many = filter.apply(sums, 12.34);
+    tbb::task_arena one(1);
+    Cubemap single;
+    one.execute([&] { single = filter.apply(sums, 12.34); });
+    EXPECT_EQ(many.data(), single.data());
+}
+
+TEST(LatLongFilter, RowSumsValuesAndValidation) {
+    const Image env = noiseMap(6, 3, 2, 9);
+    const prt::LatLongRowSums sums(env);
+    EXPECT_EQ(sums.width(), 6);
+    EXPECT_EQ(sums.height(), 3);
+    EXPECT_EQ(sums.channels(), 2);
+    EXPECT_GT(sums.memoryBytes(), size_t(3 * 14 * 2) * sizeof(double));
+    for (int y = 0; y < 3; ++y)
+        for (int c = 0; c < 2; ++c) {
+            double running = 0.0;
+            for (int j = 0; j <= 13; ++j) {  // two periods and one more column
+                EXPECT_NEAR(sums.at(y, j, c), running, 1e-12 * running) << y << " " << j;
+                running += env.at(j % 6, y, c);
+            }
+        }
+
+    const prt::LatLongCubemapFilter filter(6, 3, 4);
+    EXPECT_THROW(filter.apply(prt::LatLongRowSums(noiseMap(8, 3, 3, 1)), 0.0), prt::Error);  // other size
+    EXPECT_THROW(filter.apply(sums, NAN), prt::Error);
+    EXPECT_THROW(filter.apply(sums, INFINITY), prt::Error);
+    EXPECT_THROW(prt::LatLongRowSums{Image()}, prt::Error);
+    Image bad = env;
+    bad.pixels.pop_back();
+    EXPECT_THROW(prt::LatLongRowSums{bad}, prt::Error);
+    for (float v : {NAN, INFINITY, -INFINITY}) {
+        Image nonFinite = env;
+        nonFinite.at(4, 1, 1) = v;
+        const std::string message = errorMessage([&] { prt::LatLongRowSums{nonFinite}; });
+        EXPECT_NE(message.find("row 1"), std::string::npos) << message;
+    }
 }
 
 // ---------------------------------------------------------------- cross layout
