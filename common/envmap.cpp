@@ -1020,6 +1020,13 @@ void sumRunsScalar(const LatLongCubemapFilter::Run* runs, const std::uint32_t* b
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
+// How far ahead sumRunsRgbAvx2 prefetches the running sums. A light change follows the
+// relight kernel, which has streamed tens of MB through the caches, so the sums come
+// from the last-level cache, scattered (two places per run, rows apart), and the
+// hardware prefetchers do not foresee them. Measured on forest at N = 32 after evicting
+// the caches: no prefetch 1.6 ms, 24-64 runs ahead 0.9-1.1 ms (2 busy cores).
+constexpr std::uint32_t kPrefetchRuns = 32;
+
 // sumRunsScalar for RGB, one 4-wide register per running sum (the fourth lane reads the
 // next entry's R or the padding and is ignored).
 template <bool kBlend>
@@ -1028,9 +1035,20 @@ __attribute__((target("avx2,fma"))) void sumRunsRgbAvx2(const LatLongCubemapFilt
                                                         size_t tEnd, const double* sums, int W, int k,
                                                         double a0, double a1, float* out) {
     const std::uint64_t rowEntries = LatLongRowSums::rowEntries(W);
+    const std::uint32_t lastRun = begin[tEnd];
     for (size_t t = tBegin; t < tEnd; ++t) {
         __m256d s0 = _mm256_setzero_pd(), s1 = s0;
         for (std::uint32_t e = begin[t]; e < begin[t + 1]; ++e) {
+            if (e + kPrefetchRuns < lastRun) {
+                // Both ends of a run kPrefetchRuns ahead: the first and last byte each reads.
+                const LatLongCubemapFilter::Run& ahead = runs[e + kPrefetchRuns];
+                const char* pa = reinterpret_cast<const char*>(sums + runEntry(ahead, k, W, rowEntries) * 3);
+                const char* qa = pa + size_t(ahead.len - 1) * 3 * sizeof(double);
+                _mm_prefetch(pa, _MM_HINT_T0);
+                _mm_prefetch(pa + 9 * sizeof(double) - 1, _MM_HINT_T0);
+                _mm_prefetch(qa, _MM_HINT_T0);
+                _mm_prefetch(qa + 9 * sizeof(double) - 1, _MM_HINT_T0);
+            }
             const LatLongCubemapFilter::Run& run = runs[e];
             const double* p = sums + runEntry(run, k, W, rowEntries) * 3;
             const double* q = p + size_t(run.len - 1) * 3;

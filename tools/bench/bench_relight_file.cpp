@@ -1,5 +1,6 @@
 // prt-bench-relight-file: times one transport file's relight (docs/tools.md):
-// load time, the light vector (environment -> cubemap -> Haar) and the relight kernel
+// load time, the light vector (environment -> cubemap -> Haar; from the prepared
+// environment, EnvironmentLight, beside makeLightVector from the image) and the relight kernel
 // (relightVertices, every component of the file), each as the median of many runs:
 // back to back ("warm": a file smaller than the last-level cache is then read from
 // cache) and each after reading a 1 GiB array ("cold": from memory).
@@ -131,17 +132,28 @@ int main(int argc, char** argv) {
         coefficients += blockedCoefficients;
 
         // Light vector: from the environment (timed, rotated each run like an
-        // environment spin), or synthetic.
+        // environment spin), or synthetic. Timed both ways, interleaved: from the prepared
+        // environment (EnvironmentLight, what the viewer and prt-relight hold) and from
+        // the image each time (makeLightVector(Image, ...), the entry loop).
         LightVector light;
-        std::vector<double> lightTimes;
+        std::vector<double> lightTimes, lightImageTimes;
+        double prepareSeconds = 0.0;
+        std::unique_ptr<EnvironmentLight> prepared;
         const Image env = envPath.empty() ? Image() : loadEnvironment(envPath, NonFinitePolicy::ClampNegative);
         if (!envPath.empty()) {
+            t0 = Clock::now();
+            prepared = std::make_unique<EnvironmentLight>(env, n);
+            prepareSeconds = secondsSince(t0);
             for (int i = 0; i < lightIterations; ++i) {
+                const glm::dmat3 r = rotationY(360.0 * i / lightIterations);
                 t0 = Clock::now();
-                light = makeLightVector(env, n, rotationY(360.0 * i / lightIterations), lightTerms);
+                light = prepared->lightVector(r, lightTerms);
                 lightTimes.push_back(secondsSince(t0));
+                t0 = Clock::now();
+                light = makeLightVector(env, n, r, lightTerms);
+                lightImageTimes.push_back(secondsSince(t0));
             }
-            light = makeLightVector(env, n, glm::dmat3(1.0), lightTerms);
+            light = prepared->lightVector(glm::dmat3(1.0), lightTerms);
         } else {
             Cubemap radiance(n, 3);
             std::mt19937 rng(1);
@@ -175,16 +187,20 @@ int main(int argc, char** argv) {
         }
         // Light changes: what a frame after the light moves needs, a new light vector (the
         // environment turned by a fresh, not whole-pixel angle each time, as in the viewer's
-        // spin) and the relight kernel, back to back.
-        std::vector<double> changeTimes, changeLightTimes;
+        // spin) and the relight kernel, back to back; from the prepared environment and,
+        // alternately, from the image each time.
+        std::vector<double> changeTimes, changeLightTimes, changeImageTimes, changeImageLightTimes;
         if (!envPath.empty()) {
             const auto changesStart = Clock::now();
-            for (int i = 0; i < iterations || secondsSince(changesStart) < minSeconds; ++i) {
+            for (int i = 0; i < iterations || secondsSince(changesStart) < 2 * minSeconds; ++i) {
+                const glm::dmat3 r = rotationY(0.37 + 1.01 * i);
+                const bool fromImage = i % 2 == 1;
                 t0 = Clock::now();
-                const LightVector turned = makeLightVector(env, n, rotationY(0.37 + 1.01 * i), lightTerms);
-                changeLightTimes.push_back(secondsSince(t0));
+                const LightVector turned = fromImage ? makeLightVector(env, n, r, lightTerms)
+                                                     : prepared->lightVector(r, lightTerms);
+                (fromImage ? changeImageLightTimes : changeLightTimes).push_back(secondsSince(t0));
                 relightVertices(file, turned, set, out);
-                changeTimes.push_back(secondsSince(t0));
+                (fromImage ? changeImageTimes : changeTimes).push_back(secondsSince(t0));
                 if (changeTimes.size() >= 100000) break;
             }
         }
@@ -207,9 +223,15 @@ int main(int argc, char** argv) {
                         vertices ? double(blockedCoefficients) / double(vertices) / blockedComponents : 0.0);
         std::printf("load          %.1f ms (%.0f MB/s; as cached: a file just written is in the page cache)\n",
                     1e3 * loadSeconds, fileBytes / 1e6 / loadSeconds);
-        if (!lightTimes.empty())
-            std::printf("light vector  %.2f ms median of %zu (%s -> 6x%dx%d -> Haar, %zu terms kept)\n",
-                        1e3 * median(lightTimes), lightTimes.size(), envPath.c_str(), n, n, light.keptTerms);
+        if (!lightTimes.empty()) {
+            std::printf("environment   prepared in %.1f ms (row running sums, and the lat-long filter unless "
+                        "cached; once per environment)\n",
+                        1e3 * prepareSeconds);
+            std::printf("light vector  %.3f ms median of %zu (%s -> 6x%dx%d -> Haar, %zu terms kept; from the "
+                        "image each time: %.3f ms)\n",
+                        1e3 * median(lightTimes), lightTimes.size(), envPath.c_str(), n, n, light.keptTerms,
+                        1e3 * median(lightImageTimes));
+        }
         std::printf("relight       %.3f ms median of %zu (best %.3f, mean %.3f), %s, %d threads\n", 1e3 * med,
                     times.size(), 1e3 * best, 1e3 * mean,
                     set.multipleScattering && set.singleScattering ? "ms,ss"
@@ -219,10 +241,15 @@ int main(int argc, char** argv) {
         std::printf("stream        %.1f MB per relight, %.2f GB/s effective (median), %.1f ns per vertex\n",
                     double(stream) / 1e6, double(stream) / med / 1e9,
                     vertices ? 1e9 * med / double(vertices) : 0.0);
-        if (!changeTimes.empty())
+        if (!changeTimes.empty()) {
             std::printf("light change  %.3f ms median of %zu (light vector %.3f + relight; %.0f light changes per second)\n",
                         1e3 * median(changeTimes), changeTimes.size(), 1e3 * median(changeLightTimes),
                         1.0 / median(changeTimes));
+            std::printf("  from image  %.3f ms median of %zu (light vector %.3f + relight; %.0f light changes per "
+                        "second), interleaved with the above\n",
+                        1e3 * median(changeImageTimes), changeImageTimes.size(), 1e3 * median(changeImageLightTimes),
+                        1.0 / median(changeImageTimes));
+        }
         if (!coldTimes.empty())
             std::printf("relight cold  %.3f ms median of %zu runs each after reading 1 GiB (%.2f GB/s effective)\n",
                         1e3 * coldMedian, coldTimes.size(), double(stream) / coldMedian / 1e9);
@@ -244,6 +271,11 @@ int main(int argc, char** argv) {
             j["load_MBps"] = fileBytes / 1e6 / loadSeconds;
             j["light_ms_median"] =
                 lightTimes.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(1e3 * median(lightTimes));
+            j["light_ms_median_from_image"] = lightImageTimes.empty()
+                                                  ? nlohmann::ordered_json(nullptr)
+                                                  : nlohmann::ordered_json(1e3 * median(lightImageTimes));
+            j["environment_prepare_ms"] =
+                envPath.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(1e3 * prepareSeconds);
             j["light_terms"] = light.keptTerms;
             j["relight_ms_median"] = 1e3 * med;
             j["relight_ms_best"] = 1e3 * best;
@@ -259,6 +291,12 @@ int main(int argc, char** argv) {
                                                     : nlohmann::ordered_json(1e3 * median(changeLightTimes));
             j["light_changes_per_second"] = changeTimes.empty() ? nlohmann::ordered_json(nullptr)
                                                                 : nlohmann::ordered_json(1.0 / median(changeTimes));
+            j["light_change_ms_median_from_image"] = changeImageTimes.empty()
+                                                         ? nlohmann::ordered_json(nullptr)
+                                                         : nlohmann::ordered_json(1e3 * median(changeImageTimes));
+            j["light_changes_per_second_from_image"] = changeImageTimes.empty()
+                                                           ? nlohmann::ordered_json(nullptr)
+                                                           : nlohmann::ordered_json(1.0 / median(changeImageTimes));
             j["stream_bytes"] = stream;
             j["relight_GBps_effective"] = double(stream) / med / 1e9;
             j["threads"] = effectiveThreads;
