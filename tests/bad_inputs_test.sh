@@ -21,6 +21,7 @@ PRECOMPUTE=$BUILD/precompute/prt-precompute
 RELIGHT=$BUILD/relight/prt-relight
 POINTLIGHT=$BUILD/relight/prt-pointlight
 REFERENCE=$BUILD/tools/prt-reference
+VERTEX_ERROR=$BUILD/tools/prt-vertex-error
 COMPARE=$BUILD/tools/prt-compare
 ENVCHECK=$BUILD/tools/prt-envcheck
 MAKE_SCENE=$BUILD/relight/prt-make-test-scene
@@ -178,6 +179,12 @@ expect "reference: missing environment" "nowhere\.exr" $F.exr \
     $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e nowhere.exr -W 16 -H 16 -o $F
 expect "reference: the file's seed" "--seed" $F.exr \
     $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 16 -H 16 --seed 1 -o $F
+expect "vertex-error: another mesh" "torus\.prt: .*mesh" - \
+    $VERTEX_ERROR "$S/sphere.ply" -t "$S/torus.prt" -e "$S/sky.exr"
+expect "vertex-error: zero stride" "--stride" - \
+    $VERTEX_ERROR "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --stride 0
+expect "vertex-error: corrupted transport" "corrupted\.prt" - \
+    $VERTEX_ERROR "$S/torus.ply" -t corrupted.prt -e "$S/sky.exr"
 expect "compare: missing image" "nowhere\.exr" - $COMPARE nowhere.exr "$S/sky.exr"
 expect "compare: different sizes" "(size|dimension)" - $COMPARE small.exr "$S/sky.exr"
 expect "envcheck: Inf pixels" "inf\.exr" - $ENVCHECK inf.exr --size 8 -o outdir/cube

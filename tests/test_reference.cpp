@@ -1010,3 +1010,43 @@ TEST(ReferenceConvergence, EstimateMatchesTheErrorMeasuredAgainstFourTimesTheDen
     EXPECT_GT(measured, 0.005);  // the error is large enough to measure
     EXPECT_NEAR(estimate.estimatedError / measured, 1.0, 0.4);
 }
+
+// ---------------------------------------------------------------------------
+// Per-vertex comparison (prt-vertex-error)
+// ---------------------------------------------------------------------------
+
+TEST(VertexComparison, GroupsRatiosAndErrorsByHand) {
+    // Two vertices facing up (test 10% high), one sideways (exact), one down (20% low).
+    const std::vector<glm::vec3> normals{{0, 1, 0}, {0.1f, 0.9f, 0}, {1, 0, 0}, {0, -1, 0}};
+    const std::vector<glm::dvec3> ref{{1, 1, 1}, {2, 2, 2}, {3, 3, 3}, {1, 2, 3}};
+    std::vector<glm::dvec3> test = ref;
+    test[0] *= 1.1;
+    test[1] *= 1.1;
+    test[3] *= 0.8;
+    const std::vector<glm::dvec3> variance(4, glm::dvec3(0.01));
+    const VertexComparison c = compareVertexValues(test, ref, normals, variance);
+    EXPECT_EQ(c.up.vertices, 2u);
+    EXPECT_EQ(c.side.vertices, 1u);
+    EXPECT_EQ(c.down.vertices, 1u);
+    EXPECT_EQ(c.all.vertices, 4u);
+    EXPECT_NEAR(c.up.ratio(), 1.1, 1e-12);
+    EXPECT_NEAR(c.side.ratio(), 1.0, 1e-12);
+    EXPECT_NEAR(c.down.ratio(), 0.8, 1e-12);
+    // all: (3.3 + 6.6 + 9 + 4.8) / (3 + 6 + 9 + 6)
+    EXPECT_NEAR(c.all.ratio(), 23.7 / 24.0, 1e-12);
+    // sum of squared errors 0.03 + 0.12 + 0 + 0.56 = 0.71 over sum of squares 3 + 12 + 27 + 14 = 56
+    EXPECT_NEAR(c.relativeL2, std::sqrt(0.71 / 56.0), 1e-12);
+    EXPECT_NEAR(c.referenceNoise, std::sqrt(0.12 / 56.0), 1e-12);
+    // No variances: no noise figure. Identical values: no error.
+    EXPECT_EQ(compareVertexValues(ref, ref, normals).relativeL2, 0.0);
+    EXPECT_EQ(compareVertexValues(ref, ref, normals).referenceNoise, 0.0);
+}
+
+TEST(VertexComparison, RefusesMismatchedOrEmptyInput) {
+    const std::vector<glm::vec3> normals{{0, 1, 0}};
+    const std::vector<glm::dvec3> one{{1, 1, 1}}, two{{1, 1, 1}, {1, 1, 1}};
+    EXPECT_THROW(compareVertexValues(one, two, normals), Error);
+    EXPECT_THROW(compareVertexValues(two, two, normals), Error);
+    EXPECT_THROW(compareVertexValues(one, one, normals, two), Error);
+    EXPECT_THROW(compareVertexValues({}, {}, {}), Error);
+}

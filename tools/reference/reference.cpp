@@ -742,4 +742,43 @@ GBuffer subsampleObjectPixels(const GBuffer& g, size_t stride) {
     return out;
 }
 
+double VertexComparison::Group::ratio() const {
+    const double t = sumTest.x + sumTest.y + sumTest.z;
+    const double r = sumReference.x + sumReference.y + sumReference.z;
+    if (r == 0.0) return t == 0.0 ? 0.0 : std::numeric_limits<double>::infinity();
+    return t / r;
+}
+
+VertexComparison compareVertexValues(const std::vector<glm::dvec3>& test,
+                                     const std::vector<glm::dvec3>& reference,
+                                     const std::vector<glm::vec3>& normals,
+                                     const std::vector<glm::dvec3>& referenceVariance) {
+    if (test.size() != reference.size() || test.size() != normals.size() ||
+        (!referenceVariance.empty() && referenceVariance.size() != test.size()))
+        throw Error("vertex comparison", "test, reference, normals and variances differ in size");
+    if (test.empty()) throw Error("vertex comparison", "no vertices to compare");
+    VertexComparison c;
+    double squaredError = 0.0, squaredReference = 0.0, variance = 0.0;
+    for (size_t v = 0; v < test.size(); ++v) {
+        VertexComparison::Group& g = normals[v].y > 0.5f ? c.up : normals[v].y < -0.5f ? c.down : c.side;
+        for (VertexComparison::Group* group : {&g, &c.all}) {
+            ++group->vertices;
+            group->sumTest += test[v];
+            group->sumReference += reference[v];
+        }
+        const glm::dvec3 d = test[v] - reference[v];
+        squaredError += glm::dot(d, d);
+        squaredReference += glm::dot(reference[v], reference[v]);
+        if (!referenceVariance.empty())
+            variance += referenceVariance[v].x + referenceVariance[v].y + referenceVariance[v].z;
+    }
+    if (squaredReference > 0.0) {
+        c.relativeL2 = std::sqrt(squaredError / squaredReference);
+        c.referenceNoise = std::sqrt(variance / squaredReference);
+    } else {
+        c.relativeL2 = squaredError > 0.0 ? std::numeric_limits<double>::infinity() : 0.0;
+    }
+    return c;
+}
+
 }  // namespace prt

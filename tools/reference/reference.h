@@ -460,5 +460,39 @@ DiscretisationEstimate estimateDiscretisationError(const ReferenceFrame& full, c
 // the others into background: the pixels of a convergence run.
 GBuffer subsampleObjectPixels(const GBuffer& g, size_t stride);
 
+// ---------------------------------------------------------------------------
+// Per-vertex comparison (prt-vertex-error)
+// ---------------------------------------------------------------------------
+
+// A camera-independent check of multiple scattering: a precomputed render's vertex
+// values (V_o . L) against the reference's dipole sum at the same vertices. An image
+// sees only the side of the object facing the camera, and truncation shifts the mean
+// of different sides in different directions (docs/fidelity.md), so a frame's error can
+// hide part of what the vertices carry. Groups split the vertices by where their
+// normals face (world +Y is up): up (n.y > 0.5), down (n.y < -0.5), side (between).
+struct VertexComparison {
+    struct Group {
+        size_t vertices = 0;
+        glm::dvec3 sumTest{0.0}, sumReference{0.0};
+        // Mean ratio of the group, sum over channels and vertices of test / the same of
+        // the reference (1 = no bias; 0 when both are 0, inf when only the reference's is).
+        double ratio() const;
+    };
+    Group all, up, side, down;
+    // sqrt(sum_{v,c} (t - r)^2 / sum_{v,c} r^2) over all compared vertices.
+    double relativeL2 = 0.0;
+    // sqrt(sum_{v,c} variance of r / sum_{v,c} r^2): the reference's Monte Carlo noise
+    // on the same scale (0 when no variances are given).
+    double referenceNoise = 0.0;
+};
+
+// test, reference, normals (and referenceVariance, when not empty) have one entry per
+// compared vertex. Throws prt::Error("vertex comparison", ...) when the sizes differ
+// or there is nothing to compare.
+VertexComparison compareVertexValues(const std::vector<glm::dvec3>& test,
+                                     const std::vector<glm::dvec3>& reference,
+                                     const std::vector<glm::vec3>& normals,
+                                     const std::vector<glm::dvec3>& referenceVariance = {});
+
 
 }  // namespace prt
