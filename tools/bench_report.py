@@ -102,6 +102,18 @@ def main():
                 "the kernel) / the same stream time",
                 f"{r['ratio_change_median']:.2f} ({fmt(r['change_ms_median'])} ms, light vector "
                 f"{fmt(r['light_ms_median'])} ms)", "below 1 (SPEC section 8)", "relight")
+    for key, label in (("diffuse", "diffuse only"), ("k4", "1 diffuse + K = 4 terms")):
+        b = relight.get("blocked", {}).get(key)
+        if not b:
+            continue
+        row(f"blocked relight (`--block-coefficients {b['block_coefficients']}`, blocks of 16, "
+            f"{b['block_order']} block order), {label}, {fmt(b['stream_MB'])} MB per frame against "
+            f"{fmt(b['stream_8byte_MB'])} MB per vertex: time per frame / time to stream today's 8-byte "
+            "coefficients at the measured bandwidth",
+            f"{b['ratio_vs_8byte_cold_median']:.2f} cold, {b['ratio_vs_8byte_warm_median']:.2f} warm "
+            f"({fmt(b['cold_ms_median'])} ms against today's kernel {fmt(b['today_cold_ms_median'])} ms in the "
+            f"same iterations: {b['speedup_median']:.2f}x; ratio to its own bytes {b['ratio_own_cold_median']:.2f})",
+            "<= 0.5", "relight")
     d = relight.get("relight", {}).get("diffuse") or relight.get("relight", {}).get("k4")
     if d:
         row("memory read bandwidth (1 GiB sum, all threads, interleaved with the relights)",
