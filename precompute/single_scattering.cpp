@@ -454,7 +454,7 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
     if (!(nLen > 0.0f)) return;  // no normal: nothing to integrate along
     const glm::vec3 n = normalIn / nLen;
 
-    // d_m along -n_o, then the exit rays of the 16 sample points.
+    // d_m along -n_o, then the exit rays of the path sample points.
     FarSide far = farSideDistance(scene, position, n, ctx.depthCap());
     stats.depthRays += 1;
     if (!(far.distance > 0.0)) return;
