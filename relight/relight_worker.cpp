@@ -22,28 +22,6 @@ double msSince(Clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-// The environment of the latest request, prepared for turning (EnvironmentLight: a light
-// vector in ~0.4 of makeLightVector's time from the image). Only the worker's own thread
-// computes, one thread per worker, so a thread_local is this worker's and ends with its
-// thread; the environments do not change while the worker exists (relight_worker.h).
-// Switching environments prepares the new one (a copy and one pass over the map).
-struct PreparedEnvironment {
-    const Image* image = nullptr;
-    int n = 0;
-    std::unique_ptr<EnvironmentLight> light;
-};
-
-const EnvironmentLight& preparedEnvironment(const Image& image, int n) {
-    thread_local PreparedEnvironment prepared;
-    if (prepared.image != &image || prepared.n != n || !prepared.light) {
-        prepared.light.reset();  // free the old one before building the new one
-        prepared.light = std::make_unique<EnvironmentLight>(image, n);
-        prepared.image = &image;
-        prepared.n = n;
-    }
-    return *prepared.light;
-}
-
 }  // namespace
 
 bool RelightWorker::take(LightResult& out) {
@@ -84,9 +62,13 @@ void RelightWorker::run() {
 void RelightWorker::compute(const LightRequest& r, LightResult& out) {
     out.request = r;
     auto t0 = Clock::now();
-    const LightVector light =
-        preparedEnvironment(environments_.at(size_t(r.environment)), int(file_.cubemapSize))
-            .lightVector(rotationY(r.rotation), r.lightTerms);
+    if (!prepared_ || preparedEnvironment_ != r.environment) {
+        prepared_.reset();  // free the old one before building the new one
+        prepared_ = std::make_unique<EnvironmentLight>(environments_.at(size_t(r.environment)),
+                                                       int(file_.cubemapSize));
+        preparedEnvironment_ = r.environment;
+    }
+    const LightVector light = prepared_->lightVector(rotationY(r.rotation), r.lightTerms);
     out.lightMs = msSince(t0);
     out.keptTerms = light.keptTerms;
     out.coefficients = light.coefficientCount();
