@@ -171,6 +171,12 @@ def main():
             f"{fmt(rf['light_changes_per_second'])} per second ({fmt(rf['light_change_ms_median'])} ms: "
             f"light vector {fmt(rf['light_change_light_ms_median'])} ms)",
             ">= 600 at 31K vertices", "relight_file")
+    if rf.get("light_ms_median_from_image"):
+        row("light vector from the prepared environment (row running sums, EnvironmentLight) / from the image "
+            "(makeLightVector), the same fresh angles in the same run",
+            f"{fmt(rf['light_ms_median'])} / {fmt(rf['light_ms_median_from_image'])} ms "
+            f"({rf['light_ms_median'] / rf['light_ms_median_from_image']:.2f}); preparing the environment "
+            f"{fmt(rf['environment_prepare_ms'])} ms once", "", "relight_file")
 
     lines = [
         f"Measured {meta.get('date', '?')} on {meta.get('cpu', '?')} ({meta.get('threads', '?')} threads, "
