@@ -52,6 +52,7 @@ Json settingsJson(const PrecomputeSettings& s) {
     j["seed"] = s.seed;
     j["phase_terms"] = s.phaseTerms;
     j["phase_map_size"] = s.phaseMapSize;
+    j["path_quadrature"] = toString(s.pathQuadrature);
     j["path_samples"] = s.pathSamples;
     j["ss_supersample"] = s.ssSupersample;
     j["shard"] = s.shard ? Json(toString(*s.shard)) : Json(nullptr);
