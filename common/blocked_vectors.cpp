@@ -123,7 +123,8 @@ struct Block {
     std::vector<uint32_t> lanes;  // the block's vertices
 };
 
-Block chooseBlock(const SparseRgbVectors& src, const uint32_t* laneVertices, uint32_t lanes, size_t keep) {
+Block chooseBlock(const SparseRgbVectors& src, const uint32_t* laneVertices, uint32_t lanes, size_t keep,
+                  uint32_t forcedFrom) {
     Block out;
     out.lanes.assign(laneVertices, laneVertices + lanes);
     std::vector<uint32_t> idx[kVertexBlock];
@@ -148,6 +149,9 @@ Block chooseBlock(const SparseRgbVectors& src, const uint32_t* laneVertices, uin
             score[at] += e / energy;
         }
     }
+    // Indices >= forcedFrom (SH terms) come first whatever their score.
+    for (size_t at = 0; at < all.size(); ++at)
+        if (all[at] >= forcedFrom && score[at] > 0.0) score[at] = std::numeric_limits<double>::infinity();
     std::vector<uint32_t> order(all.size());
     std::iota(order.begin(), order.end(), 0u);
     const size_t kept = std::min(keep, order.size());
@@ -176,7 +180,7 @@ Block chooseBlock(const SparseRgbVectors& src, const uint32_t* laneVertices, uin
 }  // namespace
 
 BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
-                                const std::vector<uint32_t>& order) {
+                                const std::vector<uint32_t>& order, uint32_t forcedFrom) {
     if (keep < 1) throw Error(kSubject, "a block must keep at least one coefficient");
     const size_t vertices = perVertex.vertexCount();
     if (order.size() != vertices) throw Error(kSubject, "block order of " + std::to_string(order.size()) +
@@ -194,7 +198,7 @@ BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
         for (size_t b = r.begin(); b != r.end(); ++b) {
             const size_t first = b * kVertexBlock;
             const uint32_t lanes = uint32_t(std::min<size_t>(kVertexBlock, vertices - first));
-            chosen[b] = chooseBlock(perVertex, order.data() + first, lanes, keep);
+            chosen[b] = chooseBlock(perVertex, order.data() + first, lanes, keep, forcedFrom);
         }
     });
     BlockedRgbVectors out;

@@ -115,9 +115,12 @@ std::vector<uint32_t> spatialBlockOrder(const std::vector<glm::vec3>& positions)
 //
 // Converts whole per-vertex vectors (e.g. a precompute's 512-term vectors) to blocks of
 // the vertices in `order` (a permutation of the vertices, e.g. spatialBlockOrder), each
-// keeping `keep` indices (>= 1). Deterministic, independent of the number of threads.
+// keeping `keep` indices (>= 1). Indices >= forcedFrom (a file's SH terms, 6 N^2 and
+// up; transport_file.h) are kept first whatever their score, when any lane has them.
+// Deterministic, independent of the number of threads.
 BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
-                                const std::vector<uint32_t>& order);
+                                const std::vector<uint32_t>& order,
+                                uint32_t forcedFrom = UINT32_MAX);
 
 // Mean over vertices of kept / total energy (sum of squares over RGB, per vertex,
 // vertices with zero energy count as 1) of a jointTruncate result against its source.

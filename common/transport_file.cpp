@@ -40,9 +40,13 @@ constexpr std::array<char, 8> kMagic = {'P', 'R', 'T', 'X', 'P', 'O', 'R', 'T'};
 // components (BLKC). The writer writes version 2 only for a file that has a blocked
 // component, so every other file stays version 1 byte for byte and older readers keep
 // reading it; a reader refuses BLKC in a version-1 file and a version-2 file without
-// one (so no single corrupted byte of a version field is accepted).
+// one (so no single corrupted byte of a version field is accepted). Version 3 adds an
+// SH part to every vector (common/sh_part.h): the header's former reserved field holds
+// the SH term count (1, 4 or 9; 0 in versions 1 and 2), and indices run to 6 N^2 +
+// terms. Any file with SH terms is version 3, with or without blocked components.
 constexpr uint32_t kFormatVersion = 1;
 constexpr uint32_t kBlockedFormatVersion = 2;
+constexpr uint32_t kShFormatVersion = 3;
 constexpr uint32_t kEndianMarker = 0x01020304u;
 constexpr uint64_t kAlignment = 64;
 constexpr uint64_t kPreambleBytes = 16;
@@ -241,8 +245,16 @@ bool validKind(uint32_t kind) {
 // Validation shared by save and load: returns "" when fine, else the reason.
 // ---------------------------------------------------------------------------------
 
-std::string checkVectors(const SparseRgbVectors& s, uint64_t vertices, uint32_t cubemapSize) {
-    const uint64_t indexLimit = uint64_t(6) * cubemapSize * cubemapSize;
+bool validShTermCount(uint32_t terms) { return terms == 0 || terms == 1 || terms == 4 || terms == 9; }
+
+std::string indexLimitText(uint32_t cubemapSize, uint32_t shTerms) {
+    return "(6 x " + u64(cubemapSize) + " x " + u64(cubemapSize) +
+           (shTerms ? " + " + u64(shTerms) + " SH terms)" : ")");
+}
+
+std::string checkVectors(const SparseRgbVectors& s, uint64_t vertices, uint32_t cubemapSize,
+                         uint32_t shTerms) {
+    const uint64_t indexLimit = uint64_t(6) * cubemapSize * cubemapSize + shTerms;
     if (s.offsets.size() != vertices + 1)
         return "has " + u64(s.offsets.size()) + " offsets, expected " + u64(vertices + 1) +
                " (vertex count + 1)";
@@ -266,8 +278,7 @@ std::string checkVectors(const SparseRgbVectors& s, uint64_t vertices, uint32_t 
         for (uint32_t n = begin; n < end; ++n) {
             if (s.indices[n] >= indexLimit)
                 return "vertex " + u64(v) + ": coefficient index " + u64(s.indices[n]) +
-                       " >= " + u64(indexLimit) + " (6 x " + u64(cubemapSize) + " x " +
-                       u64(cubemapSize) + ")";
+                       " >= " + u64(indexLimit) + " " + indexLimitText(cubemapSize, shTerms);
             if (n > begin && s.indices[n] <= s.indices[n - 1])
                 return "vertex " + u64(v) + ": coefficient indices not strictly increasing (" +
                        u64(s.indices[n - 1]) + " then " + u64(s.indices[n]) + ")";
@@ -282,7 +293,8 @@ std::string checkVectors(const SparseRgbVectors& s, uint64_t vertices, uint32_t 
     return {};
 }
 
-std::string checkBlocked(const BlockedRgbVectors& b, uint64_t vertices, uint32_t cubemapSize) {
+std::string checkBlocked(const BlockedRgbVectors& b, uint64_t vertices, uint32_t cubemapSize,
+                         uint32_t shTerms) {
     if (b.vertices != vertices)
         return "has " + u64(b.vertices) + " blocked vertices, expected " + u64(vertices);
     if (vertices == 0) return "a blocked component has no vertices";
@@ -305,7 +317,7 @@ std::string checkBlocked(const BlockedRgbVectors& b, uint64_t vertices, uint32_t
                    " then " + u64(b.offsets[k + 1]) + ")";
     // Also the padding lanes (zero values and scales, as appendBlock writes them, so
     // equal data has equal bytes).
-    return checkBlockedVectors(b, 6 * cubemapSize * cubemapSize);
+    return checkBlockedVectors(b, 6 * cubemapSize * cubemapSize + shTerms);
 }
 
 std::string checkViewMaps(const ViewMaps& m) {
@@ -331,6 +343,7 @@ std::string checkFile(const TransportFile& f, size_t* componentIndex = nullptr) 
     if (f.cubemapSize < 1 || f.cubemapSize > kMaxCubemapSize ||
         !std::has_single_bit(f.cubemapSize))
         return "cubemap size " + u64(f.cubemapSize) + " is not a power of two in 1..64";
+    if (!validShTermCount(f.shTerms)) return "SH term count " + u64(f.shTerms) + " is not 0, 1, 4 or 9";
     if (f.mesh.vertexCount == 0) return "mesh fingerprint has zero vertices";
     if (f.mesh.vertexCount > kMaxVertices)
         return "mesh fingerprint has " + u64(f.mesh.vertexCount) + " vertices (limit 2^40)";
@@ -372,8 +385,8 @@ std::string checkFile(const TransportFile& f, size_t* componentIndex = nullptr) 
         if (!c.blocked() && (!b.order.empty() || b.offsets.size() > 1 || !b.indices.empty() ||
                              !b.values.empty() || !b.scales.empty()))
             return name + ": blocked arrays without blocked vertices";
-        std::string reason = c.blocked() ? checkBlocked(b, f.mesh.vertexCount, f.cubemapSize)
-                                         : checkVectors(v, f.mesh.vertexCount, f.cubemapSize);
+        std::string reason = c.blocked() ? checkBlocked(b, f.mesh.vertexCount, f.cubemapSize, f.shTerms)
+                                         : checkVectors(v, f.mesh.vertexCount, f.cubemapSize, f.shTerms);
         if (!reason.empty()) return name + ": " + reason;
     }
     if (componentIndex) *componentIndex = SIZE_MAX;
@@ -506,6 +519,7 @@ private:
 };
 
 uint32_t formatVersionOf(const TransportFile& f) {
+    if (f.shTerms > 0) return kShFormatVersion;
     const bool blocked = std::any_of(f.components.begin(), f.components.end(),
                                      [](const TransportComponent& c) { return c.blocked(); });
     return blocked ? kBlockedFormatVersion : kFormatVersion;
@@ -547,7 +561,7 @@ void writeFile(FileWriter& w, const TransportFile& f) {
     w.u64(f.mesh.positionHash);
     w.u64(std::bit_cast<uint64_t>(f.mmPerUnit));
     w.u32(f.viewMaps ? 1u : 0u);
-    w.u32(0);
+    w.u32(f.shTerms);  // reserved (0) before version 3
     w.endSection();
 
     // Parameters.
@@ -807,13 +821,14 @@ void skipSection(FileReader& r, OpenSection& s) {
 struct HeadFields {
     uint32_t version = 0;  // from the preamble
     uint32_t cubemapSize = 0;
+    uint32_t shTerms = 0;
     uint32_t componentCount = 0;
     MeshFingerprint mesh;
     double mmPerUnit = 1.0;
     bool hasViewMaps = false;
 };
 
-// Returns the format version (1 or 2).
+// Returns the format version (1, 2 or 3).
 uint32_t readPreamble(FileReader& r) {
     const uint64_t size = r.size();
     if (size == 0) r.fail("truncated: the file is empty (not a transport file)");
@@ -832,10 +847,10 @@ uint32_t readPreamble(FileReader& r) {
                "big-endian; transport files are little-endian");
     if (marker != kEndianMarker)
         r.fail("bad endianness marker " + hex32(marker) + " (expected 0x01020304): corrupt file");
-    if (version != kFormatVersion && version != kBlockedFormatVersion)
+    if (version != kFormatVersion && version != kBlockedFormatVersion && version != kShFormatVersion)
         r.fail("unsupported transport file format version " + u64(version) +
-               " (this build reads versions " + u64(kFormatVersion) + " and " +
-               u64(kBlockedFormatVersion) + ")");
+               " (this build reads versions " + u64(kFormatVersion) + " to " +
+               u64(kShFormatVersion) + ")");
     return version;
 }
 
@@ -864,7 +879,14 @@ HeadFields readHead(FileReader& r, uint32_t version) {
     if (!std::isfinite(h.mmPerUnit) || h.mmPerUnit <= 0.0)
         r.fail(where + "mm per unit is not a positive finite number");
     if (viewFlag > 1) r.fail(where + "view-map flag " + u64(viewFlag) + " is not 0 or 1");
-    if (reserved != 0) r.fail(where + "reserved field is " + hex32(reserved) + ", not 0");
+    if (version >= kShFormatVersion) {
+        if (reserved == 0 || !validShTermCount(reserved))
+            r.fail(where + "SH term count " + u64(reserved) + " is not 1, 4 or 9 (format version " +
+                   u64(version) + ")");
+        h.shTerms = reserved;
+    } else if (reserved != 0) {
+        r.fail(where + "reserved field is " + hex32(reserved) + ", not 0");
+    }
     if (h.componentCount == 0) r.fail(where + "the file has no components");
     // (The component count is not used to reserve memory: components are read one
     // section at a time, so a wrong count fails at the first missing section.)
@@ -979,7 +1001,7 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
     }
     checkComponentHeader(r, s, kind, term, reservedZero);
     if (!infoOnly) {
-        const std::string reason = checkBlocked(c.blocks, vertices, h.cubemapSize);
+        const std::string reason = checkBlocked(c.blocks, vertices, h.cubemapSize, h.shTerms);
         if (!reason.empty()) r.fail("inconsistent: " + s.label + ": " + reason);
         c.blocks.indexSlots();
     }
@@ -1045,7 +1067,7 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
     }
     checkComponentHeader(r, s, kind, term, reservedZero);
     if (!infoOnly) {
-        const std::string reason = checkVectors(c.vectors, vertices, h.cubemapSize);
+        const std::string reason = checkVectors(c.vectors, vertices, h.cubemapSize, h.shTerms);
         if (!reason.empty()) r.fail("inconsistent: " + s.label + ": " + reason);
     }
     return c;
@@ -1129,6 +1151,7 @@ TransportFile loadImpl(const std::string& path, const MeshFingerprint* expected)
     if (expected) checkFingerprint(r, h.mesh, *expected);
     TransportFile f;
     f.cubemapSize = h.cubemapSize;
+    f.shTerms = h.shTerms;
     f.mesh = h.mesh;
     f.mmPerUnit = h.mmPerUnit;
     f.parameters = readParameters(r);
@@ -1185,10 +1208,13 @@ std::string describeBlocked(uint64_t vertices, uint64_t blocks, uint64_t indices
            formatBytes(bytes) + " (" + bytesPerVertex(bytes, vertices) + ")";
 }
 
-void describeCommon(std::string& out, uint32_t n, const MeshFingerprint& mesh, double mmPerUnit,
-                    const std::vector<std::pair<std::string, std::string>>& parameters) {
+void describeCommon(std::string& out, uint32_t n, uint32_t shTerms, const MeshFingerprint& mesh,
+                    double mmPerUnit, const std::vector<std::pair<std::string, std::string>>& parameters) {
     out += "cubemap: 6 x " + u64(n) + " x " + u64(n) + " (" + u64(uint64_t(6) * n * n) +
            " Haar coefficients)\n";
+    out += shTerms ? "SH part: " + u64(shTerms) + " terms per vector (indices " + u64(uint64_t(6) * n * n) +
+                         ".." + u64(uint64_t(6) * n * n + shTerms - 1) + ")\n"
+                   : "SH part: none\n";
     out += "mesh: " + u64(mesh.vertexCount) + " vertices, position hash " +
            hex64(mesh.positionHash) + ", " + formatDouble(mmPerUnit) + " mm per unit\n";
     out += "parameters (" + u64(parameters.size()) + "):\n";
@@ -1356,6 +1382,7 @@ TransportFileInfo readTransportFileInfo(const std::string& path) {
     TransportFileInfo info;
     info.version = version;
     info.cubemapSize = h.cubemapSize;
+    info.shTerms = h.shTerms;
     info.mesh = h.mesh;
     info.mmPerUnit = h.mmPerUnit;
     info.fileBytes = r.size();
@@ -1378,7 +1405,7 @@ TransportFileInfo readTransportFileInfo(const std::string& path) {
 
 std::string describe(const TransportFile& file) {
     std::string out = "transport file\n";
-    describeCommon(out, file.cubemapSize, file.mesh, file.mmPerUnit, file.parameters);
+    describeCommon(out, file.cubemapSize, file.shTerms, file.mesh, file.mmPerUnit, file.parameters);
     out += "components (" + u64(file.components.size()) + "):\n";
     uint64_t total = 0;
     for (const TransportComponent& c : file.components) {
@@ -1422,7 +1449,7 @@ std::string describe(const TransportFile& file) {
 std::string describe(const TransportFileInfo& info) {
     std::string out = "transport file, format version " + u64(info.version) + ", " +
                       formatBytes(info.fileBytes) + "\n";
-    describeCommon(out, info.cubemapSize, info.mesh, info.mmPerUnit, info.parameters);
+    describeCommon(out, info.cubemapSize, info.shTerms, info.mesh, info.mmPerUnit, info.parameters);
     out += "components (" + u64(info.components.size()) + "):\n";
     for (const TransportFileInfo::Component& c : info.components) {
         if (c.blocked) {

@@ -123,6 +123,10 @@ struct ViewMaps {
 
 struct TransportFile {
     uint32_t cubemapSize = 0;  // N of the 6 x N x N lighting cubemap, power of two, 1..64
+    // Terms of the SH part of every vector (common/sh_part.h): 0, 1, 4 or 9. Vectors
+    // then have indices < 6 N^2 + shTerms, the last shTerms being SH coefficients that
+    // relight against the light's SH projections (LightVector::sh).
+    uint32_t shTerms = 0;
     MeshFingerprint mesh;
     double mmPerUnit = 1.0;  // scale that was applied to the mesh file's positions
     // Every precompute parameter as text (material, sigma_a, sigma_s', eta, g, terms,
@@ -149,13 +153,14 @@ inline constexpr const char* kShardParameter = "shard";
 inline constexpr const char* kShardVerticesParameter = "shard_vertices";
 
 // Writes `file` to `path` atomically: validates it (one vertex count everywhere,
-// equal to mesh.vertexCount; indices < 6 N^2 and increasing; view maps present iff
+// equal to mesh.vertexCount; indices < 6 N^2 + shTerms and increasing; view maps present iff
 // term components exist, one term component per view-map term; finite values; a
 // blocked component passes checkBlockedVectors and has empty `vectors`), then
 // writes through writeAtomically (common/atomic_file.h): on any failure an existing
 // file at `path` is untouched, no temporary file is left and prt::Error(path, reason)
-// is thrown. A file with a blocked component is format version 2, any other file
-// version 1 (the same bytes as before blocked components existed).
+// is thrown. A file with SH terms is format version 3; otherwise one with a blocked
+// component is version 2, any other file version 1 (the same bytes as before blocked
+// components and SH parts existed).
 void saveTransportFile(const std::string& path, const TransportFile& file);
 
 // Reads and verifies the whole file (every section's checksum, every count and
@@ -170,8 +175,9 @@ TransportFile loadTransportFile(const std::string& path, const MeshFingerprint& 
 
 // What readTransportFileInfo returns: everything except the vectors and view maps.
 struct TransportFileInfo {
-    uint32_t version = 0;  // the file's format version: 2 when it has blocked components, else 1
+    uint32_t version = 0;  // the file's format version: 3 with SH terms, else 2 with blocked components, else 1
     uint32_t cubemapSize = 0;
+    uint32_t shTerms = 0;
     MeshFingerprint mesh;
     double mmPerUnit = 1.0;
     std::vector<std::pair<std::string, std::string>> parameters;

@@ -4,6 +4,7 @@
 
 #include "common/error.h"
 #include "common/mesh.h"
+#include "common/sh_part.h"
 #include "common/util.h"
 
 #include <tbb/blocked_range.h>
@@ -469,7 +470,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
         Scratch& s = scratch.local();
         if (s.acc.size() != coefficientCount * 3) {
             s.acc.assign(coefficientCount * 3, 0.0);
-            s.rounded.assign(coefficientCount * 3, 0.0f);
+            s.rounded.assign((coefficientCount + size_t(options.shTerms)) * 3, 0.0f);
         }
         double* acc = s.acc.data();
         for (size_t o = r.begin(); o < r.end(); ++o) {
@@ -511,9 +512,8 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
             }
             std::copy(s.acc.begin(), s.acc.end(), s.rounded.begin());
             std::fill(s.acc.begin(), s.acc.end(), 0.0);
-            const double before = energy(s.rounded.data(), s.rounded.size());
-            result[v] = truncateLargest(s.rounded.data(), coefficientCount, 3, options.vertexCoefficients);
-            count.retained = before > 0.0 ? energy(result[v]) / before : 1.0;
+            result[v] = truncateWithShPart(s.rounded.data(), coefficientCount, 3, options.shTerms,
+                                           options.vertexCoefficients, &count.retained);
         }
         if (progress) progress->advance(r.size());
     });
@@ -542,7 +542,7 @@ std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
                                                        const Material& material,
                                                        size_t coefficientCount,
                                                        size_t vertexCoefficients,
-                                                       const CellQuadrature* cells) {
+                                                       const CellQuadrature* cells, int shTerms) {
     const Dipoles dipoles(material);
     if (cells && cells->sampleCount() != cloud.positions.size()) {
         throw Error("hierarchy", "the cell quadrature's samples are not the cloud's");
@@ -578,7 +578,8 @@ std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
             }
         }
         std::vector<float> dense(acc.begin(), acc.end());
-        result[v] = truncateLargest(dense.data(), coefficientCount, 3, vertexCoefficients);
+        dense.resize((coefficientCount + size_t(shTerms)) * 3, 0.0f);
+        result[v] = truncateWithShPart(dense.data(), coefficientCount, 3, shTerms, vertexCoefficients);
     });
     return result;
 }

@@ -129,8 +129,11 @@ struct HierarchyOptions {
     // Largest leaf (samples), and the depth guard (the root has depth 0).
     int leafSize = 8;
     int maxDepth = 48;
-    // Entries kept in each vertex's RGB transport vector (Wang: 128).
+    // Entries kept in each vertex's RGB transport vector (Wang: 128), of which shTerms
+    // (0, 1, 4 or 9) are its SH part (common/sh_part.h truncateWithShPart; indices
+    // 6 N^2 + i) and the rest the largest Haar coefficients of the residual.
     size_t vertexCoefficients = 128;
+    int shTerms = 0;
     // true: node sums are truncations of the exact sums; false: truncated children's
     // sums are merged (see the top of this file).
     bool exactNodeSums = true;
@@ -265,6 +268,7 @@ std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
                                                        const Material& material,
                                                        size_t coefficientCount,
                                                        size_t vertexCoefficients,
-                                                       const CellQuadrature* cells = nullptr);
+                                                       const CellQuadrature* cells = nullptr,
+                                                       int shTerms = 0);
 
 }  // namespace prt

@@ -26,6 +26,7 @@
 #include "precompute/memory_estimate.h"
 #include "precompute/pass1_file.h"
 #include "precompute/single_scattering.h"
+#include "common/sh_part.h"
 #include "common/util.h"
 
 namespace prt {
@@ -72,6 +73,7 @@ SingleScatteringOptions singleScatteringOptions(const PrecomputeSettings& s) {
     o.pathSamples = s.pathSamples;
     o.pathQuadrature = s.pathQuadrature;
     o.keepCoefficients = s.vertexCoefficients;
+    o.shTerms = s.shTerms;
     return o;
 }
 
@@ -100,7 +102,20 @@ void validateSettings(const PrecomputeSettings& s) {
     };
     checkTerms("--sample-coefficients", s.sampleCoefficients);
     checkTerms("--node-coefficients", s.nodeCoefficients);
-    checkTerms("--coefficients", s.vertexCoefficients);
+    if (!validShTerms(s.shTerms))
+        throw Error("--sh-terms", "must be 0, 1, 4 or 9, got " + std::to_string(s.shTerms));
+    if (s.vertexCoefficients < 1 || s.vertexCoefficients > texels + size_t(s.shTerms))
+        throw Error("--coefficients", "must be between 1 and 6 N^2 + SH terms = " +
+                                          std::to_string(texels + size_t(s.shTerms)) + ", got " +
+                                          std::to_string(s.vertexCoefficients));
+    if (s.shTerms == 9 && s.cubemapSize < 2)
+        throw Error("--sh-terms", "9 SH terms need a cubemap of at least 6 x 2 x 2 (use 0, 1 or 4)");
+    if (s.vertexCoefficients <= size_t(s.shTerms))
+        throw Error("--coefficients", "must be more than the " + std::to_string(s.shTerms) +
+                                          " SH terms (--sh-terms), got " + std::to_string(s.vertexCoefficients));
+    if (s.blockCoefficients > 0 && s.blockCoefficients <= size_t(s.shTerms))
+        throw Error("--block-coefficients", "must be more than the " + std::to_string(s.shTerms) +
+                                                " SH terms (--sh-terms), got " + std::to_string(s.blockCoefficients));
     if (s.blockCoefficients > 0) {
         checkTerms("--block-coefficients", s.blockCoefficients);
         if (s.shard)
@@ -152,6 +167,7 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
         {"sample_coefficients", std::to_string(s.sampleCoefficients)},
         {"node_coefficients", std::to_string(s.nodeCoefficients)},
         {"coefficients", std::to_string(s.vertexCoefficients)},
+        {"sh_terms", std::to_string(s.shTerms)},
         {"epsilon", fmt(s.epsilon)},
         {"samples_requested", std::to_string(s.sampleCount)},
         {"sample_spacing_requested_mm", fmt(s.sampleSpacingMm)},
@@ -340,6 +356,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         summary.triangles = mesh.triangleCount();
         summary.totalAreaMm2 = totalArea(mesh);
         file.cubemapSize = uint32_t(settings.cubemapSize);
+        file.shTerms = uint32_t(settings.shTerms);
         file.mesh = fingerprint;
         file.mmPerUnit = mmPerUnit;
         file.parameters = params;
@@ -465,6 +482,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             hierarchy.epsilon = settings.epsilon;
             hierarchy.nodeCoefficients = settings.nodeCoefficients;
             hierarchy.vertexCoefficients = settings.vertexCoefficients;
+            hierarchy.shTerms = settings.shTerms;
             SampleTree tree(std::move(cloud), hierarchy);
             std::vector<glm::vec3> positions;
             positions.reserve(myVertices);
@@ -597,7 +615,8 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             const std::vector<uint32_t> order = spatialBlockOrder(mesh.positions);
             double retained = 0.0;
             for (TransportComponent& c : file.components) {
-                c.blocks = jointTruncate(c.vectors, settings.blockCoefficients, order);
+                c.blocks = jointTruncate(c.vectors, settings.blockCoefficients, order,
+                                         settings.shTerms > 0 ? uint32_t(coefficientCount) : UINT32_MAX);
                 retained += retainedEnergyFraction(c.vectors, c.blocks);
                 c.vectors = SparseRgbVectors();  // frees the 512-term arrays
             }

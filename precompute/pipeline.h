@@ -41,6 +41,9 @@ struct PrecomputeSettings {
     size_t sampleCoefficients = 128;  // Haar terms kept per sample (pass 1)
     size_t nodeCoefficients = 256;    // per kd-tree node (pass 2)
     size_t vertexCoefficients = 128;  // per vertex (in the file, or before the joint choice)
+    // Of those, the SH part of every vector (common/sh_part.h): 0, 1, 4 or 9 terms; the
+    // rest are the largest Haar coefficients of the residual.
+    int shTerms = 9;
     // > 0: the file stores blocks of 16 nearby vertices sharing this many jointly chosen
     // terms, picked from each vertex's vertexCoefficients (common/blocked_vectors.h).
     size_t blockCoefficients = 0;

@@ -62,6 +62,7 @@ void checkSameJob(const TransportFile& first, const std::string& firstPath, cons
     };
     if (f.mesh != first.mesh) differ("mesh (vertex count or position hash)");
     if (f.cubemapSize != first.cubemapSize) differ("cubemap size");
+    if (f.shTerms != first.shTerms) differ("SH term count");
     if (f.mmPerUnit != first.mmPerUnit) differ("scale (mm per unit)");
     if (withoutShardParameters(f.parameters) != withoutShardParameters(first.parameters))
         differ(f.parameter("input_digest") != first.parameter("input_digest") ? "settings (input_digest)"
@@ -103,6 +104,7 @@ TransportFile mergeShards(const std::vector<std::string>& paths) {
         if (firstPath.empty()) {
             firstPath = s.path;
             whole.cubemapSize = f.cubemapSize;
+            whole.shTerms = f.shTerms;
             whole.mesh = f.mesh;
             whole.mmPerUnit = f.mmPerUnit;
             whole.parameters = withoutShardParameters(f.parameters);

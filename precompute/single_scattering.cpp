@@ -12,6 +12,7 @@
 
 #include "common/error.h"
 #include "common/mesh.h"
+#include "common/sh_part.h"
 #include "precompute/phase_factoring.h"
 #include "common/progress.h"
 #include "common/util.h"
@@ -591,9 +592,21 @@ double compressSingleScattering(const SingleScatteringContext& ctx, float* dense
         float* term = dense + size_t(k) * texels * 3;
         for (int f = 0; f < kCubeFaces; ++f)
             for (int c = 0; c < 3; ++c) haarForwardFace(term + size_t(f) * faceSize * 3 + c, n, 3);
-        total += energy(term, texels * 3);
-        out[size_t(k)] = truncateLargest(term, texels, 3, ctx.options().keepCoefficients);
-        kept += energy(out[size_t(k)]);
+        const double termEnergy = energy(term, texels * 3);
+        total += termEnergy;
+        const int shTerms = ctx.options().shTerms;
+        double retained = 1.0;
+        if (shTerms == 0) {
+            out[size_t(k)] = truncateWithShPart(term, texels, 3, 0, ctx.options().keepCoefficients, &retained);
+        } else {
+            // The SH split needs room for the SH entries after the Haar ones.
+            thread_local std::vector<float> withSh;
+            withSh.assign((texels + size_t(shTerms)) * 3, 0.0f);
+            std::copy(term, term + texels * 3, withSh.begin());
+            out[size_t(k)] = truncateWithShPart(withSh.data(), texels, 3, shTerms,
+                                                ctx.options().keepCoefficients, &retained);
+        }
+        kept += retained * termEnergy;
     }
     return total > 0.0 ? kept / total : 1.0;
 }

@@ -154,7 +154,8 @@ struct SingleScatteringOptions {
     int supersample = 1;           // s x s sub-directions per texel (each with its solid angle)
     PathQuadrature pathQuadrature = kDefaultPathQuadrature;  // the rule of the samples in xi
     int pathSamples = defaultPathSamples(kDefaultPathQuadrature);  // samples along -n_o
-    size_t keepCoefficients = 128; // largest Haar coefficients kept per vertex and term
+    size_t keepCoefficients = 128; // terms kept per vertex and term: shTerms SH + the largest Haar
+    int shTerms = 0;               // SH part of each vector (common/sh_part.h truncateWithShPart)
     // d_m when the inward ray leaves an open mesh: this many mean free paths
     // 1 / |sigma_t| (the sampled mass beyond it is e^-16 ~ 1e-7).
     double depthCapMeanFreePaths = 16.0;

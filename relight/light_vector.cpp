@@ -8,6 +8,7 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/haar.h"
+#include "common/sh_part.h"
 
 namespace prt {
 
@@ -85,6 +86,10 @@ LightVector makeLightVector(const Cubemap& radiance, size_t keepTerms) {
     light.size = radiance.size();
     const size_t count = coefficients.texelCount();
     std::vector<float>& full = coefficients.data();
+    if (light.size >= 2) {  // 9 SH terms are not independent on a 6 x 1 x 1 cubemap
+        light.sh.resize(size_t(kMaxShTerms) * 3);
+        shProjectLight(full.data(), light.size, 3, kMaxShTerms, light.sh.data());
+    }
 
     if (keepTerms == 0 || keepTerms >= count) {
         light.rgb = std::move(full);

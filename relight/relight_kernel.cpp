@@ -1,5 +1,7 @@
 #include "relight/relight_kernel.h"
 
+#include "common/sh_part.h"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -153,17 +155,31 @@ void checkLight(const TransportFile& file, const LightVector& light) {
                                         "^2 = " + std::to_string(3 * count));
 }
 
+// The light's SH projections for a file with `terms` SH terms (terms x 3 floats): the
+// light vector's own, or derived from its Haar coefficients for a hand-built vector.
+std::vector<float> lightShPart(const LightVector& light, uint32_t terms) {
+    if (terms == 0) return {};
+    if (light.sh.size() >= 3 * size_t(terms)) return {light.sh.begin(), light.sh.begin() + 3 * ptrdiff_t(terms)};
+    std::vector<float> sh(3 * size_t(terms));
+    shProjectLight(light.rgb.data(), light.size, 3, int(terms), sh.data());
+    return sh;
+}
+
 // The light vector converted for gathering: `Stride` floats per coefficient, RGB
-// first. Stride 4 pads each coefficient to 16 bytes (one aligned SSE load, never
+// first, the file's SH terms after the 6 N^2 Haar coefficients (common/sh_part.h). Stride 4 pads each coefficient to 16 bytes (one aligned SSE load, never
 // straddling a cache line); stride 3 is the plain interleaved layout (25% smaller, an
 // unaligned 16-byte load that reads the next coefficient's R, which is ignored). The
 // buffer has one extra coefficient of zeros so the stride-3 over-read stays inside.
 template <int Stride>
-std::vector<float> gatherLayout(const LightVector& light) {
-    const size_t count = light.coefficientCount();
+std::vector<float> gatherLayout(const LightVector& light, uint32_t shTerms) {
+    const size_t haar = light.coefficientCount();
+    const size_t count = haar + shTerms;
     std::vector<float> out((count + 1) * Stride, 0.0f);
-    for (size_t k = 0; k < count; ++k)
+    for (size_t k = 0; k < haar; ++k)
         for (int c = 0; c < 3; ++c) out[k * Stride + c] = light.rgb[3 * k + c];
+    const std::vector<float> sh = lightShPart(light, shTerms);
+    for (size_t k = 0; k < shTerms; ++k)
+        for (int c = 0; c < 3; ++c) out[(haar + k) * Stride + c] = sh[3 * k + c];
     return out;
 }
 
@@ -636,9 +652,9 @@ void relightFast(const TransportFile& file, const LightVector& light,
     out.terms.resize(plan.terms.size());
     for (std::vector<glm::vec3>& t : out.terms) t.resize(vertices);
 
-    const std::vector<float> gather = gatherLayout<Stride>(light);
+    const std::vector<float> gather = gatherLayout<Stride>(light, file.shTerms);
     const float* lightData = gather.data();
-    const uint32_t count = uint32_t(light.coefficientCount());
+    const uint32_t count = uint32_t(light.coefficientCount() + file.shTerms);
 
     // Every selected component, diffuse ones first, then terms; each one either
     // per-vertex (a Stream, relit over ranges of vertices) or blocked (a BlockStream,
@@ -735,15 +751,15 @@ void relightFast(const TransportFile& file, const LightVector& light,
         const size_t v = bad[i].load();
         if (v == kNone) continue;
         const TransportComponent& c = *jobs[i];
+        const std::string limit = "6 x " + std::to_string(light.size) + "^2" +
+                                  (file.shTerms ? " + " + std::to_string(file.shTerms) + " SH terms" : "") +
+                                  " = " + std::to_string(count);
         if (c.blocked())
-            throw Error("transport file",
-                        componentName(c.kind, c.term) + ": block " + std::to_string(v) +
-                            " has invalid offsets, a coefficient index >= 6 x " + std::to_string(light.size) +
-                            "^2 = " + std::to_string(count) + " or a vertex >= " + std::to_string(vertices));
-        throw Error("transport file",
-                    componentName(c.kind, c.term) + ": vertex " + std::to_string(v) +
-                        " has invalid offsets or a coefficient index >= 6 x " +
-                        std::to_string(light.size) + "^2 = " + std::to_string(count));
+            throw Error("transport file", componentName(c.kind, c.term) + ": block " + std::to_string(v) +
+                                              " has invalid offsets, a coefficient index >= " + limit +
+                                              " or a vertex >= " + std::to_string(vertices));
+        throw Error("transport file", componentName(c.kind, c.term) + ": vertex " + std::to_string(v) +
+                                          " has invalid offsets or a coefficient index >= " + limit);
     }
 }
 
@@ -795,7 +811,9 @@ void relightVerticesReference(const TransportFile& file, const LightVector& ligh
     checkLight(file, light);
     const Plan plan = makePlan(file, components);
     const size_t vertices = plan.vertexCount;
-    const size_t count = light.coefficientCount();
+    const size_t haar = light.coefficientCount();
+    const size_t count = haar + file.shTerms;
+    const std::vector<float> sh = lightShPart(light, file.shTerms);
 
     std::vector<glm::dvec3> diffuse(vertices, glm::dvec3(0.0));
     out.terms.assign(plan.terms.size(), std::vector<glm::vec3>(vertices));
@@ -816,8 +834,8 @@ void relightVerticesReference(const TransportFile& file, const LightVector& ligh
                                                   std::to_string(v) + " has coefficient index " +
                                                   std::to_string(idx[n]) + " >= " +
                                                   std::to_string(count));
-            for (int ch = 0; ch < 3; ++ch)
-                sum[ch] += double(rgb[3 * n + ch]) * double(light.rgb[3 * size_t(idx[n]) + ch]);
+            const float* l = idx[n] < haar ? &light.rgb[3 * size_t(idx[n])] : &sh[3 * (idx[n] - haar)];
+            for (int ch = 0; ch < 3; ++ch) sum[ch] += double(rgb[3 * n + ch]) * double(l[ch]);
         }
         return sum;
     };

@@ -12,6 +12,7 @@
 #include "common/cubemap.h"
 #include "common/error.h"
 #include "common/haar.h"
+#include "common/sh_part.h"
 #include "common/progress.h"
 #include "common/shapes.h"
 #include "common/mesh_io.h"
@@ -85,7 +86,11 @@ TEST(Precompute, LargeSphereUnderConstantLightMatchesTheDipoleClosedForm) {
     TransportFile file = loadTransportFile(s.outputPath);
     const TransportComponent* ms = file.find(ComponentKind::MultipleScattering);
     ASSERT_NE(ms, nullptr);
-    const std::vector<float> light = constantLight(8, 1.0f);
+    std::vector<float> light = constantLight(8, 1.0f);
+    // With the file's SH terms (6 N^2 + i), the light's SH projections after the Haar ones.
+    ASSERT_EQ(file.shTerms, 9u);
+    light.resize(6 * 8 * 8 + 9);
+    shProjectLight(light.data(), 8, 1, 9, light.data() + 6 * 8 * 8);
     const double eEff = hemisphericalFresnelCosine(m.eta);
     std::vector<uint32_t> idx;
     std::vector<float> rgb;
@@ -223,7 +228,7 @@ TEST(Precompute, BlockedOutputIsTheJointTruncationOfThePerVertexVectors) {
     for (size_t c = 0; c < 3; ++c) {
         EXPECT_TRUE(blocked.components[c].blocked());
         EXPECT_FALSE(perVertex.components[c].blocked());
-        EXPECT_EQ(blocked.components[c].blocks, jointTruncate(perVertex.components[c].vectors, 24, order))
+        EXPECT_EQ(blocked.components[c].blocks, jointTruncate(perVertex.components[c].vectors, 24, order, 6 * 4 * 4))
             << componentName(blocked.components[c].kind, blocked.components[c].term);
     }
     EXPECT_EQ(blocked.parameter("block_coefficients"), "24");

@@ -17,6 +17,7 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/haar.h"
+#include "common/sh_part.h"
 #include "relight/light_vector.h"
 
 namespace {
@@ -401,9 +402,13 @@ Expected expectedRadiance(const TransportFile& file, const LightVector& light, c
         for (size_t v = 0; v < vertices; ++v) {
             c.dequantizeVertex(v, idx, rgb);  // per-vertex or blocked
             glm::dvec3 s(0.0), a(0.0);
+            const size_t haar = light.rgb.size() / 3;
             for (size_t k = 0; k < idx.size(); ++k)
                 for (int ch = 0; ch < 3; ++ch) {
-                    const double p = double(rgb[3 * k + ch]) * light.rgb[3 * size_t(idx[k]) + ch];
+                    // SH entries (6 N^2 + i) against the light's SH projections.
+                    const double l = idx[k] < haar ? light.rgb[3 * size_t(idx[k]) + ch]
+                                                   : light.sh.at(3 * (idx[k] - haar) + ch);
+                    const double p = double(rgb[3 * k + ch]) * l;
                     s[ch] += p;
                     a[ch] += std::abs(p);
                 }
@@ -491,6 +496,73 @@ TEST(Relight, FastKernelMatchesReferenceOnRandomFiles) {
                 prt::relightVertices(file, light, set, v, options);
                 expectMatches(v, e, 1e-5, variantName(options));
             }
+        }
+    }
+}
+
+// A file whose vectors carry SH parts (common/sh_part.h): made from dense random
+// transports by truncateWithShPart. Keeping everything, the relit value is the dense
+// product T . L of the original transport (the split is invisible); truncated, every
+// kernel matches the definition; a hand-built light without `sh` gives the same.
+TEST(Relight, ShPartRelightsAsTheDenseTransport) {
+    const uint32_t n = 8, count = 6 * n * n;
+    const size_t vertices = 300;
+    const LightVector light = prt::makeLightVector(randomCubemap(int(n), 41));
+    ASSERT_EQ(light.sh.size(), 27u);
+    std::mt19937 rng(42);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    std::vector<std::vector<float>> dense(vertices);
+    for (size_t keep : {size_t(count + 9), size_t(40)}) {
+        TransportFile file;
+        file.cubemapSize = n;
+        file.shTerms = 9;
+        file.mesh.vertexCount = vertices;
+        TransportComponent c;
+        for (size_t v = 0; v < vertices; ++v) {
+            if (dense[v].empty()) {
+                // A smooth positive texel function with a random lobe: mostly SH.
+                Cubemap t(int(n), 3);
+                const glm::dvec3 axis = glm::normalize(glm::dvec3(unit(rng) - 0.5, unit(rng) - 0.5, unit(rng) - 0.5));
+                for (int f = 0; f < 6; ++f)
+                    for (int j = 0; j < int(n); ++j)
+                        for (int i = 0; i < int(n); ++i)
+                            for (int ch = 0; ch < 3; ++ch)
+                                t.texel(f, i, j)[ch] = float(prt::texelSolidAngle(int(n), i, j) *
+                                                             (std::max(0.0, glm::dot(prt::texelDirection(int(n), f, i, j), axis)) +
+                                                              0.1 * unit(rng)) * (1 + ch));
+                prt::haarForward(t);
+                dense[v] = t.data();
+            }
+            std::vector<float> d = dense[v];
+            d.resize((count + 9) * 3, 0.0f);
+            const prt::SparseVector sv = prt::truncateWithShPart(d.data(), count, 3, 9, keep);
+            c.vectors.appendVertex(sv.index, sv.value);
+        }
+        file.components.push_back(std::move(c));
+        const ScatteringComponents set{true, false};
+        VertexRadiance reference, fast, handBuilt;
+        prt::relightVerticesReference(file, light, set, reference);
+        prt::relightVertices(file, light, set, fast);
+        LightVector noSh = light;
+        noSh.sh.clear();
+        prt::relightVertices(file, noSh, set, handBuilt);
+        const Expected e = expectedRadiance(file, light, set);
+        expectMatches(reference, e, 1e-7, "reference");
+        expectMatches(fast, e, 1e-5, "fast");
+        expectMatches(handBuilt, e, 1e-5, "light without sh");
+        for (const prt::RelightOptions& options : variants()) {
+            VertexRadiance v;
+            prt::relightVertices(file, light, set, v, options);
+            expectMatches(v, e, 1e-5, variantName(options));
+        }
+        if (keep == count + 9) {
+            for (size_t v = 0; v < vertices; ++v)
+                for (int ch = 0; ch < 3; ++ch) {
+                    double exact = 0.0;
+                    for (size_t k = 0; k < count; ++k) exact += double(dense[v][3 * k + ch]) * light.rgb[3 * k + ch];
+                    // int16 quantization of the vector (~1.5e-5 of its largest value) dominates.
+                    EXPECT_NEAR(fast.diffuse[v][ch], exact, 2e-4 * std::fabs(exact)) << "vertex " << v;
+                }
         }
     }
 }

@@ -14,6 +14,7 @@
 #include "common/cubemap.h"
 #include "common/error.h"
 #include "common/haar.h"
+#include "common/sh_part.h"
 #include "common/mesh.h"
 #include "precompute/phase_factoring.h"
 #include "precompute/pipeline.h"
@@ -461,7 +462,7 @@ TEST(SingleScattering, PipelineFileMatchesTheHalfSpaceClosedForm) {
     s.scale.mmPerUnit = 1.0;
     s.material = m;
     s.cubemapSize = 8;
-    s.vertexCoefficients = 6 * 8 * 8;
+    s.vertexCoefficients = 6 * 8 * 8 + 9;  // everything: the residual and the SH part
     s.components = parseScatteringComponents("ss");
     Progress::setEnabled(false);
     const PrecomputeSummary summary = precomputeTransport(s, true);
@@ -487,8 +488,12 @@ TEST(SingleScattering, PipelineFileMatchesTheHalfSpaceClosedForm) {
         Cubemap light(n, 1);
         light.data()[texelIndex(n, 2, i, j)] = 1.0f;
         haarForward(light);
+        // The file's SH entries (6 N^2 + i) relight against the light's SH projections.
+        std::vector<float> withSh = light.data();
+        withSh.resize(size_t(6 * n * n + 9));
+        shProjectLight(light.data().data(), n, 1, 9, withSh.data() + 6 * n * n);
         float out[3];
-        dotRGB(vec, light.data().data(), 1, out);
+        dotRGB(vec, withSh.data(), 1, out);
         const glm::dvec3 w = texelDirection(n, 2, i, j);
         const double ftView = fresnelTransmittance(m.eta, 1.0);  // normal view
         for (int ch = 0; ch < 3; ++ch) {

@@ -820,8 +820,11 @@ TEST_F(TransportTest, ForeignFilesAreRefusedClearly) {
     refused(Bytes{'P', 'K', 3, 4, 0, 0}, "not a transport file");
     refused(Bytes{}, "empty");
     x = b;
+    putLe32(&x[8], 4);
+    refused(x, "unsupported transport file format version 4 (this build reads versions 1 to 3)");
+    x = b;  // version 3 holds an SH term count where versions 1 and 2 have 0
     putLe32(&x[8], 3);
-    refused(x, "unsupported transport file format version 3 (this build reads versions 1 and 2)");
+    refused(x, "SH term count 0 is not 1, 4 or 9 (format version 3)");
     x = b;  // version 2 is only written for files with a blocked component
     putLe32(&x[8], 2);
     refused(x, "format version 2 but no blocked component");
@@ -1363,7 +1366,7 @@ TEST_F(TransportTest, BlockedValidChecksumButInconsistentContentsIsRefused) {
     }
 
     // Format versions: a BLKC section in a version-1 file is corrupt (older writers
-    // never wrote one); version 3 is unknown.
+    // never wrote one); version 4 is unknown.
     Bytes x = b;
     putLe32(&x[8], 1);
     writeBytes(p, x);
@@ -1372,9 +1375,9 @@ TEST_F(TransportTest, BlockedValidChecksumButInconsistentContentsIsRefused) {
         EXPECT_TRUE(contains(e, "corrupt: section 'BLKC' (blocked component 1 of 4)")) << e;
         EXPECT_TRUE(contains(e, "format version 1 file")) << e;
     }
-    putLe32(&x[8], 3);
+    putLe32(&x[8], 4);
     writeBytes(p, x);
-    EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "unsupported transport file format version 3"));
+    EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "unsupported transport file format version 4"));
 }
 
 TEST_F(TransportTest, InvalidBlockedDataIsRefusedOnSave) {
@@ -1426,3 +1429,110 @@ TEST_F(TransportTest, InvalidBlockedDataIsRefusedOnSave) {
 }
 
 }  // namespace
+
+// ---- SH parts (format version 3) --------------------------------------------------
+
+namespace {
+
+// makeFile's vectors with every vertex also holding `terms` SH entries (6 N^2 + i).
+TransportFile makeShFile(std::mt19937& rng, size_t vertices, uint32_t n, uint32_t terms) {
+    TransportFile f = makeFile(rng, vertices, n, 20, 2);
+    f.shTerms = terms;
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    for (TransportComponent& c : f.components) {
+        SparseRgbVectors s;
+        std::vector<uint32_t> idx;
+        std::vector<float> rgb;
+        for (size_t v = 0; v < vertices; ++v) {
+            c.vectors.dequantizeVertex(v, idx, rgb);
+            for (uint32_t i = 0; i < terms; ++i) {
+                idx.push_back(6 * n * n + i);
+                for (int ch = 0; ch < 3; ++ch) rgb.push_back(unit(rng));
+            }
+            s.appendVertex(idx, rgb);
+        }
+        c.vectors = s;
+    }
+    return f;
+}
+
+}  // namespace
+
+TEST_F(TransportTest, ShRoundTripIsVersion3) {
+    std::mt19937 rng(31);
+    for (uint32_t terms : {1u, 4u, 9u}) {
+        for (uint32_t n : {2u, 8u, 64u}) {
+            const TransportFile f = makeShFile(rng, 23, n, terms);
+            const std::string p = path("sh" + std::to_string(terms) + "-" + std::to_string(n));
+            saveTransportFile(p, f);
+            const Bytes b = readBytes(p);
+            EXPECT_EQ(le32(&b[8]), 3u) << "a file with SH terms is version 3";
+            const std::vector<Sec> secs = walk(b);
+            EXPECT_EQ(le32(&b[secs[0].payload + 36]), terms) << "the header's SH term count";
+            const TransportFile g = loadTransportFile(p);
+            EXPECT_EQ(g, f);
+            EXPECT_EQ(g.shTerms, terms);
+            const TransportFileInfo info = readTransportFileInfo(p);
+            EXPECT_EQ(info.version, 3u);
+            EXPECT_EQ(info.shTerms, terms);
+            EXPECT_TRUE(contains(describe(info), "SH part: " + std::to_string(terms) + " terms")) << describe(info);
+        }
+    }
+    // Blocked components in a version-3 file.
+    TransportFile f = makeShFile(rng, 40, 8, 9);
+    f.components[0].blocks = jointTruncate(f.components[0].vectors, 12, shuffledOrder(rng, 40), 6 * 8 * 8);
+    f.components[0].vectors = SparseRgbVectors();
+    const std::string p = path("shblocked");
+    saveTransportFile(p, f);
+    EXPECT_EQ(le32(&readBytes(p)[8]), 3u);
+    EXPECT_EQ(loadTransportFile(p), f);
+    // The forced SH indices are in every block although 12 < 20 + 9.
+    const BlockedRgbVectors& bl = f.components[0].blocks;
+    for (size_t k = 0; k < bl.blockCount(); ++k) {
+        const uint32_t end = bl.offsets[k + 1];
+        ASSERT_GE(end - bl.offsets[k], 9u);
+        for (uint32_t i = 0; i < 9; ++i) EXPECT_EQ(bl.indices[end - 9 + i], 6 * 8 * 8 + i) << "block " << k;
+    }
+    EXPECT_TRUE(tempFiles().empty());
+}
+
+TEST_F(TransportTest, ShIndicesAreBoundedByTheTermCount) {
+    std::mt19937 rng(32);
+    TransportFile f = makeShFile(rng, 5, 4, 4);
+    f.shTerms = 1;  // indices 6 N^2 + 1..3 are now out of range
+    std::string e = errorOf([&] { saveTransportFile(path("bad"), f); });
+    EXPECT_TRUE(contains(e, "coefficient index 97 >= 97 (6 x 4 x 4 + 1 SH terms)")) << e;
+    f.shTerms = 0;
+    e = errorOf([&] { saveTransportFile(path("bad"), f); });
+    EXPECT_TRUE(contains(e, "coefficient index 96 >= 96 (6 x 4 x 4)")) << e;
+    f.shTerms = 5;
+    e = errorOf([&] { saveTransportFile(path("bad"), f); });
+    EXPECT_TRUE(contains(e, "SH term count 5 is not 0, 1, 4 or 9")) << e;
+    EXPECT_FALSE(std::filesystem::exists(path("bad")));
+
+    // On disk: a version-3 header with another count, a version-1 header with one.
+    f.shTerms = 4;
+    const std::string p = path("sh");
+    saveTransportFile(p, f);
+    const Bytes b = readBytes(p);
+    const std::vector<Sec> secs = walk(b);
+    // (readTransportFileInfo reads no vectors, so only the header cases reach it.)
+    auto refused = [&](Bytes x, const std::string& expected, bool info = true) {
+        fixChecksum(x, secs[0]);
+        writeBytes(p, x);
+        std::string err = errorOf([&] { loadTransportFile(p); });
+        EXPECT_TRUE(contains(err, expected)) << "expected '" << expected << "' in: " << err;
+        if (!info) return;
+        err = errorOf([&] { readTransportFileInfo(p); });
+        EXPECT_TRUE(contains(err, expected)) << "info: expected '" << expected << "' in: " << err;
+    };
+    Bytes x = b;
+    putLe32(&x[secs[0].payload + 36], 5);
+    refused(x, "SH term count 5 is not 1, 4 or 9");
+    x = b;
+    putLe32(&x[secs[0].payload + 36], 1);
+    refused(x, "coefficient index 97 >= 97 (6 x 4 x 4 + 1 SH terms)", false);
+    x = b;
+    putLe32(&x[8], 1);
+    refused(x, "reserved field is 0x00000004, not 0");
+}

@@ -1,0 +1,202 @@
+#include "common/sh_part.h"
+
+#include "common/cubemap.h"
+#include "common/error.h"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <utility>
+
+namespace prt {
+
+bool validShTerms(int terms) { return terms == 0 || terms == 1 || terms == 4 || terms == 9; }
+
+void shBasis(const glm::dvec3& d, int terms, double* y) {
+    // Real SH, bands 0..2 (Sloan, "Stupid Spherical Harmonics Tricks", Appendix A2).
+    const double x = d.x, yy = d.y, z = d.z;
+    const double all[kMaxShTerms] = {
+        0.28209479177387814,                  // 1 / (2 sqrt(pi))
+        0.48860251190291992 * yy,             // sqrt(3 / (4 pi))
+        0.48860251190291992 * z,
+        0.48860251190291992 * x,
+        1.0925484305920792 * x * yy,          // sqrt(15 / pi) / 2
+        1.0925484305920792 * yy * z,
+        0.31539156525252005 * (3.0 * z * z - 1.0),  // sqrt(5 / pi) / 4
+        1.0925484305920792 * x * z,
+        0.54627421529603959 * (x * x - yy * yy),    // sqrt(15 / pi) / 4
+    };
+    for (int i = 0; i < terms; ++i) y[i] = all[i];
+}
+
+namespace {
+
+// Row k of the (count x terms) channel-interleaved cubemap, Haar-transformed, as
+// `terms` rows of `count` floats.
+std::vector<float> haarRows(Cubemap map) {
+    haarForward(map);
+    const size_t count = map.texelCount(), terms = size_t(map.channels());
+    std::vector<float> rows(count * terms);
+    for (size_t e = 0; e < count; ++e)
+        for (size_t k = 0; k < terms; ++k) rows[k * count + e] = map.data()[e * terms + k];
+    return rows;
+}
+
+std::unique_ptr<ShTables> buildTables(int n, int terms) {
+    auto t = std::make_unique<ShTables>();
+    t->size = n;
+    t->terms = terms;
+    const size_t count = t->coefficientCount();
+    const auto dependent = [&] {
+        return Error("sh part", std::to_string(terms) + " SH terms are not independent on a 6 x " +
+                                    std::to_string(n) + " x " + std::to_string(n) +
+                                    " cubemap (use fewer terms or a larger cubemap)");
+    };
+    Cubemap w(n, terms), v(n, terms);  // channel k: W_k = dOmega Y_k, V_k = Y_k at the texels
+    double y[kMaxShTerms];
+    for (int f = 0; f < kCubeFaces; ++f)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                shBasis(texelDirection(n, f, i, j), terms, y);
+                const double dOmega = texelSolidAngle(n, i, j);
+                for (int k = 0; k < terms; ++k) {
+                    w.texel(f, i, j)[k] = float(dOmega * y[k]);
+                    v.texel(f, i, j)[k] = float(y[k]);
+                }
+            }
+    t->weightedHaar = haarRows(std::move(w));
+    const std::vector<float> vHaar = haarRows(std::move(v));
+    // Each W^_i scaled to unit texel norm, so SH coefficients are on the scale of the
+    // Haar coefficients beside them (one quantization scale serves both).
+    for (int k = 0; k < terms; ++k) {
+        float* row = &t->weightedHaar[size_t(k) * count];
+        double norm = 0.0;
+        for (size_t e = 0; e < count; ++e) norm += double(row[e]) * double(row[e]);
+        norm = std::sqrt(norm);
+        if (!(norm > 0.0)) throw dependent();  // Y_k vanishes at every texel centre
+        for (size_t e = 0; e < count; ++e) row[e] = float(double(row[e]) / norm);
+    }
+    // G = V^T W; P = G^-1 V^T, so P W = I and V^T (T - W P T) = 0.
+    Eigen::MatrixXd g(terms, terms);
+    for (int a = 0; a < terms; ++a)
+        for (int b = 0; b < terms; ++b) {
+            double s = 0.0;
+            const float* va = &vHaar[size_t(a) * count];
+            const float* wb = &t->weightedHaar[size_t(b) * count];
+            for (size_t e = 0; e < count; ++e) s += double(va[e]) * double(wb[e]);
+            g(a, b) = s;
+        }
+    // On a cubemap with too few texels (N = 1: 6 for 9 functions) the functions are
+    // not independent and G is singular.
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(g);
+    const Eigen::VectorXd sv = svd.singularValues();
+    if (!g.allFinite() || !(sv(terms - 1) > 1e-6 * sv(0))) throw dependent();
+    const Eigen::MatrixXd inverse = g.fullPivLu().inverse();
+    t->projection.assign(count * size_t(terms), 0.0f);
+    for (int a = 0; a < terms; ++a)
+        for (size_t e = 0; e < count; ++e) {
+            double s = 0.0;
+            for (int b = 0; b < terms; ++b) s += inverse(a, b) * double(vHaar[size_t(b) * count + e]);
+            t->projection[size_t(a) * count + e] = float(s);
+        }
+    return t;
+}
+
+}  // namespace
+
+const ShTables& shTables(int n, int terms) {
+    if (!validShTerms(terms) || terms == 0)
+        throw Error("sh part", "SH term count " + std::to_string(terms) + " is not 1, 4 or 9");
+    if (n < 1 || n > 64 || !isPowerOfTwo(n))
+        throw Error("sh part", "cubemap size " + std::to_string(n) + " is not a power of two in 1..64");
+    static std::mutex mutex;
+    static std::map<std::pair<int, int>, std::unique_ptr<ShTables>> cache;
+    const std::lock_guard<std::mutex> lock(mutex);
+    std::unique_ptr<ShTables>& slot = cache[{n, terms}];
+    if (!slot) slot = buildTables(n, terms);
+    return *slot;
+}
+
+SparseVector truncateWithShPart(float* dense, size_t count, int channels, int terms, size_t keep,
+                                double* retained) {
+    if (!validShTerms(terms))
+        throw Error("sh part", "SH term count " + std::to_string(terms) + " is not 0, 1, 4 or 9");
+    if (keep <= size_t(terms))
+        throw Error("sh part", "keeping " + std::to_string(keep) + " terms leaves no room beside " +
+                                   std::to_string(terms) + " SH terms");
+    const size_t ch = size_t(channels);
+    if (terms == 0) {
+        double before = 0.0;
+        for (size_t e = 0; e < count * ch; ++e) before += double(dense[e]) * double(dense[e]);
+        SparseVector kept = truncateLargest(dense, count, channels, keep);
+        if (retained) *retained = before > 0.0 ? energy(kept) / before : 1.0;
+        return kept;
+    }
+    const int n = int(std::lround(std::sqrt(double(count) / 6.0)));
+    if (size_t(6) * size_t(n) * size_t(n) != count)
+        throw Error("sh part", std::to_string(count) + " Haar entries are not a 6 x N x N cubemap");
+    const ShTables& t = shTables(n, terms);
+    if (channels > 4) throw Error("sh part", "at most 4 channels");
+    // A carried SH part is folded into the Haar entries first (T^ += sum_i s_i W^_i),
+    // so the fit below returns it in c (P_i . W^_j = delta_ij) and the energies are
+    // those of the whole vector.
+    float* carried = dense + count * ch;
+    bool anyCarried = false;
+    for (size_t e = 0; e < size_t(terms) * ch; ++e) anyCarried |= carried[e] != 0.0f;
+    if (anyCarried) {
+        for (size_t e = 0; e < count; ++e)
+            for (size_t k = 0; k < ch; ++k) {
+                double s = double(dense[e * ch + k]);
+                for (int i = 0; i < terms; ++i) s += double(carried[size_t(i) * ch + k]) * double(t.weightedHaar[size_t(i) * count + e]);
+                dense[e * ch + k] = float(s);
+            }
+        std::fill(carried, carried + size_t(terms) * ch, 0.0f);
+    }
+    double before = 0.0;
+    for (size_t e = 0; e < count * ch; ++e) before += double(dense[e]) * double(dense[e]);
+    // c_i = <P_i, T^> per channel, then T^ -= sum_i c_i W^_i.
+    double c[kMaxShTerms * 4] = {};
+    for (int i = 0; i < terms; ++i) {
+        const float* p = &t.projection[size_t(i) * count];
+        for (size_t e = 0; e < count; ++e)
+            for (size_t k = 0; k < ch; ++k) c[size_t(i) * ch + k] += double(p[e]) * double(dense[e * ch + k]);
+    }
+    for (size_t e = 0; e < count; ++e)
+        for (size_t k = 0; k < ch; ++k) {
+            double s = 0.0;
+            for (int i = 0; i < terms; ++i) s += c[size_t(i) * ch + k] * double(t.weightedHaar[size_t(i) * count + e]);
+            dense[e * ch + k] = float(double(dense[e * ch + k]) - s);
+        }
+    double residual = 0.0;
+    for (size_t e = 0; e < count * ch; ++e) residual += double(dense[e]) * double(dense[e]);
+    SparseVector out = truncateLargest(dense, count, channels, keep - size_t(terms));
+    // What is dropped is the residual's dropped entries (the SH part is kept whole).
+    if (retained) *retained = before > 0.0 ? 1.0 - std::max(0.0, residual - energy(out)) / before : 1.0;
+    for (int i = 0; i < terms; ++i) {
+        out.index.push_back(uint32_t(count + size_t(i)));
+        for (size_t k = 0; k < ch; ++k) out.value.push_back(float(c[size_t(i) * ch + k]));
+    }
+    return out;
+}
+
+void shProjectLight(const float* haar, int n, int channels, int terms, float* out) {
+    if (terms == 0) return;
+    if (channels < 1 || channels > 4) throw Error("sh part", "1 to 4 channels");
+    const ShTables& t = shTables(n, terms);
+    const size_t count = t.coefficientCount();
+    const size_t ch = size_t(channels);
+    for (int i = 0; i < terms; ++i) {
+        const float* w = &t.weightedHaar[size_t(i) * count];
+        double s[4] = {0.0, 0.0, 0.0, 0.0};
+        for (size_t e = 0; e < count; ++e)
+            for (size_t k = 0; k < ch; ++k) s[k] += double(w[e]) * double(haar[ch * e + k]);
+        for (size_t k = 0; k < ch; ++k) out[ch * size_t(i) + k] = float(s[k]);
+    }
+}
+
+}  // namespace prt
