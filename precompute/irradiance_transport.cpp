@@ -14,6 +14,7 @@
 #include "common/bssrdf.h"
 #include "common/cubemap.h"
 #include "common/error.h"
+#include "common/sh_part.h"
 #include "common/progress.h"
 #include "common/util.h"
 
@@ -207,15 +208,15 @@ IrradianceResult computeIrradianceTransport(const RayScene* scene, const SampleS
     const Stopwatch start;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 16), [&](const tbb::blocked_range<size_t>& r) {
         ThreadState& st = states.local();
-        st.scratch.dense.resize(texels);
+        // Room for the SH entries, which truncateWithShPart leaves zero.
+        st.scratch.dense.resize(texels + size_t(options.shTerms));
         float* dense = st.scratch.dense.data();
         for (size_t i = r.begin(); i != r.end(); ++i) {
             st.rays += irradianceTransport(visScene, samples.samples[i], dirs, options.eta, dense,
                                            st.scratch, options.sampling);
             for (int f = 0; f < kCubeFaces; ++f) haarForwardFace(dense + size_t(f) * n * n, n);
-            const double total = energy(dense, texels);
-            result.vectors[i] = truncateLargest(dense, texels, 1, options.keepCoefficients);
-            if (total > 0) retained[i] = energy(result.vectors[i]) / total;
+            result.vectors[i] = truncateWithShPart(dense, texels, 1, options.shTerms, options.keepCoefficients,
+                                                   &retained[i]);
         }
         if (progress) progress->advance(r.size());
     });

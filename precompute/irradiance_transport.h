@@ -63,7 +63,10 @@ const char* toString(VisibilitySampling mode);
 struct IrradianceOptions {
     int cubemapSize = 32;           // N; a power of two
     int supersample = 2;            // s: s x s sub-directions per texel
-    size_t keepCoefficients = 128;  // largest Haar coefficients kept per sample
+    size_t keepCoefficients = 128;  // terms kept per sample: shTerms SH + the largest Haar
+    // SH part of each sample's vector (common/sh_part.h truncateWithShPart; indices
+    // 6 N^2 + i): 0, 1, 4 or 9, fewer than keepCoefficients.
+    int shTerms = 0;
     double eta = 1.3;               // relative index of refraction for F_t
     bool visibility = true;         // false: V = 1 everywhere (tests, ablations)
     VisibilitySampling sampling = VisibilitySampling::Every;

@@ -45,9 +45,10 @@ uint32_t subtreeSize(uint32_t count, int depth, const HierarchyOptions& o) {
 }
 
 // Keeps the keep entries of largest |value| (ties: lower index), drops zeros, writes
-// them in increasing index order to out; returns how many were written.
+// them in increasing index order to out; returns how many were written. Non-zero
+// entries with index >= forcedFrom (SH coefficients) count as larger than any other.
 // `in` must be sorted by index.
-uint32_t truncateEntries(const std::vector<Entry>& in, size_t keep, Entry* out) {
+uint32_t truncateEntries(const std::vector<Entry>& in, size_t keep, Entry* out, uint32_t forcedFrom) {
     // Drop exact zeros first (they are never kept, as in haar.h truncateLargest).
     size_t nonZero = 0;
     for (const Entry& e : in) nonZero += e.value != 0.0f;
@@ -63,7 +64,9 @@ uint32_t truncateEntries(const std::vector<Entry>& in, size_t keep, Entry* out) 
     for (const Entry& e : in) {
         if (e.value != 0.0f) scratch.push_back(e);
     }
-    const auto larger = [](const Entry& a, const Entry& b) {
+    const auto larger = [forcedFrom](const Entry& a, const Entry& b) {
+        const bool fa = a.index >= forcedFrom, fb = b.index >= forcedFrom;
+        if (fa != fb) return fa;
         const float ma = std::fabs(a.value);
         const float mb = std::fabs(b.value);
         return ma > mb || (ma == mb && a.index < b.index);
@@ -253,7 +256,8 @@ struct SumBuilder {
             }
             sum = mergeSum(left, right);
         }
-        node.sumCount = truncateEntries(sum, options.nodeCoefficients, pool.data() + node.sumOffset);
+        node.sumCount = truncateEntries(sum, options.nodeCoefficients, pool.data() + node.sumOffset,
+                                        options.sampleShFrom);
         if (options.exactNodeSums) return sum;
         std::vector<Entry> truncated(pool.begin() + std::ptrdiff_t(node.sumOffset),
                                      pool.begin() + std::ptrdiff_t(node.sumOffset + node.sumCount));
@@ -440,9 +444,11 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
     if (!(options.epsilon >= 0.0) || !std::isfinite(options.epsilon)) {
         throw Error("epsilon", "must be finite and >= 0");
     }
-    if (coefficientCount < tree.coefficientBound()) {
-        throw Error("hierarchy", "coefficientCount " + std::to_string(coefficientCount) +
-                                     " is too small for coefficient index " +
+    // Sample vectors may carry SH entries (indices coefficientCount + i, i < shTerms).
+    const size_t spaceCount = coefficientCount + size_t(options.shTerms);
+    if (spaceCount < tree.coefficientBound()) {
+        throw Error("hierarchy", "coefficientCount " + std::to_string(coefficientCount) + " + " +
+                                     std::to_string(options.shTerms) + " SH terms is too small for coefficient index " +
                                      std::to_string(tree.coefficientBound() - 1));
     }
     if (coefficientCount > size_t(std::numeric_limits<uint32_t>::max()) + 1) {
@@ -468,9 +474,9 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
 
     tbb::parallel_for(tbb::blocked_range<size_t>(0, vertices.size(), 8), [&](const tbb::blocked_range<size_t>& r) {
         Scratch& s = scratch.local();
-        if (s.acc.size() != coefficientCount * 3) {
-            s.acc.assign(coefficientCount * 3, 0.0);
-            s.rounded.assign((coefficientCount + size_t(options.shTerms)) * 3, 0.0f);
+        if (s.acc.size() != spaceCount * 3) {
+            s.acc.assign(spaceCount * 3, 0.0);
+            s.rounded.assign(spaceCount * 3, 0.0f);
         }
         double* acc = s.acc.data();
         for (size_t o = r.begin(); o < r.end(); ++o) {
@@ -556,15 +562,16 @@ std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
             throw Error("hierarchy", "irradiance vectors must have one channel and consistent sizes");
         }
         for (uint32_t idx : e.index) {
-            if (idx >= coefficientCount) {
-                throw Error("hierarchy", "coefficient index " + std::to_string(idx) +
-                                             " >= coefficientCount " + std::to_string(coefficientCount));
+            if (idx >= coefficientCount + size_t(shTerms)) {
+                throw Error("hierarchy", "coefficient index " + std::to_string(idx) + " >= coefficientCount " +
+                                             std::to_string(coefficientCount) + " + " + std::to_string(shTerms) +
+                                             " SH terms");
             }
         }
     }
     std::vector<SparseVector> result(vertices.size());
     tbb::parallel_for(size_t(0), vertices.size(), [&](size_t v) {
-        std::vector<double> acc(coefficientCount * 3, 0.0);
+        std::vector<double> acc((coefficientCount + size_t(shTerms)) * 3, 0.0);
         for (size_t i = 0; i < n; ++i) {
             const double r = distance(vertices[v], cloud.positions[i]);
             const SparseVector& e = cloud.irradiance[i];
@@ -578,7 +585,6 @@ std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
             }
         }
         std::vector<float> dense(acc.begin(), acc.end());
-        dense.resize((coefficientCount + size_t(shTerms)) * 3, 0.0f);
         result[v] = truncateWithShPart(dense.data(), coefficientCount, 3, shTerms, vertexCoefficients);
     });
     return result;

@@ -134,6 +134,11 @@ struct HierarchyOptions {
     // 6 N^2 + i) and the rest the largest Haar coefficients of the residual.
     size_t vertexCoefficients = 128;
     int shTerms = 0;
+    // Sample vectors that carry an SH part (pass 1 with IrradianceOptions::shTerms) hold
+    // it at indices >= sampleShFrom (= 6 N^2, with the same shTerms as the vertices):
+    // node truncations keep those entries whatever their size, and each vertex folds
+    // the summed SH part into its own split. UINT32_MAX: the samples carry none.
+    uint32_t sampleShFrom = UINT32_MAX;
     // true: node sums are truncations of the exact sums; false: truncated children's
     // sums are merged (see the top of this file).
     bool exactNodeSums = true;

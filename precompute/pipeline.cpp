@@ -95,27 +95,21 @@ void validateSettings(const PrecomputeSettings& s) {
     if (s.supersample < 1 || s.supersample > 8)
         throw Error("--supersample", "must be between 1 and 8, got " + std::to_string(s.supersample));
     const size_t texels = size_t(6) * s.cubemapSize * s.cubemapSize;
+    if (!validShTerms(s.shTerms))
+        throw Error("--sh-terms", "must be 0, 1, 4 or 9, got " + std::to_string(s.shTerms));
+    if (s.shTerms == 9 && s.cubemapSize < 2)
+        throw Error("--sh-terms", "9 SH terms need a cubemap of at least 6 x 2 x 2 (use 0, 1 or 4)");
+    // Every count includes the SH terms: more than them, at most all of the space.
+    const size_t space = texels + size_t(s.shTerms);
     auto checkTerms = [&](const char* name, size_t k) {
-        if (k < 1 || k > texels)
-            throw Error(name, "must be between 1 and 6 N^2 = " + std::to_string(texels) + ", got " +
-                                  std::to_string(k));
+        if (k <= size_t(s.shTerms) || k > space)
+            throw Error(name, "must be between " + std::to_string(s.shTerms + 1) + " and 6 N^2" +
+                                  (s.shTerms ? " + " + std::to_string(s.shTerms) + " SH terms" : std::string()) +
+                                  " = " + std::to_string(space) + ", got " + std::to_string(k));
     };
     checkTerms("--sample-coefficients", s.sampleCoefficients);
     checkTerms("--node-coefficients", s.nodeCoefficients);
-    if (!validShTerms(s.shTerms))
-        throw Error("--sh-terms", "must be 0, 1, 4 or 9, got " + std::to_string(s.shTerms));
-    if (s.vertexCoefficients < 1 || s.vertexCoefficients > texels + size_t(s.shTerms))
-        throw Error("--coefficients", "must be between 1 and 6 N^2 + SH terms = " +
-                                          std::to_string(texels + size_t(s.shTerms)) + ", got " +
-                                          std::to_string(s.vertexCoefficients));
-    if (s.shTerms == 9 && s.cubemapSize < 2)
-        throw Error("--sh-terms", "9 SH terms need a cubemap of at least 6 x 2 x 2 (use 0, 1 or 4)");
-    if (s.vertexCoefficients <= size_t(s.shTerms))
-        throw Error("--coefficients", "must be more than the " + std::to_string(s.shTerms) +
-                                          " SH terms (--sh-terms), got " + std::to_string(s.vertexCoefficients));
-    if (s.blockCoefficients > 0 && s.blockCoefficients <= size_t(s.shTerms))
-        throw Error("--block-coefficients", "must be more than the " + std::to_string(s.shTerms) +
-                                                " SH terms (--sh-terms), got " + std::to_string(s.blockCoefficients));
+    checkTerms("--coefficients", s.vertexCoefficients);
     if (s.blockCoefficients > 0) {
         checkTerms("--block-coefficients", s.blockCoefficients);
         if (s.shard)
@@ -429,6 +423,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             irradiance.supersample = settings.supersample;
             irradiance.sampling = settings.pass1Visibility;
             irradiance.keepCoefficients = settings.sampleCoefficients;
+            irradiance.shTerms = settings.shTerms;
             irradiance.eta = settings.material.eta;
             Progress p("pass 1 (irradiance transport)" + share, mine.samples.size(), "samples");
             pass1 = computeIrradianceTransport(&*scene, mine, irradiance, &p);
@@ -483,6 +478,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
             hierarchy.nodeCoefficients = settings.nodeCoefficients;
             hierarchy.vertexCoefficients = settings.vertexCoefficients;
             hierarchy.shTerms = settings.shTerms;
+            hierarchy.sampleShFrom = settings.shTerms > 0 ? uint32_t(coefficientCount) : UINT32_MAX;
             SampleTree tree(std::move(cloud), hierarchy);
             std::vector<glm::vec3> positions;
             positions.reserve(myVertices);

@@ -8,6 +8,7 @@
 #include "common/bssrdf.h"
 #include "common/cubemap.h"
 #include "common/error.h"
+#include "common/sh_part.h"
 #include "common/shapes.h"
 
 using namespace prt;
@@ -215,6 +216,45 @@ TEST(IrradianceTransport, PassOneIsDeterministicAndKeepsTheLargestCoefficients) 
         ASSERT_EQ(many.vectors[i].value, one.vectors[i].value);
     }
     EXPECT_EQ(many.raysTraced, one.raysTraced);
+}
+
+// With an SH part (--sh-terms 9): every sample's vector ends with its 9 SH entries, and
+// keeping everything it relights (Haar light + its SH projections) exactly as the
+// plain vector does; truncated, it still holds exactly K entries, 9 of them SH.
+TEST(IrradianceTransport, ShPartRelightsAsThePlainVector) {
+    TriangleMesh torus = makeTorus(3, 1, 48, 24);
+    RayScene scene(torus);
+    SampleSet samples = poissonDiskSamples(torus, 30, 5);
+    IrradianceOptions opt;
+    opt.cubemapSize = 16;
+    const size_t count = 6 * 16 * 16;
+    opt.keepCoefficients = count;
+    const IrradianceResult plain = computeIrradianceTransport(&scene, samples, opt);
+    opt.shTerms = 9;
+    opt.keepCoefficients = count + 9;
+    const IrradianceResult split = computeIrradianceTransport(&scene, samples, opt);
+    EXPECT_NEAR(split.retainedEnergyFraction, 1.0, 1e-6);
+    std::vector<float> light(count + 9);
+    for (size_t k = 0; k < count; ++k) light[k] = float(0.5 + 0.5 * std::sin(0.37 * double(k)));
+    prt::shProjectLight(light.data(), 16, 1, 9, light.data() + count);
+    const auto relit = [&](const prt::SparseVector& v, bool absolute = false) {
+        double s = 0.0;
+        for (size_t k = 0; k < v.size(); ++k) {
+            const double p = double(v.value[k]) * light[v.index[k]];
+            s += absolute ? std::fabs(p) : p;
+        }
+        return s;
+    };
+    for (size_t i = 0; i < samples.samples.size(); ++i) {
+        ASSERT_EQ(split.vectors[i].index.back(), count + 8);
+        EXPECT_NEAR(relit(split.vectors[i]), relit(plain.vectors[i]), 1e-5 * relit(plain.vectors[i], true));
+    }
+    opt.keepCoefficients = 32;
+    const IrradianceResult truncated = computeIrradianceTransport(&scene, samples, opt);
+    for (const prt::SparseVector& v : truncated.vectors) {
+        ASSERT_EQ(v.size(), 32u);
+        EXPECT_EQ(v.index[32 - 9], count);
+    }
 }
 
 // Coherent visibility traces one probe per texel and refines only texels next to a

@@ -18,6 +18,7 @@
 #include "common/bssrdf.h"
 #include "common/error.h"
 #include "common/haar.h"
+#include "common/sh_part.h"
 #include "common/progress.h"
 
 namespace {
@@ -243,6 +244,67 @@ TEST(Hierarchy, EpsilonZeroEqualsBruteForce) {
     for (size_t v = 0; v < vertices.size(); ++v) {
         EXPECT_EQ(again[v].index, result[v].index);
         EXPECT_EQ(again[v].value, result[v].value);
+    }
+}
+
+// Samples whose vectors carry an SH part (pass 1 with --sh-terms, indices 6 N^2 + i):
+// node truncations keep every SH entry, and the vertex's split folds the summed SH part
+// in, so relit against any light the tree equals the brute-force sum and the plain sum
+// of the samples' own relit values.
+TEST(Hierarchy, SampleShPartsSumThroughTheTree) {
+    const int n = 8;
+    const size_t count = 6 * n * n, terms = 9;
+    Rng rng(31);
+    const Lobes lobes(rng, count, 40);
+    SampleCloud cloud = sphereCloud(600, 4.0f, 32, count, 40, &lobes);
+    for (SparseVector& e : cloud.irradiance) {  // re-split each sample: SH part + 30 Haar
+        std::vector<float> d = toDense(e, count);
+        d.resize(count + terms, 0.0f);
+        e = prt::truncateWithShPart(d.data(), count, 1, int(terms), 39);
+        ASSERT_EQ(e.index.back(), count + terms - 1);
+    }
+    HierarchyOptions o = exactOptions();
+    o.nodeCoefficients = 20;
+    o.shTerms = int(terms);
+    o.sampleShFrom = uint32_t(count);
+    o.vertexCoefficients = count + terms;  // keep everything: the comparison is exact
+    const SampleTree tree(cloud, o);
+    for (size_t ni = 0; ni < tree.nodes().size(); ++ni) {
+        const SparseVector sum = tree.nodeSumVector(ni);
+        ASSERT_GE(sum.size(), terms);
+        for (size_t i = 0; i < terms; ++i) EXPECT_EQ(sum.index[sum.size() - terms + i], count + i) << "node " << ni;
+    }
+    const Material m = prt::materialByName("Marble");
+    const std::vector<glm::vec3> vertices = sphereVertices(12, 4.0f, 33);
+    const auto result = prt::multipleScatteringTransport(tree, vertices, m, o, count);
+    const auto brute = prt::multipleScatteringBruteForce(cloud, vertices, m, count, count + terms, nullptr, int(terms));
+
+    // A random light, its SH projections appended (grey, so one channel serves RGB).
+    std::vector<float> light(count + terms);
+    for (size_t k = 0; k < count; ++k) light[k] = float(rng.uniform());
+    prt::shProjectLight(light.data(), n, 1, int(terms), light.data() + count);
+    prt::DipoleChannel dip[3];
+    for (int c = 0; c < 3; ++c) dip[c] = prt::makeDipoleChannel(m, c);
+    for (size_t v = 0; v < vertices.size(); ++v) {
+        double direct[3] = {0, 0, 0}, scale[3] = {0, 0, 0};
+        for (size_t i = 0; i < cloud.positions.size(); ++i) {
+            double relit = 0.0;
+            for (size_t k = 0; k < cloud.irradiance[i].size(); ++k)
+                relit += double(cloud.irradiance[i].value[k]) * light[cloud.irradiance[i].index[k]];
+            const double r = glm::length(glm::dvec3(vertices[v]) - glm::dvec3(cloud.positions[i]));
+            for (int c = 0; c < 3; ++c) {
+                const double w = double(cloud.areas[i]) * prt::dipoleRd(dip[c], r) / kPi;
+                direct[c] += w * relit;
+                scale[c] += std::fabs(w * relit);
+            }
+        }
+        for (int c = 0; c < 3; ++c) {
+            double a = 0.0, b = 0.0;
+            for (size_t k = 0; k < result[v].size(); ++k) a += double(result[v].value[3 * k + c]) * light[result[v].index[k]];
+            for (size_t k = 0; k < brute[v].size(); ++k) b += double(brute[v].value[3 * k + c]) * light[brute[v].index[k]];
+            EXPECT_NEAR(a, direct[c], 1e-4 * scale[c]) << "vertex " << v << " channel " << c;
+            EXPECT_NEAR(b, direct[c], 1e-4 * scale[c]) << "vertex " << v << " channel " << c;
+        }
     }
 }
 
