@@ -36,6 +36,29 @@ void shBasis(const glm::dvec3& d, int terms, double* y) {
 
 namespace {
 
+// sum_e a[e] b[e] in 16 float partial sums (independent lanes, so the compiler
+// vectorizes it without reassociating), added up in double.
+double blockedDot(const float* a, const float* b, size_t n) {
+    constexpr size_t kLanes = 16;
+    float lane[kLanes] = {};
+    size_t e = 0;
+    for (; e + kLanes <= n; e += kLanes)
+        for (size_t j = 0; j < kLanes; ++j) lane[j] += a[e + j] * b[e + j];
+    double s = 0.0;
+    for (size_t j = 0; j < kLanes; ++j) s += double(lane[j]);
+    for (; e < n; ++e) s += double(a[e]) * double(b[e]);
+    return s;
+}
+
+// plane[e] -= sum_i d[i] rows[i * n + e].
+void subtractCombination(float* plane, const float* rows, size_t n, const float* d, int terms) {
+    for (int i = 0; i < terms; ++i) {
+        const float* row = rows + size_t(i) * n;
+        const float di = d[i];
+        for (size_t e = 0; e < n; ++e) plane[e] -= di * row[e];
+    }
+}
+
 // Row k of the (count x terms) channel-interleaved cubemap, Haar-transformed, as
 // `terms` rows of `count` floats.
 std::vector<float> haarRows(Cubemap map) {
@@ -81,6 +104,14 @@ std::unique_ptr<ShTables> buildTables(int n, int terms) {
         if (!(norm > 0.0)) throw dependent();  // Y_k vanishes at every texel centre
         for (size_t e = 0; e < count; ++e) row[e] = float(double(row[e]) / norm);
     }
+    t->weightedGram.assign(size_t(terms) * size_t(terms), 0.0);
+    for (int a = 0; a < terms; ++a)
+        for (int b = 0; b < terms; ++b) {
+            double s = 0.0;
+            for (size_t e = 0; e < count; ++e)
+                s += double(t->weightedHaar[size_t(a) * count + e]) * double(t->weightedHaar[size_t(b) * count + e]);
+            t->weightedGram[size_t(a) * size_t(terms) + size_t(b)] = s;
+        }
     // G = V^T W; P = G^-1 V^T, so P W = I and V^T (T - W P T) = 0.
     Eigen::MatrixXd g(terms, terms);
     for (int a = 0; a < terms; ++a)
@@ -142,41 +173,41 @@ SparseVector truncateWithShPart(float* dense, size_t count, int channels, int te
         throw Error("sh part", std::to_string(count) + " Haar entries are not a 6 x N x N cubemap");
     const ShTables& t = shTables(n, terms);
     if (channels > 4) throw Error("sh part", "at most 4 channels");
-    // A carried SH part is folded into the Haar entries first (T^ += sum_i s_i W^_i),
-    // so the fit below returns it in c (P_i . W^_j = delta_ij) and the energies are
-    // those of the whole vector.
-    float* carried = dense + count * ch;
-    bool anyCarried = false;
-    for (size_t e = 0; e < size_t(terms) * ch; ++e) anyCarried |= carried[e] != 0.0f;
-    if (anyCarried) {
-        for (size_t e = 0; e < count; ++e)
-            for (size_t k = 0; k < ch; ++k) {
-                double s = double(dense[e * ch + k]);
-                for (int i = 0; i < terms; ++i) s += double(carried[size_t(i) * ch + k]) * double(t.weightedHaar[size_t(i) * count + e]);
-                dense[e * ch + k] = float(s);
-            }
-        std::fill(carried, carried + size_t(terms) * ch, 0.0f);
-    }
-    double before = 0.0;
-    for (size_t e = 0; e < count * ch; ++e) before += double(dense[e]) * double(dense[e]);
-    // c_i = <P_i, T^> per channel, then T^ -= sum_i c_i W^_i.
-    double c[kMaxShTerms * 4] = {};
-    for (int i = 0; i < terms; ++i) {
-        const float* p = &t.projection[size_t(i) * count];
-        for (size_t e = 0; e < count; ++e)
-            for (size_t k = 0; k < ch; ++k) c[size_t(i) * ch + k] += double(p[e]) * double(dense[e * ch + k]);
-    }
+    // Channel planes, so every product below runs over contiguous floats.
+    thread_local std::vector<float> planes;
+    planes.resize(count * ch);
     for (size_t e = 0; e < count; ++e)
-        for (size_t k = 0; k < ch; ++k) {
-            double s = 0.0;
-            for (int i = 0; i < terms; ++i) s += c[size_t(i) * ch + k] * double(t.weightedHaar[size_t(i) * count + e]);
-            dense[e * ch + k] = float(double(dense[e * ch + k]) - s);
+        for (size_t k = 0; k < ch; ++k) planes[k * count + e] = dense[e * ch + k];
+    // d = P T^ (the fit of the Haar entries); the carried part s adds to it unchanged
+    // (P W = I), and the residual of the whole vector T^ + W s is T^ - W d.
+    float* carried = dense + count * ch;
+    double c[kMaxShTerms * 4] = {};
+    double d[kMaxShTerms * 4] = {};
+    for (size_t k = 0; k < ch; ++k) {
+        float* plane = &planes[k * count];
+        for (int i = 0; i < terms; ++i) {
+            d[size_t(i) * ch + k] = blockedDot(&t.projection[size_t(i) * count], plane, count);
+            c[size_t(i) * ch + k] = d[size_t(i) * ch + k] + double(carried[size_t(i) * ch + k]);
         }
+        float di[kMaxShTerms];
+        for (int i = 0; i < terms; ++i) di[i] = float(d[size_t(i) * ch + k]);
+        subtractCombination(plane, t.weightedHaar.data(), count, di, terms);
+    }
+    std::fill(carried, carried + size_t(terms) * ch, 0.0f);
     double residual = 0.0;
-    for (size_t e = 0; e < count * ch; ++e) residual += double(dense[e]) * double(dense[e]);
+    for (size_t k = 0; k < ch; ++k) residual += blockedDot(&planes[k * count], &planes[k * count], count);
+    double shEnergy = 0.0;  // ||W c||^2 = c^T (W^T W) c per channel
+    for (size_t k = 0; k < ch; ++k)
+        for (int a = 0; a < terms; ++a)
+            for (int b = 0; b < terms; ++b)
+                shEnergy += c[size_t(a) * ch + k] * t.weightedGram[size_t(a) * size_t(terms) + size_t(b)] *
+                            c[size_t(b) * ch + k];
+    for (size_t e = 0; e < count; ++e)
+        for (size_t k = 0; k < ch; ++k) dense[e * ch + k] = planes[k * count + e];
     SparseVector out = truncateLargest(dense, count, channels, keep - size_t(terms));
     // What is dropped is the residual's dropped entries (the SH part is kept whole).
-    if (retained) *retained = before > 0.0 ? 1.0 - std::max(0.0, residual - energy(out)) / before : 1.0;
+    const double whole = residual + shEnergy;
+    if (retained) *retained = whole > 0.0 ? 1.0 - std::max(0.0, residual - energy(out)) / whole : 1.0;
     for (int i = 0; i < terms; ++i) {
         out.index.push_back(uint32_t(count + size_t(i)));
         for (size_t k = 0; k < ch; ++k) out.value.push_back(float(c[size_t(i) * ch + k]));
@@ -190,12 +221,12 @@ void shProjectLight(const float* haar, int n, int channels, int terms, float* ou
     const ShTables& t = shTables(n, terms);
     const size_t count = t.coefficientCount();
     const size_t ch = size_t(channels);
-    for (int i = 0; i < terms; ++i) {
-        const float* w = &t.weightedHaar[size_t(i) * count];
-        double s[4] = {0.0, 0.0, 0.0, 0.0};
-        for (size_t e = 0; e < count; ++e)
-            for (size_t k = 0; k < ch; ++k) s[k] += double(w[e]) * double(haar[ch * e + k]);
-        for (size_t k = 0; k < ch; ++k) out[ch * size_t(i) + k] = float(s[k]);
+    thread_local std::vector<float> plane;
+    plane.resize(count);
+    for (size_t k = 0; k < ch; ++k) {
+        for (size_t e = 0; e < count; ++e) plane[e] = haar[ch * e + k];
+        for (int i = 0; i < terms; ++i)
+            out[ch * size_t(i) + k] = float(blockedDot(&t.weightedHaar[size_t(i) * count], plane.data(), count));
     }
 }
 
