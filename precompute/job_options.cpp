@@ -39,12 +39,12 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
            "Pass 1 occlusion rays: every (one per sub-direction) or coherent (a probe per texel, "
            "every sub-direction only next to a change: 43% of the rays, 1.1x faster, 0.3% change)")
         ->default_str("every");
-    app.add_option("--sample-coefficients", s.sampleCoefficients, "Haar terms kept per sample (pass 1)")
+    app.add_option("--sample-coefficients", s.sampleCoefficients, "Terms kept per sample (pass 1), the SH terms included")
         ->capture_default_str();
-    app.add_option("--node-coefficients", s.nodeCoefficients, "Haar terms kept per kd-tree node (pass 2)")
+    app.add_option("--node-coefficients", s.nodeCoefficients, "Terms kept per kd-tree node (pass 2), the SH terms included")
         ->capture_default_str();
     app.add_option("-k,--coefficients", raw.coefficients,
-                   "Haar terms kept per vertex (with --block-coefficients: before the joint choice)")
+                   "Terms kept per vertex, the SH terms included (with --block-coefficients: before the joint choice)")
         ->default_str("128; 512 with --block-coefficients");
     app.add_option("--sh-terms", s.shTerms,
                    "Of the terms per vertex, this many (0, 1, 4 or 9) are a least-squares fit by "

@@ -45,6 +45,7 @@ Json settingsJson(const PrecomputeSettings& s) {
     j["sample_coefficients"] = s.sampleCoefficients;
     j["node_coefficients"] = s.nodeCoefficients;
     j["coefficients"] = s.vertexCoefficients;
+    j["sh_terms"] = s.shTerms;
     j["epsilon"] = s.epsilon;
     j["samples_requested"] = s.sampleCount;            // 0: from the spacing
     j["sample_spacing_mm_requested"] = s.sampleSpacingMm;  // 0: the mean free path

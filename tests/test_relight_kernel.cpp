@@ -555,6 +555,23 @@ TEST(Relight, ShPartRelightsAsTheDenseTransport) {
             prt::relightVertices(file, light, set, v, options);
             expectMatches(v, e, 1e-5, variantName(options));
         }
+        // Blocked (SH indices forced into every block): the blocked kernels read the
+        // SH entries like any other index.
+        TransportFile blocked = file;
+        TransportComponent& bc = blocked.components[0];
+        std::vector<uint32_t> order(vertices);
+        std::iota(order.begin(), order.end(), 0u);
+        bc.blocks = prt::jointTruncate(bc.vectors, 24, order, count);
+        bc.vectors.clear();
+        ASSERT_EQ(prt::checkBlockedVectors(bc.blocks, count + 9), "");
+        VertexRadiance blockedReference, blockedFast;
+        prt::relightVerticesReference(blocked, light, set, blockedReference);
+        const Expected eb = expectedRadiance(blocked, light, set);
+        expectMatches(blockedReference, eb, 1e-7, "blocked reference");
+        for (const prt::RelightOptions& options : variants()) {
+            prt::relightVertices(blocked, light, set, blockedFast, options);
+            expectMatches(blockedFast, eb, 1e-5, "blocked " + variantName(options));
+        }
         if (keep == count + 9) {
             for (size_t v = 0; v < vertices; ++v)
                 for (int ch = 0; ch < 3; ++ch) {

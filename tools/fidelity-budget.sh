@@ -34,6 +34,7 @@ scaled() { awk -v s="$spacing" -v f="$1" 'BEGIN { printf "%.5f", s * f }'; }
 # kind|name|value|options
 runs=(
     "budget|default|0|"
+    "budget|Haar only, sh-terms 0|0|--sh-terms 0"
     "budget|coefficients 512|512|--coefficients 512"
     "budget|sample + node coefficients 1024|1024|--sample-coefficients 1024 --node-coefficients 1024"
     "budget|epsilon 0.01|0.01|--epsilon 0.01"
