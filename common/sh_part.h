@@ -7,7 +7,7 @@
 // to the horizon) as well as those of its shadows. Against a light with fine-scale
 // energy (a sun, bright windows) those dropped details do not average out: the
 // truncated vertex is systematically too bright or too dark (docs/fidelity.md, "What
-// the city error is"). Splitting each vector into a fit by the first 1, 4 or 9 real
+// the city error was"). Splitting each vector into a fit by the first 1, 4 or 9 real
 // spherical harmonics (bands 0..2) plus a Haar residual, and truncating only the
 // residual, keeps the smooth shape exact and spends the budget on what the harmonics
 // cannot carry (shadows, edges). At 9 + 119 terms the per-vertex truncation error of
