@@ -344,6 +344,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
     const size_t coefficientCount = size_t(6) * settings.cubemapSize * settings.cubemapSize;
     const std::vector<IndexRange> vertexShares = dist.vertexShares(mesh.vertexCount());
     const size_t myVertices = totalSize(vertexShares);
+    summary.computedVertices = size_t(dist.sum(double(myVertices)));
     dist.stage([&] {
         mmPerUnit = scaleToPhysical(mesh, settings.scale);
         summary.vertices = mesh.vertexCount();
@@ -490,7 +491,9 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
                                                     coefficientCount, &stats, &p, &cells);
             busy += pass2Start.seconds();
         });
-        const double vertexWeight = double(myVertices) / double(mesh.vertexCount());
+        // Means over the vertices computed (all ranks'; a shard's own range).
+        const double vertexWeight =
+            summary.computedVertices ? double(myVertices) / double(summary.computedVertices) : 0.0;
         summary.meanNodesVisited = dist.sum(stats.meanNodesVisited * vertexWeight);
         summary.vertexRetainedEnergy = dist.sum(stats.retainedEnergyFraction * vertexWeight);
 
@@ -594,9 +597,12 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         summary.ssEscapedRays = total(st.escapedRays);
         summary.ssCappedDepths = total(st.cappedDepths);
         summary.ssRaysPerSecond = result.seconds > 0 ? double(summary.ssRaysTraced) / result.seconds : 0.0;
-        summary.ssMeanDepthMm = mesh.vertexCount() ? dist.sum(st.depthSum) / double(mesh.vertexCount()) : 0.0;
+        summary.ssMeanDepthMm =
+            summary.computedVertices ? dist.sum(st.depthSum) / double(summary.computedVertices) : 0.0;
         summary.ssRetainedEnergy =
-            dist.sum(result.retainedEnergyFraction * double(myVertices)) / double(mesh.vertexCount());
+            summary.computedVertices
+                ? dist.sum(result.retainedEnergyFraction * double(myVertices)) / double(summary.computedVertices)
+                : 1.0;
         summary.peakMemoryAfterSingleScatteringBytes = peakMemoryBytes();
     }
 

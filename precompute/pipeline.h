@@ -105,6 +105,9 @@ struct PrecomputeSummary {
     double busySecondsMin = 0, busySecondsMax = 0;
     ScatteringComponents components;
     size_t vertices = 0, triangles = 0, samples = 0;
+    // Vertices this job computed: a shard's range under --shard, all of them otherwise
+    // (MPI ranks together). The per-vertex rates of the summary divide by it.
+    size_t computedVertices = 0;
     double totalAreaMm2 = 0, sampleSpacingMm = 0;
     uint64_t raysTraced = 0;          // pass 1
     // Wall-clock seconds per stage: setup (mesh load, up-to-date check, scaling, the

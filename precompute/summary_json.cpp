@@ -85,6 +85,7 @@ Json summaryJson(const PrecomputeSummary& r) {
     const double vertices = double(r.vertices);
     const auto perVertex = [&](double v) { return vertices > 0 ? Json(v / vertices) : Json(nullptr); };
     j["vertices"] = r.vertices;
+    j["computed_vertices"] = r.computedVertices;
     j["triangles"] = r.triangles;
     j["total_area_mm2"] = r.totalAreaMm2;
     j["samples"] = msOnly(r.samples);
@@ -138,9 +139,12 @@ Json summaryJson(const PrecomputeSummary& r) {
     // Derived per-item figures (for tables and scaling plots).
     j["pass1_seconds_per_sample"] =
         ms && r.samples > 0 ? Json(r.pass1Seconds / double(r.samples)) : Json(nullptr);
-    j["pass2_seconds_per_vertex"] = ms ? perVertex(r.pass2Seconds) : Json(nullptr);
-    j["ss_seconds_per_vertex"] = ss ? perVertex(r.ssSeconds) : Json(nullptr);
-    j["ss_rays_per_vertex"] = ss ? perVertex(double(r.ssRaysTraced)) : Json(nullptr);
+    // Per computed vertex (a shard's own range; all vertices otherwise).
+    const double computed = double(r.computedVertices);
+    const auto perComputed = [&](double v) { return computed > 0 ? Json(v / computed) : Json(nullptr); };
+    j["pass2_seconds_per_vertex"] = ms ? perComputed(r.pass2Seconds) : Json(nullptr);
+    j["ss_seconds_per_vertex"] = ss ? perComputed(r.ssSeconds) : Json(nullptr);
+    j["ss_rays_per_vertex"] = ss ? perComputed(double(r.ssRaysTraced)) : Json(nullptr);
     j["file_bytes_per_vertex"] = perVertex(double(r.fileBytes));
     return j;
 }

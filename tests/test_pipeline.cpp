@@ -12,6 +12,8 @@
 #include "common/cubemap.h"
 #include "common/error.h"
 #include "common/haar.h"
+#include "precompute/distribution.h"
+#include "precompute/summary_json.h"
 #include "common/sh_part.h"
 #include "common/progress.h"
 #include "common/shapes.h"
@@ -237,5 +239,41 @@ TEST(Precompute, BlockedOutputIsTheJointTruncationOfThePerVertexVectors) {
     // Shard jobs refuse blocks (prt-merge joins per-vertex shards only).
     s.shard = ShardSpec{0, 2};
     EXPECT_THROW(validateSettings(s), Error);
+    fs::remove_all(dir);
+}
+
+// The summary's per-vertex rates divide by the vertices the job computed: a shard's
+// own range, not the whole mesh (its file still has every vertex, empty outside).
+TEST(Precompute, ShardSummaryCountsItsOwnVertices) {
+    Progress::setEnabled(false);
+    const fs::path dir = tempDir();
+    PrecomputeSettings s;
+    s.meshPath = (dir / "box.obj").string();
+    saveMesh(makeBox({10, 6, 4}, glm::ivec3(5, 4, 3)), s.meshPath);
+    s.scale.mmPerUnit = 1.0;
+    s.material = materialByName("Skin1");
+    s.components = ScatteringComponents::all();
+    s.pathSamples = 2;
+    s.cubemapSize = 4;
+    s.sampleCount = 200;
+    s.sampleCoefficients = s.nodeCoefficients = s.vertexCoefficients = 40;
+    s.outputPath = (dir / "whole.prt").string();
+    const PrecomputeSummary whole = precomputeTransport(s, /*force=*/true);
+    EXPECT_EQ(whole.computedVertices, whole.vertices);
+    s.shard = ShardSpec{1, 3};
+    s.outputPath = (dir / "shard.prt").string();
+    const PrecomputeSummary shard = precomputeTransport(s, /*force=*/true);
+    const IndexRange range = evenRange(shard.vertices, 1, 3);
+    EXPECT_EQ(shard.computedVertices, range.size());
+    EXPECT_LT(shard.computedVertices, shard.vertices);
+    const auto json = summaryJson(shard);
+    EXPECT_EQ(json["computed_vertices"].get<size_t>(), range.size());
+    EXPECT_DOUBLE_EQ(json["ss_rays_per_vertex"].get<double>(), double(shard.ssRaysTraced) / double(range.size()));
+    // Means over the shard's own vertices, not diluted by the others.
+    EXPECT_NEAR(shard.vertexRetainedEnergy, whole.vertexRetainedEnergy, 0.05);
+    EXPECT_NEAR(shard.ssMeanDepthMm / whole.ssMeanDepthMm, 1.0, 0.5);
+    // About the whole job's rays per vertex (the same vertices' rays, a third of them).
+    const double wholeRate = double(whole.ssRaysTraced) / double(whole.vertices);
+    EXPECT_NEAR(json["ss_rays_per_vertex"].get<double>() / wholeRate, 1.0, 0.5);
     fs::remove_all(dir);
 }
