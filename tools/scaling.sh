@@ -13,7 +13,7 @@
 #   ms_coefficients  coefficients kept per vertex 64, 128, 192, 256 (res3)
 #   ms_samples       --samples 5000, 10000, 20000, 40000 (+ the default 9,732) (res3)
 #   ss_mesh          isotropic single scattering (--components ss): res4, res3
-#   ss_path_samples  --path-samples 8, 16, 32 (res4)
+#   ss_path_samples  --path-samples 2, 4 (N 16), the default 6, 8 and 32 (res4; Gauss-Legendre rule, the default since 2026-11-24)
 #   relight          relight time per frame of every file against its bytes
 set -euo pipefail
 
