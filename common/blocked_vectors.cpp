@@ -243,7 +243,7 @@ std::string checkBlockedVectors(const BlockedRgbVectors& b, uint32_t lightCount)
                     if (b.values[n * kBlockValuesPerIndex + 16 * c + lane] != 0)
                         return "padding lane with a non-zero value in block " + std::to_string(k);
             if (b.indices[n] >= lightCount)
-                return "coefficient index " + std::to_string(b.indices[n]) + " >= 6 N^2 = " + std::to_string(lightCount);
+                return "coefficient index " + std::to_string(b.indices[n]) + " >= " + std::to_string(lightCount) + " (6 N^2 + SH terms)";
             if (n > begin && b.indices[n] <= b.indices[n - 1])
                 return "block " + std::to_string(k) + " indices not strictly increasing";
         }

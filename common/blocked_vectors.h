@@ -22,7 +22,8 @@
 // LAYOUT. Block b holds the vertices order[16 b + lane], lane 0..15 (only the last block
 // may be partial: lanes past the vertex count are padding with zero values and zero
 // scales, and order has exactly V entries, a permutation of 0..V-1) and the indices
-// [offsets[b], offsets[b+1]), strictly increasing, each < 6 N^2. For the n-th index of
+// [offsets[b], offsets[b+1]), strictly increasing, each < 6 N^2 (+ the file's SH terms,
+// transport_file.h). For the n-th index of
 // the whole array, values[48 n + 16 c + lane] is the int8 value of channel c for that
 // lane; scales[48 b + 16 c + lane] is the lane's per-channel scale. The value of
 // channel c of vertex 16 b + lane at index indices[n] is

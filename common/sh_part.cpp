@@ -145,11 +145,16 @@ const ShTables& shTables(int n, int terms) {
         throw Error("sh part", "SH term count " + std::to_string(terms) + " is not 1, 4 or 9");
     if (n < 1 || n > 64 || !isPowerOfTwo(n))
         throw Error("sh part", "cubemap size " + std::to_string(n) + " is not a power of two in 1..64");
+    // The last table this thread used, without the lock (tables live as long as the
+    // process and never move).
+    thread_local const ShTables* last = nullptr;
+    if (last && last->size == n && last->terms == terms) return *last;
     static std::mutex mutex;
     static std::map<std::pair<int, int>, std::unique_ptr<ShTables>> cache;
     const std::lock_guard<std::mutex> lock(mutex);
     std::unique_ptr<ShTables>& slot = cache[{n, terms}];
     if (!slot) slot = buildTables(n, terms);
+    last = slot.get();
     return *slot;
 }
 

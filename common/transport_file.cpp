@@ -344,6 +344,7 @@ std::string checkFile(const TransportFile& f, size_t* componentIndex = nullptr) 
         !std::has_single_bit(f.cubemapSize))
         return "cubemap size " + u64(f.cubemapSize) + " is not a power of two in 1..64";
     if (!validShTermCount(f.shTerms)) return "SH term count " + u64(f.shTerms) + " is not 0, 1, 4 or 9";
+    if (f.shTerms == 9 && f.cubemapSize < 2) return "9 SH terms on a 6 x 1 x 1 cubemap (they are not independent there)";
     if (f.mesh.vertexCount == 0) return "mesh fingerprint has zero vertices";
     if (f.mesh.vertexCount > kMaxVertices)
         return "mesh fingerprint has " + u64(f.mesh.vertexCount) + " vertices (limit 2^40)";
@@ -884,6 +885,8 @@ HeadFields readHead(FileReader& r, uint32_t version) {
             r.fail(where + "SH term count " + u64(reserved) + " is not 1, 4 or 9 (format version " +
                    u64(version) + ")");
         h.shTerms = reserved;
+        if (h.shTerms == 9 && h.cubemapSize < 2)
+            r.fail(where + "9 SH terms on a 6 x 1 x 1 cubemap (they are not independent there)");
     } else if (reserved != 0) {
         r.fail(where + "reserved field is " + hex32(reserved) + ", not 0");
     }

@@ -60,7 +60,7 @@ std::string componentName(ComponentKind kind, uint32_t term = 0);
 // whose maximum is below 32767 * FLT_MIN ~ 3.9e-34 is stored as zero, scale 0.)
 struct SparseRgbVectors {
     std::vector<uint32_t> offsets{0};  // V + 1; vertex v owns [offsets[v], offsets[v+1])
-    std::vector<uint16_t> indices;     // strictly increasing within a vertex, < 6 N^2
+    std::vector<uint16_t> indices;     // strictly increasing within a vertex, < 6 N^2 + shTerms
     std::vector<int16_t> values;       // 3 per coefficient, RGB interleaved
     std::vector<float> scales;         // 3 per vertex: value = q * scales[3v + c]
 

@@ -77,7 +77,7 @@ struct IrradianceScratch {
     std::vector<float> dirX, dirY, dirZ, weight;  // rays that face the sample's normal
     std::vector<uint32_t> texel;                  // their texel
     std::vector<uint8_t> occluded;
-    std::vector<float> dense;                     // 6 N^2
+    std::vector<float> dense;                     // 6 N^2 (+ room for the SH entries)
     // Coherent sampling: per texel its first ray and ray count, the probes' V, the rays
     // still to trace (as indices into the arrays above) and their directions.
     std::vector<uint32_t> firstRay, rayCount;

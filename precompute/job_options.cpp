@@ -47,10 +47,10 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
                    "Terms kept per vertex, the SH terms included (with --block-coefficients: before the joint choice)")
         ->default_str("128; 512 with --block-coefficients");
     app.add_option("--sh-terms", s.shTerms,
-                   "Of the terms per vertex, this many (0, 1, 4 or 9) are a least-squares fit by "
-                   "spherical harmonics of bands 0..2, the rest the largest Haar terms of what is left "
-                   "(9: the smooth shape exact, 2x less truncation error; 0: Haar only, "
-                   "docs/precompute.md)")
+                   "Of the terms kept per sample, node and vertex, this many (0, 1, 4 or 9) are a fit by "
+                   "spherical harmonics of bands 0..2 whose residual no band-0..2 light sees, the rest the "
+                   "largest Haar terms of that residual (9: the smooth shape kept whole, about half the "
+                   "truncation error; 0: Haar only; docs/precompute.md)")
         ->capture_default_str();
     app.add_option("--block-coefficients", s.blockCoefficients,
                    "0: each vertex keeps its own terms. M > 0: blocks of 16 nearby vertices share M terms "

@@ -114,6 +114,9 @@ void validateCloud(const SampleCloud& cloud, const HierarchyOptions& o) {
     if (o.leafSize < 1) throw Error("leafSize", "must be >= 1");
     if (o.maxDepth < 0) throw Error("maxDepth", "must be >= 0");
     if (o.nodeCoefficients == 0) throw Error("nodeCoefficients", "must be >= 1");
+    if (o.sampleShFrom != UINT32_MAX && o.nodeCoefficients <= size_t(o.shTerms))
+        throw Error("nodeCoefficients", "must be more than the " + std::to_string(o.shTerms) +
+                                            " SH terms the samples carry");
     for (size_t i = 0; i < n; ++i) {
         const glm::vec3& p = cloud.positions[i];
         if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
@@ -446,6 +449,9 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
     }
     // Sample vectors may carry SH entries (indices coefficientCount + i, i < shTerms).
     const size_t spaceCount = coefficientCount + size_t(options.shTerms);
+    if (options.sampleShFrom != UINT32_MAX && options.sampleShFrom != coefficientCount)
+        throw Error("hierarchy", "the samples' SH part starts at index " + std::to_string(options.sampleShFrom) +
+                                     ", not at coefficientCount " + std::to_string(coefficientCount));
     if (spaceCount < tree.coefficientBound()) {
         throw Error("hierarchy", "coefficientCount " + std::to_string(coefficientCount) + " + " +
                                      std::to_string(options.shTerms) + " SH terms is too small for coefficient index " +

@@ -78,7 +78,8 @@
 // accumulated into a dense per-thread RGB accumulator of coefficientCount x 3
 // DOUBLES (147 KB for a 6x32x32 cubemap, well inside L2): as fast as floats, and the
 // epsilon = 0 result matches the brute force ~70x closer (docs/performance.md). Per vertex the accumulator is rounded
-// to float, truncated to vertexCoefficients entries (haar.h truncateLargest), and
+// to float, split and truncated to vertexCoefficients entries (sh_part.h
+// truncateWithShPart; haar.h truncateLargest without an SH part), and
 // cleared with one fill of the whole block (a few us, ~2% of a vertex's time);
 // tracking touched entries would put a test on every one of the ~10^5 scattered
 // additions instead, and the truncation reads the whole block anyway.
@@ -242,9 +243,10 @@ struct MultipleScatteringStats {
 
 // Pass 2: the RGB multiple-scattering transport T_d / pi of every vertex (see the top
 // of this file), truncated to options.vertexCoefficients entries, channels = 3.
-// Only options.epsilon and vertexCoefficients are used here (the tree was built with
-// the rest). coefficientCount = 6 N^2 of the cubemap; it must exceed every index in
-// the tree (else prt::Error). Parallel over vertices (TBB); deterministic. The
+// Only options.epsilon, vertexCoefficients, shTerms and sampleShFrom are used here (the
+// tree was built with the rest). coefficientCount = 6 N^2 of the cubemap; with the
+// samples' SH entries, coefficientCount + shTerms must exceed every index in the tree
+// (else prt::Error). Parallel over vertices (TBB); deterministic. The
 // material must be valid (validateMaterial). progress, when given, advances once per
 // vertex.
 // QUADRATURE. With cells (what prt-precompute uses), a sample in a leaf contributes

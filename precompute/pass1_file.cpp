@@ -53,7 +53,7 @@ std::string pass1Key(const std::vector<std::pair<std::string, std::string>>& par
     std::string key;
     for (const auto& [k, v] : parameters)
         if (k == "mesh_vertices" || k == "mesh_hash" || k == "seed" || k == "cubemap_size" || k == "supersample" || k == "pass1_visibility" ||
-            k == "sample_coefficients" || k == "sh_terms" || k == "eta")
+            k == "sample_coefficients" || (k == "sh_terms" && v != "0") || k == "eta")
             key += k + "=" + v + "\n";
     key += "mm_per_unit=" + formatParameter(mmPerUnit) + "\n";
     key += "samples=" + std::to_string(samples) + "\n";

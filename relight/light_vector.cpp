@@ -86,10 +86,11 @@ LightVector makeLightVector(const Cubemap& radiance, size_t keepTerms) {
     light.size = radiance.size();
     const size_t count = coefficients.texelCount();
     std::vector<float>& full = coefficients.data();
-    if (light.size >= 2) {  // 9 SH terms are not independent on a 6 x 1 x 1 cubemap
-        light.sh.resize(size_t(kMaxShTerms) * 3);
-        shProjectLight(full.data(), light.size, 3, kMaxShTerms, light.sh.data());
-    }
+    // 9 SH terms are not independent on a 6 x 1 x 1 cubemap: 4 there (files at N = 1
+    // hold at most 4).
+    const int shTerms = light.size >= 2 ? kMaxShTerms : 4;
+    light.sh.resize(size_t(shTerms) * 3);
+    shProjectLight(full.data(), light.size, 3, shTerms, light.sh.data());
 
     if (keepTerms == 0 || keepTerms >= count) {
         light.rgb = std::move(full);

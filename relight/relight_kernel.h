@@ -65,7 +65,8 @@ struct VertexRadiance {
 //
 // VALIDATION. Per call, O(1) per component plus one comparison per vertex (per-vertex
 // components) or per block and lane (blocked): array sizes, offsets, the largest (=
-// last, indices increase) coefficient index of each vertex or block against 6 N^2, and
+// last, indices increase) coefficient index of each vertex or block against 6 N^2 + the
+// file's SH terms, and
 // a blocked component's `order` entries against the vertex count, so a corrupt in-memory
 // file raises prt::Error instead of reading or writing out of bounds. (That `order` is
 // a permutation is not checked per call: a duplicate gives wrong results in bounds;

@@ -1509,6 +1509,13 @@ TEST_F(TransportTest, ShIndicesAreBoundedByTheTermCount) {
     e = errorOf([&] { saveTransportFile(path("bad"), f); });
     EXPECT_TRUE(contains(e, "SH term count 5 is not 0, 1, 4 or 9")) << e;
     EXPECT_FALSE(std::filesystem::exists(path("bad")));
+    // 9 SH terms are not independent on a 6 x 1 x 1 cubemap: refused; 4 are fine.
+    TransportFile one = makeShFile(rng, 3, 1, 9);
+    e = errorOf([&] { saveTransportFile(path("bad"), one); });
+    EXPECT_TRUE(contains(e, "9 SH terms on a 6 x 1 x 1 cubemap")) << e;
+    one = makeShFile(rng, 3, 1, 4);
+    saveTransportFile(path("one"), one);
+    EXPECT_EQ(loadTransportFile(path("one")), one);
 
     // On disk: a version-3 header with another count, a version-1 header with one.
     f.shTerms = 4;

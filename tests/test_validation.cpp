@@ -61,7 +61,9 @@ Scene makeScene(bool keepEverything, bool singleScattering = false, double g = 0
     p.scale.sizeMm = 12.0;
     p.material = materialByName("Marble");
     p.cubemapSize = 16;
-    if (keepEverything) p.sampleCoefficients = p.nodeCoefficients = p.vertexCoefficients = 6 * 16 * 16;
+    // Everything: the 6 N^2 Haar entries of the residual and the SH part.
+    if (keepEverything)
+        p.sampleCoefficients = p.nodeCoefficients = p.vertexCoefficients = 6 * 16 * 16 + size_t(p.shTerms);
     p.sampleSpacingMm = 0.25;
     if (singleScattering) {
         p.components = parseScatteringComponents("ss");
