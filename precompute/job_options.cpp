@@ -89,6 +89,12 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     app.add_option("--ss-supersample", s.ssSupersample,
                    "Single scattering: s x s sub-directions per texel")
         ->capture_default_str();
+    app.add_option("--ss-direction-stride", s.ssDirectionStride,
+                   "Single scattering: trace the texels of a lattice of this stride per cube face, "
+                   "split the cells whose corners disagree (shadow or sheet edges, the cut-off) down "
+                   "to single texels and interpolate the others; 1 traces every texel. Only with "
+                   "--ss-supersample 1 (docs/single-scattering.md)")
+        ->capture_default_str();
     app.add_option("--pass1-file", s.pass1File,
                    "Load the samples' pass-1 vectors from this file when it exists (made for the same "
                    "pass-1 inputs), else compute and save them there: the shards of a job then compute "

@@ -70,6 +70,7 @@ SingleScatteringOptions singleScatteringOptions(const PrecomputeSettings& s) {
     SingleScatteringOptions o;
     o.cubemapSize = s.cubemapSize;
     o.supersample = s.ssSupersample;
+    o.directionStride = s.ssDirectionStride;
     o.pathSamples = s.pathSamples;
     o.pathQuadrature = s.pathQuadrature;
     o.keepCoefficients = s.vertexCoefficients;
@@ -140,6 +141,9 @@ void validateSettings(const PrecomputeSettings& s) {
         throw Error("--path-samples", "must be between 1 and 4096, got " + std::to_string(s.pathSamples));
     if (s.ssSupersample < 1 || s.ssSupersample > 8)
         throw Error("--ss-supersample", "must be between 1 and 8, got " + std::to_string(s.ssSupersample));
+    if (s.ssDirectionStride < 1 || s.ssDirectionStride > 16 || (s.ssDirectionStride & (s.ssDirectionStride - 1)))
+        throw Error("--ss-direction-stride",
+                    "must be 1, 2, 4, 8 or 16, got " + std::to_string(s.ssDirectionStride));
     if (!s.pass1File.empty() && !s.components.multipleScattering)
         throw Error("--pass1-file", "needs multiple scattering (--components ms or ms,ss): single scattering has no pass 1");
     if (s.pass1Only && s.pass1File.empty()) throw Error("--pass1-only", "needs --pass1-file");
@@ -187,6 +191,12 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
         p.push_back({"path_samples", std::to_string(o.pathSamples)});
         p.push_back({"path_quadrature", toString(o.pathQuadrature)});
         p.push_back({"ss_supersample", std::to_string(o.supersample)});
+        // Recorded only when it acts, so files made before it keep their digest.
+        if (o.directionStride > 1 && o.supersample == 1) {
+            p.push_back({"ss_direction_stride", std::to_string(o.directionStride)});
+            p.push_back({"ss_refine_tolerances", fmt(o.refineValueTolerance) + " " + fmt(o.refineValueFloor) +
+                                                     " " + fmt(o.refineLargeCellValue)});
+        }
         p.push_back({"ss_path", "inward normal, deterministic importance samples (Wang 2005 Eqs. 10-11)"});
         p.push_back({"ss_depth_cap_mfp", fmt(o.depthCapMeanFreePaths)});
         p.push_back({"ss_min_throughput", fmt(o.minThroughput)});
@@ -263,6 +273,10 @@ std::string PrecomputeSummary::format() const {
             "%.3g exits through reversed triangles",
             double(ssExitRays), double(ssOcclusionRays), double(ssCulledRays), double(ssEscapedRays),
             double(ssReversedHits));
+        if (ssInterpolatedDirections > 0)
+            add("  directions      %.3g traced, %.3g interpolated from agreeing corners (%.1f%% traced)",
+                double(ssTracedDirections), double(ssInterpolatedDirections),
+                100.0 * double(ssTracedDirections) / double(ssTracedDirections + ssInterpolatedDirections));
         add("  path            mean d_m %.3f mm, %llu vertices with capped d_m, %llu integrated "
             "along +n (normal pointing inward), %llu path samples outside the object",
             ssMeanDepthMm, (unsigned long long)ssCappedDepths, (unsigned long long)ssFlippedNormals,
@@ -595,6 +609,8 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         summary.ssExitRays = total(st.exitRays);
         summary.ssOcclusionRays = total(st.occlusionRays);
         summary.ssCulledRays = total(st.culledRays);
+        summary.ssTracedDirections = total(st.tracedDirections);
+        summary.ssInterpolatedDirections = total(st.interpolatedDirections);
         summary.ssReversedHits = total(st.reversedHits);
         summary.ssOutsideSamples = total(st.outsideSamples);
         summary.ssFlippedNormals = total(st.flippedNormals);

@@ -61,6 +61,9 @@ struct PrecomputeSettings {
     PathQuadrature pathQuadrature = kDefaultPathQuadrature;
     int pathSamples = defaultPathSamples(kDefaultPathQuadrature);
     int ssSupersample = 1;        // s x s sub-directions per texel in single scattering
+    // Adaptive texel directions of single scattering: lattice stride (1 = every texel;
+    // SingleScatteringOptions::directionStride). Used only with ssSupersample == 1.
+    int ssDirectionStride = 1;
     // Refuse the job up front when its estimated memory (memory_estimate.h) exceeds this
     // many GB; 0 = the machine's available memory. Not a physics setting: not stored in
     // the file and not part of the input digest.
@@ -136,6 +139,7 @@ struct PrecomputeSummary {
     double ssSeconds = 0;
     uint64_t ssRaysTraced = 0;        // depth + exit + occlusion rays
     uint64_t ssExitRays = 0, ssOcclusionRays = 0, ssCulledRays = 0;
+    uint64_t ssTracedDirections = 0, ssInterpolatedDirections = 0;
     uint64_t ssEscapedRays = 0, ssReversedHits = 0, ssOutsideSamples = 0;
     uint64_t ssFlippedNormals = 0, ssCappedDepths = 0;
     double ssRaysPerSecond = 0;

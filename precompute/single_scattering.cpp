@@ -148,6 +148,8 @@ void SingleScatteringStats::add(const SingleScatteringStats& o) {
     occlusionRays += o.occlusionRays;
     sharedVisibility += o.sharedVisibility;
     culledRays += o.culledRays;
+    tracedDirections += o.tracedDirections;
+    interpolatedDirections += o.interpolatedDirections;
     escapedRays += o.escapedRays;
     reversedHits += o.reversedHits;
     outsideSamples += o.outsideSamples;
@@ -181,6 +183,12 @@ SingleScatteringContext::SingleScatteringContext(const RayScene& scene, const Tr
         throw Error("single scattering", "the depth cap must be a positive number of mean free paths");
     if (!(options.minThroughput >= 0) || !(options.minThroughput < 1))
         throw Error("single scattering", "the throughput threshold must be in [0, 1)");
+    if (!isPowerOfTwo(options.directionStride) || options.directionStride > 16)
+        throw Error("--ss-direction-stride", "must be a power of two between 1 and 16, got " +
+                                                 std::to_string(options.directionStride));
+    if (!(options.refineLargeCellValue >= 0) || !(options.refineValueTolerance >= 0) || !std::isfinite(options.refineValueTolerance) ||
+        !(options.refineValueFloor >= 0) || !std::isfinite(options.refineValueFloor))
+        throw Error("single scattering", "the refinement tolerances must be finite and non-negative");
     if (mesh.normals.size() != mesh.positions.size())
         throw Error("single scattering", "the mesh has no per-vertex normals");
     if (scene.triangleCount() != mesh.triangles.size())
@@ -237,6 +245,23 @@ SingleScatteringContext::SingleScatteringContext(const RayScene& scene, const Tr
     traced_.solidAngle = dirs_.solidAngle;
     traced_.texel.resize(dirs_.count());
     for (size_t k = 0; k < dirs_.count(); ++k) traced_.texel[k] = uint32_t(k / dirs_.subPerTexel());
+    const int n = options.cubemapSize, stride = options.directionStride;
+    if (stride > 1 && options.supersample == 1 && n >= 2) {
+        // The lattice per face axis: 0, S, 2S, ... and the last texel N - 1.
+        std::vector<uint16_t> lattice;
+        for (int i = 0; i < n - 1; i += stride) lattice.push_back(uint16_t(i));
+        lattice.push_back(uint16_t(n - 1));
+        for (int f = 0; f < kCubeFaces; ++f) {
+            for (uint16_t j : lattice)
+                for (uint16_t i : lattice) firstDirections_.push_back(uint32_t((f * n + j) * n + i));
+            for (size_t b = 0; b + 1 < lattice.size(); ++b)
+                for (size_t a = 0; a + 1 < lattice.size(); ++a)
+                    topCells_.push_back({uint16_t(f), lattice[a], lattice[a + 1], lattice[b], lattice[b + 1]});
+        }
+    } else {
+        firstDirections_.resize(dirs_.count());
+        for (size_t k = 0; k < dirs_.count(); ++k) firstDirections_[k] = uint32_t(k);
+    }
     // F_t(eta, cos) on a uniform grid of cos in [0, 1] (linear interpolation; the
     // interpolation error is below 1e-6 for eta in [1, 2.5]). For eta < 1 F_t has a
     // square-root kink at the critical angle and is evaluated exactly instead.
@@ -293,16 +318,49 @@ void SingleScatteringContext::lightMapValues(const glm::vec3& a, float* out) con
 
 namespace {
 
-// Traces the exit rays of every path sample along `inward` from `position` into
-// sc.hits (direction-major: ray q = r * ns + i), and decides for each sample point
-// whether it is inside the object. From an inside point of a closed, consistently
-// wound mesh every ray first hits a triangle facing along it (a back face); from an
-// outside point rays hit front faces or nothing, and back faces only through wrongly
-// wound triangles or single-layer sheets. Front faces seen from inside come only
-// from wrongly wound patches, which can cover half the sphere (a whole face of a box)
-// without the point being outside, so they are not counted: a point is inside when
-// more of its rays hit back faces than hit nothing. sc.inside[i] = 1 for inside
-// points. Returns the number of inside points.
+// Traces the exit rays of every path sample (sc.samplePoint) toward the directions
+// list[0..count) into sc.hits, direction-major: ray q = p * ns + i for list[p], sample i.
+void traceExitRays(const SingleScatteringContext& ctx, const uint32_t* list, size_t count,
+                   SingleScatteringScratch& sc, SingleScatteringStats& stats) {
+    const SingleScatteringContext::Directions& dirs = ctx.tracedDirections();
+    const size_t ns = sc.samplePoint.size(), total = ns * count;
+    sc.orgX.resize(total);
+    sc.orgY.resize(total);
+    sc.orgZ.resize(total);
+    sc.dirX.resize(total);
+    sc.dirY.resize(total);
+    sc.dirZ.resize(total);
+    sc.hits.resize(total);
+    // Direction-major order puts the ns parallel rays of one direction (origins spread
+    // along the normal over a few mean free paths) into one packet: 15-20% faster than
+    // packets of 16 neighbouring directions from one origin (docs/single-scattering.md).
+    for (size_t p = 0, q = 0; p < count; ++p) {
+        const uint32_t r = list[p];
+        for (size_t i = 0; i < ns; ++i, ++q) {
+            sc.orgX[q] = sc.samplePoint[i].x;
+            sc.orgY[q] = sc.samplePoint[i].y;
+            sc.orgZ[q] = sc.samplePoint[i].z;
+            sc.dirX[q] = dirs.x[r];
+            sc.dirY[q] = dirs.y[r];
+            sc.dirZ[q] = dirs.z[r];
+        }
+    }
+    ctx.intersectCoherent(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
+                          sc.dirY.data(), sc.dirZ.data(), total, sc.hits.data());
+    stats.exitRays += total;
+    stats.tracedDirections += count;
+}
+
+// The path samples along `inward` from `position`, their exit rays toward the first
+// directions (ctx.firstDirections(): all, or the lattice when adaptive) into sc.hits,
+// and for each sample point whether it is inside the object. From an inside point of
+// a closed, consistently wound mesh every ray first hits a triangle facing along it
+// (a back face); from an outside point rays hit front faces or nothing, and back
+// faces only through wrongly wound triangles or single-layer sheets. Front faces seen
+// from inside come only from wrongly wound patches, which can cover half the sphere
+// (a whole face of a box) without the point being outside, so they are not counted: a
+// point is inside when more of its rays hit back faces than hit nothing.
+// sc.inside[i] = 1 for inside points. Returns the number of inside points.
 size_t traceExits(const SingleScatteringContext& ctx, const glm::vec3& position,
                   const glm::vec3& inward, double dm, SingleScatteringScratch& sc,
                   SingleScatteringStats& stats) {
@@ -312,7 +370,7 @@ size_t traceExits(const SingleScatteringContext& ctx, const glm::vec3& position,
     const glm::dvec3 sigmaS = mat.sigmaS();
     makePathSamples(ctx.samplingSigma(), dm, ctx.pathRule(), ctx.options().pathQuadrature, sc.samples);
     const std::vector<PathSample>& samples = sc.samples;
-    const size_t ns = samples.size(), count = dirs.x.size(), total = ns * count;
+    const size_t ns = samples.size();
 
     // Per-sample origin x_p and estimator weight sigma_s e^(-sigma_t s) w_i / pdf(s).
     sc.samplePoint.resize(ns);
@@ -324,39 +382,21 @@ size_t traceExits(const SingleScatteringContext& ctx, const glm::vec3& position,
                                        float(sigmaS.y * std::exp(-double(sigmaT.y) * d) * wgt),
                                        float(sigmaS.z * std::exp(-double(sigmaT.z) * d) * wgt));
     }
-    sc.orgX.resize(total);
-    sc.orgY.resize(total);
-    sc.orgZ.resize(total);
-    sc.dirX.resize(total);
-    sc.dirY.resize(total);
-    sc.dirZ.resize(total);
-    sc.hits.resize(total);
-    // Direction-major order puts the ns parallel rays of one direction (origins spread
-    // along the normal over a few mean free paths) into one packet: 15-20% faster than
-    // packets of 16 neighbouring directions from one origin (docs/single-scattering.md).
-    for (size_t r = 0, q = 0; r < count; ++r)
-        for (size_t i = 0; i < ns; ++i, ++q) {
-            sc.orgX[q] = sc.samplePoint[i].x;
-            sc.orgY[q] = sc.samplePoint[i].y;
-            sc.orgZ[q] = sc.samplePoint[i].z;
-            sc.dirX[q] = dirs.x[r];
-            sc.dirY[q] = dirs.y[r];
-            sc.dirZ[q] = dirs.z[r];
-        }
-    ctx.intersectCoherent(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
-                          sc.dirY.data(), sc.dirZ.data(), total, sc.hits.data());
-    stats.exitRays += total;
+    const std::vector<uint32_t>& list = ctx.firstDirections();
+    traceExitRays(ctx, list.data(), list.size(), sc, stats);
 
     // Votes: back faces for, misses against.
+    const size_t total = ns * list.size();
     sc.vote.assign(ns, 0);
     for (size_t q = 0; q < total; ++q) {
         const Hit& h = sc.hits[q];
-        const size_t r = q / ns;
+        const size_t p = q / ns;
+        const uint32_t r = list[p];
         if (!h.hit) {
-            sc.vote[q - r * ns] -= 1;
+            sc.vote[q - p * ns] -= 1;
         } else if (dirs.x[r] * h.geometricNormal.x + dirs.y[r] * h.geometricNormal.y +
                        dirs.z[r] * h.geometricNormal.z > 0.0f) {
-            sc.vote[q - r * ns] += 1;
+            sc.vote[q - p * ns] += 1;
         }
     }
     size_t inside = 0;
@@ -432,67 +472,45 @@ void sharedOcclusion(const SingleScatteringContext& ctx, size_t m, SingleScatter
     traceListed(ctx, sc, stats);
 }
 
-}  // namespace
-
-void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3& position,
-                            const glm::vec3& normalIn, float* dense, SingleScatteringScratch& sc,
-                            SingleScatteringStats& stats) {
+// Shades the exits in sc.hits of the rays toward list[0..count) (traceExitRays' order),
+// traces the occlusion rays of those that survive the cut-off and adds them to the
+// dense transport. With `record`, also fills sc.exitCode / exitNormal (per texel and
+// path sample) and sc.magnitude (per texel: the summed RGB-luminance throughput per
+// steradian of its visible exits, phase not included) for the adaptive directions.
+void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t count, float* dense,
+                bool record, SingleScatteringScratch& sc, SingleScatteringStats& stats) {
     const RayScene& scene = ctx.scene();
     const TriangleMesh& mesh = ctx.mesh();
     const Material& mat = ctx.material();
     const SingleScatteringContext::Directions& dirs = ctx.tracedDirections();
     const SingleScatteringOptions& opt = ctx.options();
-    const size_t count = dirs.x.size();
     const size_t texels = ctx.texelCount();
     const int terms = ctx.terms();
     const float eta = float(mat.eta);
     const float invEta2 = 1.0f / (eta * eta);
     const glm::vec3 sigmaT(mat.sigmaT());
     const float minThroughput = float(opt.minThroughput);
-
-    std::fill_n(dense, ctx.denseSize(), 0.0f);
-    const float nLen = glm::length(normalIn);
-    if (!(nLen > 0.0f)) return;  // no normal: nothing to integrate along
-    const glm::vec3 n = normalIn / nLen;
-
-    // d_m along -n_o, then the exit rays of the path sample points.
-    FarSide far = farSideDistance(scene, position, n, ctx.depthCap());
-    stats.depthRays += 1;
-    if (!(far.distance > 0.0)) return;
-    size_t inside = traceExits(ctx, position, -n, far.distance, sc, stats);
-    if (2 * inside < size_t(opt.pathSamples)) {
-        // Most sample points below the vertex are outside the object: the vertex normal
-        // points inward (an inconsistently oriented patch of a scanned mesh). Integrate
-        // along +n_o instead if that is inside more often.
-        const FarSide flippedFar = farSideDistance(scene, position, -n, ctx.depthCap());
-        stats.depthRays += 1;
-        const size_t original = inside;
-        if (flippedFar.distance > 0.0)
-            inside = traceExits(ctx, position, n, flippedFar.distance, sc, stats);
-        if (flippedFar.distance > 0.0 && inside > original) {
-            far = flippedFar;
-            stats.flippedNormals += 1;
-        } else {
-            inside = traceExits(ctx, position, -n, far.distance, sc, stats);
-        }
-    }
-    stats.depthSum += far.distance;
-    if (!far.hit) stats.cappedDepths += 1;
     const size_t ns = sc.samplePoint.size();
-    stats.outsideSamples += ns - inside;
-    if (inside == 0) return;
     const size_t total = ns * count;
     sc.occluded.resize(total);
     sc.texel.resize(total);
     sc.direction.resize(total);
+    sc.candidateSample.resize(total);
     sc.value.resize(total * 3);
     sc.phase.resize(total * size_t(terms));
+    if (record)
+        for (size_t p = 0; p < count; ++p) {
+            std::fill_n(sc.exitCode.begin() + std::ptrdiff_t(size_t(list[p]) * ns), ns, uint8_t(0));
+            std::fill_n(sc.sampleMagnitude.begin() + std::ptrdiff_t(size_t(list[p]) * ns), ns, 0.0f);
+            sc.magnitude[list[p]] = 0.0f;
+        }
 
     // Candidates: exits of inside sample points whose light reaches x_p with
     // non-negligible throughput. They overwrite the ray arrays in place (m <= q).
     size_t m = 0;
     for (size_t q = 0; q < total; ++q) {
-        const size_t r = q / ns, i = q - r * ns;
+        const size_t p = q / ns, i = q - p * ns;
+        const uint32_t r = list[p];
         if (!sc.inside[i]) continue;
         const Hit& h = sc.hits[q];
         if (!h.hit) {
@@ -549,10 +567,12 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
         sc.dirY[m] = w.y;
         sc.dirZ[m] = w.z;
         sc.texel[m] = dirs.texel[r];
-        sc.direction[m] = uint32_t(r);
+        sc.direction[m] = r;
+        sc.candidateSample[m] = uint32_t(i);
         sc.value[3 * m] = value.x;
         sc.value[3 * m + 1] = value.y;
         sc.value[3 * m + 2] = value.z;
+        if (record) sc.sampleMagnitude[size_t(r) * ns + i] = float(luminance(glm::dvec3(value))) / dirs.solidAngle[r];
         ++m;
     }
     if (m == 0) return;
@@ -569,6 +589,11 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
     }
 
     for (size_t q = 0; q < m; ++q) {
+        if (record) {
+            const uint32_t r = sc.direction[q];
+            sc.exitCode[size_t(r) * ns + sc.candidateSample[q]] = sc.occluded[q] ? 1 : 2;
+            if (!sc.occluded[q]) sc.magnitude[r] += sc.sampleMagnitude[size_t(r) * ns + sc.candidateSample[q]];
+        }
         if (sc.occluded[q]) continue;
         const float* v = &sc.value[3 * q];
         const float* g = &sc.phase[q * size_t(terms)];
@@ -579,6 +604,171 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
             d[2] += v[2] * g[k];
         }
     }
+}
+
+// Whether the corners c[0..4) of a cell `span` texels wide agree
+// (SingleScatteringOptions::directionStride): every path sample whose exit carries more
+// than valueFloor per steradian at some corner (occluded or not) has the same kind of
+// exit at all four (occluded, visible, or none); the corners' throughputs differ by at
+// most refineValueTolerance x the largest (+ valueFloor); and a cell wider than 2
+// texels is bright nowhere (at most largeCellMax), so a small occluder or a sheet edge
+// that fits between its corners can hide only where little light is at stake.
+bool cornersAgree(const SingleScatteringContext& ctx, const uint32_t* c, int span, float valueFloor,
+                  float largeCellMax, const SingleScatteringScratch& sc) {
+    const size_t ns = sc.samplePoint.size();
+    float lo = sc.magnitude[c[0]], hi = lo;
+    for (int a = 1; a < 4; ++a) {
+        lo = std::min(lo, sc.magnitude[c[a]]);
+        hi = std::max(hi, sc.magnitude[c[a]]);
+    }
+    if (span > 2 && hi > largeCellMax) return false;
+    if (hi - lo > float(ctx.options().refineValueTolerance) * hi + valueFloor) return false;
+    for (size_t i = 0; i < ns; ++i) {
+        float atStake = 0.0f;
+        for (int a = 0; a < 4; ++a) atStake = std::max(atStake, sc.sampleMagnitude[size_t(c[a]) * ns + i]);
+        if (atStake <= valueFloor) continue;
+        const uint8_t code = sc.exitCode[size_t(c[0]) * ns + i];
+        for (int a = 1; a < 4; ++a)
+            if (sc.exitCode[size_t(c[a]) * ns + i] != code) return false;
+    }
+    return true;
+}
+
+// The adaptive directions after the lattice has been traced and shaded (with records):
+// cells are interpolated or split, round by round, until every texel is traced or
+// interpolated. A texel takes the value of the smallest cell that interpolated it, and
+// a traced value over any interpolation.
+void refineDirections(const SingleScatteringContext& ctx, float* dense, SingleScatteringScratch& sc,
+                      SingleScatteringStats& stats) {
+    const int n = ctx.cubemapSize();
+    const size_t texels = ctx.texelCount();
+    const int terms = ctx.terms();
+    const SingleScatteringContext::Directions& dirs = ctx.tracedDirections();
+    float largest = 0.0f;
+    for (uint32_t r : ctx.firstDirections()) largest = std::max(largest, sc.magnitude[r]);
+    const float valueFloor = float(ctx.options().refineValueFloor) * largest;
+    const float largeCellMax = float(ctx.options().refineLargeCellValue) * largest;
+    auto texelOf = [n](int f, int i, int j) { return uint32_t((f * n + j) * n + i); };
+
+    sc.cells = ctx.topCells();
+    while (!sc.cells.empty()) {
+        sc.nextCells.clear();
+        sc.list.clear();
+        for (const SingleScatteringContext::DirectionCell& cell : sc.cells) {
+            const int f = cell.face, i0 = cell.i0, i1 = cell.i1, j0 = cell.j0, j1 = cell.j1;
+            if (i1 - i0 <= 1 && j1 - j0 <= 1) continue;  // no texel inside
+            const uint32_t corner[4] = {texelOf(f, i0, j0), texelOf(f, i1, j0), texelOf(f, i0, j1),
+                                        texelOf(f, i1, j1)};
+            const uint16_t span = uint16_t(std::max(i1 - i0, j1 - j0));
+            if (cornersAgree(ctx, corner, span, valueFloor, largeCellMax, sc)) {
+                for (int j = j0; j <= j1; ++j)
+                    for (int i = i0; i <= i1; ++i) {
+                        const uint32_t t = texelOf(f, i, j);
+                        if (sc.texelTraced[t] || sc.texelSpan[t] < span) continue;
+                        sc.texelSpan[t] = span;
+                        const float u = float(i - i0) / float(i1 - i0), v = float(j - j0) / float(j1 - j0);
+                        const float w[4] = {(1 - u) * (1 - v), u * (1 - v), (1 - u) * v, u * v};
+                        for (int k = 0; k < terms; ++k) {
+                            float* d = dense + (size_t(k) * texels + t) * 3;
+                            for (int c = 0; c < 3; ++c) {
+                                float sum = 0.0f;
+                                for (int a = 0; a < 4; ++a)
+                                    sum += w[a] * dense[(size_t(k) * texels + corner[a]) * 3 + size_t(c)] /
+                                           dirs.solidAngle[corner[a]];
+                                d[c] = sum * dirs.solidAngle[t];
+                            }
+                        }
+                    }
+                continue;
+            }
+            // Split: trace the new corners, then look at the four (or two) sub-cells.
+            int xs[3], ys[3];
+            int cx = 0, cy = 0;
+            xs[cx++] = i0;
+            if (i1 - i0 >= 2) xs[cx++] = (i0 + i1) / 2;
+            xs[cx++] = i1;
+            ys[cy++] = j0;
+            if (j1 - j0 >= 2) ys[cy++] = (j0 + j1) / 2;
+            ys[cy++] = j1;
+            for (int b = 0; b < cy; ++b)
+                for (int a = 0; a < cx; ++a) {
+                    const uint32_t t = texelOf(f, xs[a], ys[b]);
+                    if (sc.texelTraced[t]) continue;
+                    sc.texelTraced[t] = 1;
+                    sc.list.push_back(t);
+                }
+            for (int b = 0; b + 1 < cy; ++b)
+                for (int a = 0; a + 1 < cx; ++a)
+                    sc.nextCells.push_back({uint16_t(f), uint16_t(xs[a]), uint16_t(xs[a + 1]), uint16_t(ys[b]),
+                                            uint16_t(ys[b + 1])});
+        }
+        if (!sc.list.empty()) {
+            // Traced texels replace whatever a coarser cell interpolated there.
+            for (uint32_t t : sc.list)
+                for (int k = 0; k < terms; ++k) std::fill_n(dense + (size_t(k) * texels + t) * 3, 3, 0.0f);
+            traceExitRays(ctx, sc.list.data(), sc.list.size(), sc, stats);
+            shadeExits(ctx, sc.list.data(), sc.list.size(), dense, true, sc, stats);
+        }
+        std::swap(sc.cells, sc.nextCells);
+    }
+    uint64_t traced = 0;
+    for (size_t t = 0; t < texels; ++t) traced += sc.texelTraced[t];
+    stats.interpolatedDirections += texels - traced;
+}
+
+}  // namespace
+
+void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3& position,
+                            const glm::vec3& normalIn, float* dense, SingleScatteringScratch& sc,
+                            SingleScatteringStats& stats) {
+    const RayScene& scene = ctx.scene();
+    const SingleScatteringOptions& opt = ctx.options();
+
+    std::fill_n(dense, ctx.denseSize(), 0.0f);
+    const float nLen = glm::length(normalIn);
+    if (!(nLen > 0.0f)) return;  // no normal: nothing to integrate along
+    const glm::vec3 n = normalIn / nLen;
+
+    // d_m along -n_o, then the exit rays of the path sample points.
+    FarSide far = farSideDistance(scene, position, n, ctx.depthCap());
+    stats.depthRays += 1;
+    if (!(far.distance > 0.0)) return;
+    size_t inside = traceExits(ctx, position, -n, far.distance, sc, stats);
+    if (2 * inside < size_t(opt.pathSamples)) {
+        // Most sample points below the vertex are outside the object: the vertex normal
+        // points inward (an inconsistently oriented patch of a scanned mesh). Integrate
+        // along +n_o instead if that is inside more often.
+        const FarSide flippedFar = farSideDistance(scene, position, -n, ctx.depthCap());
+        stats.depthRays += 1;
+        const size_t original = inside;
+        if (flippedFar.distance > 0.0)
+            inside = traceExits(ctx, position, n, flippedFar.distance, sc, stats);
+        if (flippedFar.distance > 0.0 && inside > original) {
+            far = flippedFar;
+            stats.flippedNormals += 1;
+        } else {
+            inside = traceExits(ctx, position, -n, far.distance, sc, stats);
+        }
+    }
+    stats.depthSum += far.distance;
+    if (!far.hit) stats.cappedDepths += 1;
+    const size_t ns = sc.samplePoint.size();
+    stats.outsideSamples += ns - inside;
+    if (inside == 0) return;
+
+    const std::vector<uint32_t>& first = ctx.firstDirections();
+    const bool adaptive = ctx.adaptiveDirections();
+    if (adaptive) {
+        const size_t texels = ctx.texelCount();
+        sc.exitCode.resize(texels * ns);
+        sc.sampleMagnitude.resize(texels * ns);
+        sc.magnitude.resize(texels);
+        sc.texelTraced.assign(texels, 0);
+        sc.texelSpan.assign(texels, uint16_t(0xFFFF));
+        for (uint32_t t : first) sc.texelTraced[t] = 1;
+    }
+    shadeExits(ctx, first.data(), first.size(), dense, adaptive, sc, stats);
+    if (adaptive) refineDirections(ctx, dense, sc, stats);
 }
 
 double compressSingleScattering(const SingleScatteringContext& ctx, float* dense,

@@ -56,6 +56,7 @@ Json settingsJson(const PrecomputeSettings& s) {
     j["path_quadrature"] = toString(s.pathQuadrature);
     j["path_samples"] = s.pathSamples;
     j["ss_supersample"] = s.ssSupersample;
+    j["ss_direction_stride"] = s.ssDirectionStride;
     j["shard"] = s.shard ? Json(toString(*s.shard)) : Json(nullptr);
     j["pass1_file"] = s.pass1File.empty() ? Json(nullptr) : Json(s.pass1File);
     j["pass1_only"] = s.pass1Only;
@@ -120,6 +121,8 @@ Json summaryJson(const PrecomputeSummary& r) {
     j["ss_exit_rays"] = ssOnly(r.ssExitRays);
     j["ss_occlusion_rays"] = ssOnly(r.ssOcclusionRays);
     j["ss_culled_rays"] = ssOnly(r.ssCulledRays);
+    j["ss_traced_directions"] = ssOnly(r.ssTracedDirections);
+    j["ss_interpolated_directions"] = ssOnly(r.ssInterpolatedDirections);
     j["ss_escaped_rays"] = ssOnly(r.ssEscapedRays);
     j["ss_reversed_hits"] = ssOnly(r.ssReversedHits);
     j["ss_outside_samples"] = ssOnly(r.ssOutsideSamples);
