@@ -348,7 +348,6 @@ void traceExitRays(const SingleScatteringContext& ctx, const uint32_t* list, siz
     ctx.intersectCoherent(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
                           sc.dirY.data(), sc.dirZ.data(), total, sc.hits.data());
     stats.exitRays += total;
-    stats.tracedDirections += count;
 }
 
 // The path samples along `inward` from `position`, their exit rays toward the first
@@ -713,6 +712,7 @@ void refineDirections(const SingleScatteringContext& ctx, float* dense, SingleSc
     }
     uint64_t traced = 0;
     for (size_t t = 0; t < texels; ++t) traced += sc.texelTraced[t];
+    stats.tracedDirections += traced;
     stats.interpolatedDirections += texels - traced;
 }
 
@@ -768,7 +768,10 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
         for (uint32_t t : first) sc.texelTraced[t] = 1;
     }
     shadeExits(ctx, first.data(), first.size(), dense, adaptive, sc, stats);
-    if (adaptive) refineDirections(ctx, dense, sc, stats);
+    if (adaptive)
+        refineDirections(ctx, dense, sc, stats);
+    else
+        stats.tracedDirections += ctx.texelCount();
 }
 
 double compressSingleScattering(const SingleScatteringContext& ctx, float* dense,

@@ -304,8 +304,10 @@ struct SingleScatteringStats {
     uint64_t occlusionRays = 0;   // rays from the exit points (occluded)
     uint64_t sharedVisibility = 0; // exits whose V was taken from their direction's end samples
     uint64_t culledRays = 0;      // exits below minThroughput (no occlusion ray)
-    uint64_t tracedDirections = 0;       // texel directions traced (adaptive: lattice + refined)
-    uint64_t interpolatedDirections = 0; // texel directions interpolated from agreeing corners
+    // Texels of the vertices with an inside path: traced (all of them unless adaptive:
+    // the lattice and the refined corners) or interpolated from agreeing corners.
+    uint64_t tracedDirections = 0;
+    uint64_t interpolatedDirections = 0;
     uint64_t escapedRays = 0;     // exit rays of inside points that hit nothing (open mesh)
     uint64_t reversedHits = 0;    // exits through triangles wound the wrong way (used, reversed)
     uint64_t outsideSamples = 0;  // path samples x_p judged outside the object (skipped)

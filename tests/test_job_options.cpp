@@ -95,6 +95,19 @@ TEST(JobOptions, PathQuadratureChoosesTheDefaultPathSamples) {
     EXPECT_NE(bad.find("midpoint or gauss"), std::string::npos) << bad;
 }
 
+TEST(JobOptions, DirectionStride) {
+    EXPECT_EQ(fromCommandLine({"m.obj", "-o", "o"}).ssDirectionStride, PrecomputeSettings{}.ssDirectionStride);
+    EXPECT_EQ(PrecomputeSettings{}.ssDirectionStride, 4);
+    EXPECT_EQ(fromCommandLine({"m.obj", "-o", "o", "--ss-direction-stride", "1"}).ssDirectionStride, 1);
+    EXPECT_EQ(parseJob({{"ss-direction-stride", "8"}}, {{"mesh", "m.obj"}, {"output", "o"}}, "j").ssDirectionStride, 8);
+    for (const char* bad : {"0", "3", "32", "-4"}) {
+        PrecomputeSettings s = fromCommandLine({"m.obj", "-o", "o", "--ss-direction-stride", bad});
+        s.components = {true, true};
+        const std::string e = errorOf([&] { validateSettings(s); });
+        EXPECT_NE(e.find("--ss-direction-stride"), std::string::npos) << bad << ": " << e;
+    }
+}
+
 TEST(JobOptions, BadJobsNameWhereTheyAre) {
     const std::string unknown = errorOf([] { parseJob({}, {{"mesh", "m"}, {"colour", "red"}}, "jobs.json: job 3"); });
     EXPECT_EQ(unknown.rfind("jobs.json: job 3: ", 0), 0u) << unknown;

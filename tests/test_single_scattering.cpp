@@ -1111,6 +1111,8 @@ TEST(SingleScatteringPipeline, ParametersAndDigest) {
     EXPECT_EQ(value(both, "path_samples"), std::to_string(defaultPathSamples(PathQuadrature::GaussLegendre)));
     EXPECT_EQ(value(both, "path_quadrature"), "gauss");
     EXPECT_EQ(value(both, "ss_supersample"), "1");
+    EXPECT_EQ(value(both, "ss_direction_stride"), "4");
+    EXPECT_EQ(value(both, "ss_refine_tolerances"), "0.5 0.01 0.3");
     EXPECT_NE(value(both, "input_digest"), value(ms, "input_digest"));
     s2 = s;
     s2.pathSamples = 8;
@@ -1118,6 +1120,12 @@ TEST(SingleScatteringPipeline, ParametersAndDigest) {
     s2 = s;
     s2.ssSupersample = 2;
     EXPECT_NE(value(settingsParameters(s2, fp), "input_digest"), value(both, "input_digest"));
+    EXPECT_EQ(value(settingsParameters(s2, fp), "ss_direction_stride"), "<absent>");  // no effect there
+    s2 = s;
+    s2.ssDirectionStride = 8;
+    EXPECT_NE(value(settingsParameters(s2, fp), "input_digest"), value(both, "input_digest"));
+    s2.ssDirectionStride = 1;  // every texel: the parameters of files made before the option
+    EXPECT_EQ(value(settingsParameters(s2, fp), "ss_direction_stride"), "<absent>");
     s2 = s;
     s2.pathQuadrature = PathQuadrature::Midpoint;
     EXPECT_EQ(value(settingsParameters(s2, fp), "path_quadrature"), "midpoint");
@@ -1147,6 +1155,9 @@ TEST(SingleScatteringPipeline, ParametersAndDigest) {
     s2 = s;
     s2.ssSupersample = 9;
     EXPECT_THROW(validateSettings(s2), Error);
+    s2 = s;
+    s2.ssDirectionStride = 6;
+    EXPECT_THROW(validateSettings(s2), Error);
     EXPECT_NO_THROW(validateSettings(s));
 }
 
@@ -1167,7 +1178,12 @@ TEST(SingleScatteringPipeline, IsotropicFileHasOneDiffuseSingleScatteringCompone
     EXPECT_FALSE(sum.skipped);
     EXPECT_EQ(sum.ssTerms, 1);
     EXPECT_GT(sum.ssRaysTraced, sum.ssExitRays);
-    EXPECT_EQ(sum.ssExitRays, uint64_t(162) * uint64_t(s.pathSamples) * 6 * 8 * 8);
+    // Adaptive directions (the default): exit rays for the traced texels only, every
+    // texel traced or interpolated.
+    EXPECT_EQ(sum.ssExitRays, sum.ssTracedDirections * uint64_t(s.pathSamples));
+    EXPECT_EQ(sum.ssTracedDirections + sum.ssInterpolatedDirections, uint64_t(162) * 6 * 8 * 8);
+    EXPECT_GT(sum.ssInterpolatedDirections, 0u);
+    EXPECT_NE(sum.format().find("interpolated from agreeing corners"), std::string::npos);
     EXPECT_NE(sum.format().find("single scattering"), std::string::npos);
 
     const TransportFile f = loadTransportFile(s.outputPath);
