@@ -35,7 +35,8 @@ double threadSeconds() {
     return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
 }
 
-// "gauss:6:4" = rule, path samples, direction stride.
+// "gauss:6:4" = rule, path samples, direction stride; an optional fourth field is the
+// throughput cut-off (SingleScatteringOptions::minThroughput).
 SingleScatteringOptions parseRule(const std::string& text, int cubemapSize) {
     std::string t = text;
     std::replace(t.begin(), t.end(), ':', ' ');
@@ -44,7 +45,9 @@ SingleScatteringOptions parseRule(const std::string& text, int cubemapSize) {
     SingleScatteringOptions o;
     o.cubemapSize = cubemapSize;
     if (!(in >> rule >> o.pathSamples >> o.directionStride))
-        throw Error(text, "expected RULE:PATH_SAMPLES:STRIDE, e.g. gauss:6:4");
+        throw Error(text, "expected RULE:PATH_SAMPLES:STRIDE[:MIN_THROUGHPUT], e.g. gauss:6:4");
+    double cut = 0;
+    if (in >> cut) o.minThroughput = cut;
     o.pathQuadrature = parsePathQuadrature(rule);
     return o;
 }
@@ -70,7 +73,7 @@ int main(int argc, char** argv) {
         app.add_option("--vertices", vertices, "Vertices, spread over the mesh")->capture_default_str();
         app.add_option("--cubemap-size", cubemapSize, "Cubemap face size N")->capture_default_str();
         app.add_option("--reference", reference, "The converged rule RULE:PATH_SAMPLES:STRIDE")->capture_default_str();
-        app.add_option("--rules", rules, "Rules to measure, RULE:PATH_SAMPLES:STRIDE each")->capture_default_str();
+        app.add_option("--rules", rules, "Rules to measure, RULE:PATH_SAMPLES:STRIDE[:MIN_THROUGHPUT] each")->capture_default_str();
         if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-bench-ss")) return *exitCode;
         if (vertices < 1) throw Error("--vertices", "must be at least 1");
 
