@@ -90,10 +90,10 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
                    "Single scattering: s x s sub-directions per texel")
         ->capture_default_str();
     app.add_option("--ss-direction-stride", s.ssDirectionStride,
-                   "Single scattering: trace the texels of a lattice of this stride per cube face, "
-                   "split the cells whose corners disagree (shadow or sheet edges, the cut-off) down "
-                   "to single texels and interpolate the others; 1 traces every texel. Only with "
-                   "--ss-supersample 1 (docs/single-scattering.md)")
+                   "Single scattering: trace the texels of a lattice of this stride per cube face "
+                   "(1, 2, 4, 8 or 16), split the cells whose corners disagree (shadow or sheet edges, "
+                   "the cut-off, bright cells) down to single texels and interpolate the others; 1 "
+                   "traces every texel. Ignored when --ss-supersample > 1 (docs/single-scattering.md)")
         ->capture_default_str();
     app.add_option("--pass1-file", s.pass1File,
                    "Load the samples' pass-1 vectors from this file when it exists (made for the same "

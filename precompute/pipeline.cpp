@@ -192,7 +192,7 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
         p.push_back({"path_quadrature", toString(o.pathQuadrature)});
         p.push_back({"ss_supersample", std::to_string(o.supersample)});
         // Recorded only when it acts, so files made before it keep their digest.
-        if (o.directionStride > 1 && o.supersample == 1) {
+        if (o.directionStride > 1 && o.supersample == 1 && o.cubemapSize >= 2) {
             p.push_back({"ss_direction_stride", std::to_string(o.directionStride)});
             p.push_back({"ss_refine_tolerances", fmt(o.refineValueTolerance) + " " + fmt(o.refineValueFloor) +
                                                      " " + fmt(o.refineLargeCellValue)});
@@ -273,10 +273,10 @@ std::string PrecomputeSummary::format() const {
             "%.3g exits through reversed triangles",
             double(ssExitRays), double(ssOcclusionRays), double(ssCulledRays), double(ssEscapedRays),
             double(ssReversedHits));
-        if (ssInterpolatedDirections > 0)
+        if (ssInterpolatedTexels > 0)
             add("  directions      %.3g traced, %.3g interpolated from agreeing corners (%.1f%% traced)",
-                double(ssTracedDirections), double(ssInterpolatedDirections),
-                100.0 * double(ssTracedDirections) / double(ssTracedDirections + ssInterpolatedDirections));
+                double(ssTracedTexels), double(ssInterpolatedTexels),
+                100.0 * double(ssTracedTexels) / double(ssTracedTexels + ssInterpolatedTexels));
         add("  path            mean d_m %.3f mm, %llu vertices with capped d_m, %llu integrated "
             "along +n (normal pointing inward), %llu path samples outside the object",
             ssMeanDepthMm, (unsigned long long)ssCappedDepths, (unsigned long long)ssFlippedNormals,
@@ -609,8 +609,8 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         summary.ssExitRays = total(st.exitRays);
         summary.ssOcclusionRays = total(st.occlusionRays);
         summary.ssCulledRays = total(st.culledRays);
-        summary.ssTracedDirections = total(st.tracedDirections);
-        summary.ssInterpolatedDirections = total(st.interpolatedDirections);
+        summary.ssTracedTexels = total(st.tracedTexels);
+        summary.ssInterpolatedTexels = total(st.interpolatedTexels);
         summary.ssReversedHits = total(st.reversedHits);
         summary.ssOutsideSamples = total(st.outsideSamples);
         summary.ssFlippedNormals = total(st.flippedNormals);

@@ -141,7 +141,7 @@ struct PrecomputeSummary {
     double ssSeconds = 0;
     uint64_t ssRaysTraced = 0;        // depth + exit + occlusion rays
     uint64_t ssExitRays = 0, ssOcclusionRays = 0, ssCulledRays = 0;
-    uint64_t ssTracedDirections = 0, ssInterpolatedDirections = 0;
+    uint64_t ssTracedTexels = 0, ssInterpolatedTexels = 0;
     uint64_t ssEscapedRays = 0, ssReversedHits = 0, ssOutsideSamples = 0;
     uint64_t ssFlippedNormals = 0, ssCappedDepths = 0;
     double ssRaysPerSecond = 0;

@@ -148,8 +148,8 @@ void SingleScatteringStats::add(const SingleScatteringStats& o) {
     occlusionRays += o.occlusionRays;
     sharedVisibility += o.sharedVisibility;
     culledRays += o.culledRays;
-    tracedDirections += o.tracedDirections;
-    interpolatedDirections += o.interpolatedDirections;
+    tracedTexels += o.tracedTexels;
+    interpolatedTexels += o.interpolatedTexels;
     escapedRays += o.escapedRays;
     reversedHits += o.reversedHits;
     outsideSamples += o.outsideSamples;
@@ -473,9 +473,11 @@ void sharedOcclusion(const SingleScatteringContext& ctx, size_t m, SingleScatter
 
 // Shades the exits in sc.hits of the rays toward list[0..count) (traceExitRays' order),
 // traces the occlusion rays of those that survive the cut-off and adds them to the
-// dense transport. With `record`, also fills sc.exitCode / exitNormal (per texel and
-// path sample) and sc.magnitude (per texel: the summed RGB-luminance throughput per
-// steradian of its visible exits, phase not included) for the adaptive directions.
+// dense transport. With `record`, also fills sc.exitCode and sc.sampleMagnitude (per
+// texel and path sample: the kind of exit and its RGB-luminance throughput per
+// steradian before V, phase not included), sc.magnitude (per texel: the same summed
+// over its visible exits) and sc.stake (summed over all its exits, occluded or not) for
+// the adaptive directions.
 void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t count, float* dense,
                 bool record, SingleScatteringScratch& sc, SingleScatteringStats& stats) {
     const RayScene& scene = ctx.scene();
@@ -502,6 +504,7 @@ void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t
             std::fill_n(sc.exitCode.begin() + std::ptrdiff_t(size_t(list[p]) * ns), ns, uint8_t(0));
             std::fill_n(sc.sampleMagnitude.begin() + std::ptrdiff_t(size_t(list[p]) * ns), ns, 0.0f);
             sc.magnitude[list[p]] = 0.0f;
+            sc.stake[list[p]] = 0.0f;
         }
 
     // Candidates: exits of inside sample points whose light reaches x_p with
@@ -591,7 +594,9 @@ void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t
         if (record) {
             const uint32_t r = sc.direction[q];
             sc.exitCode[size_t(r) * ns + sc.candidateSample[q]] = sc.occluded[q] ? 1 : 2;
-            if (!sc.occluded[q]) sc.magnitude[r] += sc.sampleMagnitude[size_t(r) * ns + sc.candidateSample[q]];
+            const float v = sc.sampleMagnitude[size_t(r) * ns + sc.candidateSample[q]];
+            sc.stake[r] += v;
+            if (!sc.occluded[q]) sc.magnitude[r] += v;
         }
         if (sc.occluded[q]) continue;
         const float* v = &sc.value[3 * q];
@@ -610,17 +615,20 @@ void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t
 // than valueFloor per steradian at some corner (occluded or not) has the same kind of
 // exit at all four (occluded, visible, or none); the corners' throughputs differ by at
 // most refineValueTolerance x the largest (+ valueFloor); and a cell wider than 2
-// texels is bright nowhere (at most largeCellMax), so a small occluder or a sheet edge
-// that fits between its corners can hide only where little light is at stake.
+// texels has little light at stake at every corner, occluded or not (at most
+// largeCellMax), so a small occluder, a small lit gap or a sheet edge that fits between
+// its corners can hide only where little light is at stake.
 bool cornersAgree(const SingleScatteringContext& ctx, const uint32_t* c, int span, float valueFloor,
                   float largeCellMax, const SingleScatteringScratch& sc) {
     const size_t ns = sc.samplePoint.size();
+    if (span > 2)  // before V: an occluded corner may border a lit gap
+        for (int a = 0; a < 4; ++a)
+            if (sc.stake[c[a]] > largeCellMax) return false;
     float lo = sc.magnitude[c[0]], hi = lo;
     for (int a = 1; a < 4; ++a) {
         lo = std::min(lo, sc.magnitude[c[a]]);
         hi = std::max(hi, sc.magnitude[c[a]]);
     }
-    if (span > 2 && hi > largeCellMax) return false;
     if (hi - lo > float(ctx.options().refineValueTolerance) * hi + valueFloor) return false;
     for (size_t i = 0; i < ns; ++i) {
         float atStake = 0.0f;
@@ -643,8 +651,8 @@ void refineDirections(const SingleScatteringContext& ctx, float* dense, SingleSc
     const size_t texels = ctx.texelCount();
     const int terms = ctx.terms();
     const SingleScatteringContext::Directions& dirs = ctx.tracedDirections();
-    float largest = 0.0f;
-    for (uint32_t r : ctx.firstDirections()) largest = std::max(largest, sc.magnitude[r]);
+    float largest = 0.0f;  // the vertex's scale: its brightest lattice texel before V
+    for (uint32_t r : ctx.firstDirections()) largest = std::max(largest, sc.stake[r]);
     const float valueFloor = float(ctx.options().refineValueFloor) * largest;
     const float largeCellMax = float(ctx.options().refineLargeCellValue) * largest;
     auto texelOf = [n](int f, int i, int j) { return uint32_t((f * n + j) * n + i); };
@@ -712,8 +720,8 @@ void refineDirections(const SingleScatteringContext& ctx, float* dense, SingleSc
     }
     uint64_t traced = 0;
     for (size_t t = 0; t < texels; ++t) traced += sc.texelTraced[t];
-    stats.tracedDirections += traced;
-    stats.interpolatedDirections += texels - traced;
+    stats.tracedTexels += traced;
+    stats.interpolatedTexels += texels - traced;
 }
 
 }  // namespace
@@ -763,6 +771,7 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
         sc.exitCode.resize(texels * ns);
         sc.sampleMagnitude.resize(texels * ns);
         sc.magnitude.resize(texels);
+        sc.stake.resize(texels);
         sc.texelTraced.assign(texels, 0);
         sc.texelSpan.assign(texels, uint16_t(0xFFFF));
         for (uint32_t t : first) sc.texelTraced[t] = 1;
@@ -771,7 +780,7 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
     if (adaptive)
         refineDirections(ctx, dense, sc, stats);
     else
-        stats.tracedDirections += ctx.texelCount();
+        stats.tracedTexels += ctx.texelCount();
 }
 
 double compressSingleScattering(const SingleScatteringContext& ctx, float* dense,

@@ -18,7 +18,9 @@
 //            (the triangle's geometric normal where the interpolated one does not
 //            face w_j).
 //   * inside x_p counts only when it is inside the object: when more of its rays
-//            first hit a triangle facing along the ray (a back face) than hit nothing.
+//            first hit a triangle facing along the ray (a back face) than hit nothing
+//            (the rays toward every texel, or toward the lattice of the adaptive
+//            directions).
 //            An exit through a triangle facing the other way (inconsistent winding,
 //            common in scanned meshes) is used with its normals reversed. When most
 //            points below a vertex are outside, its normal points inward and the
@@ -185,7 +187,7 @@ struct SingleScatteringOptions {
     // Trace the exit and occlusion rays as COHERENT 16-ray packets (Embree's
     // RTC_INTERSECT_CONTEXT_FLAG_COHERENT, RayScene's batches with coherent = true); each
     // packet holds one direction from 16 neighbouring points (with 16 path samples; with
-    // 6, neighbouring directions from 6 points), which is what that flag is for. The hits are the same either way (tested); ~1.8x the exit-ray rate, 1.26x the
+    // 4, neighbouring directions from 4 points), which is what that flag is for. The hits are the same either way (tested); ~1.8x the exit-ray rate, 1.26x the
     // whole pass on a robust scene (docs/single-scattering.md, "Speed").
     bool coherentRays = true;
     // Adaptive texel directions (issue 16, item 1). With a stride S > 1 only the texels
@@ -195,17 +197,20 @@ struct SingleScatteringOptions {
     // in four, its new corners traced, and so on down to single texels. Corners agree
     // when (refineDirections in the .cpp):
     //   * for every path sample with more than refineValueFloor x L per steradian at
-    //     some corner (L: the vertex's brightest lattice texel), all four corners have the
-    //     same kind of exit: occluded, visible, or none (escaped, culled, outside);
-    //   * their throughputs per steradian differ by at most refineValueTolerance x the
-    //     largest (+ refineValueFloor x L);
-    //   * a cell wider than 2 texels has no corner above refineLargeCellValue x L.
+    //     some corner (L: the vertex's brightest lattice texel, before occlusion), all
+    //     four corners have the same kind of exit: occluded, visible, or none (escaped,
+    //     culled, outside);
+    //   * their visible throughputs per steradian differ by at most
+    //     refineValueTolerance x the largest (+ refineValueFloor x L);
+    //   * a cell wider than 2 texels has no corner with more than refineLargeCellValue x L
+    //     at stake before occlusion.
     // Shadow edges, the cut-off and steep changes show as disagreeing corners; an
     // occluder or a lit gap that fits between agreeing corners is missed, which the last
     // rule confines to dim cells or cells 2 texels wide. Measured against 64 midpoints
-    // (docs/single-scattering.md "Adaptive directions"): the per-vertex error of 6 Gauss
-    // points unchanged (bunny 1.73% against 1.71% relative L2) with 2.5x fewer rays.
-    // 1 traces every texel (the rule before). Used only with supersample == 1.
+    // (docs/single-scattering.md "Speed ... adaptive directions"): the per-vertex error
+    // of a path rule unchanged by it (bunny, 4 Gauss points: 2.52% against 2.57%
+    // relative L2) with 2.6x fewer rays. 1 traces every texel (the rule before); used
+    // only with supersample == 1 (ignored otherwise).
     int directionStride = 1;
     double refineValueTolerance = 0.5;
     double refineValueFloor = 1e-2;
@@ -309,8 +314,8 @@ struct SingleScatteringStats {
     uint64_t culledRays = 0;      // exits below minThroughput (no occlusion ray)
     // Texels of the vertices with an inside path: traced (all of them unless adaptive:
     // the lattice and the refined corners) or interpolated from agreeing corners.
-    uint64_t tracedDirections = 0;
-    uint64_t interpolatedDirections = 0;
+    uint64_t tracedTexels = 0;
+    uint64_t interpolatedTexels = 0;
     uint64_t escapedRays = 0;     // exit rays of inside points that hit nothing (open mesh)
     uint64_t reversedHits = 0;    // exits through triangles wound the wrong way (used, reversed)
     uint64_t outsideSamples = 0;  // path samples x_p judged outside the object (skipped)
@@ -347,6 +352,7 @@ struct SingleScatteringScratch {
     std::vector<uint8_t> exitCode;
     std::vector<float> sampleMagnitude;   // per texel and path sample, before V
     std::vector<float> magnitude;
+    std::vector<float> stake;             // per texel: throughput of all its exits, before V
     std::vector<uint8_t> texelTraced;
     std::vector<uint16_t> texelSpan;
     std::vector<uint32_t> list;           // directions of the current round

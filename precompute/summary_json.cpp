@@ -121,8 +121,8 @@ Json summaryJson(const PrecomputeSummary& r) {
     j["ss_exit_rays"] = ssOnly(r.ssExitRays);
     j["ss_occlusion_rays"] = ssOnly(r.ssOcclusionRays);
     j["ss_culled_rays"] = ssOnly(r.ssCulledRays);
-    j["ss_traced_directions"] = ssOnly(r.ssTracedDirections);
-    j["ss_interpolated_directions"] = ssOnly(r.ssInterpolatedDirections);
+    j["ss_traced_texels"] = ssOnly(r.ssTracedTexels);
+    j["ss_interpolated_texels"] = ssOnly(r.ssInterpolatedTexels);
     j["ss_escaped_rays"] = ssOnly(r.ssEscapedRays);
     j["ss_reversed_hits"] = ssOnly(r.ssReversedHits);
     j["ss_outside_samples"] = ssOnly(r.ssOutsideSamples);
