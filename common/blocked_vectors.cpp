@@ -48,16 +48,21 @@ void BlockedRgbVectors::appendBlock(const std::vector<uint32_t>& idx, const std:
     for (float x : rgb)
         if (!std::isfinite(x)) throw Error(kSubject, "appendBlock got a non-finite value");
 
-    float scale[3][kVertexBlock] = {};
+    // The SH indices (>= shFrom) are the last ones: [split, idx.size()).
+    const size_t split = size_t(std::lower_bound(idx.begin(), idx.end(), shFrom) - idx.begin());
+    float scale[3][kVertexBlock] = {}, shScale[3][kVertexBlock] = {};
+    const auto scaleOf = [&](uint32_t lane, int c, size_t begin, size_t end) {
+        float maxAbs = 0.0f;
+        for (size_t n = begin; n < end; ++n) maxAbs = std::max(maxAbs, std::fabs(rgb[(n * lanes + lane) * 3 + c]));
+        // A maximum below 127 * FLT_MIN (subnormal scale) is stored as zero.
+        return double(maxAbs) < kInt8Max * double(std::numeric_limits<float>::min())
+                   ? 0.0f
+                   : float(double(maxAbs) / kInt8Max);
+    };
     for (uint32_t lane = 0; lane < lanes; ++lane)
         for (int c = 0; c < 3; ++c) {
-            float maxAbs = 0.0f;
-            for (size_t n = 0; n < idx.size(); ++n)
-                maxAbs = std::max(maxAbs, std::fabs(rgb[(n * lanes + lane) * 3 + c]));
-            // A maximum below 127 * FLT_MIN (subnormal scale) is stored as zero.
-            scale[c][lane] = double(maxAbs) < kInt8Max * double(std::numeric_limits<float>::min())
-                                 ? 0.0f
-                                 : float(double(maxAbs) / kInt8Max);
+            scale[c][lane] = scaleOf(lane, c, 0, split);
+            shScale[c][lane] = scaleOf(lane, c, split, idx.size());
         }
     const size_t base = indices.size();
     indices.insert(indices.end(), idx.begin(), idx.end());
@@ -66,8 +71,9 @@ void BlockedRgbVectors::appendBlock(const std::vector<uint32_t>& idx, const std:
         for (uint32_t lane = 0; lane < lanes; ++lane)
             for (int c = 0; c < 3; ++c) {
                 int q = 0;
-                if (scale[c][lane] > 0.0f) {
-                    const double r = std::nearbyint(double(rgb[(n * lanes + lane) * 3 + c]) / double(scale[c][lane]));
+                const float s = n < split ? scale[c][lane] : shScale[c][lane];
+                if (s > 0.0f) {
+                    const double r = std::nearbyint(double(rgb[(n * lanes + lane) * 3 + c]) / double(s));
                     q = int(std::clamp(r, -kInt8Max, kInt8Max));
                 }
                 values[(base + n) * kBlockValuesPerIndex + 16 * size_t(c) + lane] = int8_t(q);
@@ -76,6 +82,9 @@ void BlockedRgbVectors::appendBlock(const std::vector<uint32_t>& idx, const std:
     offsets.push_back(uint32_t(indices.size()));
     for (int c = 0; c < 3; ++c)
         for (uint32_t lane = 0; lane < kVertexBlock; ++lane) scales.push_back(scale[c][lane]);
+    if (shFrom != UINT32_MAX)
+        for (int c = 0; c < 3; ++c)
+            for (uint32_t lane = 0; lane < kVertexBlock; ++lane) shScales.push_back(shScale[c][lane]);
     for (uint32_t lane = 0; lane < lanes; ++lane) {
         const uint32_t v = laneVertices[lane];
         if (v >= slotOf.size()) slotOf.resize(size_t(v) + 1, UINT32_MAX);
@@ -98,20 +107,26 @@ void BlockedRgbVectors::dequantizeVertex(size_t v, std::vector<uint32_t>& idx, s
     if (v >= slotOf.size() || slotOf[v] == UINT32_MAX)
         throw std::out_of_range("BlockedRgbVectors::dequantizeVertex: vertex " + std::to_string(v) + " has no lane");
     const size_t b = slotOf[v] / kVertexBlock, lane = slotOf[v] % kVertexBlock;
-    const uint32_t begin = offsets[b], end = offsets[b + 1];
+    const uint32_t begin = offsets[b], end = offsets[b + 1], split = shBegin(b);
     idx.assign(indices.begin() + begin, indices.begin() + end);
     rgb.resize(3 * size_t(end - begin));
     for (uint32_t n = begin; n < end; ++n)
         for (size_t c = 0; c < 3; ++c)
             rgb[3 * size_t(n - begin) + c] = float(values[n * kBlockValuesPerIndex + 16 * c + lane]) *
-                                             scales[b * kBlockValuesPerIndex + 16 * c + lane];
+                                             (n < split ? scales : shScales)[b * kBlockValuesPerIndex + 16 * c + lane];
+}
+
+uint32_t BlockedRgbVectors::shBegin(size_t b) const {
+    if (shFrom == UINT32_MAX) return offsets[b + 1];
+    return uint32_t(std::lower_bound(indices.begin() + offsets[b], indices.begin() + offsets[b + 1], shFrom) -
+                    indices.begin());
 }
 
 void BlockedRgbVectors::clear() { *this = BlockedRgbVectors(); }
 
 size_t BlockedRgbVectors::byteSize() const {
     return (order.size() + offsets.size()) * sizeof(uint32_t) + indices.size() * sizeof(uint16_t) +
-           values.size() + scales.size() * sizeof(float);
+           values.size() + (scales.size() + shScales.size()) * sizeof(float);
 }
 
 namespace {
@@ -203,11 +218,16 @@ BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
     });
     BlockedRgbVectors out;
     size_t total = 0;
-    for (const Block& b : chosen) total += b.idx.size();
+    for (const Block& b : chosen) {
+        total += b.idx.size();
+        // SH scales only where there is an SH part (not for single-scattering components).
+        if (!b.idx.empty() && b.idx.back() >= forcedFrom) out.shFrom = forcedFrom;
+    }
     out.offsets.reserve(blocks + 1);
     out.indices.reserve(total);
     out.values.reserve(total * kBlockValuesPerIndex);
     out.scales.reserve(blocks * kBlockValuesPerIndex);
+    if (out.shFrom != UINT32_MAX) out.shScales.reserve(blocks * kBlockValuesPerIndex);
     for (Block& b : chosen) {
         out.appendBlock(b.idx, b.rgb, b.lanes);
         b = Block();
@@ -226,6 +246,11 @@ std::string checkBlockedVectors(const BlockedRgbVectors& b, uint32_t lightCount)
         return "blocked values hold " + std::to_string(b.values.size()) + " bytes, expected 48 per index";
     if (b.scales.size() != blocks * kBlockValuesPerIndex)
         return "blocked scales hold " + std::to_string(b.scales.size()) + " floats, expected 48 per block";
+    if (b.shFrom != UINT32_MAX && b.shFrom >= lightCount)
+        return "SH scales start at index " + std::to_string(b.shFrom) + " >= " + std::to_string(lightCount);
+    if (b.shScales.size() != (b.shFrom == UINT32_MAX ? 0 : blocks * kBlockValuesPerIndex))
+        return "blocked SH scales hold " + std::to_string(b.shScales.size()) + " floats, expected " +
+               (b.shFrom == UINT32_MAX ? std::string("none without an SH part") : std::string("48 per block"));
     // Offsets first: every later loop indexes through them.
     for (uint64_t k = 0; k < blocks; ++k)
         if (b.offsets[k] > b.offsets[k + 1]) return "block offsets decrease at block " + std::to_string(k);
@@ -247,12 +272,15 @@ std::string checkBlockedVectors(const BlockedRgbVectors& b, uint32_t lightCount)
             if (n > begin && b.indices[n] <= b.indices[n - 1])
                 return "block " + std::to_string(k) + " indices not strictly increasing";
         }
-        for (int c = 0; c < 3; ++c)
-            for (uint32_t lane = 0; lane < kVertexBlock; ++lane) {
-                const float s = b.scales[k * kBlockValuesPerIndex + 16 * size_t(c) + lane];
-                if (!std::isfinite(s) || s < 0.0f) return "block scale not finite and >= 0";
-                if (k * kVertexBlock + lane >= b.vertices && s != 0.0f) return "padding lane with a non-zero scale";
-            }
+        for (const std::vector<float>* scales : {&b.scales, &b.shScales}) {
+            if (scales->empty()) continue;
+            for (int c = 0; c < 3; ++c)
+                for (uint32_t lane = 0; lane < kVertexBlock; ++lane) {
+                    const float s = (*scales)[k * kBlockValuesPerIndex + 16 * size_t(c) + lane];
+                    if (!std::isfinite(s) || s < 0.0f) return "block scale not finite and >= 0";
+                    if (k * kVertexBlock + lane >= b.vertices && s != 0.0f) return "padding lane with a non-zero scale";
+                }
+        }
     }
     return {};
 }

@@ -35,6 +35,18 @@
 // error of a value is at most half a step, max |v_nc| / 254 of the vertex's channel
 // maximum, plus float rounding (kBlockQuantizationMaxRelativeError). A channel that is
 // zero at every kept index has scale 0.
+//
+// TWO SCALES WITH AN SH PART. When shFrom is set (the file's SH terms start there,
+// 6 N^2; transport_file.h) the indices >= shFrom have scales of their own, shScales
+// (48 per block, laid out as scales), each max |v_nc| / 127 over those indices only;
+// the maxima above then run over the Haar indices only. WHY: the SH band-0 coefficient
+// of a transport vector is 10-190x (median 27x) its largest Haar coefficient (bunny,
+// Marble and Ketchup), so one scale set by it left the Haar residual ~5 levels of the
+// 255 and added 0.1-0.6 points of rel. RMSE to a render (docs/performance.md). The
+// SH indices are the last of each block (indices increase), so the kernel sums the
+// Haar range and the SH range separately and scales each once. Without shFrom
+// (UINT32_MAX: no SH terms, or a format version 2-3 file) shScales is empty and
+// `scales` serves every index.
 
 #include <glm/vec3.hpp>
 
@@ -59,7 +71,9 @@ struct BlockedRgbVectors {
     std::vector<uint32_t> offsets{0};    // blocks + 1
     std::vector<uint16_t> indices;       // shared by the block's vertices
     std::vector<int8_t> values;          // 48 per index: [16 c + lane]
-    std::vector<float> scales;           // 48 per block: [16 c + lane]
+    std::vector<float> scales;           // 48 per block: [16 c + lane] (indices < shFrom)
+    uint32_t shFrom = UINT32_MAX;        // first index with its own scale (the SH part); none if UINT32_MAX
+    std::vector<float> shScales;         // 48 per block if shFrom is set, else empty
 
     size_t vertexCount() const { return size_t(vertices); }
     size_t blockCount() const { return offsets.empty() ? 0 : offsets.size() - 1; }
@@ -68,7 +82,8 @@ struct BlockedRgbVectors {
 
     // Appends the next block: the vertices `lanes` (1..16 of them) that share the indices idx
     // (strictly increasing, each < 65536) with their values rgb[(n * lanes + lane) * 3 + c]
-    // (finite). Quantizes per vertex and channel as described above. Throws prt::Error
+    // (finite). Quantizes per vertex and channel as described above (two scales when
+    // shFrom is set: set it before the first block). Throws prt::Error
     // on a size mismatch, unsorted or duplicate index, non-finite value, a block after a
     // partial one, or more than 2^32 - 1 indices in total.
     // (Vertex numbers are not checked here; checkBlockedVectors checks the permutation.)
@@ -83,12 +98,16 @@ struct BlockedRgbVectors {
     void indexSlots();
 
     void clear();  // back to zero vertices
-    // Bytes of the five arrays in memory (what a relight pass streams; slotOf is not read).
+    // Bytes of the six arrays in memory (what a relight pass streams; slotOf is not read).
     size_t byteSize() const;
+    // Where block b's SH indices start within the index array (offsets[b] + the count
+    // of its indices < shFrom); offsets[b + 1] when shFrom is not set.
+    uint32_t shBegin(size_t b) const;
 
     bool operator==(const BlockedRgbVectors& o) const {
         return vertices == o.vertices && order == o.order && offsets == o.offsets &&
-               indices == o.indices && values == o.values && scales == o.scales;
+               indices == o.indices && values == o.values && scales == o.scales &&
+               shFrom == o.shFrom && shScales == o.shScales;
     }
 
     // Derived, not compared: the inverse of order, slotOf[vertex] = 16 b + lane
@@ -98,7 +117,8 @@ struct BlockedRgbVectors {
 
 // Empty when the arrays are consistent (sizes; offsets monotone from 0 to the index
 // count; indices strictly increasing per block and < lightCount; order a permutation of
-// 0..V-1; padding lanes zero); otherwise a one-line reason.
+// 0..V-1; padding lanes zero; shScales 48 per block iff shFrom is set, shFrom <
+// lightCount); otherwise a one-line reason.
 std::string checkBlockedVectors(const BlockedRgbVectors& b, uint32_t lightCount);
 
 // The vertices in blocks of 16 close together: recursive median splits along the
@@ -117,7 +137,8 @@ std::vector<uint32_t> spatialBlockOrder(const std::vector<glm::vec3>& positions)
 // Converts whole per-vertex vectors (e.g. a precompute's 512-term vectors) to blocks of
 // the vertices in `order` (a permutation of the vertices, e.g. spatialBlockOrder), each
 // keeping `keep` indices (>= 1). Indices >= forcedFrom (a file's SH terms, 6 N^2 and
-// up; transport_file.h) are kept first whatever their score, when any lane has them.
+// up; transport_file.h) are kept first whatever their score, when any lane has them,
+// and get scales of their own (the result's shFrom = forcedFrom when a block has one).
 // Deterministic, independent of the number of threads.
 BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
                                 const std::vector<uint32_t>& order,

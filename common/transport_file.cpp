@@ -44,9 +44,15 @@ constexpr std::array<char, 8> kMagic = {'P', 'R', 'T', 'X', 'P', 'O', 'R', 'T'};
 // SH part to every vector (common/sh_part.h): the header's former reserved field holds
 // the SH term count (1, 4 or 9; 0 in versions 1 and 2), and indices run to 6 N^2 +
 // terms. Any file with SH terms is version 3, with or without blocked components.
+// Version 4 lets a BLKC section hold a second array of scales, for the SH indices
+// (common/blocked_vectors.h, "Two scales"), flagged by its first reserved field: a file
+// is version 4 when a blocked component has them (single-scattering components, which
+// have no SH part, keep one), so version-3 files keep their bytes and load with one
+// scale per vertex and channel as before.
 constexpr uint32_t kFormatVersion = 1;
 constexpr uint32_t kBlockedFormatVersion = 2;
 constexpr uint32_t kShFormatVersion = 3;
+constexpr uint32_t kShScalesFormatVersion = 4;
 constexpr uint32_t kEndianMarker = 0x01020304u;
 constexpr uint64_t kAlignment = 64;
 constexpr uint64_t kPreambleBytes = 16;
@@ -177,11 +183,12 @@ uint64_t blockCountOf(uint64_t vertices) { return (vertices + kVertexBlock - 1) 
 
 // Byte offsets, relative to the payload start, of a blocked component section's arrays.
 struct BlockedLayout {
-    uint64_t order = 0, offsets = 0, indices = 0, values = 0, scales = 0, total = 0;
+    uint64_t order = 0, offsets = 0, indices = 0, values = 0, scales = 0, shScales = 0, total = 0;
 };
 
-// Requires vertices <= kMaxVertices and indices <= UINT32_MAX (no overflow).
-BlockedLayout blockedLayout(uint64_t vertices, uint64_t indices) {
+// Requires vertices <= kMaxVertices and indices <= UINT32_MAX (no overflow). shScales:
+// the section has the SH scales array (format version 4).
+BlockedLayout blockedLayout(uint64_t vertices, uint64_t indices, bool shScales) {
     const uint64_t blocks = blockCountOf(vertices);
     BlockedLayout l;
     l.order = kBlockedFixedBytes;
@@ -190,6 +197,10 @@ BlockedLayout blockedLayout(uint64_t vertices, uint64_t indices) {
     l.values = alignUp(l.indices + indices * sizeof(uint16_t));
     l.scales = alignUp(l.values + indices * kBlockValuesPerIndex * sizeof(int8_t));
     l.total = l.scales + blocks * kBlockValuesPerIndex * sizeof(float);
+    if (shScales) {
+        l.shScales = alignUp(l.total);
+        l.total = l.shScales + blocks * kBlockValuesPerIndex * sizeof(float);
+    }
     return l;
 }
 
@@ -386,6 +397,11 @@ std::string checkFile(const TransportFile& f, size_t* componentIndex = nullptr) 
         if (!c.blocked() && (!b.order.empty() || b.offsets.size() > 1 || !b.indices.empty() ||
                              !b.values.empty() || !b.scales.empty()))
             return name + ": blocked arrays without blocked vertices";
+        // SH scales start at the SH part (the file stores a flag, not the index).
+        if (c.blocked() && b.shFrom != UINT32_MAX &&
+            (f.shTerms == 0 || b.shFrom != 6 * f.cubemapSize * f.cubemapSize))
+            return name + ": SH scales from index " + u64(b.shFrom) + " but the SH part " +
+                   (f.shTerms == 0 ? std::string("is absent") : "starts at " + u64(6 * f.cubemapSize * f.cubemapSize));
         std::string reason = c.blocked() ? checkBlocked(b, f.mesh.vertexCount, f.cubemapSize, f.shTerms)
                                          : checkVectors(v, f.mesh.vertexCount, f.cubemapSize, f.shTerms);
         if (!reason.empty()) return name + ": " + reason;
@@ -520,6 +536,9 @@ private:
 };
 
 uint32_t formatVersionOf(const TransportFile& f) {
+    if (std::any_of(f.components.begin(), f.components.end(),
+                    [](const TransportComponent& c) { return c.blocked() && c.blocks.shFrom != UINT32_MAX; }))
+        return kShScalesFormatVersion;
     if (f.shTerms > 0) return kShFormatVersion;
     const bool blocked = std::any_of(f.components.begin(), f.components.end(),
                                      [](const TransportComponent& c) { return c.blocked(); });
@@ -528,13 +547,14 @@ uint32_t formatVersionOf(const TransportFile& f) {
 
 void writeBlockedComponent(FileWriter& w, const TransportComponent& c) {
     const BlockedRgbVectors& b = c.blocks;
-    const BlockedLayout l = blockedLayout(b.vertices, b.indexCount());
+    const BlockedLayout l = blockedLayout(b.vertices, b.indexCount(), b.shFrom != UINT32_MAX);
     w.beginSection(Section::BlockedComponent, l.total);
     w.u32(uint32_t(c.kind));
     w.u32(c.term);
     w.u64(b.vertices);
     w.u64(b.blockCount());
     w.u64(b.indexCount());
+    w.u32(b.shFrom != UINT32_MAX ? 1 : 0);  // SH scales (version 4; reserved, 0, before)
     w.padTo(l.order);
     w.array(b.order);
     w.padTo(l.offsets);
@@ -545,6 +565,10 @@ void writeBlockedComponent(FileWriter& w, const TransportComponent& c) {
     w.array(b.values);
     w.padTo(l.scales);
     w.array(b.scales);
+    if (b.shFrom != UINT32_MAX) {
+        w.padTo(l.shScales);
+        w.array(b.shScales);
+    }
     w.endSection();
 }
 
@@ -848,10 +872,10 @@ uint32_t readPreamble(FileReader& r) {
                "big-endian; transport files are little-endian");
     if (marker != kEndianMarker)
         r.fail("bad endianness marker " + hex32(marker) + " (expected 0x01020304): corrupt file");
-    if (version != kFormatVersion && version != kBlockedFormatVersion && version != kShFormatVersion)
+    if (version < kFormatVersion || version > kShScalesFormatVersion)
         r.fail("unsupported transport file format version " + u64(version) +
                " (this build reads versions " + u64(kFormatVersion) + " to " +
-               u64(kShFormatVersion) + ")");
+               u64(kShScalesFormatVersion) + ")");
     return version;
 }
 
@@ -958,12 +982,17 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
     const uint64_t vertices = getU64(b + 8);
     const uint64_t blocks = getU64(b + 16);
     const uint64_t indices = getU64(b + 24);
-    const bool reservedZero = allZero(b + 32, size_t(kBlockedFixedBytes - 32));
+    // Versions 1-3 reserve the field at 32; version 4 flags SH scales there (0 or 1).
+    const uint32_t shScalesFlag = h.version >= kShScalesFormatVersion ? getU32(b + 32) : 0;
+    const size_t reservedFrom = h.version >= kShScalesFormatVersion ? 36 : 32;
+    const bool reservedZero = allZero(b + reservedFrom, size_t(kBlockedFixedBytes - reservedFrom));
 
     auto fail = [&](const std::string& reason) {
         if (infoOnly) r.fail("inconsistent: " + s.label + ": " + reason);
         failAfterChecksum(r, s, reason);
     };
+    if (shScalesFlag > 1) fail("SH scales flag " + u64(shScalesFlag) + " is not 0 or 1");
+    const bool shScales = shScalesFlag == 1;
     // The vertex count is bounded by the header's (<= 2^40), the index count by 2^32,
     // so the layout cannot overflow and its total is checked against the section
     // length (itself within the file) before anything is allocated.
@@ -975,7 +1004,7 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
         fail(u64(blocks) + " blocks for " + u64(vertices) + " vertices, expected " +
              u64(blockCountOf(vertices)) + " (16 per block)");
     if (indices > UINT32_MAX) fail(u64(indices) + " indices exceed the 32-bit offsets");
-    const BlockedLayout l = blockedLayout(vertices, indices);
+    const BlockedLayout l = blockedLayout(vertices, indices, shScales);
     if (l.total != s.length)
         fail(u64(vertices) + " vertices and " + u64(indices) + " block indices need a " +
              u64(l.total) + "-byte payload, the section has " + u64(s.length));
@@ -983,7 +1012,7 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
     TransportComponent c;
     c.kind = ComponentKind(kind);
     c.term = term;
-    if (info) *info = {ComponentKind(kind), term, vertices, indices, s.length, true, blocks};
+    if (info) *info = {ComponentKind(kind), term, vertices, indices, s.length, true, blocks, shScales};
     if (infoOnly) {
         skipSection(r, s);
     } else {
@@ -999,6 +1028,11 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
         readArray(r, s, v.values, indices * kBlockValuesPerIndex);
         paddingZero &= readPaddingTo(r, s, l.scales);
         readArray(r, s, v.scales, blocks * kBlockValuesPerIndex);
+        if (shScales) {
+            v.shFrom = 6 * h.cubemapSize * h.cubemapSize;
+            paddingZero &= readPaddingTo(r, s, l.shScales);
+            readArray(r, s, v.shScales, blocks * kBlockValuesPerIndex);
+        }
         closeSection(r, s);
         if (!paddingZero) r.fail("inconsistent: " + s.label + ": non-zero padding between arrays");
     }
@@ -1076,16 +1110,17 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
     return c;
 }
 
-// A version-2 file without a blocked component is refused: the writer writes such a
-// file as version 1, so this is a corrupted version field.
-template <class Components, class IsBlocked>
-void checkVersionMatchesComponents(FileReader& r, const HeadFields& h, const Components& components,
-                                   IsBlocked isBlocked) {
-    if (h.version == kBlockedFormatVersion &&
-        std::none_of(components.begin(), components.end(), isBlocked))
+// A version-2 file without a blocked component, or a version-4 file without SH scales
+// in one, is refused: the writer writes such a file as version 1 or 3, so this is a
+// corrupted version field.
+void checkVersionMatchesComponents(FileReader& r, const HeadFields& h, bool anyBlocked, bool anyShScales) {
+    if (h.version == kBlockedFormatVersion && !anyBlocked)
         r.fail("inconsistent: format version " + u64(h.version) +
-               " but no blocked component (a file without one is version " + u64(kFormatVersion) +
-               ")");
+               " but no blocked component (a file without one is version " + u64(kFormatVersion) + ")");
+    if (h.version == kShScalesFormatVersion && !anyShScales)
+        r.fail("inconsistent: format version " + u64(h.version) +
+               " but no blocked component with SH scales (a file without one is version " +
+               u64(kShFormatVersion) + ")");
 }
 
 ViewMaps readViewMaps(FileReader& r, bool infoOnly) {
@@ -1165,8 +1200,10 @@ TransportFile loadImpl(const std::string& path, const MeshFingerprint* expected)
                               "prt-merge");
     for (size_t i = 0; i < h.componentCount; ++i)
         f.components.push_back(readComponent(r, h, i, false, nullptr));
-    checkVersionMatchesComponents(r, h, f.components,
-                                  [](const TransportComponent& c) { return c.blocked(); });
+    checkVersionMatchesComponents(
+        r, h, std::any_of(f.components.begin(), f.components.end(), [](const auto& c) { return c.blocked(); }),
+        std::any_of(f.components.begin(), f.components.end(),
+                    [](const auto& c) { return c.blocked() && c.blocks.shFrom != UINT32_MAX; }));
     if (h.hasViewMaps) f.viewMaps = readViewMaps(r, false);
     readEnd(r);
     size_t bad = SIZE_MAX;
@@ -1395,8 +1432,9 @@ TransportFileInfo readTransportFileInfo(const std::string& path) {
         readComponent(r, h, i, true, &c);
         info.components.push_back(c);
     }
-    checkVersionMatchesComponents(r, h, info.components,
-                                  [](const TransportFileInfo::Component& c) { return c.blocked; });
+    checkVersionMatchesComponents(
+        r, h, std::any_of(info.components.begin(), info.components.end(), [](const auto& c) { return c.blocked; }),
+        std::any_of(info.components.begin(), info.components.end(), [](const auto& c) { return c.shScales; }));
     if (h.hasViewMaps) {
         const ViewMaps m = readViewMaps(r, true);
         info.viewMapSize = m.size;

@@ -158,7 +158,8 @@ inline constexpr const char* kShardVerticesParameter = "shard_vertices";
 // blocked component passes checkBlockedVectors and has empty `vectors`), then
 // writes through writeAtomically (common/atomic_file.h): on any failure an existing
 // file at `path` is untouched, no temporary file is left and prt::Error(path, reason)
-// is thrown. A file with SH terms is format version 3; otherwise one with a blocked
+// is thrown. A file whose blocked components have SH scales (BlockedRgbVectors::shFrom)
+// is format version 4, another file with SH terms version 3; otherwise one with a blocked
 // component is version 2, any other file version 1 (the same bytes as before blocked
 // components and SH parts existed).
 void saveTransportFile(const std::string& path, const TransportFile& file);
@@ -175,7 +176,7 @@ TransportFile loadTransportFile(const std::string& path, const MeshFingerprint& 
 
 // What readTransportFileInfo returns: everything except the vectors and view maps.
 struct TransportFileInfo {
-    uint32_t version = 0;  // the file's format version: 3 with SH terms, else 2 with blocked components, else 1
+    uint32_t version = 0;  // the file's format version: 4 with SH scales in blocks, else 3 with SH terms, else 2 with blocked components, else 1
     uint32_t cubemapSize = 0;
     uint32_t shTerms = 0;
     MeshFingerprint mesh;
@@ -191,6 +192,7 @@ struct TransportFileInfo {
         uint64_t payloadBytes = 0;  // bytes of the section's payload in the file
         bool blocked = false;       // a BLKC section (blocks of 16 vertices sharing indices)
         uint64_t blockCount = 0;    // blocked only: ceil(vertexCount / 16)
+        bool shScales = false;      // blocked only: the SH part has scales of its own (version 4)
     };
     std::vector<Component> components;
     int viewMapSize = 0;   // 0 when the file has no view maps

@@ -119,7 +119,9 @@ void checkArrays(const TransportComponent& c) {
         const uint64_t blocks = (b.vertices + kVertexBlock - 1) / kVertexBlock;
         if (b.order.size() != b.vertices || b.offsets.size() != blocks + 1 || b.offsets.front() != 0 ||
             b.offsets.back() != b.indices.size() || b.values.size() != kBlockValuesPerIndex * b.indices.size() ||
-            b.scales.size() != kBlockValuesPerIndex * blocks || b.indices.size() > UINT32_MAX)
+            b.scales.size() != kBlockValuesPerIndex * blocks ||
+            b.shScales.size() != (b.shFrom == UINT32_MAX ? 0 : kBlockValuesPerIndex * blocks) ||
+            b.indices.size() > UINT32_MAX)
             throw Error("transport file", componentName(c.kind, c.term) +
                                               ": inconsistent blocked array sizes (vertices " +
                                               std::to_string(b.vertices) + ", order " +
@@ -127,7 +129,8 @@ void checkArrays(const TransportComponent& c) {
                                               std::to_string(b.offsets.size()) + ", indices " +
                                               std::to_string(b.indices.size()) + ", values " +
                                               std::to_string(b.values.size()) + ", scales " +
-                                              std::to_string(b.scales.size()) + ")");
+                                              std::to_string(b.scales.size()) + ", SH scales " +
+                                              std::to_string(b.shScales.size()) + ")");
         return;
     }
     const SparseRgbVectors& s = c.vectors;
@@ -365,6 +368,9 @@ __attribute__((target("avx2,fma"))) bool relightRangeAvx2(const Stream& s, size_
 // light's RGB once (three broadcasts) and does three 16-wide multiply-adds, one per
 // channel, in 48 float accumulators (one per lane and channel), then multiplies by the
 // block's 48 scales and scatters the 16 results to their vertices order[16 b + lane].
+// With SH scales (BlockedRgbVectors::shFrom) the block's indices are two parts, the Haar
+// indices then the SH ones (the last, indices increasing): each variant runs its loop
+// over both parts in turn, scaling and resetting the accumulators between them.
 
 // Blocks per TBB task: 32 blocks = 512 vertices, as kVertexGrain; at 160 indices per
 // block a task streams ~256 KB.
@@ -386,14 +392,24 @@ struct BlockStream {
     const uint16_t* indices;
     const int8_t* values;
     const float* scales;
+    const float* shScales;  // nullptr without SH scales
+    uint32_t shFrom;
     size_t vertices;  // V
     size_t blocks;    // ceil(V / 16)
     uint32_t total;   // indices in the component
 };
 
 BlockStream blockStreamOf(const BlockedRgbVectors& b) {
-    return {b.order.data(),  b.offsets.data(), b.indices.data(), b.values.data(),
-            b.scales.data(), size_t(b.vertices), b.blockCount(), uint32_t(b.indices.size())};
+    return {b.order.data(),
+            b.offsets.data(),
+            b.indices.data(),
+            b.values.data(),
+            b.scales.data(),
+            b.shFrom == UINT32_MAX ? nullptr : b.shScales.data(),
+            b.shFrom,
+            size_t(b.vertices),
+            b.blockCount(),
+            uint32_t(b.indices.size())};
 }
 
 // Block b's indices and values, validated.
@@ -401,10 +417,17 @@ struct BlockSpan {
     const uint16_t* idx;
     const int8_t* q;      // 48 per index
     const float* scales;  // the block's 48
+    const float* shScales;  // the block's 48 for indices >= split (== scales without SH scales)
     const uint32_t* order;  // the block's 16 lanes (the first `lanes` are vertices)
+    size_t split;  // indices [0, split) use scales, [split, count) shScales
     size_t count;
     unsigned lanes;  // 16, fewer in a partial last block
 };
+
+// The two parts of a block's indices, in turn: [0, split) with `scales`, then
+// [split, count) with `shScales` (often empty).
+inline size_t partEnd(const BlockSpan& span, int part) { return part == 0 ? span.split : span.count; }
+inline const float* partScales(const BlockSpan& span, int part) { return part == 0 ? span.scales : span.shScales; }
 
 // False when b's offsets are out of order, its largest index (the last: indices increase
 // within a block, a BlockedRgbVectors invariant) is >= lightCount, or one of its lanes'
@@ -424,6 +447,12 @@ inline bool blockSpan(const BlockStream& s, size_t b, uint32_t lightCount, Block
     span.q = s.values + kBlockValuesPerIndex * size_t(begin);
     span.scales = s.scales + kBlockValuesPerIndex * b;
     span.count = end - begin;
+    span.split = span.count;
+    span.shScales = span.scales;
+    if (s.shScales) {
+        span.shScales = s.shScales + kBlockValuesPerIndex * b;
+        while (span.split > 0 && span.idx[span.split - 1] >= s.shFrom) --span.split;
+    }
     return true;
 }
 
@@ -450,33 +479,44 @@ inline void dotBlockBaseline(const BlockSpan& span, const float* light, float r[
     const int8_t* q = span.q;
 #if PRT_RELIGHT_SSE2
     __m128 a[12];
-    for (__m128& x : a) x = _mm_setzero_ps();
     const auto widen = [](__m128i w) { return _mm_cvtepi32_ps(_mm_srai_epi32(w, 24)); };
-    for (size_t n = 0; n < span.count; ++n, q += kBlockValuesPerIndex) {
-        prefetchAhead(q, kBlockPrefetchBytes);
-        const float* l = light + size_t(span.idx[n]) * Stride;
-        for (int c = 0; c < 3; ++c) {
-            const __m128 lc = _mm_set1_ps(l[c]);
-            const __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(q + 16 * c));
-            const __m128i lo = _mm_unpacklo_epi8(x, x), hi = _mm_unpackhi_epi8(x, x);
-            a[4 * c] = _mm_add_ps(a[4 * c], _mm_mul_ps(widen(_mm_unpacklo_epi16(lo, lo)), lc));
-            a[4 * c + 1] = _mm_add_ps(a[4 * c + 1], _mm_mul_ps(widen(_mm_unpackhi_epi16(lo, lo)), lc));
-            a[4 * c + 2] = _mm_add_ps(a[4 * c + 2], _mm_mul_ps(widen(_mm_unpacklo_epi16(hi, hi)), lc));
-            a[4 * c + 3] = _mm_add_ps(a[4 * c + 3], _mm_mul_ps(widen(_mm_unpackhi_epi16(hi, hi)), lc));
+    size_t n = 0;
+    for (int part = 0; part < 2; ++part) {
+        for (__m128& x : a) x = _mm_setzero_ps();
+        for (; n < partEnd(span, part); ++n, q += kBlockValuesPerIndex) {
+            prefetchAhead(q, kBlockPrefetchBytes);
+            const float* l = light + size_t(span.idx[n]) * Stride;
+            for (int c = 0; c < 3; ++c) {
+                const __m128 lc = _mm_set1_ps(l[c]);
+                const __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(q + 16 * c));
+                const __m128i lo = _mm_unpacklo_epi8(x, x), hi = _mm_unpackhi_epi8(x, x);
+                a[4 * c] = _mm_add_ps(a[4 * c], _mm_mul_ps(widen(_mm_unpacklo_epi16(lo, lo)), lc));
+                a[4 * c + 1] = _mm_add_ps(a[4 * c + 1], _mm_mul_ps(widen(_mm_unpackhi_epi16(lo, lo)), lc));
+                a[4 * c + 2] = _mm_add_ps(a[4 * c + 2], _mm_mul_ps(widen(_mm_unpacklo_epi16(hi, hi)), lc));
+                a[4 * c + 3] = _mm_add_ps(a[4 * c + 3], _mm_mul_ps(widen(_mm_unpackhi_epi16(hi, hi)), lc));
+            }
+        }
+        const float* sc = partScales(span, part);
+        for (int i = 0; i < 12; ++i) {
+            const __m128 x = _mm_mul_ps(a[i], _mm_loadu_ps(sc + 4 * i));
+            _mm_storeu_ps(r + 4 * i, part == 0 ? x : _mm_add_ps(_mm_loadu_ps(r + 4 * i), x));
         }
     }
-    for (int i = 0; i < 12; ++i) _mm_storeu_ps(r + 4 * i, _mm_mul_ps(a[i], _mm_loadu_ps(span.scales + 4 * i)));
 #else
-    float acc[kBlockValuesPerIndex] = {};
-    for (size_t n = 0; n < span.count; ++n, q += kBlockValuesPerIndex) {
-        const float* l = light + size_t(span.idx[n]) * Stride;
-        for (size_t c = 0; c < 3; ++c) {
-            const float lc = l[c];
-            for (size_t lane = 0; lane < kVertexBlock; ++lane)
-                acc[kVertexBlock * c + lane] += float(q[kVertexBlock * c + lane]) * lc;
+    size_t n = 0;
+    for (int part = 0; part < 2; ++part) {
+        float acc[kBlockValuesPerIndex] = {};
+        for (; n < partEnd(span, part); ++n, q += kBlockValuesPerIndex) {
+            const float* l = light + size_t(span.idx[n]) * Stride;
+            for (size_t c = 0; c < 3; ++c) {
+                const float lc = l[c];
+                for (size_t lane = 0; lane < kVertexBlock; ++lane)
+                    acc[kVertexBlock * c + lane] += float(q[kVertexBlock * c + lane]) * lc;
+            }
         }
+        const float* sc = partScales(span, part);
+        for (size_t i = 0; i < kBlockValuesPerIndex; ++i) r[i] = (part == 0 ? 0.0f : r[i]) + acc[i] * sc[i];
     }
-    for (size_t i = 0; i < kBlockValuesPerIndex; ++i) r[i] = acc[i] * span.scales[i];
 #endif
 }
 
@@ -504,19 +544,26 @@ __attribute__((target("avx2,fma"))) inline void dotBlockAvx2(const BlockSpan& sp
                                                              float r[kBlockValuesPerIndex]) {
 #define PRT_Q8(p) _mm256_cvtepi32_ps(_mm256_cvtepi8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(p))))
     __m256 a[6];
-    for (__m256& x : a) x = _mm256_setzero_ps();
     const int8_t* q = span.q;
-    for (size_t n = 0; n < span.count; ++n, q += kBlockValuesPerIndex) {
-        prefetchAhead(q, kBlockPrefetchBytes);
-        const float* l = light + size_t(span.idx[n]) * Stride;
-        for (int c = 0; c < 3; ++c) {
-            const __m256 lc = _mm256_broadcast_ss(l + c);
-            a[2 * c] = _mm256_fmadd_ps(PRT_Q8(q + 16 * c), lc, a[2 * c]);
-            a[2 * c + 1] = _mm256_fmadd_ps(PRT_Q8(q + 16 * c + 8), lc, a[2 * c + 1]);
+    size_t n = 0;
+    for (int part = 0; part < 2; ++part) {
+        for (__m256& x : a) x = _mm256_setzero_ps();
+        for (; n < partEnd(span, part); ++n, q += kBlockValuesPerIndex) {
+            prefetchAhead(q, kBlockPrefetchBytes);
+            const float* l = light + size_t(span.idx[n]) * Stride;
+            for (int c = 0; c < 3; ++c) {
+                const __m256 lc = _mm256_broadcast_ss(l + c);
+                a[2 * c] = _mm256_fmadd_ps(PRT_Q8(q + 16 * c), lc, a[2 * c]);
+                a[2 * c + 1] = _mm256_fmadd_ps(PRT_Q8(q + 16 * c + 8), lc, a[2 * c + 1]);
+            }
+        }
+        const float* sc = partScales(span, part);
+        for (int i = 0; i < 6; ++i) {
+            const __m256 x = _mm256_mul_ps(a[i], _mm256_loadu_ps(sc + 8 * i));
+            _mm256_storeu_ps(r + 8 * i, part == 0 ? x : _mm256_add_ps(_mm256_loadu_ps(r + 8 * i), x));
         }
     }
 #undef PRT_Q8
-    for (int i = 0; i < 6; ++i) _mm256_storeu_ps(r + 8 * i, _mm256_mul_ps(a[i], _mm256_loadu_ps(span.scales + 8 * i)));
 }
 
 template <int Stride, bool Add>
@@ -549,19 +596,27 @@ __attribute__((target("avx512f,avx512bw,avx512vl,avx2,fma"))) inline void dotBlo
     _mm512_maskz_cvtepi32_ps(__mmask16(0xFFFF),                                        \
                              _mm512_maskz_cvtepi8_epi32(__mmask16(0xFFFF),             \
                                                         _mm_loadu_si128(reinterpret_cast<const __m128i*>(p))))
-    __m512 ar = _mm512_setzero_ps(), ag = ar, ab = ar;
     const int8_t* q = span.q;
-    for (size_t n = 0; n < span.count; ++n, q += kBlockValuesPerIndex) {
-        prefetchAhead(q, kBlockPrefetchBytes);
-        const float* l = light + size_t(span.idx[n]) * Stride;
-        ar = _mm512_fmadd_ps(PRT_Q16(q), _mm512_set1_ps(l[0]), ar);
-        ag = _mm512_fmadd_ps(PRT_Q16(q + 16), _mm512_set1_ps(l[1]), ag);
-        ab = _mm512_fmadd_ps(PRT_Q16(q + 32), _mm512_set1_ps(l[2]), ab);
+    __m512 rr = _mm512_setzero_ps(), rg = rr, rb = rr;
+    size_t n = 0;
+    for (int part = 0; part < 2; ++part) {
+        __m512 ar = _mm512_setzero_ps(), ag = ar, ab = ar;
+        for (; n < partEnd(span, part); ++n, q += kBlockValuesPerIndex) {
+            prefetchAhead(q, kBlockPrefetchBytes);
+            const float* l = light + size_t(span.idx[n]) * Stride;
+            ar = _mm512_fmadd_ps(PRT_Q16(q), _mm512_set1_ps(l[0]), ar);
+            ag = _mm512_fmadd_ps(PRT_Q16(q + 16), _mm512_set1_ps(l[1]), ag);
+            ab = _mm512_fmadd_ps(PRT_Q16(q + 32), _mm512_set1_ps(l[2]), ab);
+        }
+        const float* sc = partScales(span, part);
+        rr = _mm512_fmadd_ps(ar, _mm512_loadu_ps(sc), rr);
+        rg = _mm512_fmadd_ps(ag, _mm512_loadu_ps(sc + 16), rg);
+        rb = _mm512_fmadd_ps(ab, _mm512_loadu_ps(sc + 32), rb);
     }
 #undef PRT_Q16
-    _mm512_storeu_ps(r, _mm512_mul_ps(ar, _mm512_loadu_ps(span.scales)));
-    _mm512_storeu_ps(r + 16, _mm512_mul_ps(ag, _mm512_loadu_ps(span.scales + 16)));
-    _mm512_storeu_ps(r + 32, _mm512_mul_ps(ab, _mm512_loadu_ps(span.scales + 32)));
+    _mm512_storeu_ps(r, rr);
+    _mm512_storeu_ps(r + 16, rg);
+    _mm512_storeu_ps(r + 32, rb);
 }
 
 template <int Stride, bool Add>

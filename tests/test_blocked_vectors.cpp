@@ -80,6 +80,92 @@ TEST(BlockedVectors, KeepingTheUnionIsLosslessUpToTheInt8Bound) {
     EXPECT_NEAR(retainedEnergyFraction(src, b), 1.0, 1e-3);
 }
 
+// Vectors shaped like real transport with an SH part: Haar values of order 1 below
+// `count`, and 9 SH entries from `count` up whose band-0 term is `shGain` times larger
+// (on the bunny the SH band 0 is 10-190x, median 27x, the largest Haar value).
+SparseRgbVectors vectorsWithShPart(size_t vertices, uint32_t count, float shGain, uint32_t seed) {
+    const SparseRgbVectors haar = randomVectors(vertices, 20, count, seed);
+    std::mt19937 rng(seed + 1);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    SparseRgbVectors out;
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    for (size_t v = 0; v < vertices; ++v) {
+        haar.dequantizeVertex(v, idx, rgb);
+        for (uint32_t i = 0; i < 9; ++i) {
+            idx.push_back(count + i);
+            for (int c = 0; c < 3; ++c) rgb.push_back(i == 0 ? shGain * (1.0f + 0.5f * unit(rng)) : unit(rng));
+        }
+        out.appendVertex(idx, rgb);
+    }
+    return out;
+}
+
+// Largest per-vertex, per-channel error of `b` against `src` over the indices in
+// [begin, end), relative to the vertex's channel maximum over those indices.
+double worstRelativeError(const SparseRgbVectors& src, const BlockedRgbVectors& b, uint32_t begin, uint32_t end) {
+    double worst = 0.0;
+    std::vector<uint32_t> si, bi;
+    std::vector<float> sv, bv;
+    for (size_t v = 0; v < src.vertexCount(); ++v) {
+        src.dequantizeVertex(v, si, sv);
+        b.dequantizeVertex(v, bi, bv);
+        std::map<uint32_t, size_t> at;
+        for (size_t n = 0; n < bi.size(); ++n) at[bi[n]] = n;
+        for (int c = 0; c < 3; ++c) {
+            double maxAbs = 0.0, err = 0.0;
+            for (size_t n = 0; n < si.size(); ++n) {
+                if (si[n] < begin || si[n] >= end) continue;
+                maxAbs = std::max(maxAbs, double(std::fabs(sv[3 * n + c])));
+                err = std::max(err, std::fabs(double(bv[3 * at.at(si[n]) + c]) - sv[3 * n + c]));
+            }
+            if (maxAbs > 0.0) worst = std::max(worst, err / maxAbs);
+        }
+    }
+    return worst;
+}
+
+TEST(BlockedVectors, ShPartHasScalesOfItsOwn) {
+    const uint32_t count = 384;  // 6 N^2 for N = 8
+    const SparseRgbVectors src = vectorsWithShPart(37, count, 30.0f, 7);
+    const BlockedRgbVectors two = jointTruncate(src, 100000, identityOrder(37), count);
+    EXPECT_EQ(two.shFrom, count);
+    EXPECT_EQ(two.shScales.size(), two.scales.size());
+    EXPECT_EQ(checkBlockedVectors(two, count + 9), "");
+    for (size_t k = 0; k < two.blockCount(); ++k) EXPECT_EQ(two.offsets[k + 1] - two.shBegin(k), 9u);
+    // Each part within half a step of its own maximum.
+    EXPECT_LE(worstRelativeError(src, two, 0, count), kBlockQuantizationMaxRelativeError * 1.0001);
+    EXPECT_LE(worstRelativeError(src, two, count, count + 9), kBlockQuantizationMaxRelativeError * 1.0001);
+    // One scale for both (format version 3): the Haar values get steps set by the SH
+    // band 0, ~30x coarser. This is the error the second scale removes.
+    const BlockedRgbVectors one = jointTruncate(src, 100000, identityOrder(37));
+    EXPECT_EQ(one.shFrom, UINT32_MAX);
+    EXPECT_TRUE(one.shScales.empty());
+    EXPECT_GT(worstRelativeError(src, one, 0, count), 10.0 * kBlockQuantizationMaxRelativeError);
+    EXPECT_LE(worstRelativeError(src, one, count, count + 9), kBlockQuantizationMaxRelativeError * 1.0001);
+    // Vectors without an SH part get no SH scales, whatever forcedFrom says.
+    const BlockedRgbVectors none = jointTruncate(randomVectors(20, 8, count, 8), 24, identityOrder(20), count);
+    EXPECT_EQ(none.shFrom, UINT32_MAX);
+    EXPECT_TRUE(none.shScales.empty());
+    EXPECT_EQ(checkBlockedVectors(none, count), "");
+    // The check: SH scales iff shFrom, finite, zero in padding lanes, shFrom in range.
+    BlockedRgbVectors b = two;
+    b.shScales.pop_back();
+    EXPECT_NE(checkBlockedVectors(b, count + 9), "");
+    b = two;
+    b.shScales.back() = 1.0f;  // a padding lane (37 vertices: lanes 5..15 of block 2)
+    EXPECT_NE(checkBlockedVectors(b, count + 9), "");
+    b = two;
+    b.shScales[0] = std::nanf("");
+    EXPECT_NE(checkBlockedVectors(b, count + 9), "");
+    b = two;
+    b.shFrom = UINT32_MAX;  // scales left over
+    EXPECT_NE(checkBlockedVectors(b, count + 9), "");
+    b = two;
+    b.shFrom = count + 9;
+    EXPECT_NE(checkBlockedVectors(b, count + 9), "");
+}
+
 TEST(BlockedVectors, JointChoiceMatchesBruteForceScores) {
     const SparseRgbVectors src = randomVectors(16, 12, 64, 3);
     const size_t keep = 10;

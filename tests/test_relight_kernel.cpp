@@ -922,6 +922,98 @@ TEST(RelightBlocked, MatchesPerVertexWhenNothingIsDropped) {
     }
 }
 
+TEST(RelightBlocked, ShPartHasScalesOfItsOwnInEveryVariant) {
+    // Like MatchesPerVertexWhenNothingIsDropped, with an SH part whose band 0 is ~30x the
+    // Haar values (as on real meshes): with SH scales (jointTruncate's forcedFrom) each
+    // part's quantization is bounded by its own maximum, per vertex and channel
+    //     |blocked - per vertex| <= eps (max_Haar |v| sum_Haar |L| + max_SH |v| sum_SH |L|)
+    // plus both kernels' float error; with one scale (format version 3) the Haar part's
+    // steps follow the SH band 0 and the bound fails. Two lights: an environment's, and
+    // the same with its SH projections zeroed, under which only the Haar part's
+    // quantization shows (under the first, the SH part's error bound hides it).
+    const uint32_t n = 8, haar = 6 * n * n;
+    const size_t vertices = 203;
+    const LightVector environment = prt::makeLightVector(randomCubemap(int(n), 23));
+    ASSERT_EQ(environment.sh.size(), 27u);
+    const LightVector haarOnly = [&] {
+        LightVector l = environment;
+        std::fill(l.sh.begin(), l.sh.end(), 0.0f);
+        return l;
+    }();
+    const std::vector<uint32_t> order = shuffledOrder(vertices, 24);
+    TransportFile perVertex;
+    perVertex.cubemapSize = n;
+    perVertex.shTerms = 9;
+    perVertex.mesh.vertexCount = vertices;
+    TransportComponent ms;
+    std::mt19937 rng(25);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    std::vector<uint32_t> pool(40);
+    for (uint32_t& x : pool) x = std::uniform_int_distribution<uint32_t>(0, haar - 1)(rng);
+    std::sort(pool.begin(), pool.end());
+    pool.erase(std::unique(pool.begin(), pool.end()), pool.end());
+    for (size_t v = 0; v < vertices; ++v) {
+        std::shuffle(pool.begin(), pool.end(), rng);
+        const size_t m = std::uniform_int_distribution<size_t>(1, 5)(rng);
+        std::vector<uint32_t> idx(pool.begin(), pool.begin() + ptrdiff_t(m));
+        std::vector<float> rgb(3 * m);
+        for (float& x : rgb) x = unit(rng);
+        for (uint32_t i = 0; i < 9; ++i) {
+            idx.push_back(haar + i);
+            for (int c = 0; c < 3; ++c) rgb.push_back(i == 0 ? 30.0f * (1.0f + 0.3f * unit(rng)) : unit(rng));
+        }
+        ms.vectors.appendVertex(idx, rgb);
+    }
+    perVertex.components.push_back(ms);
+    const size_t keep = 48 + 9;
+    for (const LightVector* light : {&environment, &haarOnly}) {
+        for (bool shScales : {true, false}) {
+            const auto lightAt = [&](uint32_t i, int c) {
+                return double(i < haar ? light->rgb[3 * size_t(i) + size_t(c)]
+                                       : light->sh[3 * size_t(i - haar) + size_t(c)]);
+            };
+            VertexRadiance want;
+            prt::relightVertices(perVertex, *light, {true, true}, want);
+            TransportFile blocked = perVertex;
+            blocked.components[0].blocks = prt::jointTruncate(ms.vectors, keep, order, shScales ? haar : UINT32_MAX);
+            blocked.components[0].vectors.clear();
+            ASSERT_EQ(blocked.components[0].blocks.shFrom, shScales ? haar : UINT32_MAX);
+            for (const prt::RelightOptions& options : variants()) {
+                SCOPED_TRACE(variantName(options) + (shScales ? ", SH scales" : ", one scale") +
+                             (light == &haarOnly ? ", SH light zeroed" : ""));
+                VertexRadiance got, reference;
+                prt::relightVertices(blocked, *light, {true, true}, got, options);
+                prt::relightVerticesReference(blocked, *light, {true, true}, reference);
+                size_t failures = 0;
+                std::vector<uint32_t> idx;
+                std::vector<float> rgb;
+                for (size_t v = 0; v < vertices; ++v) {
+                    ms.vectors.dequantizeVertex(v, idx, rgb);
+                    for (int c = 0; c < 3; ++c) {
+                        double maxV[2] = {}, sumL[2] = {}, sumVL = 0.0;  // [0] Haar, [1] SH
+                        for (size_t k = 0; k < idx.size(); ++k) {
+                            const double x = std::abs(rgb[3 * k + size_t(c)]), l = std::abs(lightAt(idx[k], c));
+                            const int part = idx[k] < haar ? 0 : 1;
+                            maxV[part] = std::max(maxV[part], x);
+                            sumL[part] += l;
+                            sumVL += x * l;
+                        }
+                        const double bound = prt::kBlockQuantizationMaxRelativeError *
+                                                 (maxV[0] * sumL[0] + maxV[1] * sumL[1]) +
+                                             2.0 * blockedTolerance(keep) * sumVL;
+                        EXPECT_NEAR(got.diffuse[v][c], reference.diffuse[v][c], blockedTolerance(keep) * sumVL);
+                        if (!(std::abs(double(got.diffuse[v][c]) - want.diffuse[v][c]) <= bound)) ++failures;
+                    }
+                }
+                if (shScales)
+                    EXPECT_EQ(failures, 0u);
+                else if (light == &haarOnly)
+                    EXPECT_GT(failures, vertices / 2) << "one scale should break the per-part bound";
+            }
+        }
+    }
+}
+
 TEST(RelightBlocked, MixedFileAndThreadIndependence) {
     // Blocked multiple scattering beside per-vertex isotropic single scattering and
     // per-vertex SS terms (and the other way round): the diffuse sum mixes both
@@ -1056,7 +1148,7 @@ TEST(RelightBlocked, StreamBytesCountTheBlockedArrays) {
     for (const TransportComponent& c : file.components) {
         if (c.kind == ComponentKind::MultipleScattering) {
             ASSERT_TRUE(c.blocked());
-            // order (4 bytes per vertex), offsets, indices, values, scales
+            // order (4 bytes per vertex), offsets, indices, values, scales (no SH scales here)
             ms += c.blocks.byteSize();
             EXPECT_EQ(c.blocks.byteSize(), 4 * 300 + 4 * (19 + 1) + 2 * c.blocks.indices.size() +
                                                48 * c.blocks.indices.size() + 4 * 48 * 19);

@@ -820,8 +820,11 @@ TEST_F(TransportTest, ForeignFilesAreRefusedClearly) {
     refused(Bytes{'P', 'K', 3, 4, 0, 0}, "not a transport file");
     refused(Bytes{}, "empty");
     x = b;
+    putLe32(&x[8], 5);
+    refused(x, "unsupported transport file format version 5 (this build reads versions 1 to 4)");
+    x = b;  // version 4 is only written for files with SH scales in a blocked component
     putLe32(&x[8], 4);
-    refused(x, "unsupported transport file format version 4 (this build reads versions 1 to 3)");
+    refused(x, "SH term count 0 is not 1, 4 or 9 (format version 4)");
     x = b;  // version 3 holds an SH term count where versions 1 and 2 have 0
     putLe32(&x[8], 3);
     refused(x, "SH term count 0 is not 1, 4 or 9 (format version 3)");
@@ -1366,7 +1369,7 @@ TEST_F(TransportTest, BlockedValidChecksumButInconsistentContentsIsRefused) {
     }
 
     // Format versions: a BLKC section in a version-1 file is corrupt (older writers
-    // never wrote one); version 4 is unknown.
+    // never wrote one); version 5 is unknown.
     Bytes x = b;
     putLe32(&x[8], 1);
     writeBytes(p, x);
@@ -1375,9 +1378,9 @@ TEST_F(TransportTest, BlockedValidChecksumButInconsistentContentsIsRefused) {
         EXPECT_TRUE(contains(e, "corrupt: section 'BLKC' (blocked component 1 of 4)")) << e;
         EXPECT_TRUE(contains(e, "format version 1 file")) << e;
     }
-    putLe32(&x[8], 4);
+    putLe32(&x[8], 5);
     writeBytes(p, x);
-    EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "unsupported transport file format version 4"));
+    EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "unsupported transport file format version 5"));
 }
 
 TEST_F(TransportTest, InvalidBlockedDataIsRefusedOnSave) {
@@ -1478,21 +1481,125 @@ TEST_F(TransportTest, ShRoundTripIsVersion3) {
             EXPECT_TRUE(contains(describe(info), "SH part: " + std::to_string(terms) + " terms")) << describe(info);
         }
     }
-    // Blocked components in a version-3 file.
+    // Blocked components with one scale per vertex and channel (as format version 3
+    // wrote them: shFrom unset) stay in a version-3 file, byte for byte what it was.
     TransportFile f = makeShFile(rng, 40, 8, 9);
-    f.components[0].blocks = jointTruncate(f.components[0].vectors, 12, shuffledOrder(rng, 40), 6 * 8 * 8);
+    f.components[0].blocks = jointTruncate(f.components[0].vectors, 12, shuffledOrder(rng, 40));
     f.components[0].vectors = SparseRgbVectors();
     const std::string p = path("shblocked");
     saveTransportFile(p, f);
     EXPECT_EQ(le32(&readBytes(p)[8]), 3u);
     EXPECT_EQ(loadTransportFile(p), f);
+    EXPECT_EQ(loadTransportFile(p).components[0].blocks.shFrom, UINT32_MAX);
+    // With the SH part forced (what prt-precompute does) the SH indices get scales of
+    // their own: version 4.
+    f = makeShFile(rng, 40, 8, 9);
+    f.components[0].blocks = jointTruncate(f.components[0].vectors, 12, shuffledOrder(rng, 40), 6 * 8 * 8);
+    f.components[0].vectors = SparseRgbVectors();
+    saveTransportFile(p, f);
+    EXPECT_EQ(le32(&readBytes(p)[8]), 4u);
+    EXPECT_EQ(loadTransportFile(p), f);
     // The forced SH indices are in every block although 12 < 20 + 9.
     const BlockedRgbVectors& bl = f.components[0].blocks;
+    EXPECT_EQ(bl.shFrom, 6u * 8 * 8);
     for (size_t k = 0; k < bl.blockCount(); ++k) {
         const uint32_t end = bl.offsets[k + 1];
         ASSERT_GE(end - bl.offsets[k], 9u);
         for (uint32_t i = 0; i < 9; ++i) EXPECT_EQ(bl.indices[end - 9 + i], 6 * 8 * 8 + i) << "block " << k;
     }
+    EXPECT_TRUE(tempFiles().empty());
+}
+
+TEST_F(TransportTest, BlockedShScalesAreVersion4) {
+    std::mt19937 rng(33);
+    TransportFile f = makeShFile(rng, 40, 8, 9);
+    ASSERT_GE(f.components.size(), 2u);
+    const uint32_t shFrom = 6 * 8 * 8;
+    // Component 1 loses its SH part (as single scattering has none): it keeps one scale.
+    {
+        SparseRgbVectors s;
+        std::vector<uint32_t> idx;
+        std::vector<float> rgb;
+        for (size_t v = 0; v < 40; ++v) {
+            f.components[1].vectors.dequantizeVertex(v, idx, rgb);
+            idx.resize(idx.size() - 9);
+            rgb.resize(3 * idx.size());
+            s.appendVertex(idx, rgb);
+        }
+        f.components[1].vectors = s;
+    }
+    for (size_t i : {size_t(0), size_t(1)}) {
+        f.components[i].blocks = jointTruncate(f.components[i].vectors, 12, shuffledOrder(rng, 40), shFrom);
+        f.components[i].vectors = SparseRgbVectors();
+    }
+    const BlockedRgbVectors& b0 = f.components[0].blocks;
+    EXPECT_EQ(b0.shFrom, shFrom);
+    EXPECT_EQ(b0.shScales.size(), b0.scales.size());
+    EXPECT_EQ(f.components[1].blocks.shFrom, UINT32_MAX);
+    EXPECT_TRUE(f.components[1].blocks.shScales.empty());
+
+    const std::string p = path("shscales");
+    saveTransportFile(p, f);
+    const Bytes b = readBytes(p);
+    EXPECT_EQ(le32(&b[8]), 4u) << "a file with SH scales in a block is version 4";
+    const std::vector<Sec> secs = walk(b);
+    std::vector<Sec> blkc;
+    for (const Sec& x : secs)
+        if (x.tag == "BLKC") blkc.push_back(x);
+    ASSERT_EQ(blkc.size(), 2u);
+    EXPECT_EQ(le32(&b[blkc[0].payload + 32]), 1u) << "the SH scales flag";
+    EXPECT_EQ(le32(&b[blkc[1].payload + 32]), 0u);
+    // The SH scales array is the payload's last 48 floats per block (3 blocks of 16).
+    const size_t tail = blkc[0].payload + size_t(blkc[0].length) - 3 * 48 * 4;
+    float first = 0.0f;
+    std::memcpy(&first, &b[tail], 4);
+    EXPECT_EQ(first, b0.shScales[0]);
+    EXPECT_EQ(loadTransportFile(p), f);
+    const TransportFileInfo info = readTransportFileInfo(p);
+    EXPECT_EQ(info.version, 4u);
+    EXPECT_TRUE(info.components[0].shScales);
+    EXPECT_FALSE(info.components[1].shScales);
+
+    auto refused = [&](Bytes x, const Sec& sec, const std::string& expected) {
+        fixChecksum(x, sec);
+        writeBytes(p, x);
+        const std::string e = errorOf([&] { loadTransportFile(p); });
+        EXPECT_TRUE(contains(e, expected)) << "expected '" << expected << "' in: " << e;
+    };
+    Bytes x = b;
+    putLe32(&x[blkc[0].payload + 32], 2);
+    refused(x, blkc[0], "SH scales flag 2 is not 0 or 1");
+    x = b;  // the flag without its array, and an array without the flag: the layout breaks
+    putLe32(&x[blkc[0].payload + 32], 0);
+    refused(x, blkc[0], "-byte payload, the section has");
+    x = b;
+    putLe32(&x[blkc[1].payload + 32], 1);
+    refused(x, blkc[1], "-byte payload, the section has");
+    x = b;  // before version 4 the flag is a reserved field and there is no SH scales array
+    putLe32(&x[8], 3);
+    refused(x, blkc[0], "-byte payload, the section has");
+    // A version-4 header on a file whose blocks have one scale is a corrupted version.
+    f.components[0].blocks = jointTruncate(makeShFile(rng, 40, 8, 9).components[0].vectors, 12,
+                                           shuffledOrder(rng, 40));
+    saveTransportFile(p, f);
+    x = readBytes(p);
+    EXPECT_EQ(le32(&x[8]), 3u);
+    putLe32(&x[8], 4);
+    writeBytes(p, x);
+    std::string e = errorOf([&] { loadTransportFile(p); });
+    EXPECT_TRUE(contains(e, "format version 4 but no blocked component with SH scales")) << e;
+    e = errorOf([&] { readTransportFileInfo(p); });
+    EXPECT_TRUE(contains(e, "format version 4 but no blocked component with SH scales")) << e;
+    // SH scales must start at the SH part.
+    f.components[0].blocks = b0;
+    f.components[0].blocks.shFrom = shFrom - 1;
+    e = errorOf([&] { saveTransportFile(path("bad"), f); });
+    EXPECT_TRUE(contains(e, "SH scales from index 383 but the SH part starts at 384")) << e;
+    f.shTerms = 0;
+    f.components[0].blocks.shFrom = shFrom;
+    e = errorOf([&] { saveTransportFile(path("bad"), f); });
+    EXPECT_TRUE(contains(e, "but the SH part is absent")) << e;
+    EXPECT_FALSE(std::filesystem::exists(path("bad")));
     EXPECT_TRUE(tempFiles().empty());
 }
 
