@@ -1233,9 +1233,10 @@ std::string bytesPerVertex(uint64_t bytes, uint64_t vertices) {
 }
 
 // "100000 vertices, blocked: 6250 blocks of 16 sharing 1200000 indices (192.0 mean,
-// 192 max per block), 55.0 MiB (576.2 B per vertex)"; the max only when known.
+// 192 max per block), 55.0 MiB (576.2 B per vertex)"; the max only when known; ", SH
+// part scaled apart" when the block has SH scales.
 std::string describeBlocked(uint64_t vertices, uint64_t blocks, uint64_t indices,
-                            const uint64_t* maxPerBlock, uint64_t bytes) {
+                            const uint64_t* maxPerBlock, uint64_t bytes, bool shScales) {
     const double mean = blocks ? double(indices) / double(blocks) : 0.0;
     char stats[96];
     if (maxPerBlock)
@@ -1244,8 +1245,9 @@ std::string describeBlocked(uint64_t vertices, uint64_t blocks, uint64_t indices
     else
         std::snprintf(stats, sizeof stats, "%.1f mean per block", mean);
     return u64(vertices) + " vertices, blocked: " + u64(blocks) + " blocks of " +
-           u64(kVertexBlock) + " sharing " + u64(indices) + " indices (" + stats + "), " +
-           formatBytes(bytes) + " (" + bytesPerVertex(bytes, vertices) + ")";
+           u64(kVertexBlock) + " sharing " + u64(indices) + " indices (" + stats + ")" +
+           (shScales ? ", SH part scaled apart" : "") + ", " + formatBytes(bytes) + " (" +
+           bytesPerVertex(bytes, vertices) + ")";
 }
 
 void describeCommon(std::string& out, uint32_t n, uint32_t shTerms, const MeshFingerprint& mesh,
@@ -1457,7 +1459,7 @@ std::string describe(const TransportFile& file) {
                 maxPerBlock = std::max<uint64_t>(maxPerBlock, b.offsets[k + 1] - b.offsets[k]);
             out += "  " + componentName(c.kind, c.term) + ": " +
                    describeBlocked(b.vertexCount(), b.blockCount(), b.indexCount(), &maxPerBlock,
-                                   b.byteSize()) +
+                                   b.byteSize(), b.shFrom != UINT32_MAX) +
                    "\n";
             total += b.byteSize();
             continue;
@@ -1496,7 +1498,7 @@ std::string describe(const TransportFileInfo& info) {
         if (c.blocked) {
             out += "  " + componentName(c.kind, c.term) + ": " +
                    describeBlocked(c.vertexCount, c.blockCount, c.coefficientCount, nullptr,
-                                   c.payloadBytes) +
+                                   c.payloadBytes, c.shScales) +
                    "\n";
             continue;
         }

@@ -1559,6 +1559,10 @@ TEST_F(TransportTest, BlockedShScalesAreVersion4) {
     EXPECT_EQ(info.version, 4u);
     EXPECT_TRUE(info.components[0].shScales);
     EXPECT_FALSE(info.components[1].shScales);
+    const std::string d = describe(info);
+    EXPECT_TRUE(contains(d, "format version 4")) << d;
+    EXPECT_TRUE(contains(d, "multiple scattering: 40 vertices, blocked: 3 blocks of 16 sharing 36 indices (12.0 mean per block), SH part scaled apart")) << d;
+    EXPECT_TRUE(contains(d, "(12.0 mean per block), 2.7 KiB")) << d;
 
     auto refused = [&](Bytes x, const Sec& sec, const std::string& expected) {
         fixChecksum(x, sec);
