@@ -285,6 +285,53 @@ std::string checkBlockedVectors(const BlockedRgbVectors& b, uint32_t lightCount)
     return {};
 }
 
+std::vector<uint8_t> encodeBlockIndices(const BlockedRgbVectors& b) {
+    std::vector<uint8_t> out;
+    out.reserve(b.indices.size() + b.indices.size() / 8);
+    for (size_t k = 0; k < b.blockCount(); ++k)
+        for (uint32_t n = b.offsets[k]; n < b.offsets[k + 1]; ++n) {
+            uint32_t d = n == b.offsets[k] ? b.indices[n] : uint32_t(b.indices[n] - b.indices[n - 1] - 1);
+            while (d >= 0x80) {
+                out.push_back(uint8_t(0x80 | (d & 0x7F)));
+                d >>= 7;
+            }
+            out.push_back(uint8_t(d));
+        }
+    return out;
+}
+
+std::string decodeBlockIndices(const uint8_t* bytes, size_t size, const std::vector<uint32_t>& offsets,
+                               std::vector<uint16_t>& indices) {
+    const size_t total = offsets.empty() ? 0 : offsets.back();
+    indices.resize(total);
+    size_t at = 0;
+    for (size_t k = 0; k + 1 < offsets.size(); ++k)
+        for (uint32_t n = offsets[k]; n < offsets[k + 1]; ++n) {
+            uint32_t d = 0;
+            for (int shift = 0;; shift += 7) {
+                if (at == size)
+                    return "index stream ends inside block " + std::to_string(k) + " (" + std::to_string(size) +
+                           " bytes)";
+                const uint8_t byte = bytes[at++];
+                if (shift == 14 && byte >= 0x04)
+                    return "index stream: a varint at byte " + std::to_string(at - 1) + " exceeds 16 bits";
+                d |= uint32_t(byte & 0x7F) << shift;
+                if (!(byte & 0x80)) {
+                    if (byte == 0 && shift > 0)
+                        return "index stream: overlong varint at byte " + std::to_string(at - 1);
+                    break;
+                }
+            }
+            const uint32_t index = n == offsets[k] ? d : uint32_t(indices[n - 1]) + 1 + d;
+            if (index > UINT16_MAX)
+                return "index stream: block " + std::to_string(k) + " decodes index " + std::to_string(index) +
+                       " > 65535";
+            indices[n] = uint16_t(index);
+        }
+    if (at != size) return "index stream has " + std::to_string(size - at) + " bytes after its last index";
+    return {};
+}
+
 std::vector<uint32_t> spatialBlockOrder(const std::vector<glm::vec3>& positions) {
     std::vector<uint32_t> order(positions.size());
     std::iota(order.begin(), order.end(), 0u);

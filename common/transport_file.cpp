@@ -44,15 +44,15 @@ constexpr std::array<char, 8> kMagic = {'P', 'R', 'T', 'X', 'P', 'O', 'R', 'T'};
 // SH part to every vector (common/sh_part.h): the header's former reserved field holds
 // the SH term count (1, 4 or 9; 0 in versions 1 and 2), and indices run to 6 N^2 +
 // terms. Any file with SH terms is version 3, with or without blocked components.
-// Version 4 lets a BLKC section hold a second array of scales, for the SH indices
-// (common/blocked_vectors.h, "Two scales"), flagged by its first reserved field: a file
-// is version 4 when a blocked component has them (single-scattering components, which
-// have no SH part, keep one), so version-3 files keep their bytes and load with one
-// scale per vertex and channel as before.
+// Version 4 changes BLKC sections: their indices are delta-coded varints
+// (encodeBlockIndices, common/blocked_vectors.h) and a section may hold a second array
+// of scales, for the SH indices ("Two scales" there), flagged in its first reserved
+// field. A file with SH terms and a blocked component is version 4; version-3 files
+// (one scale per vertex and channel, 16-bit indices) load as before.
 constexpr uint32_t kFormatVersion = 1;
 constexpr uint32_t kBlockedFormatVersion = 2;
 constexpr uint32_t kShFormatVersion = 3;
-constexpr uint32_t kShScalesFormatVersion = 4;
+constexpr uint32_t kBlockVarintFormatVersion = 4;
 constexpr uint32_t kEndianMarker = 0x01020304u;
 constexpr uint64_t kAlignment = 64;
 constexpr uint64_t kPreambleBytes = 16;
@@ -186,15 +186,16 @@ struct BlockedLayout {
     uint64_t order = 0, offsets = 0, indices = 0, values = 0, scales = 0, shScales = 0, total = 0;
 };
 
-// Requires vertices <= kMaxVertices and indices <= UINT32_MAX (no overflow). shScales:
-// the section has the SH scales array (format version 4).
-BlockedLayout blockedLayout(uint64_t vertices, uint64_t indices, bool shScales) {
+// Requires vertices <= kMaxVertices, indices <= UINT32_MAX and indexBytes <= 3 indices
+// (no overflow). indexBytes: the size of the index array (2 per index before format
+// version 4, the varint stream's size from it); shScales: the SH scales array is there.
+BlockedLayout blockedLayout(uint64_t vertices, uint64_t indices, uint64_t indexBytes, bool shScales) {
     const uint64_t blocks = blockCountOf(vertices);
     BlockedLayout l;
     l.order = kBlockedFixedBytes;
     l.offsets = alignUp(l.order + vertices * sizeof(uint32_t));
     l.indices = alignUp(l.offsets + (blocks + 1) * sizeof(uint32_t));
-    l.values = alignUp(l.indices + indices * sizeof(uint16_t));
+    l.values = alignUp(l.indices + indexBytes);
     l.scales = alignUp(l.values + indices * kBlockValuesPerIndex * sizeof(int8_t));
     l.total = l.scales + blocks * kBlockValuesPerIndex * sizeof(float);
     if (shScales) {
@@ -536,31 +537,38 @@ private:
 };
 
 uint32_t formatVersionOf(const TransportFile& f) {
-    if (std::any_of(f.components.begin(), f.components.end(),
-                    [](const TransportComponent& c) { return c.blocked() && c.blocks.shFrom != UINT32_MAX; }))
-        return kShScalesFormatVersion;
-    if (f.shTerms > 0) return kShFormatVersion;
     const bool blocked = std::any_of(f.components.begin(), f.components.end(),
                                      [](const TransportComponent& c) { return c.blocked(); });
+    if (f.shTerms > 0) return blocked ? kBlockVarintFormatVersion : kShFormatVersion;
     return blocked ? kBlockedFormatVersion : kFormatVersion;
 }
 
-void writeBlockedComponent(FileWriter& w, const TransportComponent& c) {
+void writeBlockedComponent(FileWriter& w, const TransportComponent& c, uint32_t version) {
     const BlockedRgbVectors& b = c.blocks;
-    const BlockedLayout l = blockedLayout(b.vertices, b.indexCount(), b.shFrom != UINT32_MAX);
+    const bool varints = version >= kBlockVarintFormatVersion;
+    const std::vector<uint8_t> stream = varints ? encodeBlockIndices(b) : std::vector<uint8_t>();
+    const BlockedLayout l =
+        blockedLayout(b.vertices, b.indexCount(), varints ? stream.size() : 2 * b.indexCount(), b.shFrom != UINT32_MAX);
     w.beginSection(Section::BlockedComponent, l.total);
     w.u32(uint32_t(c.kind));
     w.u32(c.term);
     w.u64(b.vertices);
     w.u64(b.blockCount());
     w.u64(b.indexCount());
-    w.u32(b.shFrom != UINT32_MAX ? 1 : 0);  // SH scales (version 4; reserved, 0, before)
+    if (varints) {  // reserved, zero, before version 4
+        w.u32(b.shFrom != UINT32_MAX ? 1 : 0);  // SH scales flag
+        w.u32(0);
+        w.u64(stream.size());
+    }
     w.padTo(l.order);
     w.array(b.order);
     w.padTo(l.offsets);
     w.array(b.offsets);
     w.padTo(l.indices);
-    w.array(b.indices);
+    if (varints)
+        w.array(stream);
+    else
+        w.array(b.indices);
     w.padTo(l.values);
     w.array(b.values);
     w.padTo(l.scales);
@@ -607,7 +615,7 @@ void writeFile(FileWriter& w, const TransportFile& f) {
     // Components.
     for (const TransportComponent& c : f.components) {
         if (c.blocked()) {
-            writeBlockedComponent(w, c);
+            writeBlockedComponent(w, c, formatVersionOf(f));
             continue;
         }
         const uint64_t vertices = c.vectors.vertexCount();
@@ -872,10 +880,10 @@ uint32_t readPreamble(FileReader& r) {
                "big-endian; transport files are little-endian");
     if (marker != kEndianMarker)
         r.fail("bad endianness marker " + hex32(marker) + " (expected 0x01020304): corrupt file");
-    if (version < kFormatVersion || version > kShScalesFormatVersion)
+    if (version < kFormatVersion || version > kBlockVarintFormatVersion)
         r.fail("unsupported transport file format version " + u64(version) +
                " (this build reads versions " + u64(kFormatVersion) + " to " +
-               u64(kShScalesFormatVersion) + ")");
+               u64(kBlockVarintFormatVersion) + ")");
     return version;
 }
 
@@ -982,10 +990,13 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
     const uint64_t vertices = getU64(b + 8);
     const uint64_t blocks = getU64(b + 16);
     const uint64_t indices = getU64(b + 24);
-    // Versions 1-3 reserve the field at 32; version 4 flags SH scales there (0 or 1).
-    const uint32_t shScalesFlag = h.version >= kShScalesFormatVersion ? getU32(b + 32) : 0;
-    const size_t reservedFrom = h.version >= kShScalesFormatVersion ? 36 : 32;
-    const bool reservedZero = allZero(b + reservedFrom, size_t(kBlockedFixedBytes - reservedFrom));
+    // Version 4 flags SH scales at 32 (0 or 1) and gives the index stream's bytes at 40;
+    // versions 2 and 3 reserve both (16-bit indices).
+    const bool varints = h.version >= kBlockVarintFormatVersion;
+    const uint32_t shScalesFlag = varints ? getU32(b + 32) : 0;
+    const uint64_t streamBytes = varints ? getU64(b + 40) : 0;
+    const bool reservedZero = varints ? allZero(b + 36, 4) && allZero(b + 48, size_t(kBlockedFixedBytes - 48))
+                                      : allZero(b + 32, size_t(kBlockedFixedBytes - 32));
 
     auto fail = [&](const std::string& reason) {
         if (infoOnly) r.fail("inconsistent: " + s.label + ": " + reason);
@@ -1004,7 +1015,11 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
         fail(u64(blocks) + " blocks for " + u64(vertices) + " vertices, expected " +
              u64(blockCountOf(vertices)) + " (16 per block)");
     if (indices > UINT32_MAX) fail(u64(indices) + " indices exceed the 32-bit offsets");
-    const BlockedLayout l = blockedLayout(vertices, indices, shScales);
+    // A varint takes 1 to 3 bytes per index (bounds the stream before the layout).
+    if (varints && (streamBytes < indices || streamBytes > 3 * indices))
+        fail("index stream of " + u64(streamBytes) + " bytes for " + u64(indices) +
+             " indices (1 to 3 bytes each)");
+    const BlockedLayout l = blockedLayout(vertices, indices, varints ? streamBytes : 2 * indices, shScales);
     if (l.total != s.length)
         fail(u64(vertices) + " vertices and " + u64(indices) + " block indices need a " +
              u64(l.total) + "-byte payload, the section has " + u64(s.length));
@@ -1012,6 +1027,7 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
     TransportComponent c;
     c.kind = ComponentKind(kind);
     c.term = term;
+    std::vector<uint8_t> stream;  // version 4: the varint-coded indices
     if (info) *info = {ComponentKind(kind), term, vertices, indices, s.length, true, blocks, shScales};
     if (infoOnly) {
         skipSection(r, s);
@@ -1023,7 +1039,10 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
         paddingZero &= readPaddingTo(r, s, l.offsets);
         readArray(r, s, v.offsets, blocks + 1);
         paddingZero &= readPaddingTo(r, s, l.indices);
-        readArray(r, s, v.indices, indices);
+        if (varints)
+            readArray(r, s, stream, streamBytes);
+        else
+            readArray(r, s, v.indices, indices);
         paddingZero &= readPaddingTo(r, s, l.values);
         readArray(r, s, v.values, indices * kBlockValuesPerIndex);
         paddingZero &= readPaddingTo(r, s, l.scales);
@@ -1038,6 +1057,19 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
     }
     checkComponentHeader(r, s, kind, term, reservedZero);
     if (!infoOnly) {
+        BlockedRgbVectors& v = c.blocks;
+        if (varints) {
+            // Decoding walks the blocks by their offsets: with bad offsets, leave M zero
+            // indices for checkBlocked to name the offsets' fault.
+            const bool offsetsGood = v.offsets.front() == 0 && v.offsets.back() == indices &&
+                                     std::is_sorted(v.offsets.begin(), v.offsets.end());
+            if (offsetsGood) {
+                const std::string reason = decodeBlockIndices(stream.data(), stream.size(), v.offsets, v.indices);
+                if (!reason.empty()) r.fail("inconsistent: " + s.label + ": " + reason);
+            } else {
+                v.indices.assign(indices, 0);
+            }
+        }
         const std::string reason = checkBlocked(c.blocks, vertices, h.cubemapSize, h.shTerms);
         if (!reason.empty()) r.fail("inconsistent: " + s.label + ": " + reason);
         c.blocks.indexSlots();
@@ -1110,17 +1142,14 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
     return c;
 }
 
-// A version-2 file without a blocked component, or a version-4 file without SH scales
-// in one, is refused: the writer writes such a file as version 1 or 3, so this is a
-// corrupted version field.
-void checkVersionMatchesComponents(FileReader& r, const HeadFields& h, bool anyBlocked, bool anyShScales) {
-    if (h.version == kBlockedFormatVersion && !anyBlocked)
+// A version-2 or -4 file without a blocked component is refused: the writer writes such
+// a file as version 1 or 3, so this is a corrupted version field. (A version-3 file with
+// one is what the writer wrote before version 4, and is read as such.)
+void checkVersionMatchesComponents(FileReader& r, const HeadFields& h, bool anyBlocked) {
+    if ((h.version == kBlockedFormatVersion || h.version == kBlockVarintFormatVersion) && !anyBlocked)
         r.fail("inconsistent: format version " + u64(h.version) +
-               " but no blocked component (a file without one is version " + u64(kFormatVersion) + ")");
-    if (h.version == kShScalesFormatVersion && !anyShScales)
-        r.fail("inconsistent: format version " + u64(h.version) +
-               " but no blocked component with SH scales (a file without one is version " +
-               u64(kShFormatVersion) + ")");
+               " but no blocked component (a file without one is version " +
+               u64(h.version == kBlockedFormatVersion ? kFormatVersion : kShFormatVersion) + ")");
 }
 
 ViewMaps readViewMaps(FileReader& r, bool infoOnly) {
@@ -1201,9 +1230,7 @@ TransportFile loadImpl(const std::string& path, const MeshFingerprint* expected)
     for (size_t i = 0; i < h.componentCount; ++i)
         f.components.push_back(readComponent(r, h, i, false, nullptr));
     checkVersionMatchesComponents(
-        r, h, std::any_of(f.components.begin(), f.components.end(), [](const auto& c) { return c.blocked(); }),
-        std::any_of(f.components.begin(), f.components.end(),
-                    [](const auto& c) { return c.blocked() && c.blocks.shFrom != UINT32_MAX; }));
+        r, h, std::any_of(f.components.begin(), f.components.end(), [](const auto& c) { return c.blocked(); }));
     if (h.hasViewMaps) f.viewMaps = readViewMaps(r, false);
     readEnd(r);
     size_t bad = SIZE_MAX;
@@ -1435,8 +1462,7 @@ TransportFileInfo readTransportFileInfo(const std::string& path) {
         info.components.push_back(c);
     }
     checkVersionMatchesComponents(
-        r, h, std::any_of(info.components.begin(), info.components.end(), [](const auto& c) { return c.blocked; }),
-        std::any_of(info.components.begin(), info.components.end(), [](const auto& c) { return c.shScales; }));
+        r, h, std::any_of(info.components.begin(), info.components.end(), [](const auto& c) { return c.blocked; }));
     if (h.hasViewMaps) {
         const ViewMaps m = readViewMaps(r, true);
         info.viewMapSize = m.size;

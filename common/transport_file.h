@@ -158,8 +158,9 @@ inline constexpr const char* kShardVerticesParameter = "shard_vertices";
 // blocked component passes checkBlockedVectors and has empty `vectors`), then
 // writes through writeAtomically (common/atomic_file.h): on any failure an existing
 // file at `path` is untouched, no temporary file is left and prt::Error(path, reason)
-// is thrown. A file whose blocked components have SH scales (BlockedRgbVectors::shFrom)
-// is format version 4, another file with SH terms version 3; otherwise one with a blocked
+// is thrown. A file with SH terms and a blocked component is format version 4 (varint
+// indices, SH scales where BlockedRgbVectors::shFrom is set), another file with SH
+// terms version 3; otherwise one with a blocked
 // component is version 2, any other file version 1 (the same bytes as before blocked
 // components and SH parts existed).
 void saveTransportFile(const std::string& path, const TransportFile& file);
@@ -176,7 +177,7 @@ TransportFile loadTransportFile(const std::string& path, const MeshFingerprint& 
 
 // What readTransportFileInfo returns: everything except the vectors and view maps.
 struct TransportFileInfo {
-    uint32_t version = 0;  // the file's format version: 4 with SH scales in blocks, else 3 with SH terms, else 2 with blocked components, else 1
+    uint32_t version = 0;  // the file's format version: 4 with SH terms and blocks, else 3 with SH terms, else 2 with blocks, else 1
     uint32_t cubemapSize = 0;
     uint32_t shTerms = 0;
     MeshFingerprint mesh;

@@ -166,6 +166,42 @@ TEST(BlockedVectors, ShPartHasScalesOfItsOwn) {
     EXPECT_NE(checkBlockedVectors(b, count + 9), "");
 }
 
+TEST(BlockedVectors, IndexVarintsRoundTripAndRefuseBadStreams) {
+    // Real-sized blocks: 160 of 6 x 32^2 + 9 indices, an empty block, a one-index block
+    // at 65535 (3 bytes), gaps of exactly 127 and 128 (1 and 2 bytes).
+    const SparseRgbVectors src = vectorsWithShPart(50, 6 * 32 * 32, 30.0f, 9);
+    BlockedRgbVectors b = jointTruncate(src, 160, identityOrder(50), 6 * 32 * 32);
+    std::vector<uint8_t> stream = encodeBlockIndices(b);
+    std::vector<uint16_t> back;
+    EXPECT_EQ(decodeBlockIndices(stream.data(), stream.size(), b.offsets, back), "");
+    EXPECT_EQ(back, b.indices);
+    EXPECT_LT(stream.size(), 2 * b.indices.size());
+    const std::vector<uint32_t> offsets = {0, 0, 1, 4};
+    const std::vector<uint16_t> edge = {65535, 0, 128, 257};
+    {
+        BlockedRgbVectors w;  // only offsets and indices matter to the coder: 3 blocks
+        w.offsets = offsets;
+        w.indices = edge;
+        stream = encodeBlockIndices(w);
+    }
+    EXPECT_EQ(stream, (std::vector<uint8_t>{0xFF, 0xFF, 0x03, 0x00, 0x7F, 0x80, 0x01}));
+    EXPECT_EQ(decodeBlockIndices(stream.data(), stream.size(), offsets, back), "");
+    EXPECT_EQ(back, edge);
+    const auto reason = [&](std::vector<uint8_t> s) {
+        return decodeBlockIndices(s.data(), s.size(), offsets, back);
+    };
+    EXPECT_NE(reason({0xFF, 0xFF, 0x03, 0x00, 0x7F, 0x80}).find("ends inside block 2"), std::string::npos);
+    EXPECT_NE(reason({0xFF, 0xFF, 0x03, 0x00, 0x7F, 0x80, 0x01, 0x00}).find("1 bytes after its last index"),
+              std::string::npos);
+    EXPECT_NE(reason({0xFF, 0xFF, 0x04, 0x00, 0x7F, 0x80, 0x01}).find("exceeds 16 bits"), std::string::npos);
+    EXPECT_NE(reason({0xFF, 0xFF, 0x03, 0x80, 0x00, 0x7F, 0x80, 0x01}).find("overlong varint at byte 4"),
+              std::string::npos);
+    // 65535 then +1: above 16 bits by the deltas.
+    const std::vector<uint32_t> two = {0, 2};
+    std::vector<uint8_t> s = {0xFF, 0xFF, 0x03, 0x00};
+    EXPECT_NE(decodeBlockIndices(s.data(), s.size(), two, back).find("decodes index 65536"), std::string::npos);
+}
+
 TEST(BlockedVectors, JointChoiceMatchesBruteForceScores) {
     const SparseRgbVectors src = randomVectors(16, 12, 64, 3);
     const size_t keep = 10;

@@ -1481,19 +1481,11 @@ TEST_F(TransportTest, ShRoundTripIsVersion3) {
             EXPECT_TRUE(contains(describe(info), "SH part: " + std::to_string(terms) + " terms")) << describe(info);
         }
     }
-    // Blocked components with one scale per vertex and channel (as format version 3
-    // wrote them: shFrom unset) stay in a version-3 file, byte for byte what it was.
+    // Blocked components with the SH part forced (what prt-precompute does) are version
+    // 4 (BlockedVersion4LayoutMatchesTheFormatDocument; version-3 blocked files:
+    // Version3BlockedFilesStillLoad).
     TransportFile f = makeShFile(rng, 40, 8, 9);
-    f.components[0].blocks = jointTruncate(f.components[0].vectors, 12, shuffledOrder(rng, 40));
-    f.components[0].vectors = SparseRgbVectors();
     const std::string p = path("shblocked");
-    saveTransportFile(p, f);
-    EXPECT_EQ(le32(&readBytes(p)[8]), 3u);
-    EXPECT_EQ(loadTransportFile(p), f);
-    EXPECT_EQ(loadTransportFile(p).components[0].blocks.shFrom, UINT32_MAX);
-    // With the SH part forced (what prt-precompute does) the SH indices get scales of
-    // their own: version 4.
-    f = makeShFile(rng, 40, 8, 9);
     f.components[0].blocks = jointTruncate(f.components[0].vectors, 12, shuffledOrder(rng, 40), 6 * 8 * 8);
     f.components[0].vectors = SparseRgbVectors();
     saveTransportFile(p, f);
@@ -1510,7 +1502,64 @@ TEST_F(TransportTest, ShRoundTripIsVersion3) {
     EXPECT_TRUE(tempFiles().empty());
 }
 
-TEST_F(TransportTest, BlockedShScalesAreVersion4) {
+namespace {
+
+// A small blocked file as format version 3 wrote it (one scale per lane and channel,
+// the SH part included): N = 2 (24 Haar indices), 1 SH term (index 24), 20 vertices
+// (a full block and a partial one), multiple scattering with its SH part and
+// isotropic single scattering without. Every value is exact in binary.
+TransportFile legacyBlockedFile() {
+    TransportFile f;
+    f.cubemapSize = 2;
+    f.shTerms = 1;
+    f.mesh = {20, 0x0123456789abcdefull};
+    f.mmPerUnit = 0.5;
+    f.parameters = {{"material", "Marble"}, {"note", "written by format version 3 (tests/golden)"}};
+    for (ComponentKind kind : {ComponentKind::MultipleScattering, ComponentKind::SingleScatteringIsotropic}) {
+        TransportComponent c;
+        c.kind = kind;
+        const bool sh = kind == ComponentKind::MultipleScattering;
+        for (uint32_t first : {0u, 16u}) {
+            const uint32_t lanes = first == 0 ? 16 : 4;
+            std::vector<uint32_t> laneVertices, idx = {1, 5, 6, 17};
+            for (uint32_t lane = 0; lane < lanes; ++lane) laneVertices.push_back(19 - (first + lane));
+            if (sh) idx.push_back(24);
+            std::vector<float> rgb;
+            for (size_t n = 0; n < idx.size(); ++n)
+                for (uint32_t lane = 0; lane < lanes; ++lane)
+                    for (int ch = 0; ch < 3; ++ch)
+                        rgb.push_back(idx[n] == 24 ? 32.0f + float(lane)
+                                                   : float(int(n * 7 + lane * 3 + ch) % 11 - 5) * 0.25f);
+            c.blocks.appendBlock(idx, rgb, laneVertices);
+        }
+        f.components.push_back(std::move(c));
+    }
+    return f;
+}
+
+// An independent reader of the version-4 index stream, written from the format
+// document: per block the first index, then (index - previous - 1), LEB128.
+std::vector<uint16_t> decodeVarints(const uint8_t* p, size_t size, const std::vector<uint32_t>& offsets) {
+    std::vector<uint16_t> out;
+    size_t at = 0;
+    for (size_t k = 0; k + 1 < offsets.size(); ++k)
+        for (uint32_t n = offsets[k]; n < offsets[k + 1]; ++n) {
+            uint32_t d = 0;
+            for (int shift = 0;; shift += 7) {
+                EXPECT_LT(at, size);
+                const uint8_t byte = p[at++];
+                d |= uint32_t(byte & 0x7F) << shift;
+                if (byte < 0x80) break;
+            }
+            out.push_back(uint16_t(n == offsets[k] ? d : out.back() + 1 + d));
+        }
+    EXPECT_EQ(at, size) << "the stream ends with its last index";
+    return out;
+}
+
+}  // namespace
+
+TEST_F(TransportTest, BlockedVersion4LayoutMatchesTheFormatDocument) {
     std::mt19937 rng(33);
     TransportFile f = makeShFile(rng, 40, 8, 9);
     ASSERT_GE(f.components.size(), 2u);
@@ -1532,44 +1581,64 @@ TEST_F(TransportTest, BlockedShScalesAreVersion4) {
         f.components[i].blocks = jointTruncate(f.components[i].vectors, 12, shuffledOrder(rng, 40), shFrom);
         f.components[i].vectors = SparseRgbVectors();
     }
-    const BlockedRgbVectors& b0 = f.components[0].blocks;
-    EXPECT_EQ(b0.shFrom, shFrom);
-    EXPECT_EQ(b0.shScales.size(), b0.scales.size());
+    EXPECT_EQ(f.components[0].blocks.shFrom, shFrom);
+    EXPECT_EQ(f.components[0].blocks.shScales.size(), f.components[0].blocks.scales.size());
     EXPECT_EQ(f.components[1].blocks.shFrom, UINT32_MAX);
     EXPECT_TRUE(f.components[1].blocks.shScales.empty());
 
-    const std::string p = path("shscales");
+    const std::string p = path("v4");
     saveTransportFile(p, f);
     const Bytes b = readBytes(p);
-    EXPECT_EQ(le32(&b[8]), 4u) << "a file with SH scales in a block is version 4";
+    EXPECT_EQ(le32(&b[8]), 4u) << "a file with SH terms and a blocked component is version 4";
     const std::vector<Sec> secs = walk(b);
     std::vector<Sec> blkc;
     for (const Sec& x : secs)
         if (x.tag == "BLKC") blkc.push_back(x);
     ASSERT_EQ(blkc.size(), 2u);
-    EXPECT_EQ(le32(&b[blkc[0].payload + 32]), 1u) << "the SH scales flag";
-    EXPECT_EQ(le32(&b[blkc[1].payload + 32]), 0u);
-    // The SH scales array is the payload's last 48 floats per block (3 blocks of 16).
-    const size_t tail = blkc[0].payload + size_t(blkc[0].length) - 3 * 48 * 4;
-    float first = 0.0f;
-    std::memcpy(&first, &b[tail], 4);
-    EXPECT_EQ(first, b0.shScales[0]);
+    auto up = [](size_t x) { return (x + 63) / 64 * 64; };
+    for (size_t i = 0; i < 2; ++i) {
+        SCOPED_TRACE("component " + std::to_string(i));
+        const BlockedRgbVectors& v = f.components[i].blocks;
+        const uint8_t* q = &b[blkc[i].payload];
+        const size_t vertices = 40, blocks = 3, m = v.indexCount(), d = le64(q + 40);
+        EXPECT_EQ(le64(q + 24), m);
+        EXPECT_EQ(le32(q + 32), i == 0 ? 1u : 0u) << "the SH scales flag";
+        EXPECT_EQ(le32(q + 36), 0u);
+        for (size_t k = 48; k < 64; ++k) EXPECT_EQ(q[k], 0) << "reserved byte " << k;
+        const size_t offOrder = 64, offOffsets = up(offOrder + 4 * vertices),
+                     offIndices = up(offOffsets + 4 * (blocks + 1)), offValues = up(offIndices + d),
+                     offScales = up(offValues + 48 * m), offShScales = up(offScales + 4 * 48 * blocks);
+        EXPECT_EQ(blkc[i].length, (i == 0 ? offShScales : offScales) + 4 * 48 * blocks);
+        EXPECT_LT(d, 2 * m) << "varints are smaller than 16-bit indices here";
+        EXPECT_EQ(decodeVarints(q + offIndices, d, v.offsets), v.indices);
+        for (size_t k = offIndices + d; k < offValues; ++k) EXPECT_EQ(q[k], 0) << "padding";
+        for (size_t k = 0; k < 48 * m; ++k) ASSERT_EQ(int8_t(q[offValues + k]), v.values[k]);
+        for (size_t k = 0; i == 0 && k < 48 * blocks; ++k) {
+            float x;
+            std::memcpy(&x, q + offShScales + 4 * k, 4);
+            EXPECT_EQ(x, v.shScales[k]);
+        }
+    }
     EXPECT_EQ(loadTransportFile(p), f);
     const TransportFileInfo info = readTransportFileInfo(p);
     EXPECT_EQ(info.version, 4u);
     EXPECT_TRUE(info.components[0].shScales);
     EXPECT_FALSE(info.components[1].shScales);
-    const std::string d = describe(info);
-    EXPECT_TRUE(contains(d, "format version 4")) << d;
-    EXPECT_TRUE(contains(d, "multiple scattering: 40 vertices, blocked: 3 blocks of 16 sharing 36 indices (12.0 mean per block), SH part scaled apart")) << d;
-    EXPECT_TRUE(contains(d, "(12.0 mean per block), 2.7 KiB")) << d;
+    const std::string desc = describe(info);
+    EXPECT_TRUE(contains(desc, "format version 4")) << desc;
+    EXPECT_TRUE(contains(desc, "multiple scattering: 40 vertices, blocked: 3 blocks of 16 sharing 36 indices "
+                               "(12.0 mean per block), SH part scaled apart")) << desc;
+    EXPECT_TRUE(contains(desc, "(12.0 mean per block), 2.")) << desc;
 
+    // Corruptions with a valid checksum.
     auto refused = [&](Bytes x, const Sec& sec, const std::string& expected) {
         fixChecksum(x, sec);
         writeBytes(p, x);
         const std::string e = errorOf([&] { loadTransportFile(p); });
         EXPECT_TRUE(contains(e, expected)) << "expected '" << expected << "' in: " << e;
     };
+    const uint8_t* q0 = &b[blkc[0].payload];
+    const size_t d0 = le64(q0 + 40), offIndices0 = up(up(64 + 4 * 40) + 4 * 4);
     Bytes x = b;
     putLe32(&x[blkc[0].payload + 32], 2);
     refused(x, blkc[0], "SH scales flag 2 is not 0 or 1");
@@ -1579,23 +1648,28 @@ TEST_F(TransportTest, BlockedShScalesAreVersion4) {
     x = b;
     putLe32(&x[blkc[1].payload + 32], 1);
     refused(x, blkc[1], "-byte payload, the section has");
-    x = b;  // before version 4 the flag is a reserved field and there is no SH scales array
+    x = b;
+    putLe64(&x[blkc[0].payload + 40], 3 * f.components[0].blocks.indexCount() + 1);
+    refused(x, blkc[0], "index stream of");
+    x = b;  // a varint's continuation bit on the stream's last byte: it runs past the end
+    // (decodeBlockIndices' other reasons: tests/test_blocked_vectors.cpp)
+    x[blkc[0].payload + offIndices0 + d0 - 1] |= 0x80;
+    refused(x, blkc[0], "index stream ends inside block 2");
+    x = b;  // before version 4 the fields at 32 and 40 are reserved, indices 16-bit
     putLe32(&x[8], 3);
     refused(x, blkc[0], "-byte payload, the section has");
-    // A version-4 header on a file whose blocks have one scale is a corrupted version.
-    f.components[0].blocks = jointTruncate(makeShFile(rng, 40, 8, 9).components[0].vectors, 12,
-                                           shuffledOrder(rng, 40));
-    saveTransportFile(p, f);
+    // A version-4 header on a file without a blocked component is a corrupted version.
+    TransportFile perVertex = makeShFile(rng, 40, 8, 9);
+    saveTransportFile(p, perVertex);
     x = readBytes(p);
     EXPECT_EQ(le32(&x[8]), 3u);
     putLe32(&x[8], 4);
     writeBytes(p, x);
     std::string e = errorOf([&] { loadTransportFile(p); });
-    EXPECT_TRUE(contains(e, "format version 4 but no blocked component with SH scales")) << e;
+    EXPECT_TRUE(contains(e, "format version 4 but no blocked component (a file without one is version 3)")) << e;
     e = errorOf([&] { readTransportFileInfo(p); });
-    EXPECT_TRUE(contains(e, "format version 4 but no blocked component with SH scales")) << e;
+    EXPECT_TRUE(contains(e, "format version 4 but no blocked component")) << e;
     // SH scales must start at the SH part.
-    f.components[0].blocks = b0;
     f.components[0].blocks.shFrom = shFrom - 1;
     e = errorOf([&] { saveTransportFile(path("bad"), f); });
     EXPECT_TRUE(contains(e, "SH scales from index 383 but the SH part starts at 384")) << e;
@@ -1605,6 +1679,35 @@ TEST_F(TransportTest, BlockedShScalesAreVersion4) {
     EXPECT_TRUE(contains(e, "but the SH part is absent")) << e;
     EXPECT_FALSE(std::filesystem::exists(path("bad")));
     EXPECT_TRUE(tempFiles().empty());
+}
+
+TEST_F(TransportTest, Version3BlockedFilesStillLoad) {
+    // tests/golden/blocked_v3.prt was written by the format-version-3 writer from
+    // legacyBlockedFile(): one scale per lane and channel for the SH part and the Haar
+    // indices alike, 16-bit indices.
+    const std::string golden = std::string(PRT_SOURCE_DIR) + "/tests/golden/blocked_v3.prt";
+    const Bytes b = readBytes(golden);
+    EXPECT_EQ(le32(&b[8]), 3u);
+    const TransportFile expected = legacyBlockedFile();
+    const TransportFile g = loadTransportFile(golden);
+    EXPECT_EQ(g, expected);
+    EXPECT_EQ(g.components[0].blocks.shFrom, UINT32_MAX);
+    EXPECT_TRUE(g.components[0].blocks.shScales.empty());
+    // What the old writer wrote, the old way: the SH term (32 + lane) sets the scale, so
+    // a Haar value of 0.25 is 1/128 of the way up and lands on a step of 35/127 or more.
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    g.components[0].dequantizeVertex(19, idx, rgb);  // block 0, lane 0
+    ASSERT_EQ(idx, (std::vector<uint32_t>{1, 5, 6, 17, 24}));
+    EXPECT_EQ(rgb[3 * 4], 32.0f);
+    // Saved again it is version 4 (16-bit indices become varints), and the same data.
+    const std::string p = path("again");
+    saveTransportFile(p, g);
+    EXPECT_EQ(le32(&readBytes(p)[8]), 4u);
+    EXPECT_EQ(loadTransportFile(p), g);
+    const TransportFileInfo info = readTransportFileInfo(golden);
+    EXPECT_EQ(info.version, 3u);
+    EXPECT_FALSE(info.components[0].shScales);
 }
 
 TEST_F(TransportTest, ShIndicesAreBoundedByTheTermCount) {
