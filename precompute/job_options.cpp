@@ -55,7 +55,7 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     app.add_option("--block-coefficients", s.blockCoefficients,
                    "0: each vertex keeps its own terms. M > 0: blocks of 16 nearby vertices share M terms "
                    "chosen jointly, 8-bit values (a ~2x smaller file that relights ~2x faster; 160 is a "
-                   "little less accurate than 128 per vertex, docs/precompute.md)")
+                   "little more accurate than 128 per vertex, docs/precompute.md)")
         ->capture_default_str();
     app.add_option("--epsilon", s.epsilon, "kd-tree threshold on A_node / r^2 (0 = exact sum)")
         ->capture_default_str();
