@@ -33,6 +33,8 @@ void BlockedRgbVectors::appendBlock(const std::vector<uint32_t>& idx, const std:
         throw Error(kSubject, "a block holds 1 to 16 vertices, got " + std::to_string(lanes));
     if (vertices % kVertexBlock != 0)
         throw Error(kSubject, "a block after a partial block (vertex " + std::to_string(vertices) + ")");
+    if (shScales.size() != (shFrom == UINT32_MAX ? 0 : scales.size()))
+        throw Error(kSubject, "shFrom set after the first block");
     if (rgb.size() != size_t(3) * lanes * idx.size())
         throw Error(kSubject, "appendBlock got " + std::to_string(idx.size()) + " indices and " +
                                   std::to_string(rgb.size()) + " values for " + std::to_string(lanes) +
@@ -302,7 +304,9 @@ std::vector<uint8_t> encodeBlockIndices(const BlockedRgbVectors& b) {
 
 std::string decodeBlockIndices(const uint8_t* bytes, size_t size, const std::vector<uint32_t>& offsets,
                                std::vector<uint16_t>& indices) {
-    const size_t total = offsets.empty() ? 0 : offsets.back();
+    if (offsets.empty() || offsets.front() != 0 || !std::is_sorted(offsets.begin(), offsets.end()))
+        return "block offsets do not rise from 0";
+    const size_t total = offsets.back();
     indices.resize(total);
     size_t at = 0;
     for (size_t k = 0; k + 1 < offsets.size(); ++k)

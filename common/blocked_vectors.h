@@ -83,7 +83,7 @@ struct BlockedRgbVectors {
     // Appends the next block: the vertices `lanes` (1..16 of them) that share the indices idx
     // (strictly increasing, each < 65536) with their values rgb[(n * lanes + lane) * 3 + c]
     // (finite). Quantizes per vertex and channel as described above (two scales when
-    // shFrom is set: set it before the first block). Throws prt::Error
+    // shFrom is set: set it before the first block, or this throws). Throws prt::Error
     // on a size mismatch, unsorted or duplicate index, non-finite value, a block after a
     // partial one, or more than 2^32 - 1 indices in total.
     // (Vertex numbers are not checked here; checkBlockedVectors checks the permutation.)
@@ -151,9 +151,9 @@ BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
 // overlong encoding). A block of 160 Haar indices averages ~1.05 bytes per index
 // instead of 2 (bunny and dragon res3, Marble). encodeBlockIndices writes b's indices
 // block after block; decodeBlockIndices reads `bytes` back into `indices` for the blocks
-// that `offsets` describes (monotone, from 0) and returns an empty string, or a one-line
-// reason when the stream is truncated, overlong, has bytes left over or decodes an
-// index above 65535. They are inverses: decode(encode(b)) == b.indices.
+// that `offsets` describes and returns an empty string, or a one-line reason when the
+// offsets do not rise from 0 or the stream is truncated, overlong, has bytes left over
+// or decodes an index above 65535. They are inverses: decode(encode(b)) == b.indices.
 std::vector<uint8_t> encodeBlockIndices(const BlockedRgbVectors& b);
 std::string decodeBlockIndices(const uint8_t* bytes, size_t size, const std::vector<uint32_t>& offsets,
                                std::vector<uint16_t>& indices);

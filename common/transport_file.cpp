@@ -396,7 +396,8 @@ std::string checkFile(const TransportFile& f, size_t* componentIndex = nullptr) 
                             !v.scales.empty()))
             return name + ": a blocked component also holds per-vertex vectors";
         if (!c.blocked() && (!b.order.empty() || b.offsets.size() > 1 || !b.indices.empty() ||
-                             !b.values.empty() || !b.scales.empty()))
+                             !b.values.empty() || !b.scales.empty() || !b.shScales.empty() ||
+                             b.shFrom != UINT32_MAX))
             return name + ": blocked arrays without blocked vertices";
         // SH scales start at the SH part (the file stores a flag, not the index).
         if (c.blocked() && b.shFrom != UINT32_MAX &&
@@ -861,7 +862,7 @@ struct HeadFields {
     bool hasViewMaps = false;
 };
 
-// Returns the format version (1, 2 or 3).
+// Returns the format version (1 to 4).
 uint32_t readPreamble(FileReader& r) {
     const uint64_t size = r.size();
     if (size == 0) r.fail("truncated: the file is empty (not a transport file)");
@@ -1077,7 +1078,7 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
     return c;
 }
 
-// Reads one component section: COMP, or in a version-2 file also BLKC. In info mode
+// Reads one component section: COMP, or from version 2 on also BLKC. In info mode
 // only the fixed part is read and the arrays are skipped (the returned vectors are
 // left empty).
 TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t index, bool infoOnly,

@@ -56,7 +56,9 @@ struct VertexRadiance {
 // quantization error (kQuantizationMaxRelativeError ~ 1.5e-5 of the vertex's maximum).
 // Blocked components: per lane and channel the sum of q_n * L_n (int8 value times float
 // light) is accumulated in one float accumulator in index order, then multiplied by the
-// lane's scale: the error is at most about (n + 3) * 2^-24 * sum_n |v_n L_n| for a block
+// lane's scale (with SH scales: the Haar and the SH indices in two such sums, each times
+// its scale, then added; one rounding more): the error is at most about (n + 3) * 2^-24
+// * sum_n |v_n L_n| for a block
 // of n indices (~1e-5 of the absolute sum for n = 160), far below the 8-bit
 // quantization error (kBlockQuantizationMaxRelativeError ~ 3.9e-3 of the vertex's
 // channel maximum).

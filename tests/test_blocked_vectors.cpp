@@ -164,6 +164,13 @@ TEST(BlockedVectors, ShPartHasScalesOfItsOwn) {
     b = two;
     b.shFrom = count + 9;
     EXPECT_NE(checkBlockedVectors(b, count + 9), "");
+    // shFrom must be set before the first block.
+    BlockedRgbVectors late;
+    late.appendBlock({1}, std::vector<float>(48, 1.0f), identityOrder(16));  // a whole block
+    late.shFrom = 2;
+    EXPECT_THROW(late.appendBlock({1, 2}, std::vector<float>(6, 1.0f), {16}), Error);
+    late.shFrom = UINT32_MAX;
+    EXPECT_NO_THROW(late.appendBlock({1, 2}, std::vector<float>(6, 1.0f), {16}));
 }
 
 TEST(BlockedVectors, IndexVarintsRoundTripAndRefuseBadStreams) {
@@ -195,6 +202,11 @@ TEST(BlockedVectors, IndexVarintsRoundTripAndRefuseBadStreams) {
               std::string::npos);
     EXPECT_NE(reason({0xFF, 0xFF, 0x04, 0x00, 0x7F, 0x80, 0x01}).find("exceeds 16 bits"), std::string::npos);
     EXPECT_NE(reason({0xFF, 0xFF, 0x03, 0x80, 0x00, 0x7F, 0x80, 0x01}).find("overlong varint at byte 4"),
+              std::string::npos);
+    // Offsets that do not rise from 0 are refused before any index is written.
+    EXPECT_NE(decodeBlockIndices(stream.data(), stream.size(), {0, 3, 1, 4}, back).find("do not rise from 0"),
+              std::string::npos);
+    EXPECT_NE(decodeBlockIndices(stream.data(), stream.size(), {1, 4}, back).find("do not rise from 0"),
               std::string::npos);
     // 65535 then +1: above 16 bits by the deltas.
     const std::vector<uint32_t> two = {0, 2};

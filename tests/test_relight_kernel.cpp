@@ -1014,6 +1014,50 @@ TEST(RelightBlocked, ShPartHasScalesOfItsOwnInEveryVariant) {
     }
 }
 
+TEST(RelightBlocked, ShScalesOnBlocksWithOnePartOrNone) {
+    // Hand-built blocks with SH scales (shFrom = 6 N^2): Haar indices only, SH indices
+    // only, no index, both, and a partial last block with one SH index. Every variant
+    // against the slow reference (dequantizeVertex, double sums).
+    const uint32_t n = 4, haar = 6 * n * n;
+    const LightVector light = prt::makeLightVector(randomCubemap(int(n), 27));
+    TransportFile file;
+    file.cubemapSize = n;
+    file.shTerms = 4;
+    TransportComponent c;
+    c.blocks.shFrom = haar;
+    const std::vector<std::vector<uint32_t>> blockIndices = {
+        {0, 7, 50}, {haar, haar + 3}, {}, {3, 90, haar, haar + 1, haar + 2, haar + 3}, {haar + 2}};
+    std::mt19937 rng(28);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    uint32_t vertex = 0;
+    for (size_t k = 0; k < blockIndices.size(); ++k) {
+        const uint32_t lanes = k + 1 == blockIndices.size() ? 5 : 16;
+        std::vector<uint32_t> laneVertices;
+        for (uint32_t lane = 0; lane < lanes; ++lane) laneVertices.push_back(vertex++);
+        std::vector<float> rgb(3 * lanes * blockIndices[k].size());
+        for (size_t i = 0; i < rgb.size(); ++i)
+            rgb[i] = unit(rng) * (blockIndices[k][i / (3 * lanes)] >= haar ? 30.0f : 1.0f);
+        c.blocks.appendBlock(blockIndices[k], rgb, laneVertices);
+    }
+    file.mesh.vertexCount = vertex;
+    file.components.push_back(c);
+    ASSERT_EQ(prt::checkBlockedVectors(file.components[0].blocks, haar + 4), "");
+    VertexRadiance reference;
+    prt::relightVerticesReference(file, light, {true, true}, reference);
+    for (size_t v = 32; v < 48; ++v) EXPECT_EQ(reference.diffuse[v], glm::vec3(0.0f)) << "the empty block";
+    for (const prt::RelightOptions& options : variants()) {
+        SCOPED_TRACE(variantName(options));
+        VertexRadiance got;
+        prt::relightVertices(file, light, {true, true}, got, options);
+        ASSERT_EQ(got.diffuse.size(), size_t(vertex));
+        for (size_t v = 0; v < vertex; ++v)
+            for (int ch = 0; ch < 3; ++ch)
+                EXPECT_NEAR(got.diffuse[v][ch], reference.diffuse[v][ch],
+                            1e-5 * (1.0 + std::abs(reference.diffuse[v][ch])))
+                    << "vertex " << v;
+    }
+}
+
 TEST(RelightBlocked, MixedFileAndThreadIndependence) {
     // Blocked multiple scattering beside per-vertex isotropic single scattering and
     // per-vertex SS terms (and the other way round): the diffuse sum mixes both
@@ -1160,6 +1204,11 @@ TEST(RelightBlocked, StreamBytesCountTheBlockedArrays) {
     EXPECT_EQ(prt::relightStreamBytes(file, {true, false}), ms);
     EXPECT_EQ(prt::relightStreamBytes(file, {false, true}), ss);
     EXPECT_EQ(prt::relightStreamBytes(file, {true, true}), ms + ss);
+    // SH scales stream 48 floats more per block: one block of one vertex, two indices.
+    prt::BlockedRgbVectors sh;
+    sh.shFrom = 10;
+    sh.appendBlock({1, 10}, std::vector<float>(6, 1.0f), {0});
+    EXPECT_EQ(sh.byteSize(), 4 * 1 + 4 * 2 + 2 * 2 + 48 * 2 + 4 * 48 + 4 * 48);
 }
 
 }  // namespace

@@ -309,6 +309,58 @@ protected:
             if (contains(e.path().filename().string(), ".tmp")) out.push_back(e.path().string());
         return out;
     }
+    // Every truncation and every flipped bit (0x01, 0x80) of `f`'s file is refused,
+    // naming the section (its third section is a BLKC); the file itself loads as f.
+    void expectEveryCutAndFlipRefused(const TransportFile& f) {
+        const std::string good = path("good");
+        saveTransportFile(good, f);
+        const Bytes b = readBytes(good);
+        const std::vector<Sec> secs = walk(b);
+        ASSERT_EQ(secs[2].tag, "BLKC");
+        const std::string p = path("cut");
+        writeBytes(p, b);
+        for (size_t len = b.size(); len-- > 0;) {
+            fs::resize_file(p, len);
+            const std::string e1 = errorOf([&] { loadTransportFile(p); });
+            ASSERT_TRUE(contains(e1, "truncated")) << "length " << len << ": " << e1;
+            const std::string e2 = errorOf([&] { readTransportFileInfo(p); });
+            ASSERT_TRUE(contains(e2, "truncated")) << "info, length " << len << ": " << e2;
+        }
+        for (const Sec& s : secs) {
+            writeBytes(p, Bytes(b.begin(), b.begin() + long(s.payload)));
+            std::string e = errorOf([&] { loadTransportFile(p); });
+            EXPECT_TRUE(contains(e, "'" + s.tag + "'")) << e;
+            EXPECT_TRUE(contains(e, "needs " + std::to_string(s.length + 4) + " bytes")) << e;
+            writeBytes(p, Bytes(b.begin(), b.begin() + long(s.regionStart)));
+            e = errorOf([&] { loadTransportFile(p); });
+            EXPECT_TRUE(contains(e, "'" + s.tag + "'")) << e;
+        }
+
+        writeBytes(p, b);
+        std::fstream io(p, std::ios::in | std::ios::out | std::ios::binary);
+        ASSERT_TRUE(io.good());
+        auto poke = [&](size_t at, uint8_t value) {
+            io.seekp(std::streamoff(at));
+            io.put(char(value));
+            io.flush();
+        };
+        for (size_t at = 0; at < b.size(); ++at) {
+            for (uint8_t mask : {uint8_t(0x01), uint8_t(0x80)}) {
+                poke(at, uint8_t(b[at] ^ mask));
+                const std::string e = errorOf([&] { loadTransportFile(p); });
+                poke(at, b[at]);
+                ASSERT_NE(e, "<no error>") << "byte " << at << " ^ " << int(mask) << " accepted";
+                if (at < 16) continue;
+                const Sec& s = *std::find_if(secs.begin(), secs.end(),
+                                             [&](const Sec& x) { return at < x.end; });
+                ASSERT_TRUE(contains(e, "'" + s.tag + "'")) << "byte " << at << ": " << e;
+                if (at >= s.payload || (at >= s.header + 4 && at < s.header + 8)) {
+                    ASSERT_TRUE(contains(e, "checksum mismatch")) << "byte " << at << ": " << e;
+                }
+            }
+        }
+        EXPECT_EQ(loadTransportFile(p), f);
+    }
     fs::path dir_;
 };
 
@@ -1244,54 +1296,7 @@ TEST_F(TransportTest, BlockedInfoAndDescribe) {
 TEST_F(TransportTest, BlockedTruncatedOrFlippedIsRefusedNamingTheSection) {
     std::mt19937 rng(24);
     const TransportFile f = makeBlockedFile(rng, 24, 4, 12, 2, 8);
-    const std::string good = path("good");
-    saveTransportFile(good, f);
-    const Bytes b = readBytes(good);
-    const std::vector<Sec> secs = walk(b);
-    ASSERT_EQ(secs[2].tag, "BLKC");
-    const std::string p = path("cut");
-    writeBytes(p, b);
-    for (size_t len = b.size(); len-- > 0;) {
-        fs::resize_file(p, len);
-        const std::string e1 = errorOf([&] { loadTransportFile(p); });
-        ASSERT_TRUE(contains(e1, "truncated")) << "length " << len << ": " << e1;
-        const std::string e2 = errorOf([&] { readTransportFileInfo(p); });
-        ASSERT_TRUE(contains(e2, "truncated")) << "info, length " << len << ": " << e2;
-    }
-    for (const Sec& s : secs) {
-        writeBytes(p, Bytes(b.begin(), b.begin() + long(s.payload)));
-        std::string e = errorOf([&] { loadTransportFile(p); });
-        EXPECT_TRUE(contains(e, "'" + s.tag + "'")) << e;
-        EXPECT_TRUE(contains(e, "needs " + std::to_string(s.length + 4) + " bytes")) << e;
-        writeBytes(p, Bytes(b.begin(), b.begin() + long(s.regionStart)));
-        e = errorOf([&] { loadTransportFile(p); });
-        EXPECT_TRUE(contains(e, "'" + s.tag + "'")) << e;
-    }
-
-    writeBytes(p, b);
-    std::fstream io(p, std::ios::in | std::ios::out | std::ios::binary);
-    ASSERT_TRUE(io.good());
-    auto poke = [&](size_t at, uint8_t value) {
-        io.seekp(std::streamoff(at));
-        io.put(char(value));
-        io.flush();
-    };
-    for (size_t at = 0; at < b.size(); ++at) {
-        for (uint8_t mask : {uint8_t(0x01), uint8_t(0x80)}) {
-            poke(at, uint8_t(b[at] ^ mask));
-            const std::string e = errorOf([&] { loadTransportFile(p); });
-            poke(at, b[at]);
-            ASSERT_NE(e, "<no error>") << "byte " << at << " ^ " << int(mask) << " accepted";
-            if (at < 16) continue;
-            const Sec& s = *std::find_if(secs.begin(), secs.end(),
-                                         [&](const Sec& x) { return at < x.end; });
-            ASSERT_TRUE(contains(e, "'" + s.tag + "'")) << "byte " << at << ": " << e;
-            if (at >= s.payload || (at >= s.header + 4 && at < s.header + 8)) {
-                ASSERT_TRUE(contains(e, "checksum mismatch")) << "byte " << at << ": " << e;
-            }
-        }
-    }
-    EXPECT_EQ(loadTransportFile(p), f);
+    expectEveryCutAndFlipRefused(f);  // a version-2 file
 }
 
 TEST_F(TransportTest, BlockedValidChecksumButInconsistentContentsIsRefused) {
@@ -1620,6 +1625,7 @@ TEST_F(TransportTest, BlockedVersion4LayoutMatchesTheFormatDocument) {
         }
     }
     EXPECT_EQ(loadTransportFile(p), f);
+    expectEveryCutAndFlipRefused(f);
     const TransportFileInfo info = readTransportFileInfo(p);
     EXPECT_EQ(info.version, 4u);
     EXPECT_TRUE(info.components[0].shScales);
@@ -1631,11 +1637,15 @@ TEST_F(TransportTest, BlockedVersion4LayoutMatchesTheFormatDocument) {
     EXPECT_TRUE(contains(desc, "(12.0 mean per block), 2.")) << desc;
 
     // Corruptions with a valid checksum.
-    auto refused = [&](Bytes x, const Sec& sec, const std::string& expected) {
+    // (Fixed fields are checked by readTransportFileInfo too; the stream only by a load.)
+    auto refused = [&](Bytes x, const Sec& sec, const std::string& expected, bool info = true) {
         fixChecksum(x, sec);
         writeBytes(p, x);
-        const std::string e = errorOf([&] { loadTransportFile(p); });
+        std::string e = errorOf([&] { loadTransportFile(p); });
         EXPECT_TRUE(contains(e, expected)) << "expected '" << expected << "' in: " << e;
+        if (!info) return;
+        e = errorOf([&] { readTransportFileInfo(p); });
+        EXPECT_TRUE(contains(e, expected)) << "info: expected '" << expected << "' in: " << e;
     };
     const uint8_t* q0 = &b[blkc[0].payload];
     const size_t d0 = le64(q0 + 40), offIndices0 = up(up(64 + 4 * 40) + 4 * 4);
@@ -1654,7 +1664,7 @@ TEST_F(TransportTest, BlockedVersion4LayoutMatchesTheFormatDocument) {
     x = b;  // a varint's continuation bit on the stream's last byte: it runs past the end
     // (decodeBlockIndices' other reasons: tests/test_blocked_vectors.cpp)
     x[blkc[0].payload + offIndices0 + d0 - 1] |= 0x80;
-    refused(x, blkc[0], "index stream ends inside block 2");
+    refused(x, blkc[0], "index stream ends inside block 2", false);
     x = b;  // before version 4 the fields at 32 and 40 are reserved, indices 16-bit
     putLe32(&x[8], 3);
     refused(x, blkc[0], "-byte payload, the section has");
@@ -1669,6 +1679,11 @@ TEST_F(TransportTest, BlockedVersion4LayoutMatchesTheFormatDocument) {
     EXPECT_TRUE(contains(e, "format version 4 but no blocked component (a file without one is version 3)")) << e;
     e = errorOf([&] { readTransportFileInfo(p); });
     EXPECT_TRUE(contains(e, "format version 4 but no blocked component")) << e;
+    // A per-vertex component carries no SH scales (the writer would drop them).
+    TransportFile stray = perVertex;
+    stray.components[0].blocks.shFrom = shFrom;
+    e = errorOf([&] { saveTransportFile(path("bad"), stray); });
+    EXPECT_TRUE(contains(e, "blocked arrays without blocked vertices")) << e;
     // SH scales must start at the SH part.
     f.components[0].blocks.shFrom = shFrom - 1;
     e = errorOf([&] { saveTransportFile(path("bad"), f); });
