@@ -13,7 +13,7 @@
 #   ms_coefficients  coefficients kept per vertex 64, 128, 192, 256 (res3)
 #   ms_samples       --samples 5000, 10000, 20000, 40000 (+ the default 9,732) (res3)
 #   ss_mesh          isotropic single scattering (--components ss): res4, res3
-#   ss_path_samples  --path-samples 2, 4 (N 16), the default 6, 8 and 32 (res4; Gauss-Legendre rule, the default since 2026-11-24)
+#   ss_path_samples  --path-samples 2, 3, the default 4, 6, 8 and 32 (res4; Gauss-Legendre rule, adaptive directions)
 #   relight          relight time per frame of every file against its bytes
 set -euo pipefail
 
@@ -88,6 +88,9 @@ else
     "ms_res3_s20000|ms_samples|$m/dragon_vrip_res3.ply.gz|--samples 20000"
     "ms_res3_s40000|ms_samples|$m/dragon_vrip_res3.ply.gz|--samples 40000"
     "ss_res4|ss_mesh,ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss"
+    "ss_res4_p2|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 2"
+    "ss_res4_p3|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 3"
+    "ss_res4_p6|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 6"
     "ss_res3|ss_mesh|$m/dragon_vrip_res3.ply.gz|--components ss"
     "ss_res4_p8|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 8"
     "ss_res4_p32|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 32"
