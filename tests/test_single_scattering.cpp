@@ -111,6 +111,14 @@ double halfSpaceSingleScattering(double sigmaS, double sigmaT, double eta, doubl
     return sigmaS * phase * fresnelTransmittance(eta, cosI) * dOmega * -std::expm1(-k * H) / k;
 }
 
+// The isotropic closed form above at texel (i, j) of the +Y face (a slab's normal) of an
+// N x N cubemap, channel ch, for material m and a slab H mm thick.
+double halfSpaceTopTexel(const Material& m, int n, int i, int j, int ch, double H) {
+    const glm::dvec3 w = texelDirection(n, 2, i, j);
+    return halfSpaceSingleScattering(m.sigmaS()[ch], m.sigmaT()[ch], m.eta, w.y, texelSolidAngle(n, i, j),
+                                     1.0 / (4.0 * M_PI), H);
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------
@@ -394,21 +402,14 @@ TEST(SingleScattering, ThickSlabMatchesTheHalfSpaceClosedForm) {
     // Gauss-Legendre points to within 7.7e-4 and 2.2e-4 (all exact for p = 1, i.e. when
     // sigma_t^c = |sigma_t| at normal incidence; GaussLegendrePathSamples). Float
     // accumulation adds ~1e-6. Hence 0.2%.
-    const glm::dvec3 sigmaS = m.sigmaS(), sigmaT = m.sigmaT();
-    const double p = 1.0 / (4.0 * M_PI);
-    const std::vector<double> omega = faceSolidAngles(n);
     struct Case { int i, j; };
     double maxTop = 0;
     for (Case c : {Case{8, 8}, Case{7, 7}, Case{15, 8}, Case{3, 12}, Case{0, 0}}) {
-        const int face = 2;  // +Y, the slab's normal
-        const glm::dvec3 w = texelDirection(n, face, c.i, c.j);
-        const double dOmega = omega[size_t(c.j) * n + c.i];
-        const size_t t = texelIndex(n, face, c.i, c.j);
+        const size_t t = texelIndex(n, 2, c.i, c.j);  // +Y, the slab's normal
         for (int ch = 0; ch < 3; ++ch) {
-            const double expected =
-                halfSpaceSingleScattering(sigmaS[ch], sigmaT[ch], m.eta, w.y, dOmega, p, H);
+            const double expected = halfSpaceTopTexel(m, n, c.i, c.j, ch, H);
             EXPECT_NEAR(dense[t * 3 + ch], expected, 2e-3 * expected)
-                << "texel " << c.i << "," << c.j << " cos " << w.y << " channel " << ch;
+                << "texel " << c.i << "," << c.j << " channel " << ch;
             maxTop = std::max(maxTop, expected);
         }
     }
@@ -483,7 +484,6 @@ TEST(SingleScattering, PipelineFileMatchesTheHalfSpaceClosedForm) {
     vec.value = rgb;
 
     const int n = 8;
-    const std::vector<double> omega = faceSolidAngles(n);
     for (auto [i, j] : {std::pair{4, 4}, std::pair{7, 2}}) {
         Cubemap light(n, 1);
         light.data()[texelIndex(n, 2, i, j)] = 1.0f;
@@ -494,12 +494,9 @@ TEST(SingleScattering, PipelineFileMatchesTheHalfSpaceClosedForm) {
         shProjectLight(light.data().data(), n, 1, 9, withSh.data() + 6 * n * n);
         float out[3];
         dotRGB(vec, withSh.data(), 1, out);
-        const glm::dvec3 w = texelDirection(n, 2, i, j);
         const double ftView = fresnelTransmittance(m.eta, 1.0);  // normal view
         for (int ch = 0; ch < 3; ++ch) {
-            const double expected =
-                ftView * halfSpaceSingleScattering(m.sigmaS()[ch], m.sigmaT()[ch], m.eta, w.y,
-                                                   omega[size_t(j) * n + i], 1.0 / (4.0 * M_PI), H);
+            const double expected = ftView * halfSpaceTopTexel(m, n, i, j, ch, H);
             EXPECT_NEAR(ftView * out[ch], expected, 3e-3 * expected) << i << "," << j << " ch " << ch;
         }
     }
@@ -770,19 +767,13 @@ TEST(SingleScattering, AdaptiveDirectionsOnTheHalfSpace) {
     const size_t v = findVertex(slab, {0, H / 2, 0}, {0, 1, 0});
     SingleScatteringStats st;
     const std::vector<float> a = denseAt(adaptive, v, &st), b = denseAt(every, v);
-    const std::vector<double> omega = faceSolidAngles(n);
-    const glm::dvec3 sigmaS = m.sigmaS(), sigmaT = m.sigmaT();
     double brightest = 0, worst = 0;
     for (size_t k = 0; k < a.size(); ++k) brightest = std::max(brightest, double(b[k]));
     for (int j = 0; j < n; ++j)
         for (int i = 0; i < n; ++i) {
-            const glm::dvec3 w = texelDirection(n, 2, i, j);
             const size_t t = texelIndex(n, 2, i, j);
-            for (int ch = 0; ch < 3; ++ch) {
-                const double expected = halfSpaceSingleScattering(sigmaS[ch], sigmaT[ch], m.eta, w.y,
-                                                                  omega[size_t(j) * n + i], 1.0 / (4 * M_PI), H);
-                worst = std::max(worst, std::abs(a[t * 3 + ch] - expected) / brightest);
-            }
+            for (int ch = 0; ch < 3; ++ch)
+                worst = std::max(worst, std::abs(a[t * 3 + ch] - halfSpaceTopTexel(m, n, i, j, ch, H)) / brightest);
         }
     std::printf("interpolated %.1f%% of the texels, worst top texel %.2e of the brightest\n",
                 100.0 * double(st.interpolatedTexels) / double(every.texelCount()), worst);
