@@ -170,6 +170,28 @@ public:
     void intersectBatch(const float* orgX, const float* orgY, const float* orgZ,
                         const float* dirX, const float* dirY, const float* dirZ, size_t count,
                         float tnear, float tfar, Hit* hitsOut, bool coherent = false) const;
+    // The first hit of each ray and whether the ray goes on to meet another surface:
+    // hitsOut[i] = intersect(org[i], dir[i], tnear, infinity), and beyondOut[i] = 1 when
+    // the ray also hits something at t > hitsOut[i].t + separation, i.e.
+    // occluded(org[i], dir[i], hitsOut[i].t + separation, infinity) (0 when it hits
+    // nothing): whether the first hit point is shadowed toward dir, without a second ray
+    // from it. One traversal per ray, in packets like intersectBatch: a context filter
+    // rejects the hits Embree reports (so the traversal goes on past the first) until
+    // two lie more than `separation` apart, then accepts one, which bounds the rest of
+    // the traversal below it, where every closer hit is still reported; the first hit is
+    // the closest reported. 1.4-1.5x the rate of intersectBatch followed by occludedBatch
+    // from the offset hits (docs/single-scattering.md). separation >= 0; hits closer
+    // together than it (a shared edge, coincident triangles) count as one surface.
+    void intersectBatchWithBeyond(const float* orgX, const float* orgY, const float* orgZ,
+                                  const float* dirX, const float* dirY, const float* dirZ,
+                                  size_t count, float tnear, float separation, Hit* hitsOut,
+                                  uint8_t* beyondOut, bool coherent = false) const;
+    // The definition above with two single rays each (intersect, then occluded beyond the
+    // hit): the reference intersectBatchWithBeyond is tested against.
+    void intersectWithBeyondReference(const float* orgX, const float* orgY, const float* orgZ,
+                                      const float* dirX, const float* dirY, const float* dirZ,
+                                      size_t count, float tnear, float separation, Hit* hitsOut,
+                                      uint8_t* beyondOut) const;
 
 private:
     void build(const std::vector<glm::vec3>& positions, const std::vector<glm::uvec3>& triangles,

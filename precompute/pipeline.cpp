@@ -202,7 +202,8 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
         p.push_back({"ss_min_throughput", fmt(o.minThroughput)});
         // How the rays are traced changes the result slightly (robust traversal), so it
         // is part of the input digest: files made with the non-robust scene are redone.
-        p.push_back({"ss_rays", o.coherentRays ? "robust scene, coherent packets" : "robust scene, incoherent packets"});
+        p.push_back({"ss_rays", std::string(o.coherentRays ? "robust scene, coherent packets" : "robust scene, incoherent packets") +
+                                    (o.visibilityFromExitRay ? ", V from the exit ray" : ", V from a second ray")});
         p.push_back({"ss_normalisation",
                      isotropic ? "1/(4 pi) folded in (radiance = F_t(w_o) * dot(vector, light))"
                                : "radiance = F_t(w_o) * sum_k h_k(w_o') * dot(term_k, light), "
@@ -270,9 +271,9 @@ std::string PrecomputeSummary::format() const {
             formatDuration(ssSeconds).c_str(), double(ssRaysTraced), ssRaysPerSecond,
             ssRetainedEnergy);
         add("  rays            %.3g exit, %.3g occlusion, %.3g culled (throughput), %.3g escaping, "
-            "%.3g exits through reversed triangles",
+            "%.3g exits through reversed triangles, %.3g occluded exits",
             double(ssExitRays), double(ssOcclusionRays), double(ssCulledRays), double(ssEscapedRays),
-            double(ssReversedHits));
+            double(ssReversedHits), double(ssOccludedExits));
         if (ssInterpolatedTexels > 0)
             add("  directions      %.3g traced, %.3g interpolated from agreeing corners (%.1f%% traced)",
                 double(ssTracedTexels), double(ssInterpolatedTexels),
@@ -608,6 +609,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool f
         summary.ssRaysTraced = total(st.rays());
         summary.ssExitRays = total(st.exitRays);
         summary.ssOcclusionRays = total(st.occlusionRays);
+        summary.ssOccludedExits = total(st.occludedExits);
         summary.ssCulledRays = total(st.culledRays);
         summary.ssTracedTexels = total(st.tracedTexels);
         summary.ssInterpolatedTexels = total(st.interpolatedTexels);

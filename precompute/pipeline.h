@@ -140,7 +140,7 @@ struct PrecomputeSummary {
     double phaseRmsError = 0;         // relative RMS error of the K-term phase (0 if isotropic)
     double ssSeconds = 0;
     uint64_t ssRaysTraced = 0;        // depth + exit + occlusion rays
-    uint64_t ssExitRays = 0, ssOcclusionRays = 0, ssCulledRays = 0;
+    uint64_t ssExitRays = 0, ssOcclusionRays = 0, ssCulledRays = 0, ssOccludedExits = 0;
     uint64_t ssTracedTexels = 0, ssInterpolatedTexels = 0;
     uint64_t ssEscapedRays = 0, ssReversedHits = 0, ssOutsideSamples = 0;
     uint64_t ssFlippedNormals = 0, ssCappedDepths = 0;

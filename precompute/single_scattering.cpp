@@ -146,6 +146,7 @@ void SingleScatteringStats::add(const SingleScatteringStats& o) {
     depthRays += o.depthRays;
     exitRays += o.exitRays;
     occlusionRays += o.occlusionRays;
+    occludedExits += o.occludedExits;
     sharedVisibility += o.sharedVisibility;
     culledRays += o.culledRays;
     tracedTexels += o.tracedTexels;
@@ -288,6 +289,13 @@ void SingleScatteringContext::occludedCoherent(const float* ox, const float* oy,
                           options_.coherentRays);
 }
 
+void SingleScatteringContext::intersectWithBeyond(const float* ox, const float* oy, const float* oz,
+                                                  const float* dx, const float* dy, const float* dz,
+                                                  size_t count, Hit* hits, uint8_t* beyond) const {
+    scene_->intersectBatchWithBeyond(ox, oy, oz, dx, dy, dz, count, 0.0f, scene_->epsilon(), hits, beyond,
+                                     options_.coherentRays);
+}
+
 float SingleScatteringContext::fresnel(float cosTheta) const {
     if (material_.eta < 1.0) return float(fresnelTransmittance(material_.eta, cosTheta));
     const float x = std::clamp(cosTheta, 0.0f, 1.0f) * float(kFresnelTableSize);
@@ -345,8 +353,14 @@ void traceExitRays(const SingleScatteringContext& ctx, const uint32_t* list, siz
             sc.dirZ[q] = dirs.z[r];
         }
     }
-    ctx.intersectCoherent(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
-                          sc.dirY.data(), sc.dirZ.data(), total, sc.hits.data());
+    if (ctx.visibilityFromExitRays()) {
+        sc.beyond.resize(total);
+        ctx.intersectWithBeyond(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
+                                sc.dirY.data(), sc.dirZ.data(), total, sc.hits.data(), sc.beyond.data());
+    } else {
+        ctx.intersectCoherent(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
+                              sc.dirY.data(), sc.dirZ.data(), total, sc.hits.data());
+    }
     stats.exitRays += total;
 }
 
@@ -493,6 +507,7 @@ void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t
     const float minThroughput = float(opt.minThroughput);
     const size_t ns = sc.samplePoint.size();
     const size_t total = ns * count;
+    const bool fromExitRays = ctx.visibilityFromExitRays();
     sc.occluded.resize(total);
     sc.texel.resize(total);
     sc.direction.resize(total);
@@ -560,14 +575,17 @@ void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t
         // medium): -w / eta + (cos_i / eta - cos_t) n_i (bssrdf.h refractDirection).
         const glm::vec3 a = -w / eta + (cosI / eta - cosT) * ni;
         ctx.lightMapValues(a, &sc.phase[m * size_t(terms)]);
-        const glm::vec3 xi = sc.samplePoint[i] + h.t * w;
-        const glm::vec3 org = scene.offsetRayOrigin(xi, gn, w);
-        sc.orgX[m] = org.x;
-        sc.orgY[m] = org.y;
-        sc.orgZ[m] = org.z;
-        sc.dirX[m] = w.x;
-        sc.dirY[m] = w.y;
-        sc.dirZ[m] = w.z;
+        if (fromExitRays) {
+            sc.occluded[m] = sc.beyond[q];  // m <= q: not yet read
+        } else {  // the occlusion ray from x_i
+            const glm::vec3 org = scene.offsetRayOrigin(sc.samplePoint[i] + h.t * w, gn, w);
+            sc.orgX[m] = org.x;
+            sc.orgY[m] = org.y;
+            sc.orgZ[m] = org.z;
+            sc.dirX[m] = w.x;
+            sc.dirY[m] = w.y;
+            sc.dirZ[m] = w.z;
+        }
         sc.texel[m] = dirs.texel[r];
         sc.direction[m] = r;
         sc.candidateSample[m] = uint32_t(i);
@@ -580,7 +598,9 @@ void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t
     if (m == 0) return;
 
     // V: does anything block the light before it reaches x_i?
-    if (opt.visibility && opt.sharedVisibility) {
+    if (fromExitRays) {
+        // already known from the exit rays' traversal
+    } else if (opt.visibility && opt.sharedVisibility) {
         sharedOcclusion(ctx, m, sc, stats);
     } else if (opt.visibility) {
         ctx.occludedCoherent(sc.orgX.data(), sc.orgY.data(), sc.orgZ.data(), sc.dirX.data(),
@@ -591,6 +611,7 @@ void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t
     }
 
     for (size_t q = 0; q < m; ++q) {
+        stats.occludedExits += sc.occluded[q];
         if (record) {
             const uint32_t r = sc.direction[q];
             sc.exitCode[size_t(r) * ns + sc.candidateSample[q]] = sc.occluded[q] ? 1 : 2;

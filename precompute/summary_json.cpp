@@ -121,6 +121,7 @@ Json summaryJson(const PrecomputeSummary& r) {
     j["ss_exit_rays"] = ssOnly(r.ssExitRays);
     j["ss_occlusion_rays"] = ssOnly(r.ssOcclusionRays);
     j["ss_culled_rays"] = ssOnly(r.ssCulledRays);
+    j["ss_occluded_exits"] = ssOnly(r.ssOccludedExits);
     j["ss_traced_texels"] = ssOnly(r.ssTracedTexels);
     j["ss_interpolated_texels"] = ssOnly(r.ssInterpolatedTexels);
     j["ss_escaped_rays"] = ssOnly(r.ssEscapedRays);

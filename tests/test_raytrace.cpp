@@ -625,6 +625,99 @@ TEST(RayScene, BatchesEqualSingleQueries) {
     }
 }
 
+// Stacked squares y = 0, 1 (half-width 10), a small one at y = 2 and a duplicate of
+// the lowest: rays from below meet them at known distances.
+TEST(RayScene, WithBeyondOnStackedSquares) {
+    Mesh m = squareY(10.0f, 0.0f, true);
+    m.append(squareY(10.0f, 0.0f, false));  // coincident with the first, wound the other way
+    m.append(squareY(10.0f, 1.0f, true));
+    m.append(squareY(2.0f, 2.0f, true, 5.0f, 5.0f));
+    RayScene scene(m.positions, m.triangles);
+    Directions org, dir;
+    org.push({0, -1, 0});  // y = 0 (twice) and y = 1
+    dir.push({0, 1, 0});
+    org.push({5, -1, 5});  // y = 0 (twice), 1 and 2
+    dir.push({0, 1, 0});
+    org.push({0, 0.5f, 0});  // starts between the squares: y = 1 only
+    dir.push({0, 1, 0});
+    org.push({0, -1, 0});  // away from all of them
+    dir.push({0, -1, 0});
+    org.push({0, -1, 0});  // y = 0 (twice) at x = 6, then past the edge of y = 1 (x = 12)
+    dir.push(glm::normalize(glm::vec3(6, 1, 0)));
+    const size_t n = org.size();
+    const bool wantHit[] = {true, true, true, false, true};
+    const float wantT[] = {1.0f, 1.0f, 0.5f, kInf, std::sqrt(37.0f)};
+    // The coincident pair at y = 0 is one surface; the squares 1 apart are two, unless
+    // the separation is wider than the gap.
+    const uint8_t wantBeyond[2][5] = {{1, 1, 0, 0, 0}, {0, 1, 0, 0, 0}};
+    const float separations[2] = {1e-3f, 1.5f};
+    for (int s = 0; s < 2; ++s) {
+        std::vector<Hit> hits(n), ref(n);
+        std::vector<uint8_t> beyond(n, 7), refBeyond(n, 7);
+        for (bool coherent : {false, true}) {
+            scene.intersectBatchWithBeyond(org.x.data(), org.y.data(), org.z.data(), dir.x.data(), dir.y.data(),
+                                           dir.z.data(), n, 0.0f, separations[s], hits.data(), beyond.data(),
+                                           coherent);
+            scene.intersectWithBeyondReference(org.x.data(), org.y.data(), org.z.data(), dir.x.data(),
+                                               dir.y.data(), dir.z.data(), n, 0.0f, separations[s], ref.data(),
+                                               refBeyond.data());
+            for (size_t i = 0; i < n; ++i) {
+                ASSERT_EQ(hits[i].hit, wantHit[i]) << i;
+                EXPECT_EQ(int(beyond[i]), int(wantBeyond[s][i])) << "ray " << i << ", separation " << separations[s];
+                EXPECT_EQ(int(refBeyond[i]), int(wantBeyond[s][i])) << i;
+                if (!wantHit[i]) {
+                    EXPECT_EQ(hits[i].triangle, prt::kNoTriangle);
+                    continue;
+                }
+                EXPECT_NEAR(hits[i].t, wantT[i], 1e-5f) << i;
+                EXPECT_EQ(hits[i].t, ref[i].t) << i;
+            }
+        }
+    }
+}
+
+TEST(RayScene, WithBeyondEqualsTwoSingleRays) {
+    const Mesh m = occluderScene(3, glm::vec3(-10.0f, 5.0f, 40.0f), nullptr);
+    RayScene scene(m.positions, m.triangles);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> box(-150.0f, 150.0f);
+    for (size_t count : {size_t(4099), size_t(1), size_t(16), size_t(37)}) {
+        Directions org, dir;
+        for (size_t i = 0; i < count; ++i) {
+            org.push(glm::vec3(-10, 5, 40) + glm::vec3(box(rng), box(rng), box(rng)) * (i % 2 ? 1.0f : 0.3f));
+            dir.push(randomUnit(rng) * (i % 3 ? 1.0f : 2.5f));
+        }
+        for (bool coherent : {false, true}) {
+            std::vector<Hit> hits(count + 1), ref(count);
+            std::vector<uint8_t> beyond(count + 1, 9), refBeyond(count);
+            scene.intersectBatchWithBeyond(org.x.data(), org.y.data(), org.z.data(), dir.x.data(), dir.y.data(),
+                                           dir.z.data(), count, 0.0f, scene.epsilon(), hits.data(), beyond.data(),
+                                           coherent);
+            scene.intersectWithBeyondReference(org.x.data(), org.y.data(), org.z.data(), dir.x.data(),
+                                               dir.y.data(), dir.z.data(), count, 0.0f, scene.epsilon(),
+                                               ref.data(), refBeyond.data());
+            size_t hitCount = 0, beyondCount = 0;
+            for (size_t i = 0; i < count; ++i) {
+                ASSERT_EQ(hits[i].hit, ref[i].hit) << i;
+                EXPECT_EQ(int(beyond[i]), int(refBeyond[i])) << i;
+                hitCount += ref[i].hit;
+                beyondCount += refBeyond[i];
+                if (!ref[i].hit) continue;
+                EXPECT_EQ(hits[i].triangle, ref[i].triangle) << i;
+                EXPECT_EQ(hits[i].t, ref[i].t) << i;
+                EXPECT_EQ(hits[i].u, ref[i].u) << i;
+                EXPECT_EQ(hits[i].v, ref[i].v) << i;
+                EXPECT_EQ(hits[i].geometricNormal, ref[i].geometricNormal) << i;
+            }
+            EXPECT_EQ(beyond[count], 9) << "wrote past count";
+            if (count > 1000) {  // the scene has rays of every kind
+                EXPECT_GT(beyondCount, count / 20);
+                EXPECT_LT(beyondCount, hitCount * 9 / 10);
+            }
+        }
+    }
+}
+
 // ---------------------------------------------------------------------------
 // Threads
 // ---------------------------------------------------------------------------

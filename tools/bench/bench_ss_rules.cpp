@@ -45,9 +45,15 @@ SingleScatteringOptions parseRule(const std::string& text, int cubemapSize) {
     SingleScatteringOptions o;
     o.cubemapSize = cubemapSize;
     if (!(in >> rule >> o.pathSamples >> o.directionStride))
-        throw Error(text, "expected RULE:PATH_SAMPLES:STRIDE[:MIN_THROUGHPUT], e.g. gauss:6:4");
+        throw Error(text, "expected RULE:PATH_SAMPLES:STRIDE[:MIN_THROUGHPUT[:VISIBILITY]], e.g. gauss:6:4");
     double cut = 0;
     if (in >> cut) o.minThroughput = cut;
+    std::string visibility;
+    if (in >> visibility) {
+        if (visibility != "exit" && visibility != "ray")
+            throw Error(text, "VISIBILITY must be exit (from the exit ray, the default) or ray (a second ray)");
+        o.visibilityFromExitRay = visibility == "exit";
+    }
     o.pathQuadrature = parsePathQuadrature(rule);
     return o;
 }
@@ -73,7 +79,8 @@ int main(int argc, char** argv) {
         app.add_option("--vertices", vertices, "Vertices, spread over the mesh")->capture_default_str();
         app.add_option("--cubemap-size", cubemapSize, "Cubemap face size N")->capture_default_str();
         app.add_option("--reference", reference, "The converged rule RULE:PATH_SAMPLES:STRIDE")->capture_default_str();
-        app.add_option("--rules", rules, "Rules to measure, RULE:PATH_SAMPLES:STRIDE[:MIN_THROUGHPUT] each")->capture_default_str();
+        app.add_option("--rules", rules, "Rules to measure, RULE:PATH_SAMPLES:STRIDE[:MIN_THROUGHPUT[:VISIBILITY]] each; VISIBILITY exit "
+                       "(V from the exit ray, the default) or ray (a second ray from the exit point)")->capture_default_str();
         if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-bench-ss")) return *exitCode;
         if (vertices < 1) throw Error("--vertices", "must be at least 1");
 
