@@ -22,7 +22,8 @@ MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vert
     const double terms = s.components.singleScattering ? 1.0 + (s.material.g != 0.0 ? s.phaseTerms : 0) : 0.0;
     const double n = ms ? double(samples) : 0.0;
     const std::vector<std::pair<const char*, double>> parts = {
-        {"mesh and ray scene", 250.0 * double(triangles)},
+        // + 36 bytes per triangle of single scattering's corner normals
+        {"mesh and ray scene", (s.components.singleScattering ? 286.0 : 250.0) * double(triangles)},
         {"samples", 200.0 * n},
         {"pass 1 vectors", n * (double(s.sampleCoefficients) * 8.0 + 64.0)},
         {"pass 2 kd-tree sums", n / 4.0 * (double(s.nodeCoefficients) * 8.0 + 64.0)},

@@ -206,6 +206,11 @@ SingleScatteringContext::SingleScatteringContext(const RayScene& scene, const Tr
                 ++triangleCount[v];
             }
         }
+        cornerNormals_.resize(mesh.triangles.size());
+        for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+            const glm::uvec3 tri = mesh.triangles[t];
+            cornerNormals_[t] = {{mesh.normals[tri.x], mesh.normals[tri.y], mesh.normals[tri.z]}};
+        }
         constexpr double kTowardRing = 0.01;
         pathOrigins_.resize(mesh.positions.size());
         for (size_t v = 0; v < mesh.positions.size(); ++v) {
@@ -495,7 +500,7 @@ void sharedOcclusion(const SingleScatteringContext& ctx, size_t m, SingleScatter
 void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t count, float* dense,
                 bool record, SingleScatteringScratch& sc, SingleScatteringStats& stats) {
     const RayScene& scene = ctx.scene();
-    const TriangleMesh& mesh = ctx.mesh();
+    const SingleScatteringContext::CornerNormals* cornerNormals = ctx.cornerNormalsData();
     const Material& mat = ctx.material();
     const SingleScatteringContext::Directions& dirs = ctx.tracedDirections();
     const SingleScatteringOptions& opt = ctx.options();
@@ -525,7 +530,10 @@ void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t
     // Candidates: exits of inside sample points whose light reaches x_p with
     // non-negligible throughput. They overwrite the ray arrays in place (m <= q).
     size_t m = 0;
+    constexpr size_t kPrefetch = 8;  // exits ahead: the corner normals are a cache miss
     for (size_t q = 0; q < total; ++q) {
+        if (q + kPrefetch < total && sc.hits[q + kPrefetch].hit)
+            __builtin_prefetch(&cornerNormals[sc.hits[q + kPrefetch].triangle]);
         const size_t p = q / ns, i = q - p * ns;
         const uint32_t r = list[p];
         if (!sc.inside[i]) continue;
@@ -545,9 +553,8 @@ void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t
             gn = -gn;
             ++stats.reversedHits;
         }
-        const glm::uvec3 tri = mesh.triangles[h.triangle];
-        glm::vec3 ni = side * ((1.0f - h.u - h.v) * mesh.normals[tri.x] + h.u * mesh.normals[tri.y] +
-                               h.v * mesh.normals[tri.z]);
+        const SingleScatteringContext::CornerNormals& cn = cornerNormals[h.triangle];
+        glm::vec3 ni = side * ((1.0f - h.u - h.v) * cn.n[0] + h.u * cn.n[1] + h.v * cn.n[2]);
         float cosI = glm::dot(w, ni);
         const float niLen = glm::length(ni);
         if (niLen > 0.0f && cosI > 1e-6f * niLen) {

@@ -281,6 +281,14 @@ public:
     // adjacent face, on which it would otherwise run (half its rays then leave
     // through that face at t ~ 0 and are lost: black edges).
     const glm::vec3& pathOrigin(size_t v) const { return pathOrigins_[v]; }
+    // The vertex normals at the three corners of triangle t (mesh.normals of its
+    // indices), stored per triangle: one memory access per exit instead of two
+    // dependent ones (the shading's cache misses; docs/single-scattering.md).
+    struct CornerNormals {
+        glm::vec3 n[3];
+    };
+    const CornerNormals& cornerNormals(uint32_t t) const { return cornerNormals_[t]; }
+    const CornerNormals* cornerNormalsData() const { return cornerNormals_.data(); }
 
     const RayScene& scene() const { return *scene_; }
     const TriangleMesh& mesh() const { return *mesh_; }
@@ -313,6 +321,7 @@ private:
     std::vector<uint32_t> firstDirections_;  // every direction, or the lattice when adaptive
     std::vector<DirectionCell> topCells_;
     std::vector<glm::vec3> pathOrigins_;
+    std::vector<CornerNormals> cornerNormals_;
     bool isotropic_ = true;
     int terms_ = 1;
     Cubemap lightMaps_;  // M x M faces, K channels (channel k = g_k); empty if isotropic
