@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <string>
 
 #include "common/error.h"
@@ -214,6 +215,56 @@ SparseVector truncateLargest(const float* dense, size_t count, int channels, siz
                              const float* weights) {
     checkChannels(channels, "truncateLargest");
     if (count > size_t(UINT32_MAX) + 1) throw Error("haar", "truncateLargest: too many entries");
+    SparseVector result;
+    result.channels = channels;
+    if (keep == 0 || count == 0) return result;
+
+    // Keys per entry (0 for the never-kept: zero or NaN), and the positive ones apart.
+    thread_local std::vector<double> keys, positive;
+    keys.resize(count);
+    positive.clear();
+    for (size_t idx = 0; idx < count; ++idx) {
+        const float* v = dense + idx * channels;
+        double e = 0.0;
+        for (int c = 0; c < channels; ++c) e += double(v[c]) * double(v[c]);
+        // ||v|| * w orders the same as ||v||^2 * w^2 for w >= 0; no square root needed.
+        if (weights) e *= double(weights[idx]) * double(weights[idx]);
+        if (!(e > 0.0)) e = 0.0;  // also drops NaN keys
+        keys[idx] = e;
+        if (e > 0.0) positive.push_back(e);
+    }
+    // The keep-th largest key is the threshold: every larger key is kept, and as many
+    // keys equal to it as there is room for, lowest index first (the reference's
+    // tie-break); one scan in index order then gives the sorted result.
+    double threshold = 0.0;  // keep every positive key
+    size_t ties = count;
+    if (positive.size() > keep) {
+        std::nth_element(positive.begin(), positive.begin() + std::ptrdiff_t(keep - 1), positive.end(),
+                         std::greater<double>());
+        threshold = positive[keep - 1];
+        size_t above = 0;
+        for (double k : positive) above += k > threshold;
+        ties = keep - above;
+    }
+    result.index.reserve(std::min(keep, positive.size()));
+    result.value.reserve(std::min(keep, positive.size()) * size_t(channels));
+    for (size_t idx = 0; idx < count; ++idx) {
+        const double k = keys[idx];
+        if (!(k > 0.0) || k < threshold) continue;
+        if (k == threshold) {
+            if (ties == 0) continue;
+            --ties;
+        }
+        result.index.push_back(uint32_t(idx));
+        result.value.insert(result.value.end(), dense + idx * channels, dense + (idx + 1) * channels);
+    }
+    return result;
+}
+
+SparseVector truncateLargestReference(const float* dense, size_t count, int channels, size_t keep,
+                             const float* weights) {
+    checkChannels(channels, "truncateLargestReference");
+    if (count > size_t(UINT32_MAX) + 1) throw Error("haar", "truncateLargestReference: too many entries");
     SparseVector result;
     result.channels = channels;
     if (keep == 0 || count == 0) return result;

@@ -79,10 +79,15 @@ struct SparseVector {
 // the solid angle or area of a coefficient's support; weights must be >= 0).
 // Ties are broken by lower index. Entries of zero magnitude (all channels zero, or
 // weight zero) are never kept, so keep >= the number of such non-zeros keeps them all.
-// O(count) selection (nth_element), then the kept indices are sorted ascending.
+// O(count): the keep-th largest magnitude by selection (nth_element over the keys
+// alone), then one scan in index order, so the kept indices come out ascending.
 // Kept values are the original, unweighted values.
 SparseVector truncateLargest(const float* dense, size_t count, int channels, size_t keep,
                              const float* weights = nullptr);
+// The same by selecting (key, index) pairs and sorting the kept ones by index: the
+// slower form truncateLargest is tested against (identical results).
+SparseVector truncateLargestReference(const float* dense, size_t count, int channels, size_t keep,
+                                      const float* weights = nullptr);
 
 // All entries with at least one non-zero channel.
 SparseVector toSparse(const float* dense, size_t count, int channels);

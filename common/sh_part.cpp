@@ -50,12 +50,27 @@ double blockedDot(const float* a, const float* b, size_t n) {
     return s;
 }
 
-// plane[e] -= sum_i d[i] rows[i * n + e].
-void subtractCombination(float* plane, const float* rows, size_t n, const float* d, int terms) {
-    for (int i = 0; i < terms; ++i) {
-        const float* row = rows + size_t(i) * n;
-        const float di = d[i];
-        for (size_t e = 0; e < n; ++e) plane[e] -= di * row[e];
+// planes[k * n + e] -= d[k] row[e] for the channels k < ch (ch <= 4): one pass over
+// the row for all channels. Applied term by term, in term order, it gives per element
+// and channel the sequence of subtractions of one channel at a time.
+void subtractRow(float* planes, size_t n, size_t ch, const float* row, const float* d) {
+    switch (ch) {
+        case 3: {
+            float *p0 = planes, *p1 = planes + n, *p2 = planes + 2 * n;
+            const float d0 = d[0], d1 = d[1], d2 = d[2];
+            for (size_t e = 0; e < n; ++e) {
+                p0[e] -= d0 * row[e];
+                p1[e] -= d1 * row[e];
+                p2[e] -= d2 * row[e];
+            }
+            return;
+        }
+        default:
+            for (size_t k = 0; k < ch; ++k) {
+                float* p = planes + k * n;
+                const float dk = d[k];
+                for (size_t e = 0; e < n; ++e) p[e] -= dk * row[e];
+            }
     }
 }
 
@@ -188,15 +203,18 @@ SparseVector truncateWithShPart(float* dense, size_t count, int channels, int te
     float* carried = dense + count * ch;
     double c[kMaxShTerms * 4] = {};
     double d[kMaxShTerms * 4] = {};
-    for (size_t k = 0; k < ch; ++k) {
-        float* plane = &planes[k * count];
-        for (int i = 0; i < terms; ++i) {
-            d[size_t(i) * ch + k] = blockedDot(&t.projection[size_t(i) * count], plane, count);
+    // Term-major, so each table row is read once for all channels (it stays in L1
+    // while the channels' planes pass by); per channel the sums are those of a
+    // channel-major loop, bit for bit.
+    for (int i = 0; i < terms; ++i)
+        for (size_t k = 0; k < ch; ++k) {
+            d[size_t(i) * ch + k] = blockedDot(&t.projection[size_t(i) * count], &planes[k * count], count);
             c[size_t(i) * ch + k] = d[size_t(i) * ch + k] + double(carried[size_t(i) * ch + k]);
         }
-        float di[kMaxShTerms];
-        for (int i = 0; i < terms; ++i) di[i] = float(d[size_t(i) * ch + k]);
-        subtractCombination(plane, t.weightedHaar.data(), count, di, terms);
+    for (int i = 0; i < terms; ++i) {
+        float di[4];
+        for (size_t k = 0; k < ch; ++k) di[k] = float(d[size_t(i) * ch + k]);
+        subtractRow(planes.data(), count, ch, &t.weightedHaar[size_t(i) * count], di);
     }
     std::fill(carried, carried + size_t(terms) * ch, 0.0f);
     double residual = 0.0;

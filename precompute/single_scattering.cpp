@@ -696,22 +696,30 @@ void refineDirections(const SingleScatteringContext& ctx, float* dense, SingleSc
                                         texelOf(f, i1, j1)};
             const uint16_t span = uint16_t(std::max(i1 - i0, j1 - j0));
             if (cornersAgree(ctx, corner, span, valueFloor, largeCellMax, sc)) {
+                // The corners per steradian, once per cell: perSr[(k * 3 + c) * 4 + a].
+                sc.cornerPerSr.resize(size_t(terms) * 12);
+                float* perSr = sc.cornerPerSr.data();
+                for (int a = 0; a < 4; ++a) {
+                    const float inv = 1.0f / dirs.solidAngle[corner[a]];
+                    for (int k = 0; k < terms; ++k)
+                        for (int c = 0; c < 3; ++c)
+                            perSr[(size_t(k) * 3 + size_t(c)) * 4 + size_t(a)] =
+                                dense[(size_t(k) * texels + corner[a]) * 3 + size_t(c)] * inv;
+                }
+                const float invDu = 1.0f / float(i1 - i0), invDv = 1.0f / float(j1 - j0);
                 for (int j = j0; j <= j1; ++j)
                     for (int i = i0; i <= i1; ++i) {
                         const uint32_t t = texelOf(f, i, j);
                         if (sc.texelTraced[t] || sc.texelSpan[t] < span) continue;
                         sc.texelSpan[t] = span;
-                        const float u = float(i - i0) / float(i1 - i0), v = float(j - j0) / float(j1 - j0);
-                        const float w[4] = {(1 - u) * (1 - v), u * (1 - v), (1 - u) * v, u * v};
-                        for (int k = 0; k < terms; ++k) {
-                            float* d = dense + (size_t(k) * texels + t) * 3;
-                            for (int c = 0; c < 3; ++c) {
-                                float sum = 0.0f;
-                                for (int a = 0; a < 4; ++a)
-                                    sum += w[a] * dense[(size_t(k) * texels + corner[a]) * 3 + size_t(c)] /
-                                           dirs.solidAngle[corner[a]];
-                                d[c] = sum * dirs.solidAngle[t];
-                            }
+                        const float u = float(i - i0) * invDu, v = float(j - j0) * invDv;
+                        const float sa = dirs.solidAngle[t];
+                        const float w[4] = {(1 - u) * (1 - v) * sa, u * (1 - v) * sa, (1 - u) * v * sa, u * v * sa};
+                        float* d = dense + size_t(t) * 3;
+                        for (int kc = 0; kc < terms * 3; ++kc) {
+                            const float* q = perSr + size_t(kc) * 4;
+                            d[size_t(kc / 3) * texels * 3 + size_t(kc % 3)] =
+                                w[0] * q[0] + w[1] * q[1] + w[2] * q[2] + w[3] * q[3];
                         }
                     }
                 continue;

@@ -387,6 +387,7 @@ struct SingleScatteringScratch {
     std::vector<uint8_t> texelTraced;
     std::vector<uint16_t> texelSpan;
     std::vector<uint32_t> list;           // directions of the current round
+    std::vector<float> cornerPerSr;       // an agreeing cell's corners per steradian
     std::vector<SingleScatteringContext::DirectionCell> cells, nextCells;
 };
 

@@ -315,6 +315,38 @@ TEST(SparseVector, TruncateBreaksTiesByLowerIndex) {
     EXPECT_EQ(a.value, b.value);
 }
 
+TEST(SparseVector, TruncateEqualsTheReference) {
+    // The threshold-and-scan selection against the (key, index) selection and sort it
+    // replaced: identical indices and values, with ties (values on a coarse grid), zero
+    // and NaN entries, weights, one and three channels, keep below, at and above the
+    // number of non-zeros.
+    std::mt19937 rng(5);
+    std::uniform_int_distribution<int> level(-6, 6);
+    for (int channels : {1, 3}) {
+        for (size_t count : {size_t(1), size_t(37), size_t(6144)}) {
+            std::vector<float> d(count * size_t(channels)), w(count);
+            for (float& x : d) x = 0.25f * float(level(rng));
+            for (size_t i = 0; i < count; ++i) w[i] = float(1 + i % 3);
+            if (count > 10) {
+                d[7] = std::numeric_limits<float>::quiet_NaN();
+                w[3] = 0.0f;
+            }
+            const size_t nonZeros = prt::toSparse(d.data(), count, channels).size();
+            for (size_t keep : {size_t(0), size_t(1), size_t(5), size_t(128), nonZeros - 1, nonZeros, count + 3}) {
+                for (const float* weights : {static_cast<const float*>(nullptr), static_cast<const float*>(w.data())}) {
+                    const SparseVector a = prt::truncateLargest(d.data(), count, channels, keep, weights);
+                    const SparseVector b = prt::truncateLargestReference(d.data(), count, channels, keep, weights);
+                    ASSERT_EQ(a.index, b.index) << channels << " channels, " << count << " entries, keep " << keep;
+                    ASSERT_EQ(a.value.size(), b.value.size());
+                    for (size_t k = 0; k < a.value.size(); ++k)
+                        ASSERT_TRUE(a.value[k] == b.value[k] || (std::isnan(a.value[k]) && std::isnan(b.value[k])));
+                    EXPECT_LE(a.index.size(), keep);
+                }
+            }
+        }
+    }
+}
+
 TEST(SparseVector, TruncateWithLargeKKeepsAllNonZerosAndNeverZeros) {
     std::vector<float> d = randomVector(300, 8);
     for (size_t t = 0; t < d.size(); t += 4) d[t] = 0.0f;
