@@ -530,10 +530,15 @@ void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t
     // Candidates: exits of inside sample points whose light reaches x_p with
     // non-negligible throughput. They overwrite the ray arrays in place (m <= q).
     size_t m = 0;
-    constexpr size_t kPrefetch = 8;  // exits ahead: the corner normals are a cache miss
+    // Exits ahead whose corner normals are fetched now (each a cache miss, and their
+    // 36 bytes may straddle two lines).
+    constexpr size_t kPrefetch = 16;
     for (size_t q = 0; q < total; ++q) {
-        if (q + kPrefetch < total && sc.hits[q + kPrefetch].hit)
-            __builtin_prefetch(&cornerNormals[sc.hits[q + kPrefetch].triangle]);
+        if (q + kPrefetch < total && sc.hits[q + kPrefetch].hit) {
+            const char* ahead = reinterpret_cast<const char*>(&cornerNormals[sc.hits[q + kPrefetch].triangle]);
+            __builtin_prefetch(ahead);
+            __builtin_prefetch(ahead + sizeof(SingleScatteringContext::CornerNormals) - 1);
+        }
         const size_t p = q / ns, i = q - p * ns;
         const uint32_t r = list[p];
         if (!sc.inside[i]) continue;
