@@ -71,6 +71,7 @@ SingleScatteringOptions singleScatteringOptions(const PrecomputeSettings& s) {
     o.cubemapSize = s.cubemapSize;
     o.supersample = s.ssSupersample;
     o.directionStride = s.ssDirectionStride;
+    o.visibilityFromExitRay = s.ssVisibilityFromExitRay;
     o.pathSamples = s.pathSamples;
     o.pathQuadrature = s.pathQuadrature;
     o.keepCoefficients = s.vertexCoefficients;

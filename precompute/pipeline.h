@@ -66,6 +66,10 @@ struct PrecomputeSettings {
     // Default 4 since issue 16: the per-vertex error against 64 midpoints as with every
     // texel traced, with 2.5x fewer rays (docs/single-scattering.md).
     int ssDirectionStride = 4;
+    // V of single scattering from the exit ray's own traversal (true, the default since
+    // issue 16) or from a second ray from each exit point (the rule before, the
+    // reference; SingleScatteringOptions::visibilityFromExitRay).
+    bool ssVisibilityFromExitRay = true;
     // Refuse the job up front when its estimated memory (memory_estimate.h) exceeds this
     // many GB; 0 = the machine's available memory. Not a physics setting: not stored in
     // the file and not part of the input digest.

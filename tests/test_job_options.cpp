@@ -143,3 +143,13 @@ TEST(JobOptions, ACustomMaterialDoesNotSwallowTheMesh) {
     EXPECT_EQ(s.meshPath, "m.obj");
     EXPECT_EQ(s.material.sigmaA, glm::dvec3(0.1));
 }
+
+TEST(JobOptions, SingleScatteringVisibility) {
+    EXPECT_TRUE(fromCommandLine({"m.obj", "-o", "o"}).ssVisibilityFromExitRay);
+    EXPECT_TRUE(PrecomputeSettings{}.ssVisibilityFromExitRay);
+    EXPECT_FALSE(fromCommandLine({"m.obj", "-o", "o", "--ss-visibility", "ray"}).ssVisibilityFromExitRay);
+    EXPECT_TRUE(fromCommandLine({"m.obj", "-o", "o", "--ss-visibility", "exit"}).ssVisibilityFromExitRay);
+    EXPECT_FALSE(parseJob({{"ss-visibility", "ray"}}, {{"mesh", "m.obj"}, {"output", "o"}}, "j").ssVisibilityFromExitRay);
+    const std::string bad = errorOf([] { fromCommandLine({"m.obj", "-o", "o", "--ss-visibility", "both"}); });
+    EXPECT_NE(bad.find("--ss-visibility"), std::string::npos) << bad;
+}
