@@ -87,6 +87,14 @@ struct Device {
             handle = nullptr;
             throw Error("Embree", "the installed libembree3 has no triangle geometry support");
         }
+        // intersectBatchWithBeyond (single scattering's visibility) relies on a context
+        // filter; without filter support Embree would skip it silently and every exit
+        // ray would look like a miss.
+        if (prop(RTC_DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED) == 0) {
+            rtcReleaseDevice(handle);
+            handle = nullptr;
+            throw Error("Embree", "the installed libembree3 was built without filter-function support");
+        }
     }
     // Scenes hold their own reference to the device, so releasing ours at exit is
     // safe even if some scene outlives this object.
@@ -639,6 +647,30 @@ void RayScene::occludedBatch(const float* orgX, const float* orgY, const float* 
 
 namespace {
 
+// Loads rays [base, base + N) of the arrays into a hit packet (the tail packet repeats
+// its last ray in the inactive lanes, so no lane holds garbage) with tfar and no hit;
+// valid[k] = -1 for the active lanes. Returns the number of active lanes.
+template <int N, typename RayHit>
+int loadRayHitPacket(RayHit& rh, int* valid, size_t base, size_t count, const float* ox, const float* oy,
+                     const float* oz, const float* dx, const float* dy, const float* dz, float tfar) {
+    const int n = int(std::min<size_t>(N, count - base));
+    for (int k = 0; k < N; ++k) {
+        const size_t i = base + size_t(std::min(k, n - 1));
+        rh.ray.org_x[k] = ox[i];
+        rh.ray.org_y[k] = oy[i];
+        rh.ray.org_z[k] = oz[i];
+        rh.ray.dir_x[k] = dx[i];
+        rh.ray.dir_y[k] = dy[i];
+        rh.ray.dir_z[k] = dz[i];
+        rh.ray.tfar[k] = tfar;
+        rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+        valid[k] = k < n ? -1 : 0;
+    }
+    return n;
+}
+
 template <int N, typename FillHit>
 void intersectBatchPackets(RTCScene scene, const float* ox, const float* oy, const float* oz,
                            const float* dx, const float* dy, const float* dz, size_t count,
@@ -649,21 +681,7 @@ void intersectBatchPackets(RTCScene scene, const float* ox, const float* oy, con
     alignas(64) int valid[N];
     for (int k = 0; k < N; ++k) initLane(rh.ray, k, tnear);
     for (size_t base = 0; base < count; base += N) {
-        const int n = int(std::min<size_t>(N, count - base));
-        for (int k = 0; k < N; ++k) {
-            const size_t i = base + size_t(std::min(k, n - 1));
-            rh.ray.org_x[k] = ox[i];
-            rh.ray.org_y[k] = oy[i];
-            rh.ray.org_z[k] = oz[i];
-            rh.ray.dir_x[k] = dx[i];
-            rh.ray.dir_y[k] = dy[i];
-            rh.ray.dir_z[k] = dz[i];
-            rh.ray.tfar[k] = tfar;
-            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
-            rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
-            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
-            valid[k] = k < n ? -1 : 0;
-        }
+        const int n = loadRayHitPacket<N>(rh, valid, base, count, ox, oy, oz, dx, dy, dz, tfar);
         P::intersect(valid, scene, &ctx, &rh);
         for (int k = 0; k < n; ++k) {
             Hit& h = out[base + size_t(k)];
@@ -758,22 +776,9 @@ void intersectWithBeyondPackets(RTCScene scene, const float* ox, const float* oy
     alignas(64) int valid[N];
     for (int k = 0; k < N; ++k) initLane(rh.ray, k, tnear);
     for (size_t base = 0; base < count; base += N) {
-        const int n = int(std::min<size_t>(N, count - base));
-        for (int k = 0; k < N; ++k) {
-            const size_t i = base + size_t(std::min(k, n - 1));
-            rh.ray.org_x[k] = ox[i];
-            rh.ray.org_y[k] = oy[i];
-            rh.ray.org_z[k] = oz[i];
-            rh.ray.dir_x[k] = dx[i];
-            rh.ray.dir_y[k] = dy[i];
-            rh.ray.dir_z[k] = dz[i];
-            rh.ray.tfar[k] = std::numeric_limits<float>::infinity();
-            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
-            rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
-            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
-            valid[k] = k < n ? -1 : 0;
-            lanes[k].any = lanes[k].beyond = false;
-        }
+        const int n = loadRayHitPacket<N>(rh, valid, base, count, ox, oy, oz, dx, dy, dz,
+                                          std::numeric_limits<float>::infinity());
+        for (int k = 0; k < N; ++k) lanes[k].any = lanes[k].beyond = false;
         P::intersect(valid, scene, &ctx.base, &rh);
         for (int k = 0; k < n; ++k) {
             Hit& h = out[base + size_t(k)];
@@ -805,10 +810,28 @@ void RayScene::intersectBatchWithBeyond(const float* orgX, const float* orgY, co
             intersectWithBeyondPackets<8>(scene, orgX, orgY, orgZ, dirX, dirY, dirZ, count, tnear,
                                           separation, hitsOut, beyondOut, fill, coherent);
             return;
-        default:
+        case OcclusionKernel::Packet4:
             intersectWithBeyondPackets<4>(scene, orgX, orgY, orgZ, dirX, dirY, dirZ, count, tnear,
                                           separation, hitsOut, beyondOut, fill, coherent);
             return;
+        default: {  // no native packets: single rays through the same filter (N = 1, id 0)
+            BeyondLane lane;
+            BeyondContext ctx = makeBeyondContext(coherent, &lane, separation);
+            for (size_t i = 0; i < count; ++i) {
+                RTCRayHit rh;
+                initSingleRay(rh.ray, glm::vec3(orgX[i], orgY[i], orgZ[i]), glm::vec3(dirX[i], dirY[i], dirZ[i]),
+                              tnear, std::numeric_limits<float>::infinity());
+                rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+                rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+                rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+                lane.any = lane.beyond = false;
+                rtcIntersect1(scene, &ctx.base, &rh);
+                hitsOut[i] = Hit{};
+                if (lane.any) fill(hitsOut[i], lane.tMin, lane.prim, lane.u, lane.v);
+                beyondOut[i] = lane.beyond ? 1 : 0;
+            }
+            return;
+        }
     }
 }
 

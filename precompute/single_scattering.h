@@ -176,7 +176,7 @@ struct SingleScatteringOptions {
     // found by the same traversal that finds x_i, so no second ray is traced. false: an
     // occlusion ray from x_i offset along its geometric normal (the rule before, kept
     // as the reference; sharedVisibility always uses it). The two differ only where a
-    // surface lies within ~epsilon of x_i (2e-4 mm at 30 mm): 197 of 2.46e6 exits on
+    // surface lies within ~epsilon of x_i (~1e-4 mm at 30 mm): 197 of 2.46e6 exits on
     // dragon res2, 14 on the bunny. The exit-and-visibility query runs 1.4-1.5x the rate
     // of the two rays (docs/single-scattering.md, "visibility from the exit ray").
     bool visibilityFromExitRay = true;

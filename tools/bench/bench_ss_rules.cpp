@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <sstream>
 #include <string>
@@ -45,14 +46,22 @@ SingleScatteringOptions parseRule(const std::string& text, int cubemapSize) {
     SingleScatteringOptions o;
     o.cubemapSize = cubemapSize;
     if (!(in >> rule >> o.pathSamples >> o.directionStride))
-        throw Error(text, "expected RULE:PATH_SAMPLES:STRIDE[:MIN_THROUGHPUT[:VISIBILITY]], e.g. gauss:6:4");
-    double cut = 0;
-    if (in >> cut) o.minThroughput = cut;
-    std::string visibility;
-    if (in >> visibility) {
-        if (visibility != "exit" && visibility != "ray")
-            throw Error(text, "VISIBILITY must be exit (from the exit ray, the default) or ray (a second ray)");
-        o.visibilityFromExitRay = visibility == "exit";
+        throw Error(text, "expected RULE:PATH_SAMPLES:STRIDE[:MIN_THROUGHPUT][:exit|ray], e.g. gauss:6:4");
+    // The optional fields, in order: a number (MIN_THROUGHPUT), then exit or ray.
+    std::string field;
+    int index = 0;
+    while (in >> field) {
+        char* end = nullptr;
+        const double cut = std::strtod(field.c_str(), &end);
+        if (index == 0 && end && *end == '\0' && end != field.c_str()) {
+            o.minThroughput = cut;
+        } else if (index <= 1 && (field == "exit" || field == "ray")) {
+            o.visibilityFromExitRay = field == "exit";
+            index = 1;
+        } else {
+            throw Error(text, "expected RULE:PATH_SAMPLES:STRIDE[:MIN_THROUGHPUT][:exit|ray], not '" + field + "'");
+        }
+        ++index;
     }
     o.pathQuadrature = parsePathQuadrature(rule);
     return o;
