@@ -1263,8 +1263,11 @@ std::string bytesPerVertex(uint64_t bytes, uint64_t vertices) {
 // "100000 vertices, blocked: 6250 blocks of 16 sharing 1200000 indices (192.0 mean,
 // 192 max per block), 55.0 MiB (576.2 B per vertex)"; the max only when known; ", SH
 // part scaled apart" when the block has SH scales.
+// `where` says which bytes: a loaded file counts its in-memory arrays (u16 indices), the
+// header-only describe its on-disk payload (varint deltas), so the two differ.
 std::string describeBlocked(uint64_t vertices, uint64_t blocks, uint64_t indices,
-                            const uint64_t* maxPerBlock, uint64_t bytes, bool shScales) {
+                            const uint64_t* maxPerBlock, uint64_t bytes, bool shScales,
+                            const char* where) {
     const double mean = blocks ? double(indices) / double(blocks) : 0.0;
     char stats[96];
     if (maxPerBlock)
@@ -1274,8 +1277,8 @@ std::string describeBlocked(uint64_t vertices, uint64_t blocks, uint64_t indices
         std::snprintf(stats, sizeof stats, "%.1f mean per block", mean);
     return u64(vertices) + " vertices, blocked: " + u64(blocks) + " blocks of " +
            u64(kVertexBlock) + " sharing " + u64(indices) + " indices (" + stats + ")" +
-           (shScales ? ", SH part scaled apart" : "") + ", " + formatBytes(bytes) + " (" +
-           bytesPerVertex(bytes, vertices) + ")";
+           (shScales ? ", SH part scaled apart" : "") + ", " + formatBytes(bytes) + " " + where +
+           " (" + bytesPerVertex(bytes, vertices) + ")";
 }
 
 void describeCommon(std::string& out, uint32_t n, uint32_t shTerms, const MeshFingerprint& mesh,
@@ -1486,7 +1489,7 @@ std::string describe(const TransportFile& file) {
                 maxPerBlock = std::max<uint64_t>(maxPerBlock, b.offsets[k + 1] - b.offsets[k]);
             out += "  " + componentName(c.kind, c.term) + ": " +
                    describeBlocked(b.vertexCount(), b.blockCount(), b.indexCount(), &maxPerBlock,
-                                   b.byteSize(), b.shFrom != UINT32_MAX) +
+                                   b.byteSize(), b.shFrom != UINT32_MAX, "in memory") +
                    "\n";
             total += b.byteSize();
             continue;
@@ -1502,7 +1505,7 @@ std::string describe(const TransportFile& file) {
                       maxPerVertex);
         out += "  " + componentName(c.kind, c.term) + ": " + u64(v.vertexCount()) +
                " vertices, " + u64(v.coefficientCount()) + " coefficients (" + stats + "), " +
-               formatBytes(v.byteSize()) + " (" + bytesPerVertex(v.byteSize(), v.vertexCount()) +
+               formatBytes(v.byteSize()) + " in memory (" + bytesPerVertex(v.byteSize(), v.vertexCount()) +
                ")\n";
         total += v.byteSize();
     }
@@ -1512,7 +1515,7 @@ std::string describe(const TransportFile& file) {
                "\n";
     else
         out += "view maps: none\n";
-    out += "total: " + formatBytes(total) + " of vectors\n";
+    out += "total: " + formatBytes(total) + " of vectors in memory\n";
     return out;
 }
 
@@ -1525,7 +1528,7 @@ std::string describe(const TransportFileInfo& info) {
         if (c.blocked) {
             out += "  " + componentName(c.kind, c.term) + ": " +
                    describeBlocked(c.vertexCount, c.blockCount, c.coefficientCount, nullptr,
-                                   c.payloadBytes, c.shScales) +
+                                   c.payloadBytes, c.shScales, "on disk") +
                    "\n";
             continue;
         }
@@ -1535,7 +1538,7 @@ std::string describe(const TransportFileInfo& info) {
         std::snprintf(stats, sizeof stats, "%.1f mean per vertex", mean);
         out += "  " + componentName(c.kind, c.term) + ": " + u64(c.vertexCount) + " vertices, " +
                u64(c.coefficientCount) + " coefficients (" + stats + "), " +
-               formatBytes(c.payloadBytes) + " (" + bytesPerVertex(c.payloadBytes, c.vertexCount) +
+               formatBytes(c.payloadBytes) + " on disk (" + bytesPerVertex(c.payloadBytes, c.vertexCount) +
                ")\n";
     }
     if (info.viewMapTerms > 0)

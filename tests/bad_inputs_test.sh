@@ -9,7 +9,9 @@
 # file holding "old output" before the run holds it after, and no temporary file is left
 # beside it). Missing files, wrong formats, NaN/Inf pixels, corrupted and mismatched
 # transport files, degenerate meshes, nonsense parameters, unwritable outputs, absurd
-# memory needs, bad light and job files, command-line usage errors.
+# memory needs, bad light and job files, command-line usage errors. One case must succeed:
+# `prt-relight info` describes the good transport file (the refusals beside it would pass
+# for a tool that refused everything).
 set -u
 
 if [ $# -ne 2 ]; then
@@ -156,6 +158,24 @@ expect "render: zero width" "-W" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e "
 expect "render: zero fov" "--fov" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --fov 0 -o $F
 expect "render: component the file lacks" "torus\.prt: has no single-scattering component" $F.exr \
     $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --components ss -o $F
+
+# --- prt-relight info -------------------------------------------------------------------
+I="$RELIGHT info"
+expect "info: missing transport" "missing\.prt: no such file" - $I missing.prt
+expect "info: truncated transport" "truncated\.prt" - $I truncated.prt
+expect "info: not a transport file" "not-a-transport\.prt" - $I not-a-transport.prt
+expect "info --full: corrupted transport" "corrupted\.prt: .*(checksum|CRC|corrupt)" - $I --full corrupted.prt
+# The good file is described (the one case here that must succeed): header only, then
+# loaded, with the byte counts labelled by where they live.
+cases=$((cases + 1))
+if $I "$S/torus.prt" > info.txt 2> stderr.txt && grep -q "multiple scattering: 1152 vertices.* on disk" info.txt \
+    && $I --full "$S/torus.prt" > info-full.txt 2>> stderr.txt && grep -q "in memory" info-full.txt \
+    && grep -q "^loaded and verified in" info-full.txt && [ ! -s stderr.txt ]; then
+    echo "PASS: info: the good file is described"
+else
+    cat info.txt info-full.txt stderr.txt 2> /dev/null | head -20
+    fail "info: the good file is not described"
+fi
 
 # --- prt-pointlight -------------------------------------------------------------------
 L="$POINTLIGHT"

@@ -673,8 +673,10 @@ TEST_F(TransportTest, InfoAndDescribe) {
     EXPECT_TRUE(contains(d, "single scattering term 3")) << d;
     EXPECT_TRUE(contains(d, "material = Marble")) << d;
     EXPECT_TRUE(contains(d, "max per vertex")) << d;
+    EXPECT_TRUE(contains(d, "in memory (")) << d;
     const std::string di = describe(info);
     EXPECT_TRUE(contains(di, "format version 1")) << di;
+    EXPECT_TRUE(contains(di, "on disk (")) << di;
     EXPECT_TRUE(contains(di, "single scattering (isotropic)")) << di;
 }
 
@@ -1259,10 +1261,12 @@ TEST_F(TransportTest, BlockedInfoAndDescribe) {
     EXPECT_TRUE(contains(di, "multiple scattering: 120 vertices, blocked: 8 blocks of 16 sharing")) << di;
     EXPECT_TRUE(contains(di, "mean per block")) << di;
     EXPECT_TRUE(contains(di, "B per vertex")) << di;
+    EXPECT_TRUE(contains(di, "on disk (")) << di;
     EXPECT_TRUE(contains(di, "single scattering term 1: 120 vertices, ")) << di;
     const std::string d = describe(f);
     EXPECT_TRUE(contains(d, "blocked: 8 blocks of 16")) << d;
     EXPECT_TRUE(contains(d, "max per block")) << d;
+    EXPECT_TRUE(contains(d, "in memory (")) << d;
     EXPECT_TRUE(contains(d, "max per vertex")) << d;
 }
 
