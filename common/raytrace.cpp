@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <stdexcept>
 #include <string>
 
 namespace prt {
@@ -794,14 +795,18 @@ void intersectWithBeyondPackets(RTCScene scene, const float* ox, const float* oy
 void RayScene::intersectBatchWithBeyond(const float* orgX, const float* orgY, const float* orgZ,
                                         const float* dirX, const float* dirY, const float* dirZ,
                                         size_t count, float tnear, float separation, Hit* hitsOut,
-                                        uint8_t* beyondOut, bool coherent) const {
+                                        uint8_t* beyondOut, bool coherent,
+                                        OcclusionKernel kernel) const {
+    if (kernel == OcclusionKernel::Stream1M || kernel == OcclusionKernel::StreamNp)
+        throw std::invalid_argument("intersectBatchWithBeyond: stream kernels are not supported");
+    if (kernel == OcclusionKernel::Auto) kernel = defaultOcclusionKernel();
     tnear = std::max(tnear, 0.0f);
     separation = std::max(separation, 0.0f);
     RTCScene scene = asScene(scene_);
     auto fill = [this](Hit& h, float t, uint32_t prim, float u, float v) {
         fillHit(h, t, prim, u, v);
     };
-    switch (defaultOcclusionKernel()) {
+    switch (kernel) {
         case OcclusionKernel::Packet16:
             intersectWithBeyondPackets<16>(scene, orgX, orgY, orgZ, dirX, dirY, dirZ, count, tnear,
                                            separation, hitsOut, beyondOut, fill, coherent);
@@ -814,7 +819,7 @@ void RayScene::intersectBatchWithBeyond(const float* orgX, const float* orgY, co
             intersectWithBeyondPackets<4>(scene, orgX, orgY, orgZ, dirX, dirY, dirZ, count, tnear,
                                           separation, hitsOut, beyondOut, fill, coherent);
             return;
-        default: {  // no native packets: single rays through the same filter (N = 1, id 0)
+        default: {  // Single (no native packets): single rays through the same filter (N = 1, id 0)
             BeyondLane lane;
             BeyondContext ctx = makeBeyondContext(coherent, &lane, separation);
             for (size_t i = 0; i < count; ++i) {

@@ -182,10 +182,14 @@ public:
     // the closest reported. 1.4-1.5x the rate of intersectBatch followed by occludedBatch
     // from the offset hits (docs/single-scattering.md). separation >= 0; hits closer
     // together than it (a shared edge, coincident triangles) count as one surface.
+    // kernel: the packet width (Auto: the device's native one; Single: rtcIntersect1
+    // through the same filter, what a device without packets runs); the stream kernels
+    // are refused (std::invalid_argument). Every width gives the same results (tested).
     void intersectBatchWithBeyond(const float* orgX, const float* orgY, const float* orgZ,
                                   const float* dirX, const float* dirY, const float* dirZ,
                                   size_t count, float tnear, float separation, Hit* hitsOut,
-                                  uint8_t* beyondOut, bool coherent = false) const;
+                                  uint8_t* beyondOut, bool coherent = false,
+                                  OcclusionKernel kernel = OcclusionKernel::Auto) const;
     // The definition above with two single rays each (intersect, then occluded beyond the
     // hit): the reference intersectBatchWithBeyond is tested against.
     void intersectWithBeyondReference(const float* orgX, const float* orgY, const float* orgZ,

@@ -687,12 +687,16 @@ TEST(RayScene, WithBeyondEqualsTwoSingleRays) {
             org.push(glm::vec3(-10, 5, 40) + glm::vec3(box(rng), box(rng), box(rng)) * (i % 2 ? 1.0f : 0.3f));
             dir.push(randomUnit(rng) * (i % 3 ? 1.0f : 2.5f));
         }
+        // Every packet width and the single-ray path a device without packets runs.
+        for (OcclusionKernel kernel : {OcclusionKernel::Auto, OcclusionKernel::Single, OcclusionKernel::Packet4,
+                                       OcclusionKernel::Packet8, OcclusionKernel::Packet16})
         for (bool coherent : {false, true}) {
+            SCOPED_TRACE(std::string(toString(kernel)) + (coherent ? " coherent" : " incoherent"));
             std::vector<Hit> hits(count + 1), ref(count);
             std::vector<uint8_t> beyond(count + 1, 9), refBeyond(count);
             scene.intersectBatchWithBeyond(org.x.data(), org.y.data(), org.z.data(), dir.x.data(), dir.y.data(),
                                            dir.z.data(), count, 0.0f, scene.epsilon(), hits.data(), beyond.data(),
-                                           coherent);
+                                           coherent, kernel);
             scene.intersectWithBeyondReference(org.x.data(), org.y.data(), org.z.data(), dir.x.data(),
                                                dir.y.data(), dir.z.data(), count, 0.0f, scene.epsilon(),
                                                ref.data(), refBeyond.data());
@@ -716,6 +720,12 @@ TEST(RayScene, WithBeyondEqualsTwoSingleRays) {
             }
         }
     }
+    Hit h;
+    uint8_t b = 0;
+    const float zero = 0.0f, one = 1.0f;
+    EXPECT_THROW(scene.intersectBatchWithBeyond(&zero, &zero, &zero, &zero, &zero, &one, 1, 0.0f, 0.0f, &h, &b,
+                                                false, OcclusionKernel::StreamNp),
+                 std::invalid_argument);
 }
 
 // ---------------------------------------------------------------------------
