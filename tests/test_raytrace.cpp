@@ -195,6 +195,17 @@ glm::vec3 randomUnit(std::mt19937& rng) {
     return glm::normalize(v);
 }
 
+// count rays with their own origins, around and through occluderScene's cluster at
+// centre: origins in a 300 mm box (every other one in a 90 mm box, so many start
+// inside the cluster's reach), directions of length 1 or 2.5 (not unit vectors).
+void randomRays(std::mt19937& rng, size_t count, glm::vec3 centre, Directions& org, Directions& dir) {
+    std::uniform_real_distribution<float> box(-150.0f, 150.0f);
+    for (size_t i = 0; i < count; ++i) {
+        org.push(centre + glm::vec3(box(rng), box(rng), box(rng)) * (i % 2 ? 1.0f : 0.3f));
+        dir.push(randomUnit(rng) * (i % 3 ? 1.0f : 2.5f));
+    }
+}
+
 // A surface point on triangle f with barycentrics (b1, b2).
 glm::vec3 pointOn(const Mesh& m, size_t f, float b1, float b2) {
     const glm::uvec3 t = m.triangles[f];
@@ -583,14 +594,9 @@ TEST(RayScene, BatchesEqualSingleQueries) {
     const Mesh m = occluderScene(3, glm::vec3(-10.0f, 5.0f, 40.0f), nullptr);
     RayScene scene(m.positions, m.triangles);
     std::mt19937 rng(9);
-    std::uniform_real_distribution<float> box(-150.0f, 150.0f);
     for (size_t count : {size_t(4099), size_t(1), size_t(16), size_t(37)}) {
         Directions org, dir;
-        for (size_t i = 0; i < count; ++i) {
-            org.push(glm::vec3(-10, 5, 40) + glm::vec3(box(rng), box(rng), box(rng)) *
-                                                 (i % 2 ? 1.0f : 0.3f));
-            dir.push(randomUnit(rng) * (i % 3 ? 1.0f : 2.5f));
-        }
+        randomRays(rng, count, glm::vec3(-10, 5, 40), org, dir);
         for (float tfar : {kInf, 60.0f}) {
             std::vector<Hit> hits(count + 1);
             hits[count].t = -42.0f;
@@ -680,13 +686,9 @@ TEST(RayScene, WithBeyondEqualsTwoSingleRays) {
     const Mesh m = occluderScene(3, glm::vec3(-10.0f, 5.0f, 40.0f), nullptr);
     RayScene scene(m.positions, m.triangles);
     std::mt19937 rng(11);
-    std::uniform_real_distribution<float> box(-150.0f, 150.0f);
     for (size_t count : {size_t(4099), size_t(1), size_t(16), size_t(37)}) {
         Directions org, dir;
-        for (size_t i = 0; i < count; ++i) {
-            org.push(glm::vec3(-10, 5, 40) + glm::vec3(box(rng), box(rng), box(rng)) * (i % 2 ? 1.0f : 0.3f));
-            dir.push(randomUnit(rng) * (i % 3 ? 1.0f : 2.5f));
-        }
+        randomRays(rng, count, glm::vec3(-10, 5, 40), org, dir);
         // Every packet width and the single-ray path a device without packets runs.
         for (OcclusionKernel kernel : {OcclusionKernel::Auto, OcclusionKernel::Single, OcclusionKernel::Packet4,
                                        OcclusionKernel::Packet8, OcclusionKernel::Packet16})
