@@ -70,9 +70,10 @@ struct RaySceneOptions {
     bool robust = true;
 };
 
-// How occludedFromPoint / occludedBatch hand rays to Embree. Auto is the fastest on
-// this machine's Embree (see defaultOcclusionKernel()); the others exist so that
-// benchmarks and tests can compare them; they gave identical flags in every test.
+// How occludedFromPoint / occludedBatch (and intersectBatchWithBeyond: packet widths
+// and Single only) hand rays to Embree. Auto is the fastest on this machine's Embree
+// (see defaultOcclusionKernel()); the others exist so that benchmarks and tests can
+// compare them; they gave identical flags in every test.
 enum class OcclusionKernel {
     Auto,
     Single,    // a loop of rtcOccluded1 (the reference)

@@ -1264,7 +1264,7 @@ std::string bytesPerVertex(uint64_t bytes, uint64_t vertices) {
 // 192 max per block), 55.0 MiB (576.2 B per vertex)"; the max only when known; ", SH
 // part scaled apart" when the block has SH scales.
 // `where` says which bytes: a loaded file counts its in-memory arrays (u16 indices), the
-// header-only describe its on-disk payload (varint deltas), so the two differ.
+// header-only describe its on-disk payload (varint deltas in version 4, so smaller).
 std::string describeBlocked(uint64_t vertices, uint64_t blocks, uint64_t indices,
                             const uint64_t* maxPerBlock, uint64_t bytes, bool shScales,
                             const char* where) {

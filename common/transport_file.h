@@ -211,9 +211,14 @@ struct TransportFileInfo {
 // are neither read nor checksummed (loadTransportFile does that).
 TransportFileInfo readTransportFileInfo(const std::string& path);
 
-// Multi-line human-readable summary: N, mesh, parameters, components with vertex and
-// coefficient counts (per vertex, or for a blocked component blocks and indices per
-// block; mean, and max where the arrays are at hand) and bytes, view maps.
+// Multi-line human-readable summary (prt-relight info): N, mesh, parameters, components
+// with vertex and coefficient counts (per vertex, or for a blocked component blocks and
+// indices per block; mean, and max where the arrays are at hand) and bytes, view maps.
+// The first line is always a header line ("transport file..."). The bytes differ by
+// source: describe(TransportFile) counts the in-memory arrays the relight streams
+// (16-bit indices; labelled "in memory", with a "total:" line); describe(TransportFileInfo)
+// counts the on-disk payload (labelled "on disk"): the same for per-vertex and version 2/3
+// blocked components, smaller for version-4 blocked ones (delta-coded varint indices).
 std::string describe(const TransportFile& file);
 std::string describe(const TransportFileInfo& info);
 

@@ -4,7 +4,7 @@
 //           environment spin;
 //   view    the interactive viewer (relight/view.h), scriptable for tests;
 //   info    what a transport file holds (header only, or --full: load and verify).
-// Both take the same camera options (addCameraOptions / makeCamera) and the same
+// render and view take the same camera options (addCameraOptions / makeCamera) and the same
 // lighting options (addLightingOptions: --env-rotation, --components, -L, --specular,
 // --specular-blur, --exposure), so a viewer screenshot and a render of the same
 // arguments show the same image.
@@ -398,8 +398,9 @@ void addInfoOptions(CLI::App& app, InfoOptions& o) {
 }
 
 // Headers only by default, so it answers at once even for a multi-GB file; the byte
-// counts are then the on-disk payload (compressed indices), with --full the in-memory
-// arrays the relight reads.
+// counts are then the on-disk payload (delta-coded indices for version-4 blocked
+// components), with --full the in-memory arrays the relight reads. The vectors are
+// then not read, so say so: a header-only description is not a validation.
 int runInfo(const InfoOptions& o) {
     for (size_t i = 0; i < o.transports.size(); ++i) {
         const std::string& path = o.transports[i];
@@ -414,9 +415,11 @@ int runInfo(const InfoOptions& o) {
             const std::string loaded = describe(file);
             char line[160];
             std::snprintf(line, sizeof line,
-                          "loaded and verified in %.3f s (%.0f MB/s from disk or page cache)\n",
-                          seconds, seconds > 0 ? double(info.fileBytes) / seconds / 1e6 : 0.0);
+                          "loaded and verified in %.3f s (%.0f MiB/s from disk or page cache)\n",
+                          seconds, seconds > 0 ? double(info.fileBytes) / seconds / 1048576.0 : 0.0);
             text = text.substr(0, text.find('\n') + 1) + loaded.substr(loaded.find('\n') + 1) + line;
+        } else {
+            text += "vectors: not read or verified (--full loads and verifies them)\n";
         }
         std::printf("%s%s\n%s", i ? "\n" : "", path.c_str(), text.c_str());
     }
@@ -452,7 +455,7 @@ int main(int argc, char** argv) {
         InfoOptions info;
         CLI::App* infoCmd = app.add_subcommand(
             "info", "What a transport file holds: cubemap, SH part, mesh fingerprint, parameters, "
-                    "components and their sizes (docs/transport-format.md)");
+                    "components and their sizes; --full loads and verifies it (docs/relight.md)");
         addInfoOptions(*infoCmd, info);
 
         if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-relight")) return *exitCode;

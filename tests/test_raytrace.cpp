@@ -691,34 +691,35 @@ TEST(RayScene, WithBeyondEqualsTwoSingleRays) {
         randomRays(rng, count, glm::vec3(-10, 5, 40), org, dir);
         // Every packet width and the single-ray path a device without packets runs.
         for (OcclusionKernel kernel : {OcclusionKernel::Auto, OcclusionKernel::Single, OcclusionKernel::Packet4,
-                                       OcclusionKernel::Packet8, OcclusionKernel::Packet16})
-        for (bool coherent : {false, true}) {
-            SCOPED_TRACE(std::string(toString(kernel)) + (coherent ? " coherent" : " incoherent"));
-            std::vector<Hit> hits(count + 1), ref(count);
-            std::vector<uint8_t> beyond(count + 1, 9), refBeyond(count);
-            scene.intersectBatchWithBeyond(org.x.data(), org.y.data(), org.z.data(), dir.x.data(), dir.y.data(),
-                                           dir.z.data(), count, 0.0f, scene.epsilon(), hits.data(), beyond.data(),
-                                           coherent, kernel);
-            scene.intersectWithBeyondReference(org.x.data(), org.y.data(), org.z.data(), dir.x.data(),
-                                               dir.y.data(), dir.z.data(), count, 0.0f, scene.epsilon(),
-                                               ref.data(), refBeyond.data());
-            size_t hitCount = 0, beyondCount = 0;
-            for (size_t i = 0; i < count; ++i) {
-                ASSERT_EQ(hits[i].hit, ref[i].hit) << i;
-                EXPECT_EQ(int(beyond[i]), int(refBeyond[i])) << i;
-                hitCount += ref[i].hit;
-                beyondCount += refBeyond[i];
-                if (!ref[i].hit) continue;
-                EXPECT_EQ(hits[i].triangle, ref[i].triangle) << i;
-                EXPECT_EQ(hits[i].t, ref[i].t) << i;
-                EXPECT_EQ(hits[i].u, ref[i].u) << i;
-                EXPECT_EQ(hits[i].v, ref[i].v) << i;
-                EXPECT_EQ(hits[i].geometricNormal, ref[i].geometricNormal) << i;
-            }
-            EXPECT_EQ(beyond[count], 9) << "wrote past count";
-            if (count > 1000) {  // the scene has rays of every kind
-                EXPECT_GT(beyondCount, count / 20);
-                EXPECT_LT(beyondCount, hitCount * 9 / 10);
+                                       OcclusionKernel::Packet8, OcclusionKernel::Packet16}) {
+            for (bool coherent : {false, true}) {
+                SCOPED_TRACE(std::string(toString(kernel)) + (coherent ? " coherent" : " incoherent"));
+                std::vector<Hit> hits(count + 1), ref(count);
+                std::vector<uint8_t> beyond(count + 1, 9), refBeyond(count);
+                scene.intersectBatchWithBeyond(org.x.data(), org.y.data(), org.z.data(), dir.x.data(), dir.y.data(),
+                                               dir.z.data(), count, 0.0f, scene.epsilon(), hits.data(), beyond.data(),
+                                               coherent, kernel);
+                scene.intersectWithBeyondReference(org.x.data(), org.y.data(), org.z.data(), dir.x.data(),
+                                                   dir.y.data(), dir.z.data(), count, 0.0f, scene.epsilon(),
+                                                   ref.data(), refBeyond.data());
+                size_t hitCount = 0, beyondCount = 0;
+                for (size_t i = 0; i < count; ++i) {
+                    ASSERT_EQ(hits[i].hit, ref[i].hit) << i;
+                    EXPECT_EQ(int(beyond[i]), int(refBeyond[i])) << i;
+                    hitCount += ref[i].hit;
+                    beyondCount += refBeyond[i];
+                    if (!ref[i].hit) continue;
+                    EXPECT_EQ(hits[i].triangle, ref[i].triangle) << i;
+                    EXPECT_EQ(hits[i].t, ref[i].t) << i;
+                    EXPECT_EQ(hits[i].u, ref[i].u) << i;
+                    EXPECT_EQ(hits[i].v, ref[i].v) << i;
+                    EXPECT_EQ(hits[i].geometricNormal, ref[i].geometricNormal) << i;
+                }
+                EXPECT_EQ(beyond[count], 9) << "wrote past count";
+                if (count > 1000) {  // the scene has rays of every kind
+                    EXPECT_GT(beyondCount, count / 20);
+                    EXPECT_LT(beyondCount, hitCount * 9 / 10);
+                }
             }
         }
     }
