@@ -711,32 +711,26 @@ struct BeyondContext {
 // `separation` apart: that one is accepted, so the ray's tfar drops to it and the
 // traversal only reports closer hits from then on (which are recorded and rejected).
 // Embree may call this with any packet size (1, 4, 8, 16), so lanes go by ray id.
-// Bit i set for the lanes i < n (n a multiple of 4, <= 32) with valid[i] == -1: the
-// filter's loop then visits only the lanes that hit (usually a few of 16).
+// Bit i set for the lanes i < n (n <= 32; Embree passes 1, 4, 8 or 16) with
+// valid[i] == -1: the filter's loop then visits only the lanes that hit (usually a
+// few of 16).
 uint32_t validLanes(const int* valid, unsigned n) {
     uint32_t bits = 0;
+    unsigned i = 0;
 #if defined(__SSE2__)
     const __m128i all = _mm_set1_epi32(-1);
-    for (unsigned i = 0; i < n; i += 4) {
+    for (; i + 4 <= n; i += 4) {
         const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(valid + i));
         bits |= uint32_t(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(v, all)))) << i;
     }
-#else
-    for (unsigned i = 0; i < n; ++i) bits |= uint32_t(valid[i] == -1) << i;
 #endif
+    for (; i < n; ++i) bits |= uint32_t(valid[i] == -1) << i;
     return bits;
 }
 
 void beyondFilter(const RTCFilterFunctionNArguments* args) {
     const BeyondContext* ctx = reinterpret_cast<const BeyondContext*>(args->context);
-    const unsigned n = args->N;
-    uint32_t bits = 0;
-    if (n % 4 == 0 && n <= 32) {
-        bits = validLanes(args->valid, n);
-    } else {
-        for (unsigned i = 0; i < n; ++i) bits |= uint32_t(args->valid[i] == -1) << i;
-    }
-    for (; bits != 0; bits &= bits - 1) {
+    for (uint32_t bits = validLanes(args->valid, args->N); bits != 0; bits &= bits - 1) {
         const unsigned i = unsigned(__builtin_ctz(bits));
         BeyondLane& lane = ctx->lanes[RTCRayN_id(args->ray, args->N, i)];
         const float t = RTCRayN_tfar(args->ray, args->N, i);

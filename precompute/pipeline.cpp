@@ -205,9 +205,8 @@ std::vector<std::pair<std::string, std::string>> settingsParameters(const Precom
         // is part of the input digest: files made with the non-robust scene are redone.
         // V from the exit ray is recorded (and digested) only where it applies, so files
         // made with the second-ray rule before it existed stay up to date.
-        const bool exitRayV = o.visibility && o.visibilityFromExitRay && !o.sharedVisibility;
         p.push_back({"ss_rays", std::string(o.coherentRays ? "robust scene, coherent packets" : "robust scene, incoherent packets") +
-                                    (exitRayV ? ", V from the exit ray" : "")});
+                                    (o.exitRayVisibility() ? ", V from the exit ray" : "")});
         p.push_back({"ss_normalisation",
                      isotropic ? "1/(4 pi) folded in (radiance = F_t(w_o) * dot(vector, light))"
                                : "radiance = F_t(w_o) * sum_k h_k(w_o') * dot(term_k, light), "

@@ -180,6 +180,9 @@ struct SingleScatteringOptions {
     // dragon res2, 14 on the bunny. The exit-and-visibility query runs 1.4-1.5x the rate
     // of the two rays (docs/single-scattering.md, "visibility from the exit ray").
     bool visibilityFromExitRay = true;
+    // Whether V comes from the exit rays: visibility on, visibilityFromExitRay, and not
+    // shared visibility (which always traces its own rays).
+    bool exitRayVisibility() const { return visibility && visibilityFromExitRay && !sharedVisibility; }
     // Shared visibility: of the exit points of one direction (one per path sample that
     // survives the cut-off), only the shallowest and the deepest sample's get an
     // occlusion ray; when both are visible (or both occluded) the samples between take
@@ -287,7 +290,6 @@ public:
     struct CornerNormals {
         glm::vec3 n[3];
     };
-    const CornerNormals& cornerNormals(uint32_t t) const { return cornerNormals_[t]; }
     const CornerNormals* cornerNormalsData() const { return cornerNormals_.data(); }
 
     const RayScene& scene() const { return *scene_; }
@@ -306,10 +308,7 @@ public:
     void intersectWithBeyond(const float* orgX, const float* orgY, const float* orgZ, const float* dirX,
                              const float* dirY, const float* dirZ, size_t count, Hit* hits,
                              uint8_t* beyond) const;
-    // Whether V comes from the exit rays (visibility, visibilityFromExitRay, not shared).
-    bool visibilityFromExitRays() const {
-        return options_.visibility && options_.visibilityFromExitRay && !options_.sharedVisibility;
-    }
+    bool visibilityFromExitRays() const { return options_.exitRayVisibility(); }
 
 private:
     const RayScene* scene_;

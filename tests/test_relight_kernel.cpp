@@ -1005,10 +1005,11 @@ TEST(RelightBlocked, ShPartHasScalesOfItsOwnInEveryVariant) {
                         if (!(std::abs(double(got.diffuse[v][c]) - want.diffuse[v][c]) <= bound)) ++failures;
                     }
                 }
-                if (shScales)
+                if (shScales) {
                     EXPECT_EQ(failures, 0u);
-                else if (light == &haarOnly)
+                } else if (light == &haarOnly) {
                     EXPECT_GT(failures, vertices / 2) << "one scale should break the per-part bound";
+                }
             }
         }
     }

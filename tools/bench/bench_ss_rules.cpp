@@ -88,8 +88,8 @@ int main(int argc, char** argv) {
         app.add_option("--vertices", vertices, "Vertices, spread over the mesh")->capture_default_str();
         app.add_option("--cubemap-size", cubemapSize, "Cubemap face size N")->capture_default_str();
         app.add_option("--reference", reference, "The converged rule RULE:PATH_SAMPLES:STRIDE")->capture_default_str();
-        app.add_option("--rules", rules, "Rules to measure, RULE:PATH_SAMPLES:STRIDE[:MIN_THROUGHPUT[:VISIBILITY]] each; VISIBILITY exit "
-                       "(V from the exit ray, the default) or ray (a second ray from the exit point)")->capture_default_str();
+        app.add_option("--rules", rules, "Rules to measure, RULE:PATH_SAMPLES:STRIDE[:MIN_THROUGHPUT][:exit|ray] each; exit: V from the "
+                       "exit ray (the default), ray: a second ray from the exit point")->capture_default_str();
         if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-bench-ss")) return *exitCode;
         if (vertices < 1) throw Error("--vertices", "must be at least 1");
 
