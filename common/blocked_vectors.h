@@ -3,7 +3,7 @@
 // coefficient indices, chosen jointly for the block, with 8-bit values (issue 16,
 // "compressed transport"; measurements in docs/performance.md).
 //
-// WHY. The per-vertex kernel (relight/relight_kernel.h) does, per coefficient, one
+// WHY. The per-vertex kernel (relight/prt/relight_kernel.h) does, per coefficient, one
 // index-dependent load of the light, a conversion and a multiply-add; halving its bytes
 // (8-bit values, delta-coded indices) measured no faster. Sharing the index list of a
 // block lets the kernel load the light once per index for 16 vertices and do the 16

@@ -16,7 +16,7 @@
 // SPACES. A transport vector T lives in the 6 N^2-dimensional Haar space of the
 // N x N cubemap (common/haar.h); relighting is sum_t T_t L_t over texels t, with L_t
 // the mean radiance of texel t and T_t already holding the texel's solid angle
-// (relight/light_vector.h). With w_t the texel centre's direction, the SH part of T
+// (relight/prt/light_vector.h). With w_t the texel centre's direction, the SH part of T
 // is a combination of the transport-like vectors
 //     W_i(t) = dOmega_t Y_i(w_t)          (scaled to unit texel norm, below)
 // and it is fitted so that the residual R = T - sum_i c_i W_i is invisible to every

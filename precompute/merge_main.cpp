@@ -14,7 +14,7 @@
 #include "common/options.h"
 #include "common/progress.h"
 #include "common/util.h"
-#include "precompute/shard_merge.h"
+#include "precompute/job/shard_merge.h"
 
 using namespace prt;
 

@@ -19,14 +19,14 @@ if [ $# -ne 2 ]; then
     exit 2
 fi
 BUILD=$1 WORK=$2
-PRECOMPUTE=$BUILD/precompute/prt-precompute
-RELIGHT=$BUILD/relight/prt-relight
-POINTLIGHT=$BUILD/relight/prt-pointlight
-REFERENCE=$BUILD/tools/prt-reference
-VERTEX_ERROR=$BUILD/tools/prt-vertex-error
-COMPARE=$BUILD/tools/prt-compare
-ENVCHECK=$BUILD/tools/prt-envcheck
-MAKE_SCENE=$BUILD/relight/prt-make-test-scene
+PRECOMPUTE=$BUILD/bin/prt-precompute
+RELIGHT=$BUILD/bin/prt-relight
+POINTLIGHT=$BUILD/bin/prt-pointlight
+REFERENCE=$BUILD/bin/prt-reference
+VERTEX_ERROR=$BUILD/bin/prt-vertex-error
+COMPARE=$BUILD/bin/prt-compare
+ENVCHECK=$BUILD/bin/prt-envcheck
+MAKE_SCENE=$BUILD/bin/prt-make-test-scene
 
 rm -rf "$WORK"
 mkdir -p "$WORK"

@@ -18,10 +18,10 @@
 set -u
 if [ $# -ne 2 ]; then echo "usage: $0 BUILD_DIR WORKDIR" >&2; exit 2; fi
 BUILD=$1 WORK=$2
-PRE=$BUILD/precompute/prt-precompute MERGE=$BUILD/precompute/prt-merge
-RELIGHT=$BUILD/relight/prt-relight
+PRE=$BUILD/bin/prt-precompute MERGE=$BUILD/bin/prt-merge
+RELIGHT=$BUILD/bin/prt-relight
 rm -rf "$WORK" && mkdir -p "$WORK" && cd "$WORK" || exit 1
-"$BUILD/tests/prt-make-shape" icosphere sphere.obj --subdivisions 3 --radius 10 > /dev/null || exit 1
+"$BUILD/bin/prt-make-shape" icosphere sphere.obj --subdivisions 3 --radius 10 > /dev/null || exit 1
 oiiotool --pattern constant:color=1,1,1 64x32 3 -d float -o sky.exr > /dev/null || exit 1
 # CI runs as root; Open MPI refuses that unless told.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1

@@ -1,4 +1,4 @@
-// The cell quadrature of pass 2 (precompute/cell_quadrature.h): cells tile the mesh,
+// The cell quadrature of pass 2 (precompute/passes/cell_quadrature.h): cells tile the mesh,
 // the near/far split is a partition of R_d, thin plates keep their sides apart, the
 // hierarchy with cells equals the brute-force cell sum at epsilon 0, bad input is
 // refused. Convergence against the exact plane integral: tests/test_sample_sum.cpp.
@@ -13,8 +13,8 @@
 #include "common/mesh.h"
 #include "common/sampling.h"
 #include "common/shapes.h"
-#include "precompute/cell_quadrature.h"
-#include "precompute/multiple_scattering.h"
+#include "precompute/passes/cell_quadrature.h"
+#include "precompute/passes/multiple_scattering.h"
 
 using namespace prt;
 

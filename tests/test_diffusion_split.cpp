@@ -1,9 +1,9 @@
-// R_d tables and the local/global split (relight/diffusion_split.h). Asserted: the
+// R_d tables and the local/global split (relight/pointlight/diffusion_split.h). Asserted: the
 // table reproduces dipoleRd; W_l + W_g = 1 with W_l(0) ~ 1, W_l(R_p) = 1/2 and a
 // continuous slope at R_p; R_p is where the importance R_d 2 pi r crosses c (the
 // paper's Skimmilk figure: 2.41 mm at c = 0.1 /mm); local + global tables = full table.
 
-#include "relight/diffusion_split.h"
+#include "relight/pointlight/diffusion_split.h"
 
 #include <gtest/gtest.h>
 

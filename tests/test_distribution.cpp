@@ -1,10 +1,10 @@
-// Work split over processes (precompute/distribution.h) and the shard merge
-// (precompute/shard_merge.h): ranges partition their index space, slices and
+// Work split over processes (precompute/job/distribution.h) and the shard merge
+// (precompute/job/shard_merge.h): ranges partition their index space, slices and
 // concatenation are inverse, and a job computed as shards and merged is the same file,
 // byte for byte, as the job computed in one process. The MPI route runs through the
 // real executables in tests/cluster_test.sh.
 
-#include "precompute/distribution.h"
+#include "precompute/job/distribution.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -18,9 +18,9 @@
 #include "common/mesh_io.h"
 #include "common/progress.h"
 #include "common/shapes.h"
-#include "precompute/pass1_file.h"
-#include "precompute/pipeline.h"
-#include "precompute/shard_merge.h"
+#include "precompute/job/pass1_file.h"
+#include "precompute/job/pipeline.h"
+#include "precompute/job/shard_merge.h"
 #include "tests/test_support.h"
 
 using namespace prt;

@@ -1,4 +1,4 @@
-// The translucent irradiance cache (relight/irradiance_cache.h, Keng et al. 2006).
+// The translucent irradiance cache (relight/pointlight/irradiance_cache.h, Keng et al. 2006).
 // Physics asserted: a -> 0 (every pixel its own cache) is the Jensen-Buhler image bit
 // for bit; the gradient of Eqs. 8-9 is the derivative of S (central differences, on a
 // plane and on a sphere); the split-disk factor is the paper's four-sector integral,
@@ -8,7 +8,7 @@
 // valid; the result does not depend on the thread count; bad options are one-line
 // errors.
 
-#include "relight/irradiance_cache.h"
+#include "relight/pointlight/irradiance_cache.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -24,8 +24,8 @@
 #include "common/image_compare.h"
 #include "common/shapes.h"
 #include "common/util.h"
-#include "relight/jensen_buhler.h"
-#include "relight/render.h"
+#include "relight/pointlight/jensen_buhler.h"
+#include "relight/render/render.h"
 #include "test_support.h"
 
 using namespace prt;

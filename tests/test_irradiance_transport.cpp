@@ -1,4 +1,4 @@
-#include "precompute/irradiance_transport.h"
+#include "precompute/passes/irradiance_transport.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>

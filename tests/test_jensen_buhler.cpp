@@ -1,10 +1,10 @@
-// The Jensen-Buhler hierarchical renderer (relight/jensen_buhler.h). Physics asserted:
+// The Jensen-Buhler hierarchical renderer (relight/pointlight/jensen_buhler.h). Physics asserted:
 // epsilon = 0 is the brute-force sum; the octree's nodes carry area sums and
 // AREA-weighted means (the SPEC's trap); a large flat box under a normal-incidence
 // directional light reaches the closed-form exitance E F_t int R_d dA; a far point
 // light renders like a directional light; the image does not depend on threads.
 
-#include "relight/jensen_buhler.h"
+#include "relight/pointlight/jensen_buhler.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -18,7 +18,7 @@
 #include "common/bssrdf.h"
 #include "common/camera.h"
 #include "common/error.h"
-#include "relight/render.h"
+#include "relight/render/render.h"
 #include "common/shapes.h"
 
 using namespace prt;

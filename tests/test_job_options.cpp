@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "precompute/job_options.h"
+#include "precompute/job/job_options.h"
 #include "tests/test_support.h"
 
 using namespace prt;

@@ -1,7 +1,7 @@
-// EnvironmentLight (relight/light_vector.h): light vectors of a prepared environment
+// EnvironmentLight (relight/prt/light_vector.h): light vectors of a prepared environment
 // against makeLightVector of the same image, the reference.
 
-#include "relight/light_vector.h"
+#include "relight/prt/light_vector.h"
 
 #include <gtest/gtest.h>
 

@@ -1,10 +1,10 @@
-// The precomputation's memory estimate and its refusal (precompute/memory_estimate.h).
+// The precomputation's memory estimate and its refusal (precompute/job/memory_estimate.h).
 // Asserted: the estimate grows linearly with the sample count and the coefficients as
 // the data structures do; a job whose estimate exceeds --max-memory is refused before
 // any pass, and the old output is left untouched; the message names the estimate, the
 // limit and what to change; bad limits are errors.
 
-#include "precompute/memory_estimate.h"
+#include "precompute/job/memory_estimate.h"
 
 #include <gtest/gtest.h>
 

@@ -1,10 +1,10 @@
-// The mipmap-ordered inverse CDF (relight/mipmap_sampler.h). Asserted: the pyramid
+// The mipmap-ordered inverse CDF (relight/pointlight/mipmap_sampler.h). Asserted: the pyramid
 // holds block sums; inverting the CDF in mipmap order visits every texel with its
 // exact probability (each texel's u-interval has the length of its weight); many
 // stratified draws reproduce a known map's distribution (chi-square); zero-weight
 // texels are never drawn; draws are deterministic per seed.
 
-#include "relight/mipmap_sampler.h"
+#include "relight/pointlight/mipmap_sampler.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "precompute/multiple_scattering.h"
+#include "precompute/passes/multiple_scattering.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>

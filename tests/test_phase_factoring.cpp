@@ -1,4 +1,4 @@
-#include "precompute/phase_factoring.h"
+#include "precompute/passes/phase_factoring.h"
 
 #include <gtest/gtest.h>
 

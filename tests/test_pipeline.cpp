@@ -1,6 +1,6 @@
 // End-to-end tests of the precomputation pipeline (mesh file -> transport file).
 
-#include "precompute/pipeline.h"
+#include "precompute/job/pipeline.h"
 
 #include <gtest/gtest.h>
 
@@ -12,8 +12,8 @@
 #include "common/cubemap.h"
 #include "common/error.h"
 #include "common/haar.h"
-#include "precompute/distribution.h"
-#include "precompute/summary_json.h"
+#include "precompute/job/distribution.h"
+#include "precompute/job/summary_json.h"
 #include "common/sh_part.h"
 #include "common/progress.h"
 #include "common/shapes.h"

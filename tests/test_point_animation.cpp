@@ -1,4 +1,4 @@
-// prt-pointlight's animations (relight/point_animation.h). Asserted: frame k of a
+// prt-pointlight's animations (relight/pointlight/point_animation.h). Asserted: frame k of a
 // turntable equals a single render with the camera at that azimuth (to float rounding
 // of the camera; bit for bit against the single render from the orbited camera), so
 // reusing the irradiance samples and the octree changes nothing; the light path's
@@ -7,7 +7,7 @@
 // through the object and bad --light-path / --frames values are one-line errors
 // raised before any frame is rendered.
 
-#include "relight/point_animation.h"
+#include "relight/pointlight/point_animation.h"
 
 #include <gtest/gtest.h>
 
@@ -20,7 +20,7 @@
 #include "common/camera.h"
 #include "common/error.h"
 #include "common/shapes.h"
-#include "relight/render.h"
+#include "relight/render/render.h"
 #include "test_support.h"
 
 using namespace prt;

@@ -1,9 +1,9 @@
 // Lights, their parsing, the inside test and the direct irradiance of pass 1
-// (relight/point_lights.h). Physics asserted: the inverse-square law with the exact
+// (relight/pointlight/point_lights.h). Physics asserted: the inverse-square law with the exact
 // Fresnel transmittance and the mm -> m^2 factor, shadows, a far point light equal to a
 // directional light, area-preserving samples, thread-count independence.
 
-#include "relight/point_lights.h"
+#include "relight/pointlight/point_lights.h"
 
 #include <gtest/gtest.h>
 

@@ -12,7 +12,7 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/raytrace.h"
-#include "relight/render.h"
+#include "relight/render/render.h"
 #include "common/sampling.h"
 #include "common/shapes.h"
 
@@ -905,7 +905,7 @@ TEST(ReferenceSingleScattering, FramesAreDeterministicAddUpAndReportHonestNoise)
 // The reference's own sample set and its convergence estimate (issue 13)
 // ---------------------------------------------------------------------------
 
-#include "precompute/pipeline.h"  // PrecomputeSettings: the precomputation's default seed
+#include "precompute/job/pipeline.h"  // PrecomputeSettings: the precomputation's default seed
 
 TEST(ReferenceSamples, ShareNeitherSeedNorSamplesWithThePrecomputationByDefault) {
     // What prt-reference does without --same-samples: planReferenceSamples with the

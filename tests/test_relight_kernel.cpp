@@ -1,4 +1,4 @@
-#include "relight/relight_kernel.h"
+#include "relight/prt/relight_kernel.h"
 
 #include <gtest/gtest.h>
 #include <tbb/task_arena.h>
@@ -18,7 +18,7 @@
 #include "common/error.h"
 #include "common/haar.h"
 #include "common/sh_part.h"
-#include "relight/light_vector.h"
+#include "relight/prt/light_vector.h"
 
 namespace {
 

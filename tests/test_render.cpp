@@ -1,4 +1,4 @@
-#include "relight/render.h"
+#include "relight/render/render.h"
 
 #include <gtest/gtest.h>
 
@@ -10,8 +10,8 @@
 #include "common/bssrdf.h"
 #include "common/envmap.h"
 #include "common/error.h"
-#include "relight/light_vector.h"
-#include "relight/relight_kernel.h"
+#include "relight/prt/light_vector.h"
+#include "relight/prt/relight_kernel.h"
 #include "common/shapes.h"
 #include "common/mesh_io.h"
 

@@ -3,7 +3,7 @@
 // per channel, for every measured material:
 //   - the reference's point rule (1/pi) sum_i A R_d(|x_i - x_o|) at the spacing the
 //     reference chooses (tools/reference/reference.h, referenceSampleSpacing);
-//   - the precomputation's cell rule (precompute/cell_quadrature.h: R_d integrated over
+//   - the precomputation's cell rule (precompute/passes/cell_quadrature.h: R_d integrated over
 //     each sample's Voronoi cell near x_o) at the spacing the precomputation chooses by
 //     default (l_u = min z_r), and at half and twice that;
 //   - and, so that the cell rule's test is seen to discriminate, the point rule at the
@@ -35,7 +35,7 @@
 #include "common/bssrdf.h"
 #include "common/sampling.h"
 #include "common/shapes.h"
-#include "precompute/cell_quadrature.h"
+#include "precompute/passes/cell_quadrature.h"
 #include <optional>
 #include "tools/reference/reference.h"
 

@@ -1,7 +1,7 @@
 // Tests of the single-scattering precomputation (Wang et al. 2005, Eqs. 4, 5, 10, 11)
 // and of its integration into the precompute pipeline.
 
-#include "precompute/single_scattering.h"
+#include "precompute/passes/single_scattering.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -16,8 +16,8 @@
 #include "common/haar.h"
 #include "common/sh_part.h"
 #include "common/mesh.h"
-#include "precompute/phase_factoring.h"
-#include "precompute/pipeline.h"
+#include "precompute/passes/phase_factoring.h"
+#include "precompute/job/pipeline.h"
 #include "common/progress.h"
 #include "common/shapes.h"
 #include "common/transport_file.h"
@@ -720,6 +720,7 @@ TEST(SingleScattering, GaussPathSamplesMatchManyMidpointsOnACurvedMesh) {
 
 // Adaptive directions (SingleScatteringOptions::directionStride): relative L2 and
 // uniform-light sum of a against ref over the vertices (every `step`-th) of a mesh.
+namespace {
 struct DenseDeviation {
     double relL2Mean = 0, relL2Worst = 0, sumMean = 0, sumWorst = 0;
     uint64_t interpolated = 0, traced = 0, rays = 0;
@@ -753,6 +754,7 @@ DenseDeviation deviation(const SingleScatteringContext& ctx, const SingleScatter
     e.sumMean /= double(count);
     return e;
 }
+}  // namespace
 
 TEST(SingleScattering, AdaptiveDirectionsOnTheHalfSpace) {
     // The flat slab of ThickSlabMatchesTheHalfSpaceClosedForm at the production cubemap

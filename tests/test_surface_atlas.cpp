@@ -1,11 +1,11 @@
-// The area-preserving surface atlas (relight/surface_atlas.h). Physics asserted: the
+// The area-preserving surface atlas (relight/pointlight/surface_atlas.h). Physics asserted: the
 // texels' surface areas sum to the mesh area (the atlas covers the surface, Eq. 6's
 // correction applied exactly), every triangle receives exactly its own area from the
 // clipped texel pieces, texture area is proportional to surface area (distortion 1),
 // charts do not overlap, every texel's point lies on its triangle, and the atlas is
 // deterministic.
 
-#include "relight/surface_atlas.h"
+#include "relight/pointlight/surface_atlas.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>

@@ -1,5 +1,5 @@
-// Texture-space importance sampling and the hybrid (relight/texture_space_sampling.h,
-// relight/translucent_shadow_map.h). Physics asserted:
+// Texture-space importance sampling and the hybrid (relight/pointlight/texture_space_sampling.h,
+// relight/pointlight/translucent_shadow_map.h). Physics asserted:
 //   - the estimator converges to the Jensen-Buhler epsilon = 0 sum over the SAME texel
 //     points as N grows, with error falling like 1/sqrt(N) (the map-resolution floor
 //     is then the distance between that sum and one over face centroids, reported);
@@ -11,7 +11,7 @@
 //     the local filter alone, and hybrid = local part + global part;
 //   - determinism per seed and across thread counts.
 
-#include "relight/texture_space_sampling.h"
+#include "relight/pointlight/texture_space_sampling.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -23,7 +23,7 @@
 #include "common/camera.h"
 #include "common/image_compare.h"
 #include "common/shapes.h"
-#include "relight/jensen_buhler.h"
+#include "relight/pointlight/jensen_buhler.h"
 #include "tests/test_support.h"
 
 using namespace prt;

@@ -64,10 +64,10 @@ if [ "$do_build" = 1 ]; then
 fi
 # Commands are shown relative to the repository when the build is inside it.
 b=${build#"$root"/}
-bench_relight=$b/tools/bench_relight
-bench_pass1=$b/tools/prt-bench-pass1
-precompute=$b/precompute/prt-precompute
-bench_file=$b/tools/prt-bench-relight-file
+bench_relight=$b/bin/bench_relight
+bench_pass1=$b/bin/prt-bench-pass1
+precompute=$b/bin/prt-precompute
+bench_file=$b/bin/prt-bench-relight-file
 for exe in "$bench_relight" "$bench_pass1" "$precompute" "$bench_file"; do
   [ -x "$exe" ] || { echo "bench: $exe not built (run without --no-build, or tools/build.sh)" >&2; exit 1; }
 done

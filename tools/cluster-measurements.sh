@@ -28,19 +28,19 @@ now() { date +%s.%N; }
 field() { python3 -c "import json,sys; d=json.load(open(sys.argv[1])); print(d$2)" "$1"; }
 
 t0=$(now)
-"$B/precompute/prt-precompute" "${job[@]}" -j "$cores" -o "$out/one.prt" --summary-json "$out/one.json" > /dev/null
+"$B/bin/prt-precompute" "${job[@]}" -j "$cores" -o "$out/one.prt" --summary-json "$out/one.json" > /dev/null
 t1=$(now)
-mpirun --oversubscribe -np "$ranks" "$B/precompute/prt-precompute" "${job[@]}" -j $(( cores / ranks > 0 ? cores / ranks : 1 )) \
+mpirun --oversubscribe -np "$ranks" "$B/bin/prt-precompute" "${job[@]}" -j $(( cores / ranks > 0 ? cores / ranks : 1 )) \
     -o "$out/mpi.prt" --summary-json "$out/mpi.json" > /dev/null
 t2=$(now)
 shards=()
 for ((i = 0; i < ranks; i++)); do
-    "$B/precompute/prt-precompute" "${job[@]}" -j "$cores" --shard "$i/$ranks" -o "$out/shard$i.prt" \
+    "$B/bin/prt-precompute" "${job[@]}" -j "$cores" --shard "$i/$ranks" -o "$out/shard$i.prt" \
         --summary-json "$out/shard$i.json" > /dev/null
     shards+=("$out/shard$i.prt")
 done
 t3=$(now)
-"$B/precompute/prt-merge" -o "$out/merged.prt" "${shards[@]}" > /dev/null
+"$B/bin/prt-merge" -o "$out/merged.prt" "${shards[@]}" > /dev/null
 t4=$(now)
 
 same() { cmp -s "$1" "$out/one.prt" && echo "identical" || echo "DIFFERENT"; }

@@ -8,23 +8,23 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 out=${1:-$root/out/table}; shift || true
 envs=("${@:-forest city}")
 [ $# -gt 0 ] || envs=(forest city)
-bin=$root/build
+build=$root/build
 mesh=$root/data/meshes/bunny.off
 mkdir -p "$out"
 for env in "${envs[@]}"; do
     ref=$out/ref_$env
-    [ -f "$ref.exr" ] || "$bin/tools/prt-reference" "$mesh" -t "$root/out/bunny_marble.prt" \
+    [ -f "$ref.exr" ] || "$build/bin/prt-reference" "$mesh" -t "$root/out/bunny_marble.prt" \
         -e "$root/data/envmaps/$env.exr" -o "$ref" >/dev/null 2>&1
 done
 printf '| coefficients | %s |\n' "$(IFS='|'; echo "${envs[*]}" | sed 's/|/ | /g')"
 for k in 32 64 128 256; do
-    "$bin/precompute/prt-precompute" "$mesh" --size-mm 30 --material Marble -k "$k" -q \
+    "$build/bin/prt-precompute" "$mesh" --size-mm 30 --material Marble -k "$k" -q \
         -o "$out/bunny_k$k.prt" >/dev/null 2>&1
     row="| $k |"
     for env in "${envs[@]}"; do
-        "$bin/relight/prt-relight" render "$mesh" -t "$out/bunny_k$k.prt" -e "$root/data/envmaps/$env.exr" \
+        "$build/bin/prt-relight" render "$mesh" -t "$out/bunny_k$k.prt" -e "$root/data/envmaps/$env.exr" \
             -o "$out/k${k}_$env" >/dev/null 2>&1
-        err=$("$bin/tools/prt-compare" "$out/k${k}_$env.exr" "$ref.exr" | awk '/^overall/ {print $2}')
+        err=$("$build/bin/prt-compare" "$out/k${k}_$env.exr" "$ref.exr" | awk '/^overall/ {print $2}')
         row="$row $err |"
     done
     echo "$row"

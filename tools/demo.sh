@@ -5,7 +5,7 @@
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 out=${OUT_DIR:-$root/out}
-bin=$root/build
+build=$root/build
 mesh=$root/data/meshes/bunny.off
 envs=(forest city)
 t_start=$(date +%s)
@@ -23,29 +23,29 @@ step "fetching data";        timed "$root/tools/fetch-data.sh"
 mkdir -p "$out" "$out/compare"
 
 step "precomputing the bunny (30 mm, Marble, 6x32x32, 128 coefficients)"
-timed "$bin/precompute/prt-precompute" "$mesh" --size-mm 30 --material Marble \
+timed "$build/bin/prt-precompute" "$mesh" --size-mm 30 --material Marble \
     --cubemap-size 32 --coefficients 128 -o "$out/bunny_marble.prt"
 
 for env in "${envs[@]}"; do
     step "rendering under $env"
-    timed "$bin/relight/prt-relight" render "$mesh" -t "$out/bunny_marble.prt" \
+    timed "$build/bin/prt-relight" render "$mesh" -t "$out/bunny_marble.prt" \
         -e "$root/data/envmaps/$env.exr" -o "$out/bunny_$env"
     # The error a user sees: a 256 x 256 frame against prt-reference's independent
     # brute force (its own 250K samples and seed; docs/reference.md). The reference
     # takes a few minutes per environment on 2 cores.
     step "brute-force reference under $env (256 x 256, independent samples)"
-    timed "$bin/relight/prt-relight" render "$mesh" -t "$out/bunny_marble.prt" \
+    timed "$build/bin/prt-relight" render "$mesh" -t "$out/bunny_marble.prt" \
         -e "$root/data/envmaps/$env.exr" -W 256 -H 256 -o "$out/compare/bunny_$env"
-    timed "$bin/tools/prt-reference" "$mesh" -t "$out/bunny_marble.prt" \
+    timed "$build/bin/prt-reference" "$mesh" -t "$out/bunny_marble.prt" \
         -e "$root/data/envmaps/$env.exr" -W 256 -H 256 -o "$out/compare/bunny_${env}_reference"
     step "error of the precomputed render against the reference ($env)"
-    "$bin/tools/prt-compare" "$out/compare/bunny_$env.exr" "$out/compare/bunny_${env}_reference.exr" \
+    "$build/bin/prt-compare" "$out/compare/bunny_$env.exr" "$out/compare/bunny_${env}_reference.exr" \
         --heatmap "$out/compare/bunny_${env}_error.png"
 done
 
 step "turntable under forest (12 frames)"
 mkdir -p "$out/turntable"
-timed "$bin/relight/prt-relight" render "$mesh" -t "$out/bunny_marble.prt" \
+timed "$build/bin/prt-relight" render "$mesh" -t "$out/bunny_marble.prt" \
     -e "$root/data/envmaps/forest.exr" --turntable 12 -o "$out/turntable/bunny"
 
 echo

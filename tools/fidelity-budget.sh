@@ -10,7 +10,7 @@
 #   (defaults: Marble, out/budget, data/meshes/bunny.off, 30)
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-bin=${BUILD_DIR:-$root/build}
+build=${BUILD_DIR:-$root/build}
 mat=${1:-Marble}
 out=${2:-$root/out/budget}
 mesh=${3:-$root/data/meshes/bunny.off}
@@ -19,12 +19,12 @@ tag=${mat}_$(basename "$mesh" | cut -d. -f1)
 mkdir -p "$out"
 tsv=$out/$tag.tsv
 printf 'material\tkind\tname\tvalue\tenvironment\trel_rmse\tprecompute_s\n' > "$tsv"
-precompute() { "$bin/precompute/prt-precompute" "$mesh" --size-mm "$size" --material "$mat" --force "$@"; }
+precompute() { "$build/bin/prt-precompute" "$mesh" --size-mm "$size" --material "$mat" --force "$@"; }
 
 precompute -o "$out/${tag}_default.prt" > "$out/${tag}_default.log"
 for env in forest city; do
     ref=$out/ref_${tag}_$env
-    [[ -f $ref.exr ]] || "$bin/tools/prt-reference" "$mesh" -t "$out/${tag}_default.prt" \
+    [[ -f $ref.exr ]] || "$build/bin/prt-reference" "$mesh" -t "$out/${tag}_default.prt" \
         -e "$root/data/envmaps/$env.exr" -W 256 -H 256 -o "$ref" > "$ref.log"
 done
 
@@ -67,9 +67,9 @@ for r in "${runs[@]}"; do
     seconds=$(awk '/^total/ { t = $2; if ($3 == "min") t = t * 60 + $4; print t }' "$log")
     for env in forest city; do
         img=$out/r_${tag}_${slug}_$env
-        "$bin/relight/prt-relight" render "$mesh" -t "$file" -e "$root/data/envmaps/$env.exr" \
+        "$build/bin/prt-relight" render "$mesh" -t "$file" -e "$root/data/envmaps/$env.exr" \
             -W 256 -H 256 -o "$img" > /dev/null
-        err=$("$bin/tools/prt-compare" "$img.exr" "$out/ref_${tag}_$env.exr" | awk '/^overall/ {print $2}')
+        err=$("$build/bin/prt-compare" "$img.exr" "$out/ref_${tag}_$env.exr" | awk '/^overall/ {print $2}')
         printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$mat" "$kind" "$name" "$value" "$env" "$err" "$seconds" >> "$tsv"
         printf '%-10s %-13s %-36s %-7s rel RMSE %s  precompute %s s\n' "$mat" "$kind" "$name" "$env" "$err" "$seconds"
     done

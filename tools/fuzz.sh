@@ -67,7 +67,7 @@ run_target() {
   # leak detection on, libFuzzer re-checks each such input with LeakSanitizer and the
   # target slows from ~100 to ~5 runs/s. Our code's leaks are the ASan test run's job.
   [ "$t" != environment ] || leaks=0
-  { time "$build_dir/tools/fuzz/fuzz-$t" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2560 -detect_leaks=$leaks \
+  { time "$build_dir/bin/fuzz-$t" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2560 -detect_leaks=$leaks \
       -malloc_limit_mb=2560 -close_fd_mask=3 -print_final_stats=1 -max_len=65536 \
       -artifact_prefix="$work/crashes/$t/" "$work/corpus/$t" "$root/tools/fuzz/corpus/$t" \
       >"$work/logs/$t.log" 2>&1 || status=$?; } 2>"$work/logs/$t.cpu"
@@ -96,6 +96,6 @@ for t in "${targets[@]}"; do
   printf '| %s | %s | %s | %s | %s | %s |\n' "$t" "${secs:-?}" "${runs:-?}" "${cov:-?}" "$corpus" "$findings"
 done
 if [ "$found" = 1 ]; then
-  echo "fuzz.sh: findings in $work/crashes/ (reproduce: $build_dir/tools/fuzz/fuzz-<target> <input>)" >&2
+  echo "fuzz.sh: findings in $work/crashes/ (reproduce: $build_dir/bin/fuzz-<target> <input>)" >&2
   exit 1
 fi

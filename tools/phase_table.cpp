@@ -30,7 +30,7 @@
 #include "common/bssrdf.h"
 #include "common/cubemap.h"
 #include "common/error.h"
-#include "precompute/phase_factoring.h"
+#include "precompute/passes/phase_factoring.h"
 #include "common/util.h"
 #include "common/options.h"
 

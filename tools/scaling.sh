@@ -124,8 +124,8 @@ if [ "$do_build" = 1 ]; then
   cmake --build "$build" -j"$(nproc)" --target "${targets[@]}"
 fi
 b=${build#"$root"/}
-precompute=$b/precompute/prt-precompute
-bench_file=$b/tools/prt-bench-relight-file
+precompute=$b/bin/prt-precompute
+bench_file=$b/bin/prt-bench-relight-file
 for exe in "$precompute" "$bench_file"; do
   [ -x "$exe" ] || { echo "scaling: $exe not built (run without --no-build, or tools/build.sh)" >&2; exit 1; }
 done

@@ -103,12 +103,12 @@ echo "test-slurm: single-node Slurm up ($host, $cpus CPUs, ports $ctld_port/$slu
 
 # The job: a generated sphere, multiple + single scattering with a 2-term phase.
 cd "$tmp/work"
-"$build/tests/prt-make-shape" icosphere sphere.obj --subdivisions 3 --radius 10 > /dev/null
+"$build/bin/prt-make-shape" icosphere sphere.obj --subdivisions 3 --radius 10 > /dev/null
 job=(--size-mm 20 -m Skin1 --components ms,ss --g 0.3 --phase-terms 2 --phase-map-size 8 --cubemap-size 16
      --samples 2000 --path-samples 8)
 start=$(date +%s)
-"$build/precompute/prt-precompute" sphere.obj "${job[@]}" -q -o whole.prt > /dev/null
-export PRT_BIN_DIR=$build/precompute
+"$build/bin/prt-precompute" sphere.obj "${job[@]}" -q -o whole.prt > /dev/null
+export PRT_BIN_DIR=$build/bin
 submitted=$("$root/tools/slurm/submit.sh" "$shards" "$tmp/work/sliced.prt" "$tmp/work/sphere.obj" "${job[@]}" \
     -- --chdir="$tmp/work" --cpus-per-task=1)
 echo "test-slurm: $submitted"

@@ -17,7 +17,7 @@ set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build=${BUILD_DIR:-$root/build}
 out=$root/out/tsis-measurements
-bench=$build/tools/prt-bench-tsis
+bench=$build/bin/prt-bench-tsis
 [ -x "$bench" ] || { echo "tsis-measurements: build first (tools/build.sh): $bench is missing" >&2; exit 1; }
 mkdir -p "$out"
 cd "$root"

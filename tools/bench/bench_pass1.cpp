@@ -13,7 +13,7 @@
 
 #include "common/bssrdf.h"
 #include "common/error.h"
-#include "precompute/irradiance_transport.h"
+#include "precompute/passes/irradiance_transport.h"
 #include "common/mesh.h"
 #include "common/progress.h"
 #include "common/raytrace.h"

@@ -68,8 +68,8 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/image.h"
-#include "relight/light_vector.h"
-#include "relight/relight_kernel.h"
+#include "relight/prt/light_vector.h"
+#include "relight/prt/relight_kernel.h"
 #include "common/transport_file.h"
 
 namespace {

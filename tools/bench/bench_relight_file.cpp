@@ -29,8 +29,8 @@
 #include "common/atomic_file.h"
 #include "common/envmap.h"
 #include "common/error.h"
-#include "relight/light_vector.h"
-#include "relight/relight_kernel.h"
+#include "relight/prt/light_vector.h"
+#include "relight/prt/relight_kernel.h"
 #include "common/transport_file.h"
 #include "common/options.h"
 

@@ -24,7 +24,7 @@
 #include "common/mesh_io.h"
 #include "common/options.h"
 #include "common/raytrace.h"
-#include "precompute/single_scattering.h"
+#include "precompute/passes/single_scattering.h"
 
 using namespace prt;
 
@@ -95,7 +95,7 @@ int main(int argc, char** argv) {
 
         TriangleMesh mesh = loadMesh(meshPath);
         scaleToPhysical(mesh, MeshScale{.sizeMm = sizeMm, .mmPerUnit = std::nullopt});
-        // The pipeline's single-scattering scene (precompute/pipeline.cpp).
+        // The pipeline's single-scattering scene (precompute/job/pipeline.cpp).
         const RayScene scene(mesh, RaySceneOptions{RayBuildQuality::High, true});
         const Material m = materialByName(material);
         std::vector<std::string> names = {reference};

@@ -25,10 +25,10 @@
 #include "common/mesh_io.h"
 #include "common/options.h"
 #include "common/util.h"
-#include "relight/jensen_buhler.h"
-#include "relight/render.h"
-#include "relight/surface_atlas.h"
-#include "relight/texture_space_sampling.h"
+#include "relight/pointlight/jensen_buhler.h"
+#include "relight/render/render.h"
+#include "relight/pointlight/surface_atlas.h"
+#include "relight/pointlight/texture_space_sampling.h"
 
 using namespace prt;
 

@@ -1,4 +1,4 @@
-// Fuzz target: the job-file parser of prt-precompute --jobs (precompute/job_options.h:
+// Fuzz target: the job-file parser of prt-precompute --jobs (precompute/job/job_options.h:
 // loadJobFile, then parseJob of every job against the defaults, as runJobFile does, but
 // without running them).
 //
@@ -8,7 +8,7 @@
 #include <cstdint>
 
 #include "common/error.h"
-#include "precompute/job_options.h"
+#include "precompute/job/job_options.h"
 #include "tools/fuzz/fuzz_support.h"
 
 using namespace prt;

@@ -1,6 +1,6 @@
-// Fuzz target: the point-light scene file and light strings (relight/point_lights.h
+// Fuzz target: the point-light scene file and light strings (relight/pointlight/point_lights.h
 // parseLightScene, the JSON of --lights; parseLight, the TYPE:X,Y,Z:R,G,B of --light;
-// relight/point_animation.h parseLightPath, the X0,Y0,Z0:X1,Y1,Z1 of --light-path).
+// relight/pointlight/point_animation.h parseLightPath, the X0,Y0,Z0:X1,Y1,Z1 of --light-path).
 // The first input byte picks the parser, the rest is the text.
 //
 // Oracle: every accepted light has a finite position or unit direction and a finite,
@@ -10,8 +10,8 @@
 #include <cstdint>
 #include <string>
 
-#include "relight/point_animation.h"
-#include "relight/point_lights.h"
+#include "relight/pointlight/point_animation.h"
+#include "relight/pointlight/point_lights.h"
 #include "tools/fuzz/fuzz_support.h"
 
 using namespace prt;

@@ -46,7 +46,7 @@
 #include "common/image.h"
 #include "common/mesh.h"
 #include "common/raytrace.h"
-#include "relight/render.h"
+#include "relight/render/render.h"
 #include "common/sampling.h"
 
 namespace prt {

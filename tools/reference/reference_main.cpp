@@ -32,9 +32,10 @@
 #include "common/progress.h"
 #include "common/raytrace.h"
 #include "tools/reference/reference.h"
-#include "relight/render.h"
-#include "common/sampling.h"
 #include "common/transport_file.h"
+#include "common/transport_params.h"
+#include "relight/render/render.h"
+#include "common/sampling.h"
 #include "common/mesh_io.h"
 #include "common/util.h"
 

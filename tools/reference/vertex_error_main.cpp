@@ -31,8 +31,8 @@
 #include "common/transport_file.h"
 #include "common/transport_params.h"
 #include "common/util.h"
-#include "relight/light_vector.h"
-#include "relight/relight_kernel.h"
+#include "relight/prt/light_vector.h"
+#include "relight/prt/relight_kernel.h"
 #include "tools/reference/reference.h"
 
 using namespace prt;

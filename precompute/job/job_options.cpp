@@ -1,0 +1,181 @@
+#include "precompute/job/job_options.h"
+
+#include <algorithm>
+#include <fstream>
+
+#include "common/error.h"
+
+namespace prt {
+
+namespace {
+
+// A JSON value as the text of a command-line argument.
+std::string argumentText(const nlohmann::json& v, const std::string& where) {
+    if (v.is_string()) return v.get<std::string>();
+    if (v.is_number() || v.is_boolean()) return v.dump();
+    if (v.is_array()) {
+        std::string out;
+        for (const auto& e : v) out += (out.empty() ? "" : ",") + argumentText(e, where);
+        return out;
+    }
+    throw Error(where, "values must be strings, numbers or arrays of numbers");
+}
+
+}  // namespace
+
+
+void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
+    app.add_option("mesh", raw.mesh, "Mesh file (.obj .ply .off .stl, optionally .gz)");
+    app.add_option("-o,--output", raw.output, "Transport file to write (written atomically)");
+    addScaleOptions(app, raw.scale, "Object");
+    addMaterialOptions(app, raw.material, /*withG=*/true, "Object");
+    app.add_option("--cubemap-size", s.cubemapSize, "Lighting cubemap face size N (power of two, <= 64)")
+        ->capture_default_str();
+    app.add_option("--supersample", s.supersample, "s x s stratified directions per texel in pass 1")
+        ->capture_default_str();
+    app.add_option_function<std::string>(
+           "--pass1-visibility",
+           [&s](const std::string& v) { s.pass1Visibility = parseVisibilitySampling(v); },
+           "Pass 1 occlusion rays: every (one per sub-direction) or coherent (a probe per texel, "
+           "every sub-direction only next to a change: 43% of the rays, 1.1x faster, 0.3% change)")
+        ->default_str("every");
+    app.add_option("--sample-coefficients", s.sampleCoefficients, "Terms kept per sample (pass 1), the SH terms included")
+        ->capture_default_str();
+    app.add_option("--node-coefficients", s.nodeCoefficients, "Terms kept per kd-tree node (pass 2), the SH terms included")
+        ->capture_default_str();
+    app.add_option("-k,--coefficients", raw.coefficients,
+                   "Terms kept per vertex, the SH terms included (with --block-coefficients: before the joint choice)")
+        ->default_str("128; 512 with --block-coefficients");
+    app.add_option("--sh-terms", s.shTerms,
+                   "Of the terms kept per sample, node and vertex, this many (0, 1, 4 or 9) are a fit by "
+                   "spherical harmonics of bands 0..2 whose residual no band-0..2 light sees, the rest the "
+                   "largest Haar terms of that residual (9: the smooth shape kept whole, about half the "
+                   "truncation error; 0: Haar only; docs/precompute.md)")
+        ->capture_default_str();
+    app.add_option("--block-coefficients", s.blockCoefficients,
+                   "0: each vertex keeps its own terms. M > 0: blocks of 16 nearby vertices share M terms "
+                   "chosen jointly, 8-bit values (a ~2x smaller file that relights ~2x faster; 160 is a "
+                   "little more accurate than 128 per vertex, docs/precompute.md)")
+        ->capture_default_str();
+    app.add_option("--epsilon", s.epsilon, "kd-tree threshold on A_node / r^2 (0 = exact sum)")
+        ->capture_default_str();
+    app.add_option("--samples", s.sampleCount, "Number of surface samples (default: from the spacing)");
+    app.add_option("--sample-spacing", s.sampleSpacingMm,
+                   "Sample spacing in mm (default: the material's mean free path 1/sigma_t')");
+    app.add_option("--max-samples", s.maxSamples, "Cap on the automatic sample count")->capture_default_str();
+    app.add_option("--seed", s.seed, "Seed of the sample placement")->capture_default_str();
+    app.add_option("--max-memory", s.maxMemoryGb,
+                   "Refuse the job up front when its estimated memory exceeds this many GB (0 = the available "
+                   "memory)")
+        ->capture_default_str();
+    app.add_option("--components", raw.components,
+                   "Components to compute: ms (multiple scattering), ss (single scattering) or ms,ss")
+        ->capture_default_str();
+    app.add_option("--phase-terms", s.phaseTerms,
+                   "Single scattering with g != 0: K terms of the SVD-factored HG phase function")
+        ->capture_default_str();
+    app.add_option("--phase-map-size", s.phaseMapSize,
+                   "Face size M of the 6 x M x M phase light/view maps")
+        ->capture_default_str();
+    app.add_option("--path-samples", raw.pathSamples,
+                   "Single scattering: deterministic importance samples along the inward normal")
+        ->default_str(std::to_string(defaultPathSamples(PathQuadrature::GaussLegendre)) + " with gauss, " +
+                      std::to_string(defaultPathSamples(PathQuadrature::Midpoint)) + " with midpoint");
+    app.add_option_function<std::string>(
+           "--path-quadrature", [&s](const std::string& v) { s.pathQuadrature = parsePathQuadrature(v); },
+           "Single scattering: rule of the path samples in the sampled mass xi: gauss (Gauss-Legendre) "
+           "or midpoint (Wang 2005; with 16 samples the rule before issue 16)")
+        ->default_str(toString(kDefaultPathQuadrature));
+    app.add_option("--ss-supersample", s.ssSupersample,
+                   "Single scattering: s x s sub-directions per texel")
+        ->capture_default_str();
+    app.add_option("--ss-direction-stride", s.ssDirectionStride,
+                   "Single scattering: trace the texels of a lattice of this stride per cube face "
+                   "(1, 2, 4, 8 or 16), split the cells whose corners disagree (shadow or sheet edges, "
+                   "the cut-off, bright cells) down to single texels and interpolate the others; 1 "
+                   "traces every texel. Ignored when --ss-supersample > 1 (docs/single-scattering.md)")
+        ->capture_default_str();
+    app.add_option_function<std::string>(
+           "--ss-visibility",
+           [&s](const std::string& v) {
+               if (v != "exit" && v != "ray")
+                   throw Error("--ss-visibility", "must be exit or ray, got '" + v + "'");
+               s.ssVisibilityFromExitRay = v == "exit";
+           },
+           "Single scattering: V from the exit ray's own traversal (exit: a surface beyond the exit "
+           "point shadows it) or from a second ray from each exit point (ray: the rule before, "
+           "about 1.25x slower; the two agree exit by exit on clean meshes)")
+        ->default_str("exit");
+    app.add_option("--pass1-file", s.pass1File,
+                   "Load the samples' pass-1 vectors from this file when it exists (made for the same "
+                   "pass-1 inputs), else compute and save them there: the shards of a job then compute "
+                   "pass 1 once (docs/cluster.md)");
+    app.add_flag("--pass1-only", s.pass1Only, "Stop after writing --pass1-file (no transport file)");
+    app.add_option("--shard", raw.shard,
+                   "i/n: compute only shard i (0-based) of n of the vertices into a shard file; "
+                   "prt-merge joins the n shard files (docs/cluster.md)");
+}
+
+PrecomputeSettings settingsFromOptions(const JobOptions& raw, PrecomputeSettings s) {
+    s.meshPath = raw.mesh;
+    s.outputPath = raw.output;
+    s.components = parseScatteringComponents(raw.components);
+    s.scale = makeScale(raw.scale);
+    s.material = makeMaterial(raw.material);
+    if (!raw.shard.empty()) s.shard = parseShard(raw.shard);
+    s.vertexCoefficients = raw.coefficients ? *raw.coefficients : s.blockCoefficients ? 512 : 128;
+    s.pathSamples = raw.pathSamples ? *raw.pathSamples : defaultPathSamples(s.pathQuadrature);
+    return s;
+}
+
+// Parses one job (defaults merged with the job's own keys) with the same options
+// as the command line: key "size-mm" (or "size_mm") is the option --size-mm.
+PrecomputeSettings parseJob(const nlohmann::json& defaults, const nlohmann::json& job,
+                            const std::string& where) {
+    std::vector<std::string> args;
+    nlohmann::json merged = defaults;
+    for (auto it = job.begin(); it != job.end(); ++it) merged[it.key()] = it.value();
+    for (auto it = merged.begin(); it != merged.end(); ++it) {
+        std::string key = it.key();
+        std::replace(key.begin(), key.end(), '_', '-');
+        if (key == "mesh") continue;
+        args.push_back("--" + key);
+        args.push_back(argumentText(it.value(), where + ": " + it.key()));
+    }
+    // The positional mesh goes first: after a 3-value option (--sigma-a) CLI11 would
+    // take it as a fourth value.
+    if (merged.contains("mesh")) args.insert(args.begin(), argumentText(merged["mesh"], where + ": mesh"));
+    CLI::App app;
+    JobOptions raw;
+    PrecomputeSettings s;
+    addJobOptions(app, raw, s);
+    std::vector<std::string> reversed(args.rbegin(), args.rend());
+    try {
+        app.parse(reversed);
+    } catch (const CLI::ParseError& e) {
+        throw Error(where, e.what());
+    }
+    return settingsFromOptions(raw, s);
+}
+
+JobFile loadJobFile(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw Error(path, "cannot open job file");
+    nlohmann::json doc;
+    try {
+        doc = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::exception& e) {
+        throw Error(path, std::string("not valid JSON: ") + e.what());
+    }
+    if (!doc.is_object() || !doc.contains("jobs") || !doc["jobs"].is_array())
+        throw Error(path, "expected an object with a \"jobs\" array");
+    JobFile f;
+    if (doc.contains("defaults")) {
+        if (!doc["defaults"].is_object()) throw Error(path, "\"defaults\" must be an object");
+        f.defaults = doc["defaults"];
+    }
+    f.jobs = doc["jobs"];
+    return f;
+}
+
+}  // namespace prt

@@ -1,0 +1,60 @@
+#include "precompute/job/memory_estimate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <utility>
+#include <vector>
+
+#include "common/error.h"
+#include "precompute/passes/cell_quadrature.h"
+
+namespace prt {
+
+namespace {
+constexpr double kSafety = 1.5;
+}
+
+MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vertices, size_t triangles,
+                                        size_t samples, int threads, double totalAreaMm2) {
+    const double texels = 6.0 * double(s.cubemapSize) * double(s.cubemapSize);
+    const bool ms = s.components.multipleScattering;
+    const double terms = s.components.singleScattering ? 1.0 + (s.material.g != 0.0 ? s.phaseTerms : 0) : 0.0;
+    const double n = ms ? double(samples) : 0.0;
+    const std::vector<std::pair<const char*, double>> parts = {
+        // + 36 bytes per triangle of single scattering's corner normals
+        {"mesh and ray scene", (s.components.singleScattering ? 286.0 : 250.0) * double(triangles)},
+        {"samples", 200.0 * n},
+        {"pass 1 vectors", n * (double(s.sampleCoefficients) * 8.0 + 64.0)},
+        {"pass 2 kd-tree sums", n / 4.0 * (double(s.nodeCoefficients) * 8.0 + 64.0)},
+        {"pass 2 cell sub-points",
+         ms && totalAreaMm2 > 0.0 ? estimateCellSubPoints(totalAreaMm2, triangles, s.material) * kCellBytesPerSubPoint : 0.0},
+        {"per-vertex results",
+         double(vertices) * double(s.vertexCoefficients) * 16.0 * ((ms ? 1.0 : 0.0) + terms)},
+        {"per-thread workspaces", double(std::max(threads, 1)) * texels * 64.0},
+    };
+    MemoryEstimate e;
+    double total = 0.0, largest = -1.0;
+    for (const auto& [name, bytes] : parts) {
+        total += bytes;
+        if (bytes > largest) {
+            largest = bytes;
+            e.largest = std::string(name) + " " + formatBytes(uint64_t(bytes));
+        }
+    }
+    e.bytes = uint64_t(std::min(total * kSafety, 1.8e19));
+    return e;
+}
+
+void checkMemory(const MemoryEstimate& estimate, double maxMemoryGb) {
+    if (!std::isfinite(maxMemoryGb) || maxMemoryGb < 0.0)
+        throw Error("--max-memory", "must be a finite number of GB >= 0 (0 = the available memory)");
+    const uint64_t limit = maxMemoryGb > 0.0 ? uint64_t(maxMemoryGb * 1e9) : availableMemoryBytes();
+    if (limit == 0 || estimate.bytes <= limit) return;
+    throw Error("memory", "the job needs about " + formatBytes(estimate.bytes) + " (largest: " + estimate.largest +
+                              "), " + formatBytes(limit) + (maxMemoryGb > 0.0 ? " allowed by --max-memory" : " available") +
+                              "; use --max-memory GB to allow more, or fewer samples (--samples, --sample-spacing) "
+                              "or coefficients");
+}
+
+}  // namespace prt

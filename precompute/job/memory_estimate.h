@@ -1,0 +1,44 @@
+#pragma once
+// The precomputation's memory, estimated before any pass runs, so that an absurd job
+// (a million samples x 1024 coefficients, a 64^2 cubemap on a big mesh) is refused
+// up front with its estimate instead of dying of std::bad_alloc or the kernel's
+// out-of-memory killer an hour in (issue 17; docs/reliability.md).
+//
+// The estimate adds the largest live data of the passes, from their data structures:
+//   mesh + Embree scene        ~ 250 bytes per triangle
+//   samples (Poisson disk)     ~ 200 bytes per sample (candidates included)
+//   pass 1 vectors             samples x (sample coefficients x 8 + 64) bytes
+//   pass 2 kd-tree sums        samples / 4 nodes x (node coefficients x 8 + 64) bytes
+//   pass 2 cell sub-points     estimateCellSubPoints(area, triangles, material) x 36 bytes
+//                              (cell_quadrature.h; 0 when the area is not given)
+//   per-vertex results         vertices x vertex coefficients x 16 bytes (RGB float +
+//                              index) per component (MS, and 1 + K for single scattering)
+//   per-thread workspaces      threads x 6 N^2 x 64 bytes
+// times kSafety = 1.5 (allocator slack, vector growth). Against the peak RSS of real runs
+// (docs/reliability.md: bunny defaults, dragon res3 at 150K samples, dragon res4 with
+// single scattering, a 64^2 cubemap with 512 coefficients) it lands within -25%/+15%,
+// which is all a refusal needs: it only has to tell 40 GB from 24 GB.
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "common/util.h"  // availableMemoryBytes, formatBytes
+#include "precompute/job/pipeline.h"
+
+namespace prt {
+
+struct MemoryEstimate {
+    uint64_t bytes = 0;
+    std::string largest;  // the largest term, e.g. "pass 1 vectors 31.2 GB"
+};
+
+MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vertices, size_t triangles,
+                                        size_t samples, int threads, double totalAreaMm2 = 0.0);
+
+// Throws prt::Error("memory", "needs 41.2 GB (largest: ...), 23.8 GB available; use
+// --max-memory GB to allow more, or fewer samples / coefficients") when the estimate
+// exceeds maxMemoryGb (> 0) or, with maxMemoryGb = 0, the available memory (when known).
+void checkMemory(const MemoryEstimate& estimate, double maxMemoryGb);
+
+}  // namespace prt

@@ -1,0 +1,333 @@
+#include "precompute/passes/cell_quadrature.h"
+
+#include "common/error.h"
+#include "common/mesh.h"
+#include "common/util.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <unordered_map>
+
+namespace prt {
+
+namespace {
+
+// Samples bucketed in a hashed grid of cell size `cell` for nearest-sample queries.
+class SampleGrid {
+public:
+    SampleGrid(std::span<const glm::vec3> positions, double cell) : positions_(positions), inverse_(1.0 / cell) {
+        std::vector<std::pair<uint64_t, uint32_t>> keyed(positions.size());
+        for (uint32_t i = 0; i < positions.size(); ++i) keyed[i] = {key(coords(positions[i])), i};
+        std::sort(keyed.begin(), keyed.end());
+        order_.resize(keyed.size());
+        for (size_t k = 0; k < keyed.size(); ++k) {
+            order_[k] = keyed[k].second;
+            auto [it, inserted] = buckets_.try_emplace(keyed[k].first, uint32_t(k), uint32_t(k + 1));
+            if (!inserted) it->second.second = uint32_t(k + 1);
+        }
+    }
+
+    // The nearest sample whose normal is within 120 degrees of `normal` (or the nearest
+    // of all when none is within `maxRings` cells).
+    uint32_t nearest(const glm::vec3& p, const glm::vec3& normal, std::span<const glm::vec3> normals) const {
+        const glm::ivec3 c = coords(p);
+        float bestFacing = std::numeric_limits<float>::max(), bestAny = bestFacing;
+        uint32_t facing = UINT32_MAX, any = UINT32_MAX;
+        const float cell = float(1.0 / inverse_);
+        for (int ring = 0; ring <= kMaxRings; ++ring) {
+            for (int dx = -ring; dx <= ring; ++dx)
+                for (int dy = -ring; dy <= ring; ++dy)
+                    for (int dz = -ring; dz <= ring; ++dz) {
+                        if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != ring) continue;
+                        const auto it = buckets_.find(key(c + glm::ivec3(dx, dy, dz)));
+                        if (it == buckets_.end()) continue;
+                        for (uint32_t k = it->second.first; k < it->second.second; ++k) {
+                            const uint32_t s = order_[k];
+                            const glm::vec3 d = positions_[s] - p;
+                            const float d2 = glm::dot(d, d);
+                            if (d2 < bestAny || (d2 == bestAny && s < any)) bestAny = d2, any = s;
+                            if (glm::dot(normals[s], normal) > -0.5f &&
+                                (d2 < bestFacing || (d2 == bestFacing && s < facing)))
+                                bestFacing = d2, facing = s;
+                        }
+                    }
+            // Every sample within `ring` cells' distance has been seen.
+            const float seen = float(ring) * cell;
+            if (facing != UINT32_MAX && bestFacing <= seen * seen) return facing;
+        }
+        if (facing != UINT32_MAX) return facing;
+        if (any != UINT32_MAX) return any;
+        // Nothing within kMaxRings cells: a part of the mesh too small to have received a
+        // sample of its own (a detached speck). Its area goes to the nearest sample.
+        for (uint32_t s = 0; s < positions_.size(); ++s) {
+            const glm::vec3 d = positions_[s] - p;
+            const float d2 = glm::dot(d, d);
+            if (d2 < bestAny) bestAny = d2, any = s;
+        }
+        return any;
+    }
+
+    static constexpr int kMaxRings = 4;
+
+private:
+    glm::ivec3 coords(const glm::vec3& p) const {
+        return glm::ivec3(int(std::floor(p.x * inverse_)), int(std::floor(p.y * inverse_)),
+                          int(std::floor(p.z * inverse_)));
+    }
+    static uint64_t key(const glm::ivec3& c) {
+        const auto part = [](int v) { return uint64_t(uint32_t(v + (1 << 20)) & 0x1FFFFFu); };
+        return part(c.x) | (part(c.y) << 21) | (part(c.z) << 42);
+    }
+
+    std::span<const glm::vec3> positions_;
+    double inverse_;
+    std::vector<uint32_t> order_;
+    std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> buckets_;
+};
+
+double quinticStep(double t) {
+    t = std::clamp(t, 0.0, 1.0);
+    return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
+}
+
+double narrowestKernelWidth(const Material& material) {
+    double widest = 0.0;  // max_c (sigma_t' + sigma_tr)
+    for (int c = 0; c < 3; ++c) {
+        const DipoleChannel d = makeDipoleChannel(material, c);
+        widest = std::max(widest, 1.0 / d.zr + d.sigmaTr);
+    }
+    return 1.0 / widest;
+}
+
+}  // namespace
+
+double estimateCellSubPoints(double totalAreaMm2, size_t triangles, const Material& material,
+                             const CellQuadratureOptions& options) {
+    const double s = options.subSpacingFraction * narrowestKernelWidth(material);
+    return std::max(totalAreaMm2 / (0.2 * s * s), double(triangles));
+}
+
+CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::vec3> samplePositions,
+                               std::span<const glm::vec3> sampleNormals, double sampleSpacing,
+                               const Material& material, const CellQuadratureOptions& options) {
+    validateMaterial(material);
+    const size_t n = samplePositions.size();
+    if (n == 0) throw Error("cell quadrature", "no samples");
+    if (sampleNormals.size() != n) throw Error("cell quadrature", "sample positions and normals differ in length");
+    if (n >= size_t(UINT32_MAX)) throw Error("cell quadrature", "too many samples");
+    if (!(sampleSpacing > 0.0) || !std::isfinite(sampleSpacing))
+        throw Error("cell quadrature", "sample spacing must be positive and finite");
+    if (!(options.subSpacingFraction > 0.0) || !(options.innerRadius >= 0.0) ||
+        !(options.outerRadius > options.innerRadius) || !std::isfinite(options.outerRadius) ||
+        !(options.maxOuterRadiusWidths > 0.0))
+        throw Error("cell quadrature", "invalid options (need fraction > 0, 0 <= inner < outer, max widths > 0)");
+
+    for (int c = 0; c < 3; ++c) channel_[c] = makeDipoleChannel(material, c);
+    const double widest = 1.0 / narrowestKernelWidth(material);  // max_c (sigma_t' + sigma_tr)
+    subSpacing_ = options.subSpacingFraction / widest;
+    double widestWidth = 0.0;  // max_c 1 / (sigma_t' + sigma_tr)
+    for (int c = 0; c < 3; ++c) widestWidth = std::max(widestWidth, 1.0 / (1.0 / channel_[c].zr + channel_[c].sigmaTr));
+    r2_ = std::min(options.outerRadius * sampleSpacing, options.maxOuterRadiusWidths * widestWidth);
+    r1_ = r2_ * options.innerRadius / options.outerRadius;
+    r2f_ = float(r2_);
+
+    // Kernel tables on [0, r2].
+    const double step = std::min(sampleSpacing, 1.0 / widest) / 32.0;
+    const size_t entries = std::clamp<size_t>(size_t(std::ceil(r2_ / step)) + 1, 2, size_t(1) << 20);
+    inverseStep_ = double(entries - 1) / r2_;
+    lastInterval_ = entries - 2;
+    nearTable_.resize(3 * entries);
+    farTable_.resize(3 * entries);
+    for (size_t k = 0; k < entries; ++k) {
+        const double r = double(k) / inverseStep_;
+        const double chi = 1.0 - quinticStep((r - r1_) / (r2_ - r1_));
+        for (int c = 0; c < 3; ++c) {
+            const double rd = dipoleRd(channel_[c], r) / kPi;
+            nearTable_[3 * k + size_t(c)] = rd * chi;
+            farTable_[3 * k + size_t(c)] = rd * (1.0 - chi);
+        }
+    }
+
+    // Sub-points: n_t^2 congruent sub-triangles per triangle.
+    const size_t triangles = mesh.triangles.size();
+    std::vector<uint64_t> first(triangles + 1, 0);
+    for (size_t t = 0; t < triangles; ++t) {
+        const glm::uvec3 tri = mesh.triangles[t];
+        const glm::vec3 a = mesh.positions[tri.x], b = mesh.positions[tri.y], c = mesh.positions[tri.z];
+        const double edge = std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
+        const double area = 0.5 * glm::length(glm::cross(b - a, c - a));
+        const uint64_t div = area > 0.0 ? std::max<uint64_t>(1, uint64_t(std::ceil(edge / subSpacing_))) : 0;
+        first[t + 1] = first[t] + div * div;
+        if (first[t + 1] > options.maxSubPoints) {
+            throw Error("cell quadrature",
+                        "needs more than " + std::to_string(options.maxSubPoints) + " sub-points (" +
+                            std::to_string(options.maxSubPoints * 16 >> 20) +
+                            " MB) at sub-spacing " + std::to_string(subSpacing_) +
+                            " mm (set by the material's narrowest kernel): use a smaller --size-mm");
+        }
+    }
+    const size_t total = first[triangles];
+    std::vector<glm::vec3> position(total);
+    std::vector<float> area(total);
+    std::vector<uint32_t> owner(total);
+    const SampleGrid grid(samplePositions, sampleSpacing);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, triangles, 64), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t t = r.begin(); t < r.end(); ++t) {
+            const uint64_t count = first[t + 1] - first[t];
+            if (count == 0) continue;
+            const int div = int(std::lround(std::sqrt(double(count))));
+            const glm::uvec3 tri = mesh.triangles[t];
+            const glm::dvec3 a = mesh.positions[tri.x], b = mesh.positions[tri.y], c = mesh.positions[tri.z];
+            const glm::dvec3 cr = glm::cross(b - a, c - a);
+            const glm::vec3 normal = glm::vec3(glm::normalize(cr));
+            const float subArea = float(0.5 * glm::length(cr) / double(count));
+            uint64_t k = first[t];
+            // Centroids of the "upward" (i + j <= div - 1) and "downward" (i + j <= div - 2)
+            // sub-triangles of the barycentric grid.
+            const auto emit = [&](double u, double v) {
+                position[k] = glm::vec3(a + u * (b - a) + v * (c - a));
+                area[k] = subArea;
+                owner[k] = grid.nearest(position[k], normal, sampleNormals);
+                ++k;
+            };
+            for (int i = 0; i < div; ++i)
+                for (int j = 0; i + j < div; ++j) {
+                    emit((i + 1.0 / 3.0) / div, (j + 1.0 / 3.0) / div);
+                    if (i + j <= div - 2) emit((i + 2.0 / 3.0) / div, (j + 2.0 / 3.0) / div);
+                }
+        }
+    });
+
+    // Group by owner (counting sort, stable: deterministic).
+    samplePosition_.assign(samplePositions.begin(), samplePositions.end());
+    subOffset_.assign(n + 1, 0);
+    for (uint32_t o : owner) ++subOffset_[o + 1];
+    for (size_t i = 0; i < n; ++i) subOffset_[i + 1] += subOffset_[i];
+    subPosition_.resize(total);
+    subArea_.resize(total);
+    std::vector<uint32_t> cursor(subOffset_.begin(), subOffset_.end() - 1);
+    for (size_t k = 0; k < total; ++k) {
+        const uint32_t dst = cursor[owner[k]]++;
+        subPosition_[dst] = position[k];
+        subArea_[dst] = area[k];
+    }
+    // Within each cell: sub-points along a Morton curve, in chunks of kChunk with a
+    // bounding sphere, so that a vertex skips the chunks beyond r2 (large cells of a
+    // coarse sample set reach far past the near field).
+    chunkOffset_.assign(n + 1, 0);
+    for (size_t i = 0; i < n; ++i) {
+        const uint32_t count = subOffset_[i + 1] - subOffset_[i];
+        chunkOffset_[i + 1] = chunkOffset_[i] + (count + kChunk - 1) / kChunk;
+    }
+    chunkCentre_.resize(chunkOffset_[n]);
+    chunkRadius_.resize(chunkOffset_[n]);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
+        std::vector<glm::vec3> pos;
+        std::vector<float> area;
+        for (size_t i = r.begin(); i < r.end(); ++i) {
+            const uint32_t b = subOffset_[i], e = subOffset_[i + 1];
+            if (e - b > 1) {
+                const std::vector<uint32_t> order =
+                    mortonOrder(std::span(subPosition_.data() + b, e - b), "cell sub-points");
+                pos.assign(subPosition_.begin() + b, subPosition_.begin() + e);
+                area.assign(subArea_.begin() + b, subArea_.begin() + e);
+                for (uint32_t k = 0; k < e - b; ++k) {
+                    subPosition_[b + k] = pos[order[k]];
+                    subArea_[b + k] = area[order[k]];
+                }
+            }
+            for (uint32_t c = chunkOffset_[i]; c < chunkOffset_[i + 1]; ++c) {
+                const uint32_t first = b + (c - chunkOffset_[i]) * kChunk;
+                const uint32_t last = std::min(first + kChunk, e);
+                glm::vec3 lo(std::numeric_limits<float>::max()), hi(std::numeric_limits<float>::lowest());
+                for (uint32_t k = first; k < last; ++k) {
+                    lo = glm::min(lo, subPosition_[k]);
+                    hi = glm::max(hi, subPosition_[k]);
+                }
+                chunkCentre_[c] = 0.5f * (lo + hi);
+                float radius = 0.0f;
+                for (uint32_t k = first; k < last; ++k)
+                    radius = std::max(radius, glm::length(subPosition_[k] - chunkCentre_[c]));
+                chunkRadius_[c] = radius * (1.0f + 1e-5f) + 1e-6f;  // rounding margin
+            }
+        }
+    });
+
+    cellArea_.assign(n, 0.0f);
+    cellRadius_.assign(n, 0.0f);
+    for (size_t i = 0; i < n; ++i) {
+        double sum = 0.0;
+        float radius = 0.0f;
+        for (uint32_t k = subOffset_[i]; k < subOffset_[i + 1]; ++k) {
+            sum += subArea_[k];
+            radius = std::max(radius, glm::length(subPosition_[k] - samplePosition_[i]));
+        }
+        cellArea_[i] = float(sum);
+        cellRadius_[i] = radius;
+        maxCellRadius_ = std::max(maxCellRadius_, radius);
+    }
+}
+
+void CellQuadrature::farKernelOverPi(double r, double w[3]) const {
+    if (r >= r2_) {
+        for (int c = 0; c < 3; ++c) w[c] = dipoleRd(channel_[c], r) / kPi;
+        return;
+    }
+    const double x = r * inverseStep_;
+    const size_t k = std::min(size_t(x), lastInterval_);
+    const double f = x - double(k);
+    const double* p = farTable_.data() + 3 * k;
+    for (int c = 0; c < 3; ++c) w[c] = p[c] + f * (p[c + 3] - p[c]);
+}
+
+void CellQuadrature::nearWeightOverPi(size_t i, const glm::vec3& xo, double w[3]) const {
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0;
+    const double limit = r2_ * r2_;
+    for (uint32_t c = chunkOffset_[i]; c < chunkOffset_[i + 1]; ++c) {
+        const float reach = r2f_ + chunkRadius_[c];
+        const glm::vec3 dc = chunkCentre_[c] - xo;
+        if (glm::dot(dc, dc) >= reach * reach) continue;
+        const uint32_t first = subOffset_[i] + (c - chunkOffset_[i]) * kChunk;
+        const uint32_t last = std::min(first + kChunk, subOffset_[i + 1]);
+        for (uint32_t k = first; k < last; ++k) {
+            const glm::vec3 d = subPosition_[k] - xo;
+            const double d2 = double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z;
+            if (d2 >= limit) continue;
+            const double x = std::sqrt(d2) * inverseStep_;
+            const size_t e = std::min(size_t(x), lastInterval_);
+            const double f = x - double(e);
+            const double* p = nearTable_.data() + 3 * e;
+            const double a = subArea_[k];
+            s0 += a * (p[0] + f * (p[3] - p[0]));
+            s1 += a * (p[1] + f * (p[4] - p[1]));
+            s2 += a * (p[2] + f * (p[5] - p[2]));
+        }
+    }
+    w[0] = s0;
+    w[1] = s1;
+    w[2] = s2;
+}
+
+void CellQuadrature::sampleWeightOverPi(size_t i, const glm::vec3& xo, double w[3]) const {
+    double far[3];
+    farKernelOverPi(glm::length(samplePosition_[i] - xo), far);
+    double near[3] = {0.0, 0.0, 0.0};
+    if (cellIsNear(i, xo)) nearWeightOverPi(i, xo, near);
+    for (int c = 0; c < 3; ++c) w[c] = near[c] + double(cellArea_[i]) * far[c];
+}
+
+size_t CellQuadrature::bytes() const {
+    return (nearTable_.capacity() + farTable_.capacity()) * sizeof(double) +
+           samplePosition_.capacity() * sizeof(glm::vec3) +
+           (cellArea_.capacity() + cellRadius_.capacity() + subArea_.capacity()) * sizeof(float) +
+           subOffset_.capacity() * sizeof(uint32_t) + subPosition_.capacity() * sizeof(glm::vec3) +
+           chunkOffset_.capacity() * sizeof(uint32_t) + chunkCentre_.capacity() * sizeof(glm::vec3) +
+           chunkRadius_.capacity() * sizeof(float);
+}
+
+}  // namespace prt

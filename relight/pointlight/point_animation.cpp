@@ -1,0 +1,204 @@
+// prt-pointlight's frames and animations: see point_animation.h for what is reused
+// between frames and why it is valid.
+
+#include "relight/pointlight/point_animation.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <utility>
+
+#include "common/error.h"
+#include "common/util.h"
+
+namespace prt {
+
+const char* toString(PointMethod method) {
+    switch (method) {
+        case PointMethod::Cache: return "cache";
+        case PointMethod::JensenBuhler: return "jb";
+        case PointMethod::Brute: return "brute";
+        case PointMethod::TextureSpace: return "tsis";
+    }
+    return "?";
+}
+
+PointMethod parsePointMethod(const std::string& text) {
+    const std::string m = toLower(text);
+    if (m == "cache") return PointMethod::Cache;
+    if (m == "jb") return PointMethod::JensenBuhler;
+    if (m == "brute") return PointMethod::Brute;
+    if (m == "tsis") return PointMethod::TextureSpace;
+    throw Error("--method", "must be cache, jb, brute or tsis, got '" + text + "'");
+}
+
+LitSamples lightSamples(const IrradianceSamples& placed, const RayScene& scene, const std::vector<Light>& lights,
+                        const PointRenderSettings& settings) {
+    LitSamples lit;
+    lit.samples = placed;
+    Stopwatch t;
+    computeIrradiance(lit.samples, scene, lights, settings.material.eta, settings.fresnel);
+    lit.irradianceSeconds = t.seconds();
+    t.restart();
+    lit.tree.emplace(lit.samples, OctreeOptions{.leafSize = settings.leafSize});
+    lit.octreeSeconds = t.seconds();
+    return lit;
+}
+
+PointFrame renderPointFrame(const IrradianceOctree& tree, const GBuffer& g, const PointRenderSettings& s,
+                            bool wantVisuals) {
+    PointFrame f;
+    if (s.method == PointMethod::TextureSpace)
+        throw Error("--method", "tsis renders single frames only (its animations run in prt-relight view)");
+    if (s.method == PointMethod::Cache) {
+        IrradianceCache cache(s.material, tree,
+                              {.a = s.a, .radius = s.radius, .epsilon = s.epsilon, .fresnel = s.fresnel,
+                               .splitDisk = s.splitDisk});
+        const Stopwatch t;
+        f.image = cache.render(g, &f.cacheStats, wantVisuals ? &f.visuals : nullptr);
+        f.renderSeconds = t.seconds();
+        f.caches = cache.caches();
+    } else {
+        const JensenBuhler jb(s.material, tree,
+                              {.epsilon = s.method == PointMethod::Brute ? 0.0 : s.epsilon, .fresnel = s.fresnel});
+        const Stopwatch t;
+        f.image = jb.render(g, &f.jbStats);
+        f.renderSeconds = t.seconds();
+    }
+    return f;
+}
+
+// ---------------------------------------------------------------------------
+// Animation
+// ---------------------------------------------------------------------------
+
+namespace {
+
+glm::dvec3 parsePoint(const std::string& text, const std::string& full) {
+    glm::dvec3 p(0.0);
+    const char* s = text.c_str();
+    for (int i = 0; i < 3; ++i) {
+        char* end = nullptr;
+        errno = 0;
+        p[i] = std::strtod(s, &end);
+        if (end == s || errno == ERANGE || !std::isfinite(p[i]))
+            throw Error("--light-path", "expected X0,Y0,Z0:X1,Y1,Z1 (finite numbers, mm), got '" + full + "'");
+        s = end;
+        if (i < 2) {
+            if (*s != ',')
+                throw Error("--light-path", "expected X0,Y0,Z0:X1,Y1,Z1 (three numbers per point), got '" + full + "'");
+            ++s;
+        }
+    }
+    if (*s != '\0')
+        throw Error("--light-path", "expected X0,Y0,Z0:X1,Y1,Z1 (three numbers per point), got '" + full + "'");
+    return p;
+}
+
+}  // namespace
+
+void parseLightPath(const std::string& text, glm::dvec3& from, glm::dvec3& to) {
+    const size_t colon = text.find(':');
+    if (colon == std::string::npos || text.find(':', colon + 1) != std::string::npos)
+        throw Error("--light-path", "expected X0,Y0,Z0:X1,Y1,Z1 (two points separated by ':'), got '" + text + "'");
+    from = parsePoint(text.substr(0, colon), text);
+    to = parsePoint(text.substr(colon + 1), text);
+}
+
+void validateAnimation(const PointAnimation& a, const std::vector<Light>& lights) {
+    if (a.kind == AnimationKind::None) return;
+    const char* option = a.kind == AnimationKind::Turntable ? "--turntable" : "--frames";
+    if (a.frames < 1) throw Error(option, "the frame count must be at least 1, got " + std::to_string(a.frames));
+    if (a.kind == AnimationKind::LightPath) {
+        for (int i = 0; i < 3; ++i)
+            if (!std::isfinite(a.from[i]) || !std::isfinite(a.to[i]))
+                throw Error("--light-path", "the end points must be finite");
+        if (lights.empty() || lights.front().type != LightType::Point)
+            throw Error("--light-path", "moves the first light, which must be a point light");
+    }
+}
+
+double turntableDegrees(const PointAnimation& a, int frame) {
+    return a.kind == AnimationKind::Turntable && a.frames > 0 ? 360.0 * frame / a.frames : 0.0;
+}
+
+Camera animationCamera(const PointAnimation& a, const Camera& base, const glm::dvec3& pivot, int frame) {
+    if (a.kind != AnimationKind::Turntable) return base;
+    return turntableCamera(base, pivot, turntableDegrees(a, frame));
+}
+
+std::vector<Light> animationLights(const PointAnimation& a, const std::vector<Light>& lights, int frame) {
+    if (a.kind != AnimationKind::LightPath || lights.empty()) return lights;
+    std::vector<Light> out = lights;
+    const double t = a.frames > 1 ? double(frame) / double(a.frames - 1) : 0.0;
+    // (1 - t) P0 + t P1: exactly P0 at t = 0 and exactly P1 at t = 1.
+    out.front().position = (1.0 - t) * a.from + t * a.to;
+    out.front().source = "--light-path (frame " + std::to_string(frame) + ", light 1)";
+    return out;
+}
+
+std::string animationFrameName(const std::string& prefix, int frame) {
+    char buf[16];
+    std::snprintf(buf, sizeof buf, "_%04d", frame);
+    return prefix + buf;
+}
+
+void renderAnimation(const PointAnimation& a, const TriangleMesh& mesh, const RayScene& scene,
+                     const IrradianceSamples& placed, const std::vector<Light>& lights, const Camera& baseCamera,
+                     const glm::dvec3& pivot, const PointRenderSettings& settings, const AnimationSink& sink) {
+    validateAnimation(a, lights);
+    const int count = a.kind == AnimationKind::None ? 1 : a.frames;
+    // A light path may pass through the object: refuse before rendering anything.
+    for (int k = 0; k < count; ++k) checkLightsOutside(scene, animationLights(a, lights, k));
+
+    // Turntable: pass 1 once (lights fixed in the object's frame). Light path: the
+    // camera is fixed, so one G-buffer.
+    std::optional<LitSamples> shared;
+    std::optional<GBuffer> sharedG;
+    for (int k = 0; k < count; ++k) {
+        AnimationFrameInfo info;
+        info.frame = k;
+        info.camera = animationCamera(a, baseCamera, pivot, k);
+        info.lights = animationLights(a, lights, k);
+
+        std::optional<LitSamples> own;
+        const LitSamples* lit = nullptr;
+        if (a.kind == AnimationKind::LightPath || !shared) {
+            LitSamples l = lightSamples(placed, scene, info.lights, settings);
+            info.irradianceSeconds = l.irradianceSeconds;
+            info.octreeSeconds = l.octreeSeconds;
+            if (a.kind == AnimationKind::LightPath) {
+                own = std::move(l);
+                lit = &*own;
+            } else {
+                shared = std::move(l);
+                lit = &*shared;
+            }
+        } else {
+            lit = &*shared;
+        }
+
+        const GBuffer* g = nullptr;
+        GBuffer frameG;
+        if (a.kind == AnimationKind::LightPath && sharedG) {
+            g = &*sharedG;
+        } else {
+            const Stopwatch t;
+            frameG = traceGBuffer(scene, mesh, info.camera);
+            info.gbufferSeconds = t.seconds();
+            if (a.kind == AnimationKind::LightPath) {
+                sharedG = std::move(frameG);
+                g = &*sharedG;
+            } else {
+                g = &frameG;
+            }
+        }
+        info.hitPixels = g->objectPixels();
+
+        PointFrame frame = renderPointFrame(*lit->tree, *g, settings);
+        sink(info, frame);
+    }
+}
+
+}  // namespace prt

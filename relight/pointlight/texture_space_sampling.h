@@ -1,0 +1,156 @@
+#pragma once
+// Texture-space importance sampling for point and directional lights (Chang et al.
+// 2008, sections 2.2-4; SPEC section 9; docs/point-lights.md), with the hybrid
+// local/global split.
+//
+// PER LIGHTING (TextureSpaceRenderer::setLights, everything a new light position needs):
+//   1. the irradiance map: at every covered texel t of the atlas (surface_atlas.h) the
+//      transmitted direct irradiance E^(x_t) of all lights, shadowed (point_lights.h),
+//      times the texel's surface area: the flux Phi_t = E^_t A_t (Eq. 7's E' times the
+//      texel's texture area; RGB, W/m^2 mm^2);
+//   2. N texels drawn with probability p_t = phi_t / sum phi (phi = mean of R, G, B of
+//      Phi_t) by the mipmap-ordered inverse CDF (mipmap_sampler.h), stratified, the
+//      jitter seeded by the frame's seed; each draw becomes a sample at x_t with weight
+//      Phi_t / (N p_t) (per channel; equal draws of one texel are merged, which changes
+//      nothing but the work);
+//   3. for the local part (hybrid or local modes), one translucent shadow map per light
+//      (translucent_shadow_map.h).
+// PER POINT x (exitance):
+//   M(x) = sum_i w_i K_s(|x - x_i|)      + sum_lights localFilter(x, K_l)
+//          (the global part, Eq. 10)        (the local part, section 4.2)
+// with the kernels of the mode: sampling: K_s = R_d, no local part; hybrid: K_s =
+// R_d W_g, K_l = R_d W_l; global: K_s = R_d W_g only; local: K_l = R_d W_l only. Eq. 10
+// is M = E'_avg / N sum R_d for white light; the per-channel weights generalise it to
+// coloured lights with one sample set. Radiance: L = F_out(n . w_o) M / pi as
+// jensen_buhler.h (exact Fresnel or Keng's).
+//
+// EVALUATION. Per pixel of a G-buffer (render), or per mesh vertex then interpolated
+// barycentrically at every pixel (renderPerVertex: fewer sums when the mesh has fewer
+// vertices than the frame has object pixels; exact at vertices, linear between).
+//
+// The reference is the Jensen-Buhler renderer at epsilon = 0 on the same irradiance
+// definition; as N grows the sampling error falls like 1/sqrt(N) down to the floor of
+// the atlas resolution (one point per texel) and the R_d table.
+//
+// Threads: setLights and the renders are parallel (TBB) and deterministic: the same
+// seed gives the same image on any thread count.
+
+#include <glm/glm.hpp>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/bssrdf.h"
+#include "common/image.h"
+#include "common/mesh.h"
+#include "common/raytrace.h"
+#include "relight/pointlight/diffusion_split.h"
+#include "relight/pointlight/mipmap_sampler.h"
+#include "relight/pointlight/point_lights.h"
+#include "relight/render/render.h"
+#include "relight/pointlight/surface_atlas.h"
+#include "relight/pointlight/translucent_shadow_map.h"
+
+namespace prt {
+
+enum class TextureSpaceMode {
+    Sampling,  // full R_d by the texture-space samples alone (section 3)
+    Hybrid,    // local part by the filter + global part by the samples (section 4)
+    Local,     // the local part alone
+    Global,    // the global part alone
+};
+const char* toString(TextureSpaceMode mode);
+// "sampling", "hybrid", "local", "global" (case-insensitive); prt::Error("--split", ...).
+TextureSpaceMode parseTextureSpaceMode(const std::string& text);
+
+struct TextureSpaceOptions {
+    TextureSpaceMode mode = TextureSpaceMode::Hybrid;
+    int samples = 900;                 // N, >= 1
+    uint64_t seed = 1;                 // the frame's jitter seed
+    bool jitter = true;                // stratified with jitter (false: centred strata)
+    double importanceBound = kDefaultImportanceBound;  // c, mm^-1
+    double sharpness = kDefaultSplitSharpness;         // K, mm^-1
+    SplitWeights weights = SplitWeights::Paper;
+    int lightMapSize = 256;            // translucent shadow map resolution (256: as accurate as 512 on the dragon, 4x cheaper)
+    int rings = 20, ringSamples = 20;  // L, C
+    FresnelModel fresnel = FresnelModel::Exact;
+};
+
+// Throws prt::Error naming the option for a bad value.
+void validateTextureSpaceOptions(const TextureSpaceOptions& options);
+
+struct TextureSpaceTimings {
+    double irradianceSeconds = 0.0;   // the irradiance map (shadow rays)
+    double samplingSeconds = 0.0;     // pyramid + N draws + merging
+    double shadowMapSeconds = 0.0;    // translucent shadow maps (local part)
+    double lighting() const { return irradianceSeconds + samplingSeconds + shadowMapSeconds; }
+};
+
+class TextureSpaceRenderer {
+public:
+    // mesh (mm), scene and atlas must outlive the renderer. Validates the material and
+    // the options; builds the R_d tables (rMax = the bounding sphere's diameter).
+    TextureSpaceRenderer(const TriangleMesh& mesh, const RayScene& scene, const SurfaceAtlas& atlas,
+                         const Material& material, const TextureSpaceOptions& options);
+
+    // Everything that depends on the lights (see above). Throws prt::Error for an empty
+    // light list or a light the shadow map cannot frame.
+    void setLights(const std::vector<Light>& lights);
+    // Changes only N / the seed and redraws from the current irradiance map (no new
+    // shadow rays). drawNow = false only records them for the next setLights.
+    void redraw(int samples, uint64_t seed, bool drawNow = true);
+
+    glm::dvec3 exitance(const glm::dvec3& x) const;
+    glm::vec3 radiance(const GBufferPixel& pixel) const;
+    Image render(const GBuffer& g) const;
+    // Exitance at every mesh vertex (positions of the mesh given at construction).
+    std::vector<glm::vec3> vertexExitance() const;
+    Image renderPerVertex(const GBuffer& g) const;
+
+    const TextureSpaceOptions& options() const { return options_; }
+    const DiffusionSplit& split() const { return split_; }
+    const LocalFilter& localFilter() const { return filter_; }
+    const TextureSpaceTimings& timings() const { return timings_; }
+    // The current samples (after merging equal draws) and the map's total flux (mean RGB
+    // is the pdf's normaliser).
+    size_t uniqueSamples() const { return px_.size(); }
+    glm::dvec3 totalFlux() const { return totalFlux_; }
+    const std::vector<glm::vec3>& texelFlux() const { return texelFlux_; }
+    const std::vector<TranslucentShadowMap>& shadowMaps() const { return maps_; }
+
+private:
+    bool usesSamples() const { return options_.mode != TextureSpaceMode::Local; }
+    bool usesFilter() const {
+        return options_.mode == TextureSpaceMode::Hybrid || options_.mode == TextureSpaceMode::Local;
+    }
+    void draw();
+    // The global (sample) sums at `count` points into out[0 .. count).
+    void sampleSums(const glm::vec3* points, size_t count, glm::dvec3* out) const;
+
+    const TriangleMesh* mesh_;
+    const RayScene* scene_;
+    const SurfaceAtlas* atlas_;
+    Material material_;
+    TextureSpaceOptions options_;
+    BoundingSphere sphere_;
+    DiffusionSplit split_;
+    RadialTable sampleKernel_;  // R_d or R_d W_g
+    LocalFilter filter_;        // kernel R_d W_l
+
+    std::vector<glm::vec3> texelFlux_;  // per atlas sample (covered texel): Phi_t
+    std::optional<MipmapSampler> sampler_;
+    glm::dvec3 totalFlux_{0.0};
+    std::vector<float> px_, py_, pz_;  // merged samples: positions (SoA) ...
+    std::vector<glm::vec4> w_;         // ... and weights (R, G, B, 0)
+    std::vector<TranslucentShadowMap> maps_;
+    TextureSpaceTimings timings_;
+    // The mesh's vertices in Morton order of their positions (and those positions):
+    // vertexExitance walks them so, so that consecutive vertices' filter taps read the
+    // same shadow-map cache lines.
+    std::vector<uint32_t> vertexOrder_;
+    std::vector<glm::vec3> orderedPositions_;
+};
+
+}  // namespace prt

@@ -1,0 +1,606 @@
+// prt-pointlight: offline frames of a translucent object under point and directional
+// lights (docs/point-lights.md; issue 14): the translucent irradiance cache of Keng et
+// al. 2006 (--method cache, the default; irradiance_cache.h), the Jensen-Buhler
+// hierarchical renderer it accelerates (--method jb) or the brute-force sum (--method
+// brute). Mesh + material + physical size + lights in, linear EXR + sRGB PNG out, with
+// the time of every stage.
+//
+// Animations (--turntable N; --light-path P0:P1 --frames N) run in
+// point_animation.h, whose header states what is reused between frames: for a
+// turntable the irradiance samples and the octree (the lights are fixed relative to
+// the object) but not the caches (they live on the visible points of each frame); for
+// a moving light only the mesh, its ray scene, the sample positions/areas and the
+// G-buffer of the fixed camera.
+//
+// Placement: like prt-precompute, the mesh is scaled about the origin by --size-mm
+// (bounding-box diagonal, default 30 mm) or --mm-per-unit; lights are given in mm in
+// that scaled frame (the bounding box is printed to help placing them).
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/bssrdf.h"
+#include "common/options.h"
+#include "common/image_compare.h"
+#include "common/error.h"
+#include "common/image.h"
+#include "common/mesh.h"
+#include "common/mesh_io.h"
+#include "common/progress.h"
+#include "common/raytrace.h"
+#include "relight/render/render.h"
+#include "common/sampling.h"
+#include "common/util.h"
+#include "relight/pointlight/irradiance_cache.h"
+#include "relight/pointlight/jensen_buhler.h"
+#include "relight/pointlight/point_lights.h"
+#include "relight/pointlight/point_animation.h"
+#include "relight/pointlight/surface_atlas.h"
+#include "relight/pointlight/texture_space_sampling.h"
+
+using namespace prt;
+
+namespace {
+
+
+
+struct Options {
+    std::string mesh, output, lightsFile;
+    std::vector<std::string> lights;
+    ScaleOptions scale;
+    MaterialOptions material;
+    std::string samples = "faces";
+    std::optional<size_t> sampleCount;
+    uint64_t seed = 1;
+    double epsilon = 0.05;
+    int leafSize = 8;
+    std::string fresnel = "exact";
+    double exposure = 0.0;
+    bool compareBrute = false;
+    std::string method = "cache";
+    double a = IrradianceCacheOptions{}.a;
+    double radius = 0.0;
+    std::string splitDisk = "paper";
+    bool compareJb = false, cacheImage = false;
+    int threads = 0;
+    CameraOptions camera;
+    int turntable = 0, frames = 0;
+    std::string lightPath;
+    // Texture-space importance sampling (--method tsis).
+    TextureSpaceOptions tsis;
+    std::string split = "hybrid", evaluate = "pixel";
+    int atlasSize = 1024;
+};
+
+std::string rgb(const glm::dvec3& v) {
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "%.4g %.4g %.4g", v.x, v.y, v.z);
+    return buf;
+}
+
+// <output>_error.png: the relative error of `image` against `reference` as a heat map
+// scaled to its 99th percentile (rounded up); returns that scale.
+double writeErrorHeatmap(const std::string& output, const Image& image, const Image& reference,
+                         const CompareResult& result) {
+    const Image error = relativeErrorImage(image, reference, result);
+    const double scale = heatmapScale(error);
+    writePng(output + "_error.png", heatmapImage(error, scale));
+    return scale;
+}
+
+// Keng Figs. 8-9: the cache positions (red dots over the frame), the interpolated
+// gradient of S (world |x|, |y|, |z| of the channel-mean gradient as R, G, B; brightness
+// = magnitude / its 99th percentile) and the split-disk spread V (gray, / its 99th
+// percentile).
+void writeCacheImages(const std::string& output, const Image& frame, const GBuffer& g,
+                      const std::vector<CacheRecord>& caches, const CacheVisuals& visuals, double exposure) {
+    const float scale = float(std::exp2(exposure));
+    Image dots(g.width, g.height, 3, 0.0f);
+    for (int y = 0; y < g.height; ++y)
+        for (int x = 0; x < g.width; ++x)
+            for (int c = 0; c < 3; ++c) dots.at(x, y, c) = 0.6f * frame.at(x, y, c) * scale;
+    for (const CacheRecord& r : caches) {
+        const int cx = int(r.pixel % uint32_t(g.width)), cy = int(r.pixel / uint32_t(g.width));
+        for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+                const int x = cx + dx, y = cy + dy;
+                if (x < 0 || y < 0 || x >= g.width || y >= g.height || std::abs(dx) + std::abs(dy) > 1) continue;
+                dots.at(x, y, 0) = 1.0f;
+                dots.at(x, y, 1) = 0.0f;
+                dots.at(x, y, 2) = 0.0f;
+            }
+    }
+    writePng(output + "_caches.png", dots);
+    auto percentile99 = [](std::vector<float> v) {
+        v.erase(std::remove_if(v.begin(), v.end(), [](float x) { return !(x > 0.0f); }), v.end());
+        if (v.empty()) return 1.0f;
+        std::nth_element(v.begin(), v.begin() + ptrdiff_t(0.99 * double(v.size() - 1)), v.end());
+        return v[size_t(0.99 * double(v.size() - 1))];
+    };
+    std::vector<float> magnitude(visuals.gradient.size());
+    for (size_t i = 0; i < magnitude.size(); ++i) magnitude[i] = glm::length(visuals.gradient[i]);
+    const float gScale = percentile99(magnitude), vScale = percentile99(visuals.spread);
+    Image grad(g.width, g.height, 3, 0.0f), spread(g.width, g.height, 1, 0.0f);
+    for (size_t i = 0; i < magnitude.size(); ++i) {
+        const glm::vec3 v = glm::abs(visuals.gradient[i]) / gScale;
+        grad.pixels[3 * i] = v.x;
+        grad.pixels[3 * i + 1] = v.y;
+        grad.pixels[3 * i + 2] = v.z;
+        spread.pixels[i] = visuals.spread[i] / vScale;
+    }
+    writePng(output + "_gradient.png", grad);
+    writePng(output + "_variance.png", spread);
+}
+
+// --turntable N / --light-path P0:P1 --frames N: renderAnimation (point_animation.h,
+// which states what is reused between frames and why it is valid), one summary line
+// per frame, then the mean time per frame of every pass.
+int runAnimation(const Options& o, const PointAnimation& animation, const TriangleMesh& mesh, const RayScene& scene,
+                 const IrradianceSamples& placed, const std::vector<Light>& lights, const Camera& camera,
+                 const glm::dvec3& pivot, const PointRenderSettings& settings, const std::string& output,
+                 const Stopwatch& start) {
+    const bool turntable = animation.kind == AnimationKind::Turntable;
+    const int count = animation.frames;
+    std::printf("animation: %s, %d frames; reused between frames: %s\n",
+                turntable ? "turntable (camera orbit about +Y through the box centre, lights fixed in the object)"
+                          : "light path (the first light moves linearly from P0 to P1)",
+                count,
+                turntable ? "the irradiance samples (with their irradiance) and the octree; NOT the G-buffer or "
+                            "the caches (they live on each frame's visible points)"
+                          : "the mesh, its ray scene, the sample positions/areas and the G-buffer (fixed camera); "
+                            "NOT the irradiance, the octree or the caches (they all depend on the light)");
+    std::fflush(stdout);
+    double sumIrr = 0, sumTree = 0, sumG = 0, sumPass2 = 0, sumPass3 = 0, sumRender = 0, sumWrite = 0;
+    size_t sumCaches = 0, sumHit = 0;
+    std::string first, last;
+    const Stopwatch runStart;
+    renderAnimation(animation, mesh, scene, placed, lights, camera, pivot, settings,
+                    [&](const AnimationFrameInfo& info, PointFrame& frame) {
+        const std::string base = animationFrameName(output, info.frame);
+        const Stopwatch t;
+        writeExr(base + ".exr", frame.image);
+        writePng(base + ".png", frame.image, o.exposure);
+        const double tWrite = t.seconds();
+        if (first.empty()) first = base;
+        last = base;
+        sumIrr += info.irradianceSeconds;
+        sumTree += info.octreeSeconds;
+        sumG += info.gbufferSeconds;
+        sumRender += frame.renderSeconds;
+        sumWrite += tWrite;
+        sumHit += info.hitPixels;
+        std::printf("frame %d/%d", info.frame + 1, count);
+        if (turntable) std::printf(" (object %.1f deg)", turntableDegrees(animation, info.frame));
+        else {
+            const glm::dvec3 p = info.lights.front().position;
+            std::printf(" (light 1 at %.4g, %.4g, %.4g mm)", p.x, p.y, p.z);
+        }
+        std::printf(": ");
+        if (turntable && info.frame > 0) std::printf("irradiance + octree reused, ");
+        else std::printf("irradiance %.3f s, octree %.3f s, ", info.irradianceSeconds, info.octreeSeconds);
+        if (!turntable && info.frame > 0) std::printf("G-buffer reused, ");
+        else std::printf("G-buffer %.3f s, ", info.gbufferSeconds);
+        if (settings.method == PointMethod::Cache) {
+            const IrradianceCacheStats& cs = frame.cacheStats;
+            sumPass2 += cs.pass2Seconds;
+            sumPass3 += cs.pass3Seconds;
+            sumCaches += cs.caches;
+            std::printf("pass 2 %.3f s, pass 3 %.3f s (T_cache %.3f s; %zu caches / %zu hit pixels = %.2f%%)",
+                        cs.pass2Seconds, cs.pass3Seconds, frame.renderSeconds, cs.caches, cs.hitPixels,
+                        100.0 * cs.ratio());
+        } else {
+            std::printf("%s %.3f s (%zu hit pixels, %.1f terms per pixel)", toString(settings.method),
+                        frame.renderSeconds, info.hitPixels, frame.jbStats.meanTerms());
+        }
+        std::printf(", write %.3f s -> %s.exr/.png\n", tWrite, base.c_str());
+        std::fflush(stdout);
+    });
+    const double n = double(count);
+    std::printf("done: %d frame%s in %s; mean per frame: irradiance %.3f s, octree %.3f s, G-buffer %.3f s, ", count,
+                count == 1 ? "" : "s", formatDuration(runStart.seconds()).c_str(), sumIrr / n, sumTree / n, sumG / n);
+    if (settings.method == PointMethod::Cache)
+        std::printf("pass 2 %.3f s, pass 3 %.3f s (T_cache %.3f s), %.0f caches / %.0f hit pixels, ", sumPass2 / n,
+                    sumPass3 / n, sumRender / n, double(sumCaches) / n, double(sumHit) / n);
+    else
+        std::printf("%s %.3f s, ", toString(settings.method), sumRender / n);
+    std::printf("write %.3f s (%s)\n", sumWrite / n,
+                turntable ? "irradiance and octree computed once, shown amortised"
+                          : "G-buffer traced once, shown amortised");
+    std::printf("wrote %s.exr/.png ... %s.exr/.png in %s\n", first.c_str(), last.c_str(),
+                formatDuration(start.seconds()).c_str());
+    return 0;
+}
+
+// --method tsis: texture-space importance sampling (Chang et al. 2008). Everything a
+// new light position needs (irradiance map, draws, shadow maps) and the evaluation are
+// timed apart; the atlas is built once per mesh.
+// The --method tsis options, checked (before the mesh is read: errors come first).
+TextureSpaceOptions textureSpaceOptions(const Options& o, FresnelModel fresnel) {
+    TextureSpaceOptions to = o.tsis;
+    to.mode = parseTextureSpaceMode(o.split);
+    to.fresnel = fresnel;
+    const std::string evaluate = toLower(o.evaluate);
+    if (evaluate != "pixel" && evaluate != "vertex")
+        throw Error("--evaluate", "expected pixel or vertex, got '" + o.evaluate + "'");
+    validateTextureSpaceOptions(to);
+    validateAtlasResolution(o.atlasSize);
+    return to;
+}
+
+int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& scene, const IrradianceSamples& placed,
+                    const std::vector<Light>& lights, const PointRenderSettings& settings, SampleSource source,
+                    const Camera& camera, const std::string& output, const Stopwatch& start) {
+    const Material& material = settings.material;
+    const TextureSpaceOptions to = textureSpaceOptions(o, settings.fresnel);
+    const std::string evaluate = toLower(o.evaluate);
+
+    const SurfaceAtlas atlas = buildSurfaceAtlas(mesh, o.atlasSize);
+    const SurfaceAtlasStats& as = atlas.stats;
+    std::printf("atlas: %d x %d, %zu charts (one per triangle, isometric: area distortion %.4f .. %.4f), %.1f%% of "
+                "texels cover surface (%zu), %.2f texels per triangle, %zu triangles under one texel; mapped area "
+                "%.6g of %.6g mm^2; built in %.3f s\n",
+                atlas.resolution, atlas.resolution, as.triangles, as.minDistortion, as.maxDistortion,
+                100.0 * as.coverage, as.coveredTexels, as.meanTexelsPerTriangle, as.subTexelTriangles,
+                as.mappedAreaMm2, as.meshAreaMm2, as.buildSeconds);
+
+    TextureSpaceRenderer renderer(mesh, scene, atlas, material, to);
+    const DiffusionSplit& split = renderer.split();
+    std::printf("texture-space sampling: %s, N = %d, seed %llu; R_p %.4g mm (c = %g /mm), K = %g /mm",
+                toString(to.mode), to.samples, static_cast<unsigned long long>(to.seed), split.rp,
+                to.importanceBound, to.sharpness);
+    if (to.mode == TextureSpaceMode::Hybrid || to.mode == TextureSpaceMode::Local)
+        std::printf("; local filter %d x %d + 1 taps to %.4g mm on a %d^2 shadow map per light",
+                    to.rings, to.ringSamples, renderer.localFilter().rhoMax, to.lightMapSize);
+    std::printf("; evaluated per %s\n", evaluate.c_str());
+
+    renderer.setLights(lights);
+    const TextureSpaceTimings& tt = renderer.timings();
+    Stopwatch t;
+    const GBuffer g = traceGBuffer(scene, mesh, camera);
+    const double tGBuffer = t.seconds();
+    t.restart();
+    const Image image = evaluate == "vertex" ? renderer.renderPerVertex(g) : renderer.render(g);
+    const double tEval = t.seconds();
+    std::printf("frame: %d x %d, %zu hit pixels; %zu distinct sample texels of %d draws\n", g.width, g.height,
+                g.objectPixels(), renderer.uniqueSamples(), to.samples);
+    std::printf("times: irradiance map %.4f s, shadow maps %.4f s, draws %.4f s, evaluation %.4f s = %.4f s per "
+                "new light position (%.1f fps); G-buffer %.4f s (once per view)\n",
+                tt.irradianceSeconds, tt.shadowMapSeconds, tt.samplingSeconds, tEval, tt.lighting() + tEval,
+                1.0 / std::max(tt.lighting() + tEval, 1e-9), tGBuffer);
+    t.restart();
+    writeExr(output + ".exr", image);
+    writePng(output + ".png", image, o.exposure);
+    const double tWrite = t.seconds();
+
+    if (o.compareJb || o.compareBrute) {
+        // The reference: Jensen-Buhler (or the brute-force sum) over its own irradiance
+        // samples (face centroids by default), not the atlas texels.
+        const LitSamples lit = lightSamples(placed, scene, lights, settings);
+        PointRenderSettings reference = settings;
+        reference.method = o.compareBrute ? PointMethod::Brute : PointMethod::JensenBuhler;
+        const double epsilon = o.compareBrute ? 0.0 : o.epsilon;
+        const PointFrame frame = renderPointFrame(*lit.tree, g, reference);
+        const Image& ref = frame.image;
+        const double tRef = frame.renderSeconds;
+        const std::string suffix = o.compareBrute ? "_brute" : "_jb";
+        writeExr(output + suffix + ".exr", ref);
+        writePng(output + suffix + ".png", ref, o.exposure);
+        const CompareResult r = compareImages(image, ref);
+        const double scale = writeErrorHeatmap(output, image, ref, r);
+        std::printf("%s_error.png: relative error, yellow = %g or more (the 99th percentile, rounded up)\n",
+                    output.c_str(), scale);
+        std::printf("%s (epsilon %g, %zu %s samples): %.3f s; RMSE (hit pixels, mean of R G B of the displayed 0..1 "
+                    "image at exposure %g) %.5f; relative RMSE (linear) %.4g, mean ratio %.5f\n",
+                    o.compareBrute ? "brute force" : "Jensen-Buhler", epsilon, placed.size(), toString(source), tRef,
+                    o.exposure, displayRmse(image, ref, o.exposure), r.overall.relativeRmse, r.overall.meanRatio);
+    }
+    std::printf("wrote %s.exr and %s.png (write %.3f s) in %s\n", output.c_str(), output.c_str(), tWrite,
+                formatDuration(start.seconds()).c_str());
+    return 0;
+}
+
+int run(const Options& o) {
+    const Stopwatch start;
+    const ThreadLimit limit(o.threads);
+    validateEpsilon(o.epsilon);
+    if (o.leafSize < 1) throw Error("--leaf-size", "must be at least 1");
+    if (!std::isfinite(o.exposure)) throw Error("--exposure", "must be finite");
+    const FresnelModel fresnel = parseFresnelModel(o.fresnel);
+    const PointMethod method = parsePointMethod(o.method);
+    const SplitDiskModel splitDisk = parseSplitDiskModel(o.splitDisk);
+    validateCacheOptions({.a = o.a, .radius = o.radius, .epsilon = o.epsilon});
+    if (o.cacheImage && method != PointMethod::Cache) throw Error("--cache-image", "needs --method cache");
+    if (o.compareJb && o.compareBrute && method == PointMethod::TextureSpace)
+        throw Error("--compare-brute", "with --method tsis give --compare-jb or --compare-brute, not both");
+    const SampleSource source = parseSampleSource(o.samples);
+    if (o.sampleCount && source != SampleSource::PoissonDisk)
+        throw Error("--sample-count", "applies to --samples poisson only (faces: one sample per face)");
+    if (o.sampleCount && *o.sampleCount == 0) throw Error("--sample-count", "must be at least 1");
+    const Material material = makeMaterial(o.material);
+    const std::string output = outputPrefix(o.output);
+    if (output.empty()) throw Error("--output", "empty prefix");
+    const MeshScale scale = makeScale(o.scale);
+
+    // Animation mode.
+    PointAnimation animation;
+    if (o.turntable < 0) throw Error("--turntable", "the frame count must be >= 1, got " + std::to_string(o.turntable));
+    if (o.turntable > 0 && !o.lightPath.empty())
+        throw Error("--turntable", "give either --turntable N or --light-path P0:P1 --frames N, not both");
+    if (!o.lightPath.empty()) {
+        if (o.frames < 1) throw Error("--frames", "--light-path needs --frames N with N >= 1");
+        animation.kind = AnimationKind::LightPath;
+        animation.frames = o.frames;
+        parseLightPath(o.lightPath, animation.from, animation.to);
+    } else if (o.frames != 0) {
+        throw Error("--frames", "applies to --light-path only (--turntable N takes its own frame count)");
+    } else if (o.turntable > 0) {
+        animation.kind = AnimationKind::Turntable;
+        animation.frames = o.turntable;
+    }
+    const bool animated = animation.kind != AnimationKind::None;
+    if (animated && method == PointMethod::TextureSpace)
+        throw Error("--method", "tsis renders single frames here; move its lights interactively in prt-relight view");
+    if (method == PointMethod::TextureSpace) (void)textureSpaceOptions(o, fresnel);
+    if (animated && (o.compareJb || o.compareBrute || o.cacheImage))
+        throw Error(o.compareJb ? "--compare-jb" : o.compareBrute ? "--compare-brute" : "--cache-image",
+                    "applies to single frames, not to --turntable / --light-path");
+
+    std::vector<Light> lights;
+    if (!o.lightsFile.empty()) lights = loadLightScene(o.lightsFile);
+    for (const std::string& text : o.lights) lights.push_back(parseLight(text));
+    if (lights.empty()) throw Error("--light", "no light: give --light (repeatable) and/or --lights scene.json");
+    validateAnimation(animation, lights);
+
+    // Mesh, placed in mm.
+    Stopwatch t;
+    TriangleMesh mesh = loadMesh(o.mesh);
+    const double factor = scaleToPhysical(mesh, scale);
+    const Bounds box = bounds(mesh);
+    const double tLoad = t.seconds();
+    std::printf("mesh: %s, %zu vertices, %zu triangles, x %.4g mm per unit; box (%.4g, %.4g, %.4g) .. (%.4g, %.4g, %.4g) mm\n",
+                o.mesh.c_str(), mesh.vertexCount(), mesh.triangleCount(), factor, box.lo.x, box.lo.y, box.lo.z,
+                box.hi.x, box.hi.y, box.hi.z);
+    std::printf("material: %s, sigma_s' %s /mm, sigma_a %s /mm, eta %.4g; Fresnel %s\n", material.name.c_str(),
+                rgb(material.sigmaSPrime).c_str(), rgb(material.sigmaA).c_str(), material.eta, toString(fresnel));
+    for (const Light& l : lights) std::printf("light: %s\n", describe(l).c_str());
+    if (animation.kind == AnimationKind::LightPath)
+        std::printf("light path: light 1 from (%.4g, %.4g, %.4g) to (%.4g, %.4g, %.4g) mm over %d frames\n",
+                    animation.from.x, animation.from.y, animation.from.z, animation.to.x, animation.to.y,
+                    animation.to.z, animation.frames);
+
+    t.restart();
+    const RayScene scene(mesh);
+    const double tScene = t.seconds();
+    if (!animated) checkLightsOutside(scene, lights);  // renderAnimation checks every frame's lights
+
+    // Sample placement (positions, normals, areas: the surface only).
+    t.restart();
+    IrradianceSamples placed;
+    if (source == SampleSource::FaceCentroids) {
+        placed = faceCentroidSamples(mesh);
+    } else {
+        const size_t n = o.sampleCount.value_or(defaultSampleCount(totalArea(mesh), material.minMeanFreePath()));
+        placed = samplesFromSampleSet(poissonDiskSamples(mesh, n, o.seed));
+    }
+    const double tPlace = t.seconds();
+
+    const PointRenderSettings settings{.material = material, .method = method, .fresnel = fresnel,
+                                       .leafSize = o.leafSize, .epsilon = o.epsilon, .a = o.a,
+                                       .radius = o.radius, .splitDisk = splitDisk};
+    glm::dvec3 centre(box.centre());
+    double radius = 0.0;
+    for (const glm::vec3& p : mesh.positions) radius = std::max(radius, glm::length(glm::dvec3(p) - centre));
+    const Camera camera = makeCamera(o.camera, centre, radius);
+
+    const std::filesystem::path parent = std::filesystem::path(output).parent_path();
+    if (!parent.empty()) std::filesystem::create_directories(parent);
+
+    if (method == PointMethod::TextureSpace)
+        return runTextureSpace(o, mesh, scene, placed, lights, settings, source, camera, output, start);
+
+    if (animated) {
+        std::printf("samples: %zu (%s), %.4g mm^2 in all; load %.3f s, Embree scene %.3f s, sample placement %.3f s\n",
+                    placed.size(), toString(source), placed.totalArea(), tLoad, tScene, tPlace);
+        return runAnimation(o, animation, mesh, scene, placed, lights, camera, centre, settings, output, start);
+    }
+
+    // Pass 1: irradiance samples and their octree.
+    const LitSamples lit = lightSamples(placed, scene, lights, settings);
+    const double tIrradiance = lit.irradianceSeconds, tTree = lit.octreeSeconds;
+    const IrradianceOctree& tree = *lit.tree;
+    std::printf("samples: %zu (%s), %.4g mm^2 in all; octree %zu nodes, %zu leaves, depth %d\n", placed.size(),
+                toString(source), placed.totalArea(), tree.nodes().size(), tree.leafCount(), tree.depth());
+
+    // Primary rays, then the frame by the chosen method.
+    t.restart();
+    const GBuffer g = traceGBuffer(scene, mesh, camera);
+    const double tGBuffer = t.seconds();
+
+    PointFrame frame = renderPointFrame(tree, g, settings, o.cacheImage);
+    const Image& image = frame.image;
+    const double tRender = frame.renderSeconds;
+    if (method == PointMethod::Cache) {
+        const IrradianceCacheStats& cs = frame.cacheStats;
+        std::printf("irradiance cache: a %g, R %.4g mm (split disk %s), epsilon %g, S_ref %.4g W/m^2; %zu caches / "
+                    "%zu hit pixels = %.2f%% (%zu shaded), %.1f terms per cache walk, %.2f valid caches per pixel\n",
+                    o.a, cs.radius, toString(splitDisk), o.epsilon, cs.sRef, cs.caches, cs.hitPixels,
+                    100.0 * cs.ratio(), cs.shadedPixels, cs.caches ? double(cs.walkTerms) / double(cs.caches) : 0.0,
+                    cs.meanValidCaches);
+        std::printf("cache times: pass 2 %.3f s (serial scan %.3f s, S and gradient in parallel tasks), pass 3 %.3f s; "
+                    "T_cache %.3f s\n",
+                    cs.pass2Seconds, cs.scanSeconds, cs.pass3Seconds, tRender);
+        if (o.cacheImage) writeCacheImages(output, image, g, frame.caches, frame.visuals, o.exposure);
+    } else {
+        std::printf("%s: epsilon %g, %zu object pixels, %.1f terms per pixel (of %zu samples)\n",
+                    method == PointMethod::Brute ? "brute force" : "Jensen-Buhler",
+                    method == PointMethod::Brute ? 0.0 : o.epsilon, frame.jbStats.pixels, frame.jbStats.meanTerms(),
+                    placed.size());
+    }
+
+    t.restart();
+    writeExr(output + ".exr", image);
+    writePng(output + ".png", image, o.exposure);
+    const double tWrite = t.seconds();
+
+    std::printf("frame: %d x %d, %zu hit pixels, %zu samples\n", g.width, g.height, g.objectPixels(), placed.size());
+    std::printf("times: load %.3f s, Embree scene %.3f s, sample placement %.3f s, irradiance sampling %.3f s, "
+                "octree %.3f s, G-buffer %.3f s, %s %.3f s, write %.3f s\n",
+                tLoad, tScene, tPlace, tIrradiance, tTree, tGBuffer, toString(method), tRender, tWrite);
+
+    // The Jensen-Buhler / brute-force references; their times exclude irradiance
+    // sampling and the octree, as Keng's T_1.
+    auto reference = [&](PointMethod m) {
+        PointRenderSettings s = settings;
+        s.method = m;
+        return renderPointFrame(tree, g, s);
+    };
+    if (o.compareJb && method != PointMethod::JensenBuhler) {
+        const PointFrame jb = reference(PointMethod::JensenBuhler);
+        const double tJb = jb.renderSeconds;
+        writeExr(output + "_jb.exr", jb.image);
+        writePng(output + "_jb.png", jb.image, o.exposure);
+        const CompareResult r = compareImages(image, jb.image);
+        writeErrorHeatmap(output, image, jb.image, r);
+        std::printf("Jensen-Buhler (epsilon %g): T_JB %.3f s, speedup %.2fx; RMS (paper: hit pixels, mean of R G B of "
+                    "the displayed 0..1 image, writePng's tone mapping) %.5f; relative RMSE (linear) %.4g, mean ratio "
+                    "%.5f\n",
+                    o.epsilon, tJb, tJb / std::max(tRender, 1e-9), displayRmse(image, jb.image, o.exposure),
+                    r.overall.relativeRmse, r.overall.meanRatio);
+    }
+    if (o.compareBrute) {
+        const PointFrame brute = reference(PointMethod::Brute);
+        const double tBrute = brute.renderSeconds;
+        writeExr(output + "_brute.exr", brute.image);
+        const CompareResult r = compareImages(image, brute.image);
+        std::printf("brute force (epsilon 0): %.3f s, %.1fx the %s time; %s vs brute: relative RMSE %.3g, max relative "
+                    "error %.3g, mean ratio %.6f, RMS (paper) %.5f\n",
+                    tBrute, tBrute / std::max(tRender, 1e-9), toString(method), toString(method),
+                    r.overall.relativeRmse, r.overall.maxRelative, r.overall.meanRatio,
+                    displayRmse(image, brute.image, o.exposure));
+    }
+    std::printf("wrote %s.exr and %s.png in %s\n", output.c_str(), output.c_str(),
+                formatDuration(start.seconds()).c_str());
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    return runMain("prt-pointlight", [&]() -> int {
+        CLI::App app{
+            "prt-pointlight: a translucent object under point and directional lights, rendered by the\n"
+            "translucent irradiance cache (Keng et al. 2006, the default), the Jensen-Buhler hierarchical\n"
+            "dipole integration it accelerates, or texture-space importance sampling (Chang et al. 2008,\n"
+            "--method tsis; docs/point-lights.md). Lights in mm in the\n"
+            "scaled mesh's frame; point intensity in W/sr, directional irradiance in W/m^2; output radiance\n"
+            "in W/(m^2 sr). Example:\n"
+            "  prt-pointlight bunny.off --size-mm 60 -m Marble --light point:40,80,60:3 -o out/bunny_pl\n"
+            "  prt-pointlight bunny.off -m Skin1 --light point:-20,30,-40:1 --method tsis --compare-jb -o out/tsis\n"
+            "Animations (frames <prefix>_0000.exr/.png ...): --turntable N, or --light-path P0:P1 --frames N\n"
+            "(what each reuses between frames, and why that is valid: docs/point-lights.md, \"Animation\").\n"
+            "Vector options take comma-separated values; write negative ones as --eye=-10,0,50."};
+        Options o;
+        app.add_option("mesh", o.mesh, "Mesh file (.obj .ply .off .stl, optionally .gz)")->required();
+        app.add_option("-o,--output", o.output,
+                       "Output prefix: writes <prefix>.exr (linear RGBA float, A = 1 on the object) and <prefix>.png")
+            ->required();
+        app.add_option("--light", o.lights,
+                       "A light, repeatable: point:X,Y,Z:R,G,B (mm, W/sr) or dir:X,Y,Z:R,G,B (toward the light, W/m^2)")
+            ->group("Lights");
+        app.add_option("--lights", o.lightsFile, "JSON scene file with a \"lights\" list (docs/point-lights.md)")
+            ->group("Lights");
+        addScaleOptions(app, o.scale);
+        addMaterialOptions(app, o.material, /*withG=*/false);
+        app.add_option("--samples", o.samples,
+                       "Irradiance samples: faces (one per face at its centroid with the face area, Keng's choice) "
+                       "or poisson (the precompute's Poisson-disk samples)")
+            ->capture_default_str()->group("Jensen-Buhler");
+        app.add_option("--sample-count", o.sampleCount,
+                       "Poisson-disk sample count (default: spacing = the material's mean free path)")
+            ->group("Jensen-Buhler");
+        app.add_option("--seed", o.seed, "Seed of the Poisson-disk samples")->capture_default_str()->group("Jensen-Buhler");
+        app.add_option("--epsilon", o.epsilon, "Solid-angle threshold A_node / d^2 (0 = brute-force sum)")
+            ->capture_default_str()->group("Jensen-Buhler");
+        app.add_option("--leaf-size", o.leafSize, "Samples per octree leaf")->capture_default_str()->group("Jensen-Buhler");
+        app.add_option("--fresnel", o.fresnel,
+                       "exact (F_t per light and view direction) or keng (diffuse F_dt in, none out: Keng Eqs. 3-4)")
+            ->capture_default_str()->group("Jensen-Buhler");
+        app.add_flag("--compare-brute", o.compareBrute,
+                     "Also render the brute-force sum (epsilon 0, slow) to <prefix>_brute.exr and report time and error")
+            ->group("Jensen-Buhler");
+        app.add_option("--method", o.method,
+                       "cache (Keng et al. 2006 translucent irradiance cache), jb (Jensen-Buhler at every pixel), "
+                       "brute (the sum over all samples) or tsis (Chang et al. 2008 texture-space importance "
+                       "sampling; --compare-jb / --compare-brute then render the reference)")
+            ->capture_default_str()->group("Irradiance cache");
+        app.add_option("--a", o.a,
+                       "Cache error bound a (> 0): a cache is valid where its Eq. 11 error is below a S_ref "
+                       "(S_ref = exitance of the brightest sample irradiance); smaller = more caches")
+            ->capture_default_str()->group("Irradiance cache");
+        app.add_option("--radius", o.radius,
+                       "Split-disk radius R in mm (0 = the material's default: the radius collecting a fifth of int R_d dA, widest channel)")
+            ->capture_default_str()->group("Irradiance cache");
+        app.add_option("--split-disk", o.splitDisk,
+                       "dS/du bound of the split disk: paper (Keng's four-sector formula) or exact (half-bright disk)")
+            ->capture_default_str()->group("Irradiance cache");
+        app.add_flag("--compare-jb", o.compareJb,
+                     "Also render Jensen-Buhler (same epsilon) to <prefix>_jb.exr/png, <prefix>_error.png; print "
+                     "T_JB, speedup, the paper's RMS and the relative RMSE")
+            ->group("Irradiance cache");
+        app.add_flag("--cache-image", o.cacheImage,
+                     "Write <prefix>_caches.png (cache positions over the frame), <prefix>_gradient.png and "
+                     "<prefix>_variance.png (Keng Figs. 8-9)")
+            ->group("Irradiance cache");
+        app.add_option("--split", o.split,
+                       "What renders R_d: hybrid (local part by the shadow-map filter + global part by the samples, "
+                       "Chang section 4), sampling (the samples alone, section 3), local or global (one part alone)")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--tsis-samples", o.tsis.samples, "N, importance samples drawn from the irradiance map")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--tsis-seed", o.tsis.seed, "Seed of the stratified draws' jitter (the frame's seed)")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--atlas-size", o.atlasSize, "Surface atlas / irradiance map resolution (power of two)")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--importance-bound", o.tsis.importanceBound,
+                       "c in mm^-1: R_p is the largest r with R_d(r) 2 pi r = c (0.1 gives the paper's Skimmilk 2.41 mm)")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--split-sharpness", o.tsis.sharpness, "K in mm^-1 of the weights W_l, W_g")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--light-map", o.tsis.lightMapSize, "Translucent shadow map resolution per light")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--rings", o.tsis.rings, "L, rings of the local filter")->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--ring-samples", o.tsis.ringSamples, "C, taps per ring of the local filter")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--evaluate", o.evaluate,
+                       "pixel (the sums at every visible point) or vertex (at mesh vertices, interpolated)")
+            ->capture_default_str()->group("Texture-space sampling");
+        app.add_option("--turntable", o.turntable,
+                       "Render N frames <prefix>_0000 ... of the object turning 360 degrees about the vertical axis "
+                       "through its bounding-box centre (a camera orbit, as prt-relight render), lights fixed in the "
+                       "object's frame. Reused between frames: the irradiance samples and the octree (the lights do "
+                       "not move relative to the object); NOT the caches (they live on each frame's visible points)")
+            ->group("Animation");
+        app.add_option("--light-path", o.lightPath,
+                       "X0,Y0,Z0:X1,Y1,Z1 (mm): with --frames N, the FIRST light (a point light) moves linearly "
+                       "from P0 (frame 0) to P1 (frame N-1). Reused between frames: only the mesh, its ray scene, "
+                       "the sample positions/areas and the G-buffer (fixed camera); irradiance, octree and caches "
+                       "are recomputed every frame. Write a negative first value as --light-path=-20,...")
+            ->group("Animation");
+        app.add_option("--frames", o.frames, "Frame count of --light-path")->group("Animation");
+        app.add_option("--exposure", o.exposure, "PNG exposure in stops (the EXR is unscaled)")->capture_default_str();
+        addThreadsOption(app, o.threads);
+        addCameraOptions(app, o.camera);
+        if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-pointlight")) return *exitCode;
+        return run(o);
+    });
+}

@@ -1,0 +1,119 @@
+#pragma once
+// The viewer's point-light worker (prt-relight view, docs/viewer.md): texture-space
+// importance sampling (relight/pointlight/texture_space_sampling.h) on a thread of its own, beside
+// the environment's relight worker (relight/viewer/relight_worker.h).
+//
+// What it computes: the point lights' radiance before the outgoing Fresnel factor at
+// every mesh vertex, M_v / pi (W/(m^2 sr)), which the viewer ADDS to the environment's
+// diffuse per-vertex radiance: the fragment shader multiplies the sum by
+// F_t(eta, n . w_o), so a pixel shows exactly TextureSpaceRenderer::renderPerVertex's
+// value plus the environment's (both are F_t times per-vertex radiance interpolated
+// barycentrically).
+//
+// Reuse: a request that changes only N or the seed redraws from the current irradiance
+// map (no shadow rays); a new split mode rebuilds the renderer; new lights recompute
+// the irradiance map, the draws and the shadow maps.
+//
+// On demand (compare()): the error of the point-light part of the frame a camera sees,
+// against Jensen-Buhler (face-centroid samples, epsilon 0.05: 0.4% from the
+// brute-force sum, docs/point-lights.md): the per-vertex TSIS frame and the reference
+// are rendered on this thread, the RMSE of the displayed images (exposure as given) and
+// the linear relative RMSE come back as one line of text.
+//
+// Contract as RelightWorker: submit() replaces a request not yet started; take() hands
+// over the newest result and rethrows a worker failure as prt::Error. The mesh must
+// outlive the worker. The atlas and the ray scene are built on the worker thread when
+// the first light arrives (that update takes the build's 0.1-0.7 s longer).
+
+#include <glm/glm.hpp>
+
+#include <condition_variable>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/camera.h"
+#include "common/materials.h"
+#include "common/mesh.h"
+#include "relight/pointlight/point_lights.h"
+#include "relight/pointlight/texture_space_sampling.h"
+
+namespace prt {
+
+struct PointLightRequest {
+    std::vector<Light> lights;
+    TextureSpaceMode mode = TextureSpaceMode::Hybrid;
+    int samples = 900;
+    uint64_t seed = 1;
+    uint64_t id = 0;
+
+    bool sameLighting(const PointLightRequest& o) const;  // lights equal (type, position, direction, colour)
+    bool sameAs(const PointLightRequest& o) const {
+        return sameLighting(o) && mode == o.mode && samples == o.samples && seed == o.seed;
+    }
+};
+
+struct PointLightResult {
+    PointLightRequest request;
+    std::vector<glm::vec3> radiance;  // per vertex, M / pi
+    TextureSpaceTimings timings;      // of the last setLights (or redraw)
+    double evaluationMs = 0.0;        // the per-vertex sums
+    double totalMs = 0.0;             // everything this request needed
+    bool lightsRecomputed = false;    // false: only the draws were redone
+    size_t uniqueSamples = 0;
+    double rp = 0.0;                  // R_p, mm
+    std::string message;              // why the lights gave nothing (a light inside the object, ...)
+};
+
+class PointLightWorker {
+public:
+    // base: the options every request starts from (its mode, samples and seed are
+    // replaced by the request's). atlasSize: the irradiance map's resolution.
+    PointLightWorker(const TriangleMesh& meshMm, const Material& material, const TextureSpaceOptions& base,
+                     int atlasSize);
+    ~PointLightWorker();
+    PointLightWorker(const PointLightWorker&) = delete;
+    PointLightWorker& operator=(const PointLightWorker&) = delete;
+
+    void submit(const PointLightRequest& r);
+    bool busy() const;
+    bool take(PointLightResult& out);
+
+    // Queues a comparison of the current lighting (the last request) seen by `camera`.
+    void compare(const Camera& camera, double exposure);
+    // The comparison's line of text once done.
+    bool takeComparison(std::string& text);
+
+    // Set once the atlas is built (for the panel; empty before the first light).
+    std::string atlasSummary() const;
+
+private:
+    void run();
+    void compute(const PointLightRequest& r, PointLightResult& out);
+    void ensureAtlas();  // the ray scene and the atlas, built on the first light
+    std::string runComparison(const Camera& camera, double exposure);
+
+    const TriangleMesh& mesh_;
+    Material material_;
+    TextureSpaceOptions base_;
+    int atlasSize_;
+    std::unique_ptr<RayScene> scene_;
+    std::unique_ptr<SurfaceAtlas> atlas_;
+    std::unique_ptr<TextureSpaceRenderer> renderer_;
+    std::optional<PointLightRequest> current_;  // what renderer_ holds
+
+    mutable std::mutex mutex_;
+    std::condition_variable cv_;
+    std::optional<PointLightRequest> pending_;
+    std::optional<std::pair<Camera, double>> pendingComparison_;
+    bool running_ = false, stop_ = false, haveReady_ = false, haveComparison_ = false;
+    std::string error_, comparison_, atlasSummary_;
+    PointLightResult work_, ready_;
+    std::thread thread_;  // last
+};
+
+}  // namespace prt
