@@ -38,7 +38,7 @@
 #include "common/mesh_io.h"
 #include "common/progress.h"
 #include "common/raytrace.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 #include "common/sampling.h"
 #include "common/util.h"
 #include "relight/pointlight/irradiance_cache.h"

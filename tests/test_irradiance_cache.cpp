@@ -25,7 +25,7 @@
 #include "common/shapes.h"
 #include "common/util.h"
 #include "relight/pointlight/jensen_buhler.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 #include "test_support.h"
 
 using namespace prt;

@@ -18,7 +18,7 @@
 #include "common/bssrdf.h"
 #include "common/camera.h"
 #include "common/error.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 #include "common/shapes.h"
 
 using namespace prt;

@@ -20,7 +20,7 @@
 #include "common/camera.h"
 #include "common/error.h"
 #include "common/shapes.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 #include "test_support.h"
 
 using namespace prt;

@@ -12,7 +12,7 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/raytrace.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 #include "common/sampling.h"
 #include "common/shapes.h"
 

@@ -9,7 +9,7 @@
 //       the medium. The light maps g_k are indexed by a.
 //   b = the refracted VIEW direction w_o' = refractDirection(w_o, n_o, eta), w_o
 //       pointing from x_o toward the eye, so b also points into the medium. The view
-//       maps h_k are indexed by b (this is what relight/render/render.h looks up).
+//       maps h_k are indexed by b (this is what relight/prt/translucent_shader.h looks up).
 //   The light leaves x_p toward the eye, i.e. propagates along -b, so
 //       p(a, b) = henyeyGreenstein(g, dot(a, -b))   (bssrdf.h: cos between
 //   propagation directions before and after scattering; g > 0 = forward).

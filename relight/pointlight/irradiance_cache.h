@@ -86,7 +86,7 @@
 #include "common/image.h"
 #include "relight/pointlight/jensen_buhler.h"
 #include "relight/pointlight/point_lights.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 
 namespace prt {
 

@@ -52,7 +52,8 @@
 
 #include "common/bssrdf.h"
 #include "common/image.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
+#include "relight/prt/translucent_shader.h"
 #include "relight/pointlight/point_lights.h"
 
 namespace prt {
@@ -161,7 +162,7 @@ public:
     // Fresnel a pixel whose normal faces away from the viewer (n . w_o <= 0, at
     // silhouettes) gets F_t(eta, 0) = 0, i.e. black, as TranslucentShader does.
     glm::vec3 radiance(const GBufferPixel& pixel, size_t* terms = nullptr) const;
-    // Every object pixel of g through compose() (render.h): RGBA, A = 1 on the object,
+    // Every object pixel of g through compose() (gbuffer.h): RGBA, A = 1 on the object,
     // black background with A = 0.
     Image render(const GBuffer& g, JensenBuhlerStats* stats = nullptr) const;
 

@@ -11,7 +11,7 @@
 //
 //   turntable N   the object turns 360 degrees about the vertical (+Y) axis through
 //                 its bounding-box centre, lights FIXED IN THE OBJECT'S FRAME; as in
-//                 prt-relight render (render.h, turntableCamera) this is rendered as
+//                 prt-relight render (gbuffer.h, turntableCamera) this is rendered as
 //                 the camera orbiting by -360 k / N degrees, so frame k equals a single
 //                 render from the orbited camera (for automatic framing: --azimuth
 //                 decreased by 360 k / N, to float rounding).
@@ -51,7 +51,7 @@
 #include "relight/pointlight/irradiance_cache.h"
 #include "relight/pointlight/jensen_buhler.h"
 #include "relight/pointlight/point_lights.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 
 namespace prt {
 

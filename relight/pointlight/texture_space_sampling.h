@@ -49,7 +49,7 @@
 #include "relight/pointlight/diffusion_split.h"
 #include "relight/pointlight/mipmap_sampler.h"
 #include "relight/pointlight/point_lights.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 #include "relight/pointlight/surface_atlas.h"
 #include "relight/pointlight/translucent_shadow_map.h"
 

@@ -11,7 +11,7 @@
 #include "common/image_compare.h"
 #include "common/util.h"
 #include "relight/pointlight/jensen_buhler.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 
 namespace prt {
 

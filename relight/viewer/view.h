@@ -2,7 +2,7 @@
 // prt-relight view: the interactive viewer (docs/viewer.md).
 //
 // A GLFW window with an OpenGL 3.3+ core context and a Dear ImGui panel. The object
-// is the one prt-relight render draws (loadRelightObject, relight/render/render.h), seen
+// is the one prt-relight render draws (loadRelightObject, relight/prt/relight_object.h), seen
 // through the same Camera (common/camera.h), lit the same way:
 //   - on the CPU, when the light changes (environment, rotation, light terms,
 //     components): light vector (relight/prt/light_vector.h) + relight kernel (relight/prt/relight_kernel.h)
@@ -31,7 +31,9 @@
 #include "common/image.h"
 #include "relight/pointlight/point_lights.h"
 #include "relight/prt/relight_kernel.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
+#include "relight/render/specular.h"
+#include "relight/prt/relight_object.h"
 #include "relight/pointlight/texture_space_sampling.h"
 
 namespace prt {
@@ -85,16 +87,5 @@ void checkViewerDisplay();
 // Throws prt::Error for unreadable environments, no OpenGL 3.3 core context, shader or
 // framebuffer failures, and screenshot write errors. Returns the exit code.
 int runViewer(ViewerSetup setup);
-
-// Box pre-filter factor of the specular layer (prefilterEnvironment): `requested`
-// when > 0, else the largest of 8, 4, 2, 1 that divides the map's width and height
-// (what prt-relight render --specular uses by default). Throws for requested < 0.
-inline int specularBlurFactor(int requested, const Image& latlong) {
-    if (requested < 0) throw Error("--specular-blur", "must be >= 1");
-    if (requested > 0) return requested;
-    int factor = 8;
-    while (factor > 1 && (latlong.width % factor || latlong.height % factor)) factor /= 2;
-    return factor;
-}
 
 }  // namespace prt

@@ -26,7 +26,7 @@
 #include "common/options.h"
 #include "common/util.h"
 #include "relight/pointlight/jensen_buhler.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 #include "relight/pointlight/surface_atlas.h"
 #include "relight/pointlight/texture_space_sampling.h"
 

@@ -46,7 +46,7 @@
 #include "common/image.h"
 #include "common/mesh.h"
 #include "common/raytrace.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 #include "common/sampling.h"
 
 namespace prt {
@@ -363,7 +363,7 @@ struct ReferenceFrame {
 
 // Shades every object pixel of `g` as the sum of `components` (in parallel, one
 // progress unit per object pixel) and fills the background with the environment
-// along the primary ray (environmentRadiance of render.h, `background` rotated by
+// along the primary ray (environmentRadiance of gbuffer.h, `background` rotated by
 // `envRotation`; empty background = black), A = 0 there.
 ReferenceFrame renderReference(const GBuffer& g, const std::vector<const ReferenceComponent*>& components,
                                const Image& background, const glm::dmat3& envRotation,

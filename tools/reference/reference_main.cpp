@@ -34,7 +34,7 @@
 #include "tools/reference/reference.h"
 #include "common/transport_file.h"
 #include "common/transport_params.h"
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 #include "common/sampling.h"
 #include "common/mesh_io.h"
 #include "common/util.h"

@@ -1,4 +1,4 @@
-#include "relight/render/render.h"
+#include "relight/render/gbuffer.h"
 
 #include <gtest/gtest.h>
 
@@ -10,10 +10,8 @@
 #include "common/bssrdf.h"
 #include "common/envmap.h"
 #include "common/error.h"
-#include "relight/prt/light_vector.h"
-#include "relight/prt/relight_kernel.h"
-#include "common/shapes.h"
 #include "common/mesh_io.h"
+#include "common/shapes.h"
 
 using namespace prt;
 
@@ -29,13 +27,6 @@ double projectedRadiusPx(double r, double d, const Camera& c) {
 }
 
 const GBufferPixel& at(const GBuffer& g, int x, int y) { return g.pixels[size_t(y) * g.width + x]; }
-
-std::string scratchDir(const std::string& name) {
-    const std::filesystem::path p = std::filesystem::current_path() / "test_render_scratch" / name;
-    std::filesystem::remove_all(p);
-    std::filesystem::create_directories(p);
-    return p.string();
-}
 
 }  // namespace
 
@@ -276,151 +267,6 @@ TEST(Compose, AlphaIsOneExactlyOnHitPixelsAndBackgroundIsTheEnvironment) {
 }
 
 // ---------------------------------------------------------------------------
-// Shading
-// ---------------------------------------------------------------------------
-
-TEST(TranslucentShader, FresnelTimesInterpolatedDiffuse) {
-    const float r = 10.0f;
-    TriangleMesh sphere = makeIcosphere(3, r);
-    RayScene scene(sphere);
-    Camera c;
-    c.eye = {0, 0, 60};
-    c.target = {0, 0, 0};
-    c.width = 64;
-    c.height = 64;
-    GBuffer g = traceGBuffer(scene, sphere, c);
-    // Per-vertex radiance linear in position: its barycentric interpolation is the same
-    // linear function at the hit point.
-    VertexRadiance rad;
-    for (const glm::vec3& p : sphere.positions) rad.diffuse.push_back(glm::vec3(1.0f) + 0.05f * p);
-    const double eta = 1.3;
-    TranslucentShader shader(sphere, eta);
-    EXPECT_EQ(shader.viewTermCount(), 0);
-    size_t checked = 0;
-    for (const GBufferPixel& p : g.pixels) {
-        const glm::vec3 L = shader.shade(p, rad);
-        if (!p.hit) {
-            EXPECT_EQ(L, glm::vec3(0.0f));
-            continue;
-        }
-        const double cosO = glm::dot(glm::dvec3(p.normal), glm::dvec3(p.toViewer));
-        const double ft = cosO > 0 ? fresnelTransmittance(eta, cosO) : 0.0;
-        const glm::dvec3 expected = ft * (glm::dvec3(1.0) + 0.05 * glm::dvec3(p.position));
-        EXPECT_NEAR(L.x, expected.x, 1e-5);
-        EXPECT_NEAR(L.y, expected.y, 1e-5);
-        EXPECT_NEAR(L.z, expected.z, 1e-5);
-        ++checked;
-    }
-    EXPECT_GT(checked, 100u);
-    // Back-facing interpolated normal: black.
-    GBufferPixel back = g.pixels[size_t(32) * 64 + 32];
-    ASSERT_TRUE(back.hit);
-    back.normal = -back.normal;
-    EXPECT_EQ(shader.shade(back, rad), glm::vec3(0.0f));
-}
-
-TEST(TranslucentShader, ViewMapsAreLookedUpAtTheRefractedViewDirection) {
-    TriangleMesh sphere = makeIcosphere(3, 10.0f);
-    RayScene scene(sphere);
-    Camera c;
-    c.eye = {0, 0, 60};
-    c.target = {0, 0, 0};
-    c.width = 33;
-    c.height = 33;
-    GBuffer g = traceGBuffer(scene, sphere, c);
-    const GBufferPixel& centre = at(g, 16, 16);
-    ASSERT_TRUE(centre.hit);
-
-    // Two terms: h_0 = 1 on the -Z face (where w_o' points at the centre pixel: into
-    // the medium, opposite to the viewer on +Z), 0 elsewhere; h_1 = 0.5 everywhere.
-    ViewMaps maps;
-    maps.size = 4;
-    maps.terms = 2;
-    const size_t texels = size_t(6) * 16;
-    maps.data.assign(2 * texels, 0.0f);
-    for (size_t i = 0; i < 16; ++i) maps.data[5 * 16 + i] = 1.0f;
-    for (size_t i = 0; i < texels; ++i) maps.data[texels + i] = 0.5f;
-
-    const double eta = 1.4;
-    TranslucentShader shader(sphere, eta, &maps);
-    ASSERT_EQ(shader.viewTermCount(), 2);
-    EXPECT_FLOAT_EQ(shader.viewTerm(0, {0, 0, -1}), 1.0f);
-    EXPECT_FLOAT_EQ(shader.viewTerm(0, {0, 0, 1}), 0.0f);
-    EXPECT_FLOAT_EQ(shader.viewTerm(1, {0.3, -0.2, 0.5}), 0.5f);
-
-    VertexRadiance rad;
-    rad.diffuse.assign(sphere.vertexCount(), glm::vec3(0.25f));
-    rad.terms.assign(2, std::vector<glm::vec3>(sphere.vertexCount(), glm::vec3(1.0f, 2.0f, 3.0f)));
-    const glm::vec3 L = shader.shade(centre, rad);
-    const double ft = fresnelTransmittance(eta, glm::dot(centre.normal, centre.toViewer));
-    // 0.25 + h_0 * (1, 2, 3) + h_1 * (1, 2, 3) with h_0 = 1, h_1 = 0.5.
-    EXPECT_NEAR(L.x, ft * (0.25 + 1.5 * 1), 1e-5);
-    EXPECT_NEAR(L.y, ft * (0.25 + 1.5 * 2), 1e-5);
-    EXPECT_NEAR(L.z, ft * (0.25 + 1.5 * 3), 1e-5);
-    // Without view maps the terms are ignored.
-    TranslucentShader plain(sphere, eta);
-    EXPECT_NEAR(plain.shade(centre, rad).x, ft * 0.25, 1e-6);
-    // A negative K-term sum (the factored phase's negative lobes) adds nothing: single
-    // scattering is clamped at 0 per channel before it joins the diffuse part, and the
-    // whole radiance is never negative.
-    rad.terms.assign(2, std::vector<glm::vec3>(sphere.vertexCount(), glm::vec3(-1.0f, 0.1f, -3.0f)));
-    const glm::vec3 clamped = shader.shade(centre, rad);
-    EXPECT_NEAR(clamped.x, ft * 0.25, 1e-6);
-    EXPECT_NEAR(clamped.y, ft * (0.25 + 1.5 * 0.1), 1e-6);
-    EXPECT_NEAR(clamped.z, ft * 0.25, 1e-6);
-    rad.diffuse.assign(sphere.vertexCount(), glm::vec3(-0.25f));
-    EXPECT_EQ(shader.shade(centre, rad).x, 0.0f);
-}
-
-TEST(Specular, FresnelReflectionOfThePrefilteredEnvironment) {
-    TriangleMesh sphere = makeIcosphere(3, 10.0f);
-    RayScene scene(sphere);
-    Camera c;
-    c.eye = {0, 0, 60};
-    c.target = {0, 0, 0};
-    c.width = 33;
-    c.height = 33;
-    GBuffer g = traceGBuffer(scene, sphere, c);
-    const Image cst = constantEnvironment(32, {2.0f, 3.0f, 4.0f});
-    size_t hits = 0;
-    for (const GBufferPixel& p : g.pixels) {
-        const glm::vec3 L = specularReflection(p, 1.3, cst, rotationY(40.0));
-        if (!p.hit) {
-            EXPECT_EQ(L, glm::vec3(0.0f));
-            continue;
-        }
-        ++hits;
-        const double cosO = glm::dot(p.normal, p.toViewer);
-        EXPECT_NEAR(L.y, 3.0 * fresnelReflectance(1.3, cosO), 1e-6);
-    }
-    EXPECT_GT(hits, 100u);
-    // The mirror direction: at the centre pixel (normal ~ toward the eye) the
-    // reflection looks back toward +Z; a sun there is seen, one at -Z is not.
-    const GBufferPixel& centre = at(g, 16, 16);
-    const Image sunBack = sunEnvironment(64, latLongPixelDirection(0, 16, 64, 32), {1, 1, 1});
-    const Image sunFront = sunEnvironment(64, latLongPixelDirection(32, 16, 64, 32), {1, 1, 1});
-    EXPECT_GT(specularReflection(centre, 1.3, sunBack, glm::dmat3(1.0)).x, 0.0f);
-    EXPECT_EQ(specularReflection(centre, 1.3, sunFront, glm::dmat3(1.0)).x, 0.0f);
-}
-
-TEST(Specular, PrefilterPreservesTheIntegral) {
-    const Image env = sunEnvironment(64, glm::normalize(glm::dvec3(0.3, 0.8, -0.5)), {5, 6, 7});
-    for (int factor : {1, 2, 4, 8}) {
-        const Image f = prefilterEnvironment(env, factor);
-        EXPECT_EQ(f.width, 64 / factor);
-        EXPECT_EQ(f.height, 32 / factor);
-        for (int ch = 0; ch < 3; ++ch)
-            EXPECT_NEAR(latLongIntegral(f, ch), latLongIntegral(env, ch), 1e-6 * latLongIntegral(env, ch));
-    }
-    const Image cst = prefilterEnvironment(constantEnvironment(64, {1, 2, 3}), 4);
-    for (int y = 0; y < cst.height; ++y)
-        for (int x = 0; x < cst.width; ++x)
-            for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(cst.at(x, y, ch), ch + 1.0f, 1e-6f);
-    EXPECT_THROW(prefilterEnvironment(env, 3), Error);
-    EXPECT_THROW(prefilterEnvironment(env, 0), Error);
-}
-
-// ---------------------------------------------------------------------------
 // Turntable: camera orbit + environment rotation == turned object in a fixed world
 // ---------------------------------------------------------------------------
 
@@ -480,115 +326,3 @@ TEST(Turntable, CameraOrbitEqualsTurnedObject) {
     }
 }
 
-// ---------------------------------------------------------------------------
-// End to end: files on disk -> placed object -> light vector -> relight -> frame
-// ---------------------------------------------------------------------------
-
-namespace {
-
-// A transport file for `mesh` whose multiple-scattering vector at vertex v holds only
-// the six face scaling coefficients, with RGB values (1 + 0.1 x_v / R) * faceWeight[f]
-// * rgb (x_v in file units).
-TransportFile syntheticTransport(const TriangleMesh& mesh, int n, double mmPerUnit, float R) {
-    TransportFile file;
-    file.cubemapSize = uint32_t(n);
-    file.mesh = MeshFingerprint{mesh.vertexCount(), meshFingerprint(mesh)};
-    file.mmPerUnit = mmPerUnit;
-    file.parameters = {{"material", "synthetic"}, {"eta", "1.3"}};
-    TransportComponent ms;
-    ms.kind = ComponentKind::MultipleScattering;
-    const float faceWeight[6] = {1.0f, 2.0f, 3.0f, 4.0f, 5.0f, 6.0f};
-    const glm::vec3 rgb(0.01f, 0.02f, 0.03f);
-    for (const glm::vec3& p : mesh.positions) {
-        std::vector<uint32_t> idx;
-        std::vector<float> values;
-        const float s = 1.0f + 0.1f * p.x / R;
-        for (int f = 0; f < 6; ++f) {
-            idx.push_back(uint32_t(f * n * n));
-            for (int c = 0; c < 3; ++c) values.push_back(s * faceWeight[f] * rgb[c]);
-        }
-        ms.vectors.appendVertex(idx, values);
-    }
-    file.components.push_back(std::move(ms));
-    return file;
-}
-
-}  // namespace
-
-TEST(RenderEndToEnd, ConstantEnvironmentGivesFresnelTimesClosedFormDot) {
-    const std::string dir = scratchDir("end_to_end");
-    const float R = 2.0f;  // file units
-    const double mmPerUnit = 5.0;
-    const int n = 8;
-    saveMesh(makeIcosphere(4, R), dir + "/sphere.obj");
-    const TriangleMesh fileMesh = loadMesh(dir + "/sphere.obj");
-    saveTransportFile(dir + "/sphere.prt", syntheticTransport(fileMesh, n, mmPerUnit, R));
-
-    const RelightObject object = loadRelightObject(dir + "/sphere.obj", dir + "/sphere.prt");
-    EXPECT_DOUBLE_EQ(object.eta, 1.3);
-    ASSERT_EQ(object.mesh.vertexCount(), fileMesh.vertexCount());
-    EXPECT_NEAR(object.sphereRadius, R * mmPerUnit, 1e-4);
-    EXPECT_NEAR(glm::length(object.sphereCentre), 0.0, 1e-4);
-    EXPECT_NEAR(object.mesh.positions[7].x, fileMesh.positions[7].x * mmPerUnit, 1e-5);
-
-    // Constant environment c: each face's Haar scaling coefficient is N * c (N times
-    // the face mean), every other coefficient 0. So at vertex v
-    //   diffuse[v] = sum_f s_v w_f rgb N c = s_v N c rgb * 21.
-    const glm::vec3 cst(0.7f, 1.1f, 1.9f);
-    const Image env = constantEnvironment(64, cst);
-    const LightVector light = makeLightVector(env, n, rotationY(33.0));
-    VertexRadiance rad;
-    relightVertices(object.transport, light, ScatteringComponents::all(), rad);
-    ASSERT_EQ(rad.diffuse.size(), object.mesh.vertexCount());
-
-    const RayScene scene(object.mesh);
-    const Camera camera = frameSphere(object.sphereCentre, object.sphereRadius, 0, 0, 30, 65, 65);
-    const GBuffer g = traceGBuffer(scene, object.mesh, camera);
-    const TranslucentShader shader(object.mesh, object.eta);
-    const Image img = compose(g, env, glm::dmat3(1.0), [&](const GBufferPixel& p) { return shader.shade(p, rad); });
-
-    const GBufferPixel& centre = at(g, 32, 32);
-    ASSERT_TRUE(centre.hit);
-    const double cosO = glm::dot(centre.normal, centre.toViewer);
-    EXPECT_GT(cosO, 0.999);
-    const glm::dvec3 rgb(0.01, 0.02, 0.03);
-    // s at the hit point (file units: position / mmPerUnit).
-    const double s = 1.0 + 0.1 * (centre.position.x / mmPerUnit) / R;
-    for (int ch = 0; ch < 3; ++ch) {
-        const double closedForm = s * 21.0 * rgb[ch] * n * cst[ch];
-        EXPECT_NEAR(img.at(32, 32, ch), fresnelTransmittance(1.3, cosO) * closedForm, 2e-4 * closedForm);
-        // ~ F_t(eta, 1) at normal incidence.
-        EXPECT_NEAR(img.at(32, 32, ch), fresnelTransmittance(1.3, 1.0) * closedForm, 2e-3 * closedForm);
-    }
-    EXPECT_EQ(img.at(32, 32, 3), 1.0f);
-    // Every object pixel: the same law with its own normal and position.
-    for (int y = 0; y < g.height; ++y)
-        for (int x = 0; x < g.width; ++x) {
-            const GBufferPixel& p = at(g, x, y);
-            if (!p.hit) {
-                EXPECT_FLOAT_EQ(img.at(x, y, 1), cst.y);
-                continue;
-            }
-            const double co = glm::dot(p.normal, p.toViewer);
-            const double ft = co > 0 ? fresnelTransmittance(1.3, co) : 0.0;
-            const double sp = 1.0 + 0.1 * (p.position.x / mmPerUnit) / R;
-            const double expected = ft * sp * 21.0 * rgb[1] * n * cst[1];
-            EXPECT_NEAR(img.at(x, y, 1), expected, 2e-4 * (1e-3 + expected));
-        }
-}
-
-TEST(RenderEndToEnd, MismatchedMeshIsRefused) {
-    const std::string dir = scratchDir("mismatch");
-    saveMesh(makeIcosphere(2, 1.0f), dir + "/a.obj");
-    saveMesh(makeIcosphere(2, 1.5f), dir + "/b.obj");
-    saveTransportFile(dir + "/a.prt", syntheticTransport(loadMesh(dir + "/a.obj"), 4, 1.0, 1.0f));
-    EXPECT_NO_THROW(loadRelightObject(dir + "/a.obj", dir + "/a.prt"));
-    try {
-        loadRelightObject(dir + "/b.obj", dir + "/a.prt");
-        FAIL() << "a transport file for another mesh was accepted";
-    } catch (const Error& e) {
-        EXPECT_NE(std::string(e.what()).find("a.prt"), std::string::npos) << e.what();
-    }
-    EXPECT_THROW(loadRelightObject(dir + "/missing.obj", dir + "/a.prt"), Error);
-    EXPECT_THROW(loadRelightObject(dir + "/a.obj", dir + "/missing.prt"), Error);
-}
