@@ -1,32 +1,22 @@
 #pragma once
-// Blocked transport vectors: blocks of 16 consecutive vertices share one list of Haar
-// coefficient indices, chosen jointly for the block, with 8-bit values (issue 16,
-// "compressed transport"; measurements in docs/performance.md).
+// Blocked transport vectors: blocks of 16 vertices close on the surface share one list
+// of Haar coefficient indices, chosen jointly for the block, with 8-bit values. WHY:
+// the relight kernel (relight/prt/relight_kernel.h) then loads the light once per
+// index for 16 vertices and does their multiply-adds as one vector operation
+// (docs/transport-format.md, "Blocked files: why and measurements").
 //
-// WHY. The per-vertex kernel (relight/prt/relight_kernel.h) does, per coefficient, one
-// index-dependent load of the light, a conversion and a multiply-add; halving its bytes
-// (8-bit values, delta-coded indices) measured no faster. Sharing the index list of a
-// block lets the kernel load the light once per index for 16 vertices and do the 16
-// multiply-adds as one vector operation, so it streams ~0.6x the bytes with far less
-// work per byte. The indices are chosen jointly (jointTruncate below), so a block
-// keeping M indices is not the union of 16 per-vertex lists: measured on the dragon
-// res3 against 1,024-term vectors, 192 per block of 16 matches each vertex keeping its
-// own 128 (forest 1.06% vs 1.38%, city 2.59% vs 2.55%).
-//
-// BLOCKS. A block is 16 vertices that are close on the surface: `order` lists the
-// vertices block after block (spatialBlockOrder: median splits of the positions into
-// leaves of 16). Measured on the bunny (Marble, 1,024-term source vectors): blocks of
-// 16 consecutive file indices sharing 160 lose to each vertex keeping 128 (forest 1.32%
-// vs 1.07%, city 3.20% vs 2.18%); spatial blocks sharing 160 beat it (0.91%, 1.87%).
+// BLOCKS. `order` lists the vertices block after block; spatialBlockOrder makes blocks
+// of close vertices (median splits of the positions into leaves of 16), jointTruncate
+// chooses each block's indices.
 //
 // LAYOUT. Block b holds the vertices order[16 b + lane], lane 0..15 (only the last block
 // may be partial: lanes past the vertex count are padding with zero values and zero
 // scales, and order has exactly V entries, a permutation of 0..V-1) and the indices
 // [offsets[b], offsets[b+1]), strictly increasing, each < 6 N^2 (+ the file's SH terms,
-// transport_file.h). For the n-th index of
-// the whole array, values[48 n + 16 c + lane] is the int8 value of channel c for that
-// lane; scales[48 b + 16 c + lane] is the lane's per-channel scale. The value of
-// channel c of vertex 16 b + lane at index indices[n] is
+// transport_file.h). For the n-th index of the whole array, values[48 n + 16 c + lane]
+// is the int8 value of channel c for that lane; scales[48 b + 16 c + lane] is the
+// lane's per-channel scale. The value of channel c of vertex order[16 b + lane] at
+// index indices[n] is
 //     values[48 n + 16 c + lane] * scales[48 b + 16 c + lane].
 // So relighting a block is, per index, one light load and three 16-wide multiply-adds.
 //
@@ -40,9 +30,8 @@
 // 6 N^2; transport_file.h) the indices >= shFrom have scales of their own, shScales
 // (48 per block, laid out as scales), each max |v_nc| / 127 over those indices only;
 // the maxima above then run over the Haar indices only. WHY: the SH band-0 coefficient
-// of a transport vector is 10-190x (median 27x) its largest Haar coefficient (bunny,
-// Marble and Ketchup), so one scale set by it left the Haar residual ~5 levels of the
-// 255 and added 0.1-0.6 points of rel. RMSE to a render (docs/performance.md). The
+// dwarfs the Haar ones, and a scale set by it would leave the Haar values a few of the
+// 255 levels (docs/transport-format.md, "Blocked files: why and measurements"). The
 // SH indices are the last of each block (indices increase), so the kernel sums the
 // Haar range and the SH range separately and scales each once. Without shFrom
 // (UINT32_MAX: no SH terms, or a format version 2-3 file) shScales is empty and
@@ -145,13 +134,12 @@ BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
                                 uint32_t forcedFrom = UINT32_MAX);
 
 // The on-disk form of a blocked component's indices (format version 4,
-// docs/transport-format.md): per block, the first index and then each index minus its
-// predecessor minus 1, as LEB128 varints (7 bits per byte, low bits first, the high
-// bit set on every byte but the last; at most 3 bytes for a 16-bit index, never an
-// overlong encoding). A block of 160 Haar indices averages ~1.05 bytes per index
-// instead of 2 (bunny and dragon res3, Marble). encodeBlockIndices writes b's indices
-// block after block; decodeBlockIndices reads `bytes` back into `indices` for the blocks
-// that `offsets` describes and returns an empty string, or a one-line reason when the
+// docs/transport-format.md, "BLKC payload"): per block, the first index and then each
+// index minus its predecessor minus 1, as LEB128 varints (7 bits per byte, low bits
+// first, the high bit set on every byte but the last; at most 3 bytes for a 16-bit
+// index, never an overlong encoding). encodeBlockIndices writes b's indices block after
+// block; decodeBlockIndices reads `bytes` back into `indices` for the blocks that
+// `offsets` describes and returns an empty string, or a one-line reason when the
 // offsets do not rise from 0 or the stream is truncated, overlong, has bytes left over
 // or decodes an index above 65535. They are inverses: decode(encode(b)) == b.indices.
 std::vector<uint8_t> encodeBlockIndices(const BlockedRgbVectors& b);

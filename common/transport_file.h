@@ -158,11 +158,11 @@ inline constexpr const char* kShardVerticesParameter = "shard_vertices";
 // blocked component passes checkBlockedVectors and has empty `vectors`), then
 // writes through writeAtomically (common/atomic_file.h): on any failure an existing
 // file at `path` is untouched, no temporary file is left and prt::Error(path, reason)
-// is thrown. A file with SH terms and a blocked component is format version 4 (varint
-// indices, SH scales where BlockedRgbVectors::shFrom is set), another file with SH
-// terms version 3; otherwise one with a blocked
-// component is version 2, any other file version 1 (the same bytes as before blocked
-// components and SH parts existed).
+// is thrown. The format version is the lowest that holds the file: 4 with SH terms and
+// a blocked component (varint indices, SH scales where BlockedRgbVectors::shFrom is
+// set), 3 with SH terms, 2 with a blocked component, else 1, so older readers keep
+// reading what needs nothing newer (docs/transport-format.md, "Compatibility").
+// Deterministic: the same TransportFile gives the same bytes.
 void saveTransportFile(const std::string& path, const TransportFile& file);
 
 // Reads and verifies the whole file (every section's checksum, every count and
@@ -171,13 +171,13 @@ void saveTransportFile(const std::string& path, const TransportFile& file);
 // section and the bytes it needs), a checksum mismatch (naming the section) or
 // inconsistent contents. Allocations never exceed the file's size.
 TransportFile loadTransportFile(const std::string& path);
-// The same, but refuses (before reading the vectors) a file made for another mesh, and
-// a shard file (what the renderers load must be whole).
+// The same, but refuses (before reading the vectors) a file made for another mesh
+// (naming both fingerprints), and a shard file (what the renderers load must be whole).
 TransportFile loadTransportFile(const std::string& path, const MeshFingerprint& expected);
 
 // What readTransportFileInfo returns: everything except the vectors and view maps.
 struct TransportFileInfo {
-    uint32_t version = 0;  // the file's format version: 4 with SH terms and blocks, else 3 with SH terms, else 2 with blocks, else 1
+    uint32_t version = 0;  // the file's format version, 1..4 (see saveTransportFile)
     uint32_t cubemapSize = 0;
     uint32_t shTerms = 0;
     MeshFingerprint mesh;

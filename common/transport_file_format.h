@@ -1,0 +1,206 @@
+#pragma once
+// Private to the transport-file implementation (transport_file*.cpp): the on-disk
+// layout that the writer and the readers share, and the validation of the in-memory
+// model that both apply. These constants and layout functions are the single source
+// of truth for the byte layout of docs/transport-format.md ("Byte layout"); callers
+// use common/transport_file.h.
+
+#include <zlib.h>
+
+#include <algorithm>
+#include <array>
+#include <cinttypes>
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "common/transport_file.h"
+
+namespace prt::transport_format {
+
+inline constexpr std::array<char, 8> kMagic = {'P', 'R', 'T', 'X', 'P', 'O', 'R', 'T'};
+
+// The preamble's version field. The writer picks the lowest version that can hold the
+// file (formatVersionOf), so a file without blocked components or SH terms stays
+// version 1 byte for byte; a reader accepts 1..4 and refuses a version that disagrees
+// with the sections (docs/transport-format.md, "Compatibility").
+inline constexpr uint32_t kFormatVersion = 1;             // per-vertex components (COMP) only
+inline constexpr uint32_t kBlockedFormatVersion = 2;      // + blocked components (BLKC)
+inline constexpr uint32_t kShFormatVersion = 3;           // + SH term count in HEAD (indices < 6 N^2 + S)
+inline constexpr uint32_t kBlockVarintFormatVersion = 4;  // + varint BLKC indices and SH scales
+
+inline constexpr uint32_t kEndianMarker = 0x01020304u;
+inline constexpr uint64_t kAlignment = 64;  // every section payload and array starts at a multiple
+inline constexpr uint64_t kPreambleBytes = 16;
+inline constexpr uint64_t kSectionHeaderBytes = 16;  // tag, flags, payload length
+inline constexpr uint64_t kChecksumBytes = 4;
+inline constexpr uint64_t kHeadBytes = 40;
+inline constexpr uint64_t kComponentFixedBytes = 64;
+inline constexpr uint64_t kBlockedFixedBytes = 64;
+inline constexpr uint64_t kViewFixedBytes = 64;
+inline constexpr uint64_t kMaxParameterBytes = uint64_t(16) << 20;
+inline constexpr uint32_t kMaxCubemapSize = 64;
+inline constexpr uint64_t kMaxVertices = uint64_t(1) << 40;
+inline constexpr uint32_t kMaxViewMapSize = 4096;
+inline constexpr uint32_t kMaxViewMapTerms = 4096;
+
+// The sections, in file order.
+enum class Section { Head, Parameters, Component, BlockedComponent, ViewMaps, End };
+
+inline const char* tagOf(Section s) {
+    switch (s) {
+        case Section::Head: return "HEAD";
+        case Section::Parameters: return "PARM";
+        case Section::Component: return "COMP";
+        case Section::BlockedComponent: return "BLKC";
+        case Section::ViewMaps: return "VIEW";
+        case Section::End: return "END ";
+    }
+    return "????";
+}
+
+// ---- layout ---------------------------------------------------------------------
+
+inline uint64_t alignUp(uint64_t x) { return (x + kAlignment - 1) / kAlignment * kAlignment; }
+
+// Zero bytes before a section header at file offset pos so that the section's payload
+// starts at a multiple of kAlignment.
+inline uint64_t paddingBefore(uint64_t pos) {
+    return (kAlignment - (pos + kSectionHeaderBytes) % kAlignment) % kAlignment;
+}
+
+// Byte offsets, relative to the payload start, of a COMP section's arrays.
+struct ComponentLayout {
+    uint64_t offsets = 0, indices = 0, values = 0, scales = 0, total = 0;
+};
+
+// Requires vertices <= kMaxVertices and coefficients <= UINT32_MAX (no overflow).
+inline ComponentLayout componentLayout(uint64_t vertices, uint64_t coefficients) {
+    ComponentLayout l;
+    l.offsets = kComponentFixedBytes;
+    l.indices = alignUp(l.offsets + (vertices + 1) * sizeof(uint32_t));
+    l.values = alignUp(l.indices + coefficients * sizeof(uint16_t));
+    l.scales = alignUp(l.values + 3 * coefficients * sizeof(int16_t));
+    l.total = l.scales + 3 * vertices * sizeof(float);
+    return l;
+}
+
+// Blocks of kVertexBlock vertices (the last one may be partial).
+inline uint64_t blockCountOf(uint64_t vertices) { return (vertices + kVertexBlock - 1) / kVertexBlock; }
+
+// Byte offsets, relative to the payload start, of a BLKC section's arrays.
+struct BlockedLayout {
+    uint64_t order = 0, offsets = 0, indices = 0, values = 0, scales = 0, shScales = 0, total = 0;
+};
+
+// Requires vertices <= kMaxVertices, indices <= UINT32_MAX and indexBytes <= 3 indices
+// (no overflow). indexBytes: the size of the index array (2 per index before format
+// version 4, the varint stream's size from it); shScales: the SH scales array is there.
+inline BlockedLayout blockedLayout(uint64_t vertices, uint64_t indices, uint64_t indexBytes, bool shScales) {
+    const uint64_t blocks = blockCountOf(vertices);
+    BlockedLayout l;
+    l.order = kBlockedFixedBytes;
+    l.offsets = alignUp(l.order + vertices * sizeof(uint32_t));
+    l.indices = alignUp(l.offsets + (blocks + 1) * sizeof(uint32_t));
+    l.values = alignUp(l.indices + indexBytes);
+    l.scales = alignUp(l.values + indices * kBlockValuesPerIndex * sizeof(int8_t));
+    l.total = l.scales + blocks * kBlockValuesPerIndex * sizeof(float);
+    if (shScales) {
+        l.shScales = alignUp(l.total);
+        l.total = l.shScales + blocks * kBlockValuesPerIndex * sizeof(float);
+    }
+    return l;
+}
+
+// Requires size <= kMaxViewMapSize and terms <= kMaxViewMapTerms.
+inline uint64_t viewMapsPayloadBytes(uint64_t size, uint64_t terms) {
+    return kViewFixedBytes + terms * 6 * size * size * sizeof(float);
+}
+
+// ---- encoding -------------------------------------------------------------------
+
+// Little-endian scalars, independent of the host byte order.
+inline void putU32(uint8_t* p, uint32_t v) {
+    for (int i = 0; i < 4; ++i) p[i] = uint8_t(v >> (8 * i));
+}
+inline void putU64(uint8_t* p, uint64_t v) {
+    for (int i = 0; i < 8; ++i) p[i] = uint8_t(v >> (8 * i));
+}
+inline uint32_t getU32(const uint8_t* p) {
+    uint32_t v = 0;
+    for (int i = 0; i < 4; ++i) v |= uint32_t(p[i]) << (8 * i);
+    return v;
+}
+inline uint64_t getU64(const uint8_t* p) {
+    uint64_t v = 0;
+    for (int i = 0; i < 8; ++i) v |= uint64_t(p[i]) << (8 * i);
+    return v;
+}
+
+// Reverses the bytes of each of `count` elements of `size` bytes (big-endian hosts).
+inline void byteSwapElements(uint8_t* p, size_t count, size_t size) {
+    for (size_t e = 0; e < count; ++e) std::reverse(p + e * size, p + (e + 1) * size);
+}
+
+// zlib crc32 over any length (crc32 takes at most 4 GiB - 1 at a time).
+inline uLong crcUpdate(uLong crc, const void* data, uint64_t n) {
+    const auto* p = static_cast<const Bytef*>(data);
+    while (n > 0) {
+        const uInt chunk = uInt(std::min<uint64_t>(n, uint64_t(1) << 30));
+        crc = crc32(crc, p, chunk);
+        p += chunk;
+        n -= chunk;
+    }
+    return crc;
+}
+
+// ---- text for messages ----------------------------------------------------------
+
+inline std::string u64(uint64_t v) { return std::to_string(v); }
+
+inline std::string hex32(uint32_t v) {
+    char buf[16];
+    std::snprintf(buf, sizeof buf, "0x%08" PRIx32, v);
+    return buf;
+}
+
+inline std::string hex64(uint64_t v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "0x%016" PRIx64, v);
+    return buf;
+}
+
+// The shortest %g form that reads back as v (%.17g if none does).
+inline std::string formatDouble(double v) {
+    for (int precision = 1; precision <= 17; ++precision) {
+        char buf[64];
+        std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+        if (std::strtod(buf, nullptr) == v) return buf;
+    }
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.17g", v);
+    return buf;
+}
+
+// ---- validation (transport_file.cpp), shared by save and load ------------------
+// Each returns "" when fine, else a one-line reason.
+
+inline bool validKind(uint32_t kind) {
+    return kind >= uint32_t(ComponentKind::MultipleScattering) &&
+           kind <= uint32_t(ComponentKind::SingleScatteringTerm);
+}
+
+inline bool validShTermCount(uint32_t terms) { return terms == 0 || terms == 1 || terms == 4 || terms == 9; }
+
+// Per-vertex vectors of `vertices` vertices with indices < 6 N^2 + shTerms.
+std::string checkVectors(const SparseRgbVectors& s, uint64_t vertices, uint32_t cubemapSize, uint32_t shTerms);
+// Blocked vectors of `vertices` vertices (offsets checked monotone before
+// checkBlockedVectors walks them).
+std::string checkBlocked(const BlockedRgbVectors& b, uint64_t vertices, uint32_t cubemapSize, uint32_t shTerms);
+// Everything saveTransportFile promises (transport_file.h) that does not depend on the
+// byte layout.
+std::string checkFile(const TransportFile& f);
+
+}  // namespace prt::transport_format
