@@ -67,9 +67,12 @@ run_target() {
   # leak detection on, libFuzzer re-checks each such input with LeakSanitizer and the
   # target slows from ~100 to ~5 runs/s. Our code's leaks are the ASan test run's job.
   [ "$t" != environment ] || leaks=0
+  # The transport-file target also starts from the golden files of tests/golden/.
+  local seeds=("$work/corpus/$t" "$root/tools/fuzz/corpus/$t")
+  [ "$t" != transport_file ] || seeds+=("$root/tests/golden")
   { time "$build_dir/bin/fuzz-$t" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2560 -detect_leaks=$leaks \
       -malloc_limit_mb=2560 -close_fd_mask=3 -print_final_stats=1 -max_len=65536 \
-      -artifact_prefix="$work/crashes/$t/" "$work/corpus/$t" "$root/tools/fuzz/corpus/$t" \
+      -artifact_prefix="$work/crashes/$t/" "${seeds[@]}" \
       >"$work/logs/$t.log" 2>&1 || status=$?; } 2>"$work/logs/$t.cpu"
   echo "$status" >"$work/logs/$t.status"
 }
