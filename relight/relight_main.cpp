@@ -4,19 +4,17 @@
 //           environment spin;
 //   view    the interactive viewer (relight/viewer/view.h), scriptable for tests;
 //   info    what a transport file holds (header only, or --full: load and verify).
-// render and view take the same camera options (addCameraOptions / makeCamera) and the same
-// lighting options (addLightingOptions: --env-rotation, --components, -L, --specular,
-// --specular-blur, --exposure), so a viewer screenshot and a render of the same
-// arguments show the same image.
+// render and view take the same camera options (addCameraOptions / makeCamera) and the
+// same look (FrameSettings, bound once by addFrameOptions: --env-rotation, --components,
+// -L, --specular, --specular-blur, --exposure), so a viewer screenshot and a render of
+// the same arguments show the same image.
 
 #include <CLI/CLI.hpp>
-#include <tbb/global_control.h>
 
-#include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -25,68 +23,34 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/image.h"
-#include "relight/prt/light_vector.h"
-#include "common/progress.h"
-#include "relight/prt/relight_kernel.h"
 #include "common/options.h"
-#include "relight/render/gbuffer.h"
-#include "relight/render/specular.h"
-#include "relight/prt/relight_object.h"
-#include "relight/prt/translucent_shader.h"
-#include "relight/pointlight/point_lights.h"
-#include "relight/pointlight/surface_atlas.h"
-#include "relight/pointlight/texture_space_sampling.h"
-#include "relight/viewer/view.h"
+#include "common/progress.h"
+#include "common/raytrace.h"
 #include "common/transport_file.h"
 #include "common/transport_params.h"
 #include "common/util.h"
+#include "relight/pointlight/point_lights.h"
+#include "relight/pointlight/surface_atlas.h"
+#include "relight/pointlight/texture_space_sampling.h"
+#include "relight/prt/frame_settings.h"
+#include "relight/prt/light_vector.h"
+#include "relight/prt/relight_kernel.h"
+#include "relight/prt/relight_object.h"
+#include "relight/prt/translucent_shader.h"
+#include "relight/render/gbuffer.h"
+#include "relight/render/specular.h"
+#ifdef PRT_HAVE_VIEWER
+#include "relight/viewer/view.h"  // the viewer's entry points: ViewerSetup, runViewer, ...
+#endif
 
 using namespace prt;
 
 namespace {
 
-
-// Lighting options shared by render and view.
-struct LightingOptions {
-    double envRotation = 0.0, exposure = 0.0;
-    std::string components = "all";
-    size_t lightTerms = 0;
-    bool specular = false;
-    int specularBlur = 0;  // 0: automatic (specularBlurFactor)
-};
-
-// Returns the --specular flag (render makes --specular-blur need it).
-CLI::Option* addLightingOptions(CLI::App& app, LightingOptions& o, CLI::Option** blur) {
-    app.add_option("--env-rotation", o.envRotation, "Rotate the environment by this many degrees about +Y")
-        ->capture_default_str()->group("Lighting");
-    app.add_option("--components", o.components,
-                   "Components to render: ms, ss, ms,ss or all (default: all the file has)")
-        ->capture_default_str()->group("Lighting");
-    app.add_option("-L,--light-terms", o.lightTerms,
-                   "Keep the largest L Haar terms of the light (0 = all)")
-        ->capture_default_str()->group("Lighting");
-    auto* specularFlag = app.add_flag("--specular", o.specular,
-                 "Add a Fresnel-weighted specular reflection of the pre-filtered environment "
-                 "(off by default; the reference renderer has none)")
-        ->group("Lighting");
-    *blur = app.add_option("--specular-blur", o.specularBlur,
-                   "Pre-filter of the specular layer: box-filter the lat-long map down by this factor "
-                   "(must divide its size; default: the largest of 8, 4, 2, 1 that does)")
-        ->group("Lighting");
-    app.add_option("--exposure", o.exposure, "Exposure in stops for the PNG (the EXR stays linear)")
-        ->capture_default_str()->group("Output");
-    return specularFlag;
-}
-
-void checkLightingOptions(const LightingOptions& o) {
-    if (!std::isfinite(o.envRotation)) throw Error("--env-rotation", "must be finite");
-    if (!std::isfinite(o.exposure)) throw Error("--exposure", "must be finite");
-    if (o.specularBlur < 0) throw Error("--specular-blur", "must be >= 1");
-}
-
-struct RenderOptions : LightingOptions {
+struct RenderOptions {
     std::string mesh, transport, environment, output;
     CameraOptions camera;
+    FrameSettings frame;
     int turntable = 0, envSpin = 0;
     int threads = 0;
 };
@@ -102,9 +66,8 @@ void addRenderOptions(CLI::App& app, RenderOptions& o) {
                    "<prefix>.png (sRGB); sequences write <prefix>_0000.exr/.png, ...")
         ->required();
     addCameraOptions(app, o.camera);
-    CLI::Option* blur = nullptr;
-    CLI::Option* specularFlag = addLightingOptions(app, o, &blur);
-    blur->needs(specularFlag);
+    const FrameOptions frame = addFrameOptions(app, o.frame);
+    frame.specularBlur->needs(frame.specular);
     auto* tt = app.add_option("--turntable", o.turntable,
                               "Render N frames of the object turning 360 degrees about the vertical "
                               "axis through its bounding-box centre (environment fixed in the world)")
@@ -116,7 +79,6 @@ void addRenderOptions(CLI::App& app, RenderOptions& o) {
     addThreadsOption(app, o.threads);
 }
 
-
 std::string frameName(const std::string& prefix, int frame, int frames) {
     if (frames <= 0) return prefix;
     char buf[16];
@@ -125,16 +87,17 @@ std::string frameName(const std::string& prefix, int frame, int frames) {
 }
 
 int runRender(const RenderOptions& o) {
+    const FrameSettings& look = o.frame;
     const ThreadLimit limit(o.threads);
     if (o.turntable < 0 || o.envSpin < 0) throw Error("--turntable/--env-spin", "frame count must be >= 0");
-    checkLightingOptions(o);
+    checkFrameSettings(look);
     const std::string output = outputPrefix(o.output);
     if (output.empty()) throw Error("--output", "empty prefix");
 
     const Stopwatch loadStart;
     const RelightObject object = loadRelightObject(o.mesh, o.transport);
     const ScatteringComponents components =
-        selectComponents(o.components, componentsOf(object.transport), o.transport);
+        selectComponents(look.components, componentsOf(object.transport), o.transport);
     const Camera camera = makeCamera(o.camera, object.sphereCentre, object.sphereRadius);
     const Image environment = loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
     const RayScene scene(object.mesh);
@@ -143,7 +106,8 @@ int runRender(const RenderOptions& o) {
                                        ? &*object.transport.viewMaps
                                        : nullptr);
     Image prefiltered;
-    if (o.specular) prefiltered = prefilterEnvironment(environment, specularBlurFactor(o.specularBlur, environment));
+    if (look.specular)
+        prefiltered = prefilterEnvironment(environment, specularBlurFactor(look.specularBlur, environment));
     const double loadMs = loadStart.milliseconds();
 
     const std::filesystem::path parent = std::filesystem::path(output).parent_path();
@@ -160,11 +124,11 @@ int runRender(const RenderOptions& o) {
     std::printf("components: %s%s%s%s; light terms: %s; loaded in %.0f ms\n",
                 components.multipleScattering ? "ms" : "",
                 components.multipleScattering && components.singleScattering ? "," : "",
-                components.singleScattering ? "ss" : "", o.specular ? " + specular" : "",
-                o.lightTerms ? std::to_string(o.lightTerms).c_str() : "all", loadMs);
+                components.singleScattering ? "ss" : "", look.specular ? " + specular" : "",
+                look.lightTerms ? std::to_string(look.lightTerms).c_str() : "all", loadMs);
     std::fflush(stdout);
 
-    const glm::dmat3 baseRotation = rotationY(o.envRotation);
+    const glm::dmat3 baseRotation = rotationY(look.envRotation);
     GBuffer gbuffer;
     bool haveGBuffer = false;
     VertexRadiance radiance;
@@ -187,12 +151,12 @@ int runRender(const RenderOptions& o) {
         }
 
         Stopwatch t0;
-        // A sequence prepares the environment once (row running sums, light_vector.h):
-        // every later frame's light vector costs about 0.4 of building it from the image.
+        // A sequence prepares the environment once (EnvironmentLight, light_vector.h;
+        // docs/relight.md, "Turning the environment: the fast path").
         if (count > 1 && !prepared) prepared.emplace(environment, int(object.transport.cubemapSize));
         const LightVector light =
-            prepared ? prepared->lightVector(rotation, o.lightTerms)
-                     : makeLightVector(environment, int(object.transport.cubemapSize), rotation, o.lightTerms);
+            prepared ? prepared->lightVector(rotation, look.lightTerms)
+                     : makeLightVector(environment, int(object.transport.cubemapSize), rotation, look.lightTerms);
         const double lightMs = t0.milliseconds();
 
         t0.restart();
@@ -209,7 +173,7 @@ int runRender(const RenderOptions& o) {
         t0.restart();
         const Image image = compose(gbuffer, environment, rotation, [&](const GBufferPixel& p) {
             glm::vec3 L = shader.shade(p, radiance);
-            if (o.specular) L += specularReflection(p, object.eta, prefiltered, rotation);
+            if (look.specular) L += specularReflection(p, object.eta, prefiltered, rotation);
             return L;
         });
         const double shadeMs = t0.milliseconds();
@@ -217,7 +181,7 @@ int runRender(const RenderOptions& o) {
         t0.restart();
         const std::string base = frameName(output, f, frames);
         writeExr(base + ".exr", image);
-        writePng(base + ".png", image, o.exposure);
+        writePng(base + ".png", image, look.exposure);
         const double writeMs = t0.milliseconds();
         written.push_back(base);
 
@@ -252,10 +216,11 @@ int runRender(const RenderOptions& o) {
 // view
 // ---------------------------------------------------------------------------
 
-struct ViewOptions : LightingOptions {
+struct ViewOptions {
     std::string mesh, transport;
     std::vector<std::string> environments;
     CameraOptions camera;
+    FrameSettings frame;
     int frames = 0;
     std::vector<std::string> screenshots;
     bool screenshotWithPanel = false, noVsync = false, hidePanel = false;
@@ -277,8 +242,7 @@ void addViewOptions(CLI::App& app, ViewOptions& o) {
                    "Lat-long HDR environments (files, or folders of .exr/.hdr), repeatable; the first is "
                    "shown first (default: data/envmaps/, the eight fetched maps)");
     addCameraOptions(app, o.camera);
-    CLI::Option* blur = nullptr;
-    addLightingOptions(app, o, &blur);
+    addFrameOptions(app, o.frame);
     app.add_option("--frames", o.frames,
                    "Scripted run: render N frames once the first relight has landed, write the "
                    "--screenshot files and exit (0 = interactive)")
@@ -331,7 +295,7 @@ int runView(const ViewOptions& o) {
     throw Error("view", "this prt-relight was built without the viewer (configure with -DPRT_BUILD_VIEWER=ON)");
 #else
     const ThreadLimit limit(o.threads);
-    checkLightingOptions(o);
+    checkFrameSettings(o.frame);
     if (o.frames < 0) throw Error("--frames", "must be >= 0");
     if (!o.screenshots.empty() && o.frames == 0)
         throw Error("--screenshot", "needs --frames N (interactive screenshots: F12 or P)");
@@ -348,7 +312,8 @@ int runView(const ViewOptions& o) {
     setup.object = loadRelightObject(o.mesh, o.transport);
     setup.meshPath = o.mesh;
     setup.transportPath = o.transport;
-    setup.components = selectComponents(o.components, componentsOf(setup.object.transport), o.transport);
+    setup.frame = o.frame;
+    setup.components = selectComponents(o.frame.components, componentsOf(setup.object.transport), o.transport);
     setup.camera = makeCamera(o.camera, setup.object.sphereCentre, setup.object.sphereRadius);
     std::printf("object: %zu vertices, %zu triangles, %.4g mm across, eta %.4g; cubemap 6x%ux%u; loaded in %.0f ms\n",
                 setup.object.mesh.vertexCount(), setup.object.mesh.triangleCount(),
@@ -356,11 +321,6 @@ int runView(const ViewOptions& o) {
                 setup.object.transport.cubemapSize, loadStart.milliseconds());
     std::fflush(stdout);
     setup.tsis = o.tsis;
-    setup.envRotation = o.envRotation;
-    setup.exposure = o.exposure;
-    setup.lightTerms = o.lightTerms;
-    setup.specular = o.specular;
-    setup.specularBlur = o.specularBlur;
     setup.frames = o.frames;
     setup.screenshots = o.screenshots;
     setup.screenshotWithPanel = o.screenshotWithPanel;

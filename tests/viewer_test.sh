@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The viewer against the offline renderer (registered as the CTest viewer_matches_render
-# in relight/CMakeLists.txt; docs/viewer.md).
+# in tests/CMakeLists.txt; docs/viewer.md, "Agreement with prt-relight render", holds the
+# figures measured with it).
 #
 #   viewer_test.sh PRT_RELIGHT PRT_PRECOMPUTE PRT_COMPARE PRT_MAKE_TEST_SCENE WORKDIR PRT_POINTLIGHT
 #
@@ -9,14 +10,14 @@
 # rotation, light terms and exposure:
 #   - coverage: pixels that are object in one image and background in the other are
 #     silhouette pixels whose centre lies within a rounding error of an edge (OpenGL
-#     snaps vertices to 1/256 pixel); at most 0.1% of the object pixels + 2 (measured
-#     0 or 1 per image) -- prt-make-test-scene agree;
+#     snaps vertices to 1/256 pixel); at most 0.1% of the object pixels + 2
+#     (prt-make-test-scene agree);
 #   - linear EXR over the object pixels common to both (prt-compare against the render
-#     with alpha = object in both): relative RMSE <= 1e-4 (measured 2e-6 .. 5e-6: float
-#     shaders against double C++), <= 2e-3 with the specular layer (measured 2.6e-4:
-#     float atan/acos of the mirror direction looked up in a 16 x 8 pre-filtered map);
+#     with alpha = object in both): relative RMSE <= 1e-4 (float shaders against double
+#     C++), <= 2e-3 with the specular layer (float atan/acos of the mirror direction
+#     looked up in a 16 x 8 pre-filtered map);
 #   - sRGB PNG, every pixel with equal coverage (background included): at most one
-#     level of 255 apart (measured: 1 level on a few pixels).
+#     level of 255 apart.
 # Point lights (texture-space importance sampling) in the viewer must match
 # `prt-pointlight --method tsis --evaluate vertex` of the same lights, N and seed in the
 # same way (the same estimator at the vertices, the same shading per pixel).

@@ -2,9 +2,7 @@
 
 #include "relight/viewer/point_light_worker.h"
 
-#include <chrono>
 #include <cstdio>
-#include <exception>
 #include <utility>
 
 #include "common/error.h"
@@ -30,50 +28,20 @@ PointLightWorker::PointLightWorker(const TriangleMesh& meshMm, const Material& m
     validateMaterial(material_);
     validateTextureSpaceOptions(base_);
     validateAtlasResolution(atlasSize_);
-    thread_ = std::thread([this] { run(); });
-}
-
-PointLightWorker::~PointLightWorker() {
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        stop_ = true;
-    }
-    cv_.notify_all();
-    thread_.join();
-}
-
-void PointLightWorker::submit(const PointLightRequest& r) {
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        pending_ = r;
-    }
-    cv_.notify_all();
-}
-
-bool PointLightWorker::busy() const {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return pending_.has_value() || pendingComparison_.has_value() || running_;
-}
-
-bool PointLightWorker::take(PointLightResult& out) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (!error_.empty()) throw Error("point lights", error_);
-    if (!haveReady_) return false;
-    std::swap(out, ready_);
-    haveReady_ = false;
-    return true;
+    worker_.emplace("point lights", [this](const PointLightRequest& r, PointLightResult& out) { compute(r, out); });
 }
 
 void PointLightWorker::compare(const Camera& camera, double exposure) {
-    {
-        std::lock_guard<std::mutex> lock(mutex_);
-        pendingComparison_ = std::make_pair(camera, exposure);
-    }
-    cv_.notify_all();
+    worker_->post([this, camera, exposure] {
+        std::string text = runComparison(camera, exposure);
+        std::lock_guard<std::mutex> lock(textMutex_);
+        comparison_ = std::move(text);
+        haveComparison_ = true;
+    });
 }
 
 bool PointLightWorker::takeComparison(std::string& text) {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::lock_guard<std::mutex> lock(textMutex_);
     if (!haveComparison_) return false;
     text = comparison_;
     haveComparison_ = false;
@@ -81,48 +49,8 @@ bool PointLightWorker::takeComparison(std::string& text) {
 }
 
 std::string PointLightWorker::atlasSummary() const {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::lock_guard<std::mutex> lock(textMutex_);
     return atlasSummary_;
-}
-
-void PointLightWorker::run() {
-    for (;;) {
-        std::optional<PointLightRequest> r;
-        std::optional<std::pair<Camera, double>> cmp;
-        {
-            std::unique_lock<std::mutex> lock(mutex_);
-            cv_.wait(lock, [&] { return stop_ || pending_.has_value() || pendingComparison_.has_value(); });
-            if (stop_) return;
-            if (pending_) {  // lighting first: a comparison is of the latest lighting
-                r = std::move(pending_);
-                pending_.reset();
-            } else {
-                cmp = std::move(pendingComparison_);
-                pendingComparison_.reset();
-            }
-            running_ = true;
-        }
-        try {
-            if (r) {
-                compute(*r, work_);
-                std::lock_guard<std::mutex> lock(mutex_);
-                std::swap(work_, ready_);
-                haveReady_ = true;
-                running_ = false;
-            } else {
-                std::string text = runComparison(cmp->first, cmp->second);
-                std::lock_guard<std::mutex> lock(mutex_);
-                comparison_ = std::move(text);
-                haveComparison_ = true;
-                running_ = false;
-            }
-        } catch (const std::exception& e) {
-            std::lock_guard<std::mutex> lock(mutex_);
-            error_ = e.what();
-            running_ = false;
-            return;
-        }
-    }
 }
 
 void PointLightWorker::ensureAtlas() {
@@ -133,7 +61,7 @@ void PointLightWorker::ensureAtlas() {
     std::snprintf(buf, sizeof buf, "atlas %d^2: %.0f%% covered, %.1f texels per triangle, built in %.2f s",
                   atlas_->resolution, 100.0 * atlas_->stats.coverage, atlas_->stats.meanTexelsPerTriangle,
                   atlas_->stats.buildSeconds);
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::lock_guard<std::mutex> lock(textMutex_);
     atlasSummary_ = buf;
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 // The viewer's point-light worker (prt-relight view, docs/viewer.md): texture-space
-// importance sampling (relight/pointlight/texture_space_sampling.h) on a thread of its own, beside
-// the environment's relight worker (relight/viewer/relight_worker.h).
+// importance sampling (relight/pointlight/texture_space_sampling.h) on a thread of its
+// own, beside the environment's relight worker (relight/viewer/relight_worker.h).
 //
 // What it computes: the point lights' radiance before the outgoing Fresnel factor at
 // every mesh vertex, M_v / pi (W/(m^2 sr)), which the viewer ADDS to the environment's
@@ -15,25 +15,25 @@
 // the irradiance map, the draws and the shadow maps.
 //
 // On demand (compare()): the error of the point-light part of the frame a camera sees,
-// against Jensen-Buhler (face-centroid samples, epsilon 0.05: 0.4% from the
-// brute-force sum, docs/point-lights.md): the per-vertex TSIS frame and the reference
-// are rendered on this thread, the RMSE of the displayed images (exposure as given) and
-// the linear relative RMSE come back as one line of text.
+// against Jensen-Buhler (face-centroid samples, epsilon 0.05; docs/viewer.md, "Controls"):
+// the per-vertex TSIS frame and the reference are rendered on this thread, after any
+// pending request, and the RMSE of the displayed images (exposure as given) and the
+// linear relative RMSE come back as one line of text.
 //
-// Contract as RelightWorker: submit() replaces a request not yet started; take() hands
-// over the newest result and rethrows a worker failure as prt::Error. The mesh must
-// outlive the worker. The atlas and the ray scene are built on the worker thread when
-// the first light arrives (that update takes the build's 0.1-0.7 s longer).
+// Contract as RelightWorker (latest_request_worker.h): submit() replaces a request not
+// yet started; take() hands over the newest result and rethrows a worker failure as
+// prt::Error("point lights", ...). The constructor validates the material, the options
+// and the atlas size (prt::Error naming the option). The mesh must outlive the worker.
+// The atlas and the ray scene are built on the worker thread when the first light
+// arrives, so a viewer without point lights never builds them.
 
 #include <glm/glm.hpp>
 
-#include <condition_variable>
 #include <cstdint>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "common/camera.h"
@@ -41,6 +41,7 @@
 #include "common/mesh.h"
 #include "relight/pointlight/point_lights.h"
 #include "relight/pointlight/texture_space_sampling.h"
+#include "relight/viewer/latest_request_worker.h"
 
 namespace prt {
 
@@ -75,13 +76,13 @@ public:
     // replaced by the request's). atlasSize: the irradiance map's resolution.
     PointLightWorker(const TriangleMesh& meshMm, const Material& material, const TextureSpaceOptions& base,
                      int atlasSize);
-    ~PointLightWorker();
     PointLightWorker(const PointLightWorker&) = delete;
     PointLightWorker& operator=(const PointLightWorker&) = delete;
 
-    void submit(const PointLightRequest& r);
-    bool busy() const;
-    bool take(PointLightResult& out);
+    void submit(const PointLightRequest& r) { worker_->submit(r); }
+    // A request or comparison queued or running.
+    bool busy() const { return worker_->busy(); }
+    bool take(PointLightResult& out) { return worker_->take(out); }
 
     // Queues a comparison of the current lighting (the last request) seen by `camera`.
     void compare(const Camera& camera, double exposure);
@@ -92,7 +93,7 @@ public:
     std::string atlasSummary() const;
 
 private:
-    void run();
+    // On the worker's thread:
     void compute(const PointLightRequest& r, PointLightResult& out);
     void ensureAtlas();  // the ray scene and the atlas, built on the first light
     std::string runComparison(const Camera& camera, double exposure);
@@ -106,14 +107,11 @@ private:
     std::unique_ptr<TextureSpaceRenderer> renderer_;
     std::optional<PointLightRequest> current_;  // what renderer_ holds
 
-    mutable std::mutex mutex_;
-    std::condition_variable cv_;
-    std::optional<PointLightRequest> pending_;
-    std::optional<std::pair<Camera, double>> pendingComparison_;
-    bool running_ = false, stop_ = false, haveReady_ = false, haveComparison_ = false;
-    std::string error_, comparison_, atlasSummary_;
-    PointLightResult work_, ready_;
-    std::thread thread_;  // last
+    mutable std::mutex textMutex_;  // guards the two texts below (written on the worker's thread)
+    bool haveComparison_ = false;
+    std::string comparison_, atlasSummary_;
+    // Last: its thread uses the members above; started once the inputs are validated.
+    std::optional<LatestRequestWorker<PointLightRequest, PointLightResult>> worker_;
 };
 
 }  // namespace prt

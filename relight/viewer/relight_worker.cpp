@@ -3,65 +3,23 @@
 #include "relight/viewer/relight_worker.h"
 
 #include <algorithm>
-#include <chrono>
-#include <exception>
 #include <memory>
-#include <utility>
 
 #include "common/envmap.h"
 #include "common/error.h"
+#include "common/util.h"
 #include "relight/prt/light_vector.h"
 
 namespace prt {
 
-namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double msSince(Clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-}  // namespace
-
-bool RelightWorker::take(LightResult& out) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (!error_.empty()) throw Error("relight", error_);
-    if (!haveReady_) return false;
-    std::swap(out, ready_);
-    haveReady_ = false;
-    return true;
-}
-
-void RelightWorker::run() {
-    for (;;) {
-        LightRequest r;
-        {
-            std::unique_lock<std::mutex> lock(mutex_);
-            cv_.wait(lock, [&] { return stop_ || pending_.has_value(); });
-            if (stop_) return;
-            r = *pending_;
-            pending_.reset();
-            running_ = true;
-        }
-        try {
-            compute(r, work_);
-            std::lock_guard<std::mutex> lock(mutex_);
-            std::swap(work_, ready_);
-            haveReady_ = true;
-            running_ = false;
-        } catch (const std::exception& e) {
-            std::lock_guard<std::mutex> lock(mutex_);
-            error_ = e.what();
-            running_ = false;
-            return;
-        }
-    }
-}
+RelightWorker::RelightWorker(const TransportFile& file, const std::vector<Image>& environments)
+    : file_(file),
+      environments_(environments),
+      worker_("relight", [this](const LightRequest& r, LightResult& out) { compute(r, out); }) {}
 
 void RelightWorker::compute(const LightRequest& r, LightResult& out) {
     out.request = r;
-    auto t0 = Clock::now();
+    Stopwatch clock;
     if (!prepared_ || preparedEnvironment_ != r.environment) {
         prepared_.reset();  // free the old one before building the new one
         prepared_ = std::make_unique<EnvironmentLight>(environments_.at(size_t(r.environment)),
@@ -69,11 +27,11 @@ void RelightWorker::compute(const LightRequest& r, LightResult& out) {
         preparedEnvironment_ = r.environment;
     }
     const LightVector light = prepared_->lightVector(rotationY(r.rotation), r.lightTerms);
-    out.lightMs = msSince(t0);
+    out.lightMs = clock.milliseconds();
     out.keptTerms = light.keptTerms;
     out.coefficients = light.coefficientCount();
     out.relativeL2Error = light.relativeL2Error;
-    t0 = Clock::now();
+    clock.restart();
     ScatteringComponents c;
     c.multipleScattering = r.multipleScattering;
     c.singleScattering = r.singleScattering;
@@ -87,7 +45,7 @@ void RelightWorker::compute(const LightRequest& r, LightResult& out) {
         glm::vec4* dst = &out.packed[size_t(k) * V];
         for (size_t v = 0; v < V; ++v) dst[v] = glm::vec4(src[v], 0.0f);
     }
-    out.relightMs = msSince(t0);
+    out.relightMs = clock.milliseconds();
 }
 
 }  // namespace prt

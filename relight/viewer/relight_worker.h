@@ -1,32 +1,23 @@
 #pragma once
 // The viewer's relight worker (prt-relight view, docs/viewer.md): light vector
-// (relight/prt/light_vector.h) + relight kernel (relight/prt/relight_kernel.h) on one thread
-// of its own, off the UI thread.
-//
-// Contract: submit() replaces any request not yet started (the latest light wins);
-// take() hands over the newest finished result, if any, and rethrows as prt::Error a
-// failure of the worker (which then stops). Results are triple-buffered by swapping
-// vectors (work -> ready -> the caller's), so nothing is reallocated once the sizes are
-// reached. The transport file and the environments must outlive the worker and not
-// change while it exists; the destructor stops the thread after the request in
-// progress.
+// (relight/prt/light_vector.h) + relight kernel (relight/prt/relight_kernel.h) on a
+// thread of its own (latest_request_worker.h: the latest request wins, results are
+// triple-buffered, take() rethrows a failure as prt::Error("relight", ...)).
+// The transport file and the environments must outlive the worker and not change
+// while it exists.
 
 #include <glm/glm.hpp>
 
-#include <condition_variable>
-#include <memory>
 #include <cstddef>
 #include <cstdint>
-#include <mutex>
-#include <optional>
-#include <string>
-#include <thread>
+#include <memory>
 #include <vector>
 
 #include "common/image.h"
 #include "common/transport_file.h"
 #include "relight/prt/light_vector.h"
 #include "relight/prt/relight_kernel.h"
+#include "relight/viewer/latest_request_worker.h"
 
 namespace prt {
 
@@ -56,52 +47,25 @@ struct LightResult {
 
 class RelightWorker {
 public:
-    RelightWorker(const TransportFile& file, const std::vector<Image>& environments)
-        : file_(file), environments_(environments), thread_([this] { run(); }) {}
-    ~RelightWorker() {
-        {
-            std::lock_guard<std::mutex> lock(mutex_);
-            stop_ = true;
-        }
-        cv_.notify_all();
-        thread_.join();
-    }
-    RelightWorker(const RelightWorker&) = delete;
-    RelightWorker& operator=(const RelightWorker&) = delete;
+    RelightWorker(const TransportFile& file, const std::vector<Image>& environments);
 
-    void submit(const LightRequest& r) {
-        {
-            std::lock_guard<std::mutex> lock(mutex_);
-            pending_ = r;
-        }
-        cv_.notify_all();
-    }
+    void submit(const LightRequest& r) { worker_.submit(r); }
     // A request queued or running.
-    bool busy() const {
-        std::lock_guard<std::mutex> lock(mutex_);
-        return pending_.has_value() || running_;
-    }
+    bool busy() const { return worker_.busy(); }
     // Swaps the newest finished result into `out`; throws the worker's error, if any.
-    bool take(LightResult& out);
+    bool take(LightResult& out) { return worker_.take(out); }
 
 private:
-    void run();
-    void compute(const LightRequest& r, LightResult& out);
+    void compute(const LightRequest& r, LightResult& out);  // on the worker's thread
 
     const TransportFile& file_;
     const std::vector<Image>& environments_;
-    mutable std::mutex mutex_;
-    std::condition_variable cv_;
-    std::optional<LightRequest> pending_;
-    bool running_ = false, stop_ = false, haveReady_ = false;
-    std::string error_;
-    LightResult work_, ready_;
-    // The environment of the latest request, prepared for turning (EnvironmentLight: a
-    // light vector in ~0.4 of makeLightVector's time from the image). Touched only by the
-    // worker's thread; a switch of environment prepares the new one (~25 ms, 1024 x 512).
+    // The environment of the latest request, prepared for turning (EnvironmentLight;
+    // docs/relight.md, "Turning the environment: the fast path"); a request for another
+    // environment prepares that one.
     std::unique_ptr<EnvironmentLight> prepared_;
     int preparedEnvironment_ = -1;
-    std::thread thread_;  // last: started once everything above exists
+    LatestRequestWorker<LightRequest, LightResult> worker_;  // last: its thread uses the members above
 };
 
 }  // namespace prt

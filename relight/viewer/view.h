@@ -1,25 +1,14 @@
 #pragma once
-// prt-relight view: the interactive viewer (docs/viewer.md).
+// prt-relight view: the interactive viewer (docs/viewer.md), its entry points.
 //
-// A GLFW window with an OpenGL 3.3+ core context and a Dear ImGui panel. The object
-// is the one prt-relight render draws (loadRelightObject, relight/prt/relight_object.h), seen
-// through the same Camera (common/camera.h), lit the same way:
-//   - on the CPU, when the light changes (environment, rotation, light terms,
-//     components): light vector (relight/prt/light_vector.h) + relight kernel (relight/prt/relight_kernel.h)
-//     on a worker thread, so frames keep coming while a relight is in flight; the
-//     per-vertex results are double-buffered and uploaded when complete;
-//   - per pixel, every frame, in the fragment shader: F_t(eta, n . w_o), the view maps
-//     h_k(w_o') and the optional specular layer, ports of TranslucentShader::shade and
-//     specularReflection; the background is the lat-long environment along the pixel's
-//     ray (environmentRadiance: L(R^T d), bilinear, u wraps, v clamps).
-//   - point lights (texture-space importance sampling, Chang et al. 2008) on a second
-//     worker (relight/viewer/point_light_worker.h): per-vertex M / pi added to the
-//     environment's diffuse radiance before upload; each source toggles on its own.
-// The projection reproduces cameraRayDirection exactly (same vertical fov, aspect and
-// pixel centres), and tone mapping is writePng's (2^exposure, clamp to [0, 1], exact
-// sRGB encoding), so a screenshot matches prt-relight render's PNG and EXR.
-
-#include <glm/glm.hpp>
+// The object is the one prt-relight render draws (loadRelightObject,
+// relight/prt/relight_object.h), seen through the same Camera (common/camera.h), with
+// the same look (FrameSettings, relight/prt/frame_settings.h), so a screenshot matches
+// prt-relight render's PNG and EXR of the same arguments. The light is relit on the CPU
+// on worker threads whenever it changes (relight_worker.h; point lights:
+// point_light_worker.h) while frames keep coming; the view-dependent shading runs per
+// pixel on the GPU every frame (scene_gl.h). The window and input are window.h, the
+// panel panel.h.
 
 #include <cstddef>
 #include <optional>
@@ -27,14 +16,12 @@
 #include <vector>
 
 #include "common/camera.h"
-#include "common/error.h"
-#include "common/image.h"
+#include "common/materials.h"
+#include "common/transport_params.h"
 #include "relight/pointlight/point_lights.h"
-#include "relight/prt/relight_kernel.h"
-#include "relight/render/gbuffer.h"
-#include "relight/render/specular.h"
-#include "relight/prt/relight_object.h"
 #include "relight/pointlight/texture_space_sampling.h"
+#include "relight/prt/frame_settings.h"
+#include "relight/prt/relight_object.h"
 
 namespace prt {
 
@@ -42,13 +29,9 @@ struct ViewerSetup {
     RelightObject object;              // loaded and checked (loadRelightObject)
     std::string meshPath, transportPath;
     Camera camera;                     // initial camera (also the "reset" camera)
-    ScatteringComponents components;   // initially enabled (what the file has, as asked)
+    FrameSettings frame;               // the initial look, as prt-relight render takes it
+    ScatteringComponents components;   // frame.components resolved against the file (selectComponents)
     std::vector<std::string> environments;  // lat-long maps, shown in this order
-    double envRotation = 0.0;          // degrees about +Y (rotationY), like --env-rotation
-    double exposure = 0.0;             // stops
-    size_t lightTerms = 0;             // 0 = all
-    bool specular = false;
-    int specularBlur = 0;              // 0 = automatic (specularBlurFactor)
 
     // Point lights by texture-space importance sampling (relight/viewer/point_light_worker.h),
     // added to the environment's light. Unavailable when the transport file names no

@@ -1,0 +1,51 @@
+#pragma once
+// The look of a frame lit by an environment, one struct for `prt-relight render` and
+// `prt-relight view`, so a viewer screenshot and a render of the same arguments agree
+// by construction: which scattering components, how many Haar terms of the light, the
+// environment's rotation, the specular layer and the exposure (docs/relight.md,
+// "Shading"; docs/viewer.md, "Inputs and options").
+//
+// Both subcommands bind it with addFrameOptions (one name, default and help text per
+// option), validate it with checkFrameSettings, and the viewer writes its state back as
+// render options with renderArguments.
+
+#include <CLI/CLI.hpp>
+
+#include <cstddef>
+#include <string>
+
+namespace prt {
+
+struct FrameSettings {
+    double envRotation = 0.0;         // --env-rotation: degrees about +Y (rotationY), light and background
+    std::string components = "all";   // --components: ms, ss, ms,ss or all (selectComponents against the file)
+    size_t lightTerms = 0;            // -L: keep the light's largest Haar terms; 0 = all
+    bool specular = false;            // --specular: the Fresnel-weighted pre-filtered reflection
+    int specularBlur = 0;             // --specular-blur: pre-filter factor; 0 = automatic (specularBlurFactor)
+    double exposure = 0.0;            // --exposure: stops, applied to the displayed / PNG image only
+};
+
+// The options addFrameOptions declared that a subcommand may tie together
+// (render makes --specular-blur need --specular).
+struct FrameOptions {
+    CLI::Option* specular = nullptr;
+    CLI::Option* specularBlur = nullptr;
+};
+
+// Declares --env-rotation, --components, -L/--light-terms, --specular, --specular-blur
+// (group "Lighting") and --exposure (group "Output"), bound to `s`; the defaults are
+// FrameSettings'.
+FrameOptions addFrameOptions(CLI::App& app, FrameSettings& s);
+
+// Throws prt::Error naming the option: a non-finite --env-rotation or --exposure, a
+// negative --specular-blur. --components is checked against the transport file by
+// selectComponents (common/transport_params.h).
+void checkFrameSettings(const FrameSettings& s);
+
+// The options that give `s` back through addFrameOptions:
+// " --env-rotation=R --exposure=E" (%.9g; '=' so negative values parse), then " -L N"
+// when N > 0, " --components C" unless C is "all", and " --specular" followed by
+// " --specular-blur F" (F > 0) when the layer is on.
+std::string renderArguments(const FrameSettings& s);
+
+}  // namespace prt

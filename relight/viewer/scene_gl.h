@@ -1,0 +1,105 @@
+#pragma once
+// The viewer's scene on the GPU (prt-relight view; docs/viewer.md, "How it works"): the
+// mesh, its relit per-vertex radiance, the view maps and the environments as OpenGL
+// resources, the render targets, and the frame, drawn at the camera's width x height
+// so it is prt-relight render's image pixel for pixel:
+//   1. visibility, only when the camera changed: the triangle each pixel's ray hits
+//      first (as Embree's primary ray), an R32UI target with a float depth buffer;
+//   2. shading, one full-screen triangle every frame: TranslucentShader::shade's
+//      formula for any number K of view terms, the optional specular layer
+//      (specularReflection) and, where no triangle is, the environment along the ray
+//      (environmentRadiance); tone mapping as writePng (2^exposure, clamp, exact sRGB).
+// The frame goes straight to the window, or to an offscreen framebuffer (tone-mapped
+// RGBA8 + linear RGBA32F, alpha 1 on the object) for screenshots and for a window
+// whose framebuffer is not the camera's size.
+//
+// Contract: every call needs the GL 3.3 core context the scene was created in to be
+// current (relight/viewer/window.h); the object and the environments must outlive the
+// scene and not change. Failures throw prt::Error("OpenGL", ...): a mesh or view maps
+// too large for this OpenGL's textures, a shader that does not compile, an unsupported
+// framebuffer, a pending GL error; screenshot writes throw as writeExr / writePng.
+
+#include <GL/glew.h>
+#include <glm/glm.hpp>
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "common/camera.h"
+#include "common/image.h"
+#include "relight/prt/relight_object.h"
+
+namespace prt {
+
+// What one frame shows.
+struct SceneFrame {
+    Camera camera;
+    int environment = 0;           // the map of the background and the specular layer
+    double rotation = 0.0;         // the environment's rotation, degrees about +Y
+    float exposure = 0.0f;         // stops
+    int viewTerms = 0;             // K of the uploaded radiance (0: diffuse only)
+    bool specular = false;         // the specular layer asked for (its pre-filtered map is bound)
+    bool environmentLight = true;  // background and specular layer shown
+};
+
+class SceneGl {
+public:
+    // The resources of `object` (mesh buffers and textures, its view maps, the shaders)
+    // and width x height targets. Environment textures (and the pre-filtered maps of
+    // the specular layer, blurred by specularBlur, 0 = automatic: specularBlurFactor)
+    // are made on first use.
+    SceneGl(const RelightObject& object, const std::vector<Image>& environments, int specularBlur, int width,
+            int height);
+    ~SceneGl();
+    SceneGl(const SceneGl&) = delete;
+    SceneGl& operator=(const SceneGl&) = delete;
+
+    // New width x height targets (the camera's size changed).
+    void resize(int width, int height);
+
+    // Uploads `slots` blocks of V RGBA values (V = the mesh's vertices; the diffuse
+    // radiance, then each view term's sum) into the radiance texture not drawn, which
+    // then becomes the one drawn. Does not check for GL errors.
+    void uploadRadiance(const std::vector<glm::vec4>& packed, int slots);
+
+    // Draws the frame into the window's framebuffer, or into the offscreen targets.
+    void draw(const SceneFrame& frame, bool offscreen);
+    // Copies the offscreen image into the window's framebuffer of width x height:
+    // pixel for pixel at the targets' size, else scaled (bilinear) over black.
+    void blitToWindow(int width, int height);
+
+    // Writes the last frame drawn offscreen: .exr = linear RGBA float (A = 1 on the
+    // object), anything else the tone-mapped 8-bit sRGB PNG. Creates the parent folder.
+    void writeScreenshot(const std::string& path);
+    // Writes the window's back buffer, width x height, as an sRGB PNG (panel included).
+    void writeWindowScreenshot(const std::string& path, int width, int height);
+
+private:
+    void createTargets(int width, int height);
+    void destroyTargets();
+    GLuint environmentTexture(int index, bool prefiltered);
+    // The sRGB bytes of the bound read buffer as a PNG (exact: the bytes decode to
+    // values that writePng encodes back to the same bytes).
+    void writeDisplayPng(const std::string& path, int width, int height);
+
+    const RelightObject& object_;
+    const std::vector<Image>& environments_;
+    std::vector<Image> prefiltered_;  // per environment, made on first use
+    int specularBlur_ = 0;
+    int fileTerms_ = 0;  // K of the file's view maps
+
+    GLuint vao_ = 0, visibilityProgram_ = 0, shadeProgram_ = 0;
+    GLuint meshVao_ = 0, meshBuffers_[2] = {0, 0};
+    GLuint positions_ = 0, normals_ = 0, triangles_ = 0, radiance_[2] = {0, 0}, viewMaps_ = 0, dummy_ = 0;
+    int radianceFront_ = 0;
+    std::vector<GLuint> envTextures_, prefilteredTextures_;
+    GLuint offscreenFbo_ = 0, displayColor_ = 0, linearColor_ = 0;
+    GLuint visibilityFbo_ = 0, visibility_ = 0, depth_ = 0;
+    bool visibilityValid_ = false;
+    Camera visibilityCamera_;  // the camera the visibility buffer was drawn with
+    int targetWidth_ = 0, targetHeight_ = 0;
+    int rowWidth_ = 4096, slotRows_ = 0, viewMapSize_ = 0;
+};
+
+}  // namespace prt
