@@ -91,9 +91,9 @@ int main(int argc, char** argv) {
     // Under mpirun / srun: MPI_Init here, MPI_Finalize when the session ends. The body's
     // errors are printed by the INNER runMain, while the session is still alive: a rank
     // that exits non-zero makes mpirun kill the others, so rank 0's error line must be
-    // out before MPI_Finalize (a synchronisation) lets the other ranks exit. (With one
-    // runMain, the session's destructor ran during the unwinding, before the line was
-    // printed, and mpirun sometimes killed rank 0 first.) The outer runMain reports a
+    // out before MPI_Finalize (a synchronisation) lets the other ranks exit: with one
+    // runMain the session's destructor would run during the unwinding, before the line
+    // is printed, and mpirun could kill rank 0 first. The outer runMain reports a
     // session that cannot start (an MPI launch of a build without MPI).
     return runMain("prt-precompute", [&]() -> int {
       MpiSession mpi(argc, argv);

@@ -133,7 +133,7 @@ TEST(CellQuadrature, HierarchyMatchesTheBruteForceCellSum) {
             e.index.push_back(k);
             e.value.push_back(float(1.0 + 0.5 * std::sin(0.37 * double(i) + double(k))));
         }
-        cloud.irradiance.push_back(std::move(e));
+        cloud.irradianceTransport.push_back(std::move(e));
     }
     std::vector<glm::vec3> vertices(s.mesh.positions.begin(), s.mesh.positions.begin() + 60);
     HierarchyOptions exact;

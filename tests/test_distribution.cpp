@@ -68,13 +68,13 @@ PrecomputeSettings smallJob(const fs::path& dir) {
     s.material = materialByName("Skin1");
     s.material.g = 0.3;
     s.components = parseScatteringComponents("ms,ss");
-    s.phaseTerms = 2;
-    s.phaseMapSize = 4;
+    s.phase.terms = 2;
+    s.phase.mapSize = 4;
     s.cubemapSize = 8;
-    s.sampleCount = 600;
-    s.pathSamples = 4;
+    s.samples.count = 600;
+    s.singleScattering.pathSamples = 4;
     s.vertexCoefficients = 48;
-    s.sampleCoefficients = 48;
+    s.pass1.sampleCoefficients = 48;
     return s;
 }
 
@@ -171,7 +171,7 @@ TEST(Shards, MergedShardsAreTheSingleProcessFileByteForByte) {
             s.shard = ShardSpec{i, n};
             s.outputPath = (dir / ("part" + std::to_string(i) + "of" + std::to_string(n) + ".prt")).string();
             const PrecomputeSummary summary = precomputeTransport(s, true);
-            EXPECT_EQ(summary.distribution, "shard " + std::to_string(i) + "/" + std::to_string(n));
+            EXPECT_EQ(summary.distribution.description, "shard " + std::to_string(i) + "/" + std::to_string(n));
             parts.push_back(s.outputPath);
             // A shard is not a whole file: the renderers' loader refuses it.
             const TransportFile shardFile = loadTransportFile(s.outputPath);
@@ -213,7 +213,7 @@ TEST(Shards, MergeRefusesShardsThatDoNotBelongTogether) {
     s.components = parseScatteringComponents("ms");
     auto shard = [&](int i, int n, const std::string& name, uint64_t seed = 1) {
         PrecomputeSettings t = s;
-        t.seed = seed;
+        t.samples.seed = seed;
         t.shard = ShardSpec{i, n};
         t.outputPath = (dir / name).string();
         precomputeTransport(t, true);
@@ -285,7 +285,7 @@ TEST(Pass1File, ShardsThatLoadPassOneMergeToTheSingleProcessFile) {
     first.pass1Only = true;
     first.outputPath.clear();
     const PrecomputeSummary p1 = precomputeTransport(first);
-    EXPECT_FALSE(p1.pass1Loaded);
+    EXPECT_FALSE(p1.pass1.loaded);
     ASSERT_TRUE(fs::exists(first.pass1File));
 
     std::vector<std::string> parts;
@@ -294,7 +294,7 @@ TEST(Pass1File, ShardsThatLoadPassOneMergeToTheSingleProcessFile) {
         s.pass1File = first.pass1File;
         s.shard = ShardSpec{i, 3};
         s.outputPath = (dir / ("part" + std::to_string(i) + ".prt")).string();
-        EXPECT_TRUE(precomputeTransport(s, true).pass1Loaded);
+        EXPECT_TRUE(precomputeTransport(s, true).pass1.loaded);
         parts.push_back(s.outputPath);
     }
     const fs::path merged = dir / "merged.prt";
@@ -303,7 +303,7 @@ TEST(Pass1File, ShardsThatLoadPassOneMergeToTheSingleProcessFile) {
 
     // Another job's pass 1 is refused, not used.
     PrecomputeSettings other = whole;
-    other.seed = 7;
+    other.samples.seed = 7;
     other.pass1File = first.pass1File;
     other.outputPath = (dir / "other.prt").string();
     EXPECT_NE(errorOf([&] { precomputeTransport(other, true); }).find("was made for other pass-1 inputs"),

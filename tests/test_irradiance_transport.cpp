@@ -84,7 +84,7 @@ TEST(IrradianceTransport, UnoccludedEqualsAnalyticFresnelCosine) {
     // With no geometry the transport is F_t cos dOmega over the upper hemisphere.
     const double eta = 1.3;
     TexelDirections dirs = makeTexelDirections(32, 2);
-    IrradianceScratch scratch;
+    IrradianceTransportScratch scratch;
     std::vector<float> e(6 * 32 * 32);
     for (glm::vec3 n : {glm::vec3(0, 1, 0), glm::normalize(glm::vec3(0.3f, -0.5f, 0.8f))}) {
         irradianceTransport(nullptr, sampleAt({0, 0, 0}, n), dirs, eta, e.data(), scratch);
@@ -127,7 +127,7 @@ TEST(IrradianceTransport, ConvexMeshLosesNoVisibility) {
     TriangleMesh box = makeBox({4, 4, 4});
     RayScene scene(box);
     TexelDirections dirs = makeTexelDirections(16, 2);
-    IrradianceScratch scratch;
+    IrradianceTransportScratch scratch;
     std::vector<float> vis(6 * 256), free(6 * 256);
     const glm::vec3 points[] = {{0, 2, 0}, {2, 0.3f, -0.7f}, {0.5f, -1.1f, -2}};
     const glm::vec3 normals[] = {{0, 1, 0}, {1, 0, 0}, {0, 0, -1}};
@@ -148,7 +148,7 @@ TEST(IrradianceTransport, ConcaveSceneBlocksExactlyTheGeometricDirections) {
     RayScene rayScene(scene);
     const int n = 16, s = 2;
     TexelDirections dirs = makeTexelDirections(n, s);
-    IrradianceScratch scratch;
+    IrradianceTransportScratch scratch;
     std::vector<float> e(6 * n * n), expected(6 * n * n, 0.0f);
     const glm::vec3 p(0.2f, 0.5f, 0.1f), up(0, 1, 0);
     irradianceTransport(&rayScene, sampleAt(p, up), dirs, 1.3, e.data(), scratch);
@@ -183,17 +183,17 @@ TEST(IrradianceTransport, PassOneIsDeterministicAndKeepsTheLargestCoefficients) 
     TriangleMesh torus = makeTorus(3, 1, 48, 24);
     RayScene scene(torus);
     SampleSet samples = poissonDiskSamples(torus, 40, 5);
-    IrradianceOptions opt;
+    IrradianceTransportOptions opt;
     opt.cubemapSize = 16;
-    opt.keepCoefficients = 6 * 16 * 16;  // everything: reconstruction must be exact
+    opt.sampleCoefficients = 6 * 16 * 16;  // everything: reconstruction must be exact
     opt.sampling = VisibilitySampling::Every;  // every ray, as irradianceTransport below
-    IrradianceResult all = computeIrradianceTransport(&scene, samples, opt);
+    IrradianceTransportResult all = computeIrradianceTransport(&scene, samples, opt);
     EXPECT_NEAR(all.retainedEnergyFraction, 1.0, 1e-6);
     EXPECT_GT(all.raysTraced, 40u * 6 * 256 * 4 / 3);
 
     // Reconstruct sample 7 and compare with the dense transport.
     TexelDirections dirs = makeTexelDirections(16, 2);
-    IrradianceScratch scratch;
+    IrradianceTransportScratch scratch;
     std::vector<float> dense(6 * 256), coeffs(6 * 256, 0.0f);
     irradianceTransport(&scene, samples.samples[7], dirs, 1.3, dense.data(), scratch);
     addTo(all.vectors[7], 1.0f, coeffs.data());
@@ -201,9 +201,9 @@ TEST(IrradianceTransport, PassOneIsDeterministicAndKeepsTheLargestCoefficients) 
     for (size_t k = 0; k < dense.size(); ++k) ASSERT_NEAR(coeffs[k], dense[k], 1e-6);
 
     // Truncated: exactly K kept, and the same result on one thread as on many.
-    opt.keepCoefficients = 32;
-    IrradianceResult many = computeIrradianceTransport(&scene, samples, opt);
-    IrradianceResult one;
+    opt.sampleCoefficients = 32;
+    IrradianceTransportResult many = computeIrradianceTransport(&scene, samples, opt);
+    IrradianceTransportResult one;
     {
         tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
         one = computeIrradianceTransport(&scene, samples, opt);
@@ -225,14 +225,14 @@ TEST(IrradianceTransport, ShPartRelightsAsThePlainVector) {
     TriangleMesh torus = makeTorus(3, 1, 48, 24);
     RayScene scene(torus);
     SampleSet samples = poissonDiskSamples(torus, 30, 5);
-    IrradianceOptions opt;
+    IrradianceTransportOptions opt;
     opt.cubemapSize = 16;
     const size_t count = 6 * 16 * 16;
-    opt.keepCoefficients = count;
-    const IrradianceResult plain = computeIrradianceTransport(&scene, samples, opt);
+    opt.sampleCoefficients = count;
+    const IrradianceTransportResult plain = computeIrradianceTransport(&scene, samples, opt);
     opt.shTerms = 9;
-    opt.keepCoefficients = count + 9;
-    const IrradianceResult split = computeIrradianceTransport(&scene, samples, opt);
+    opt.sampleCoefficients = count + 9;
+    const IrradianceTransportResult split = computeIrradianceTransport(&scene, samples, opt);
     EXPECT_NEAR(split.retainedEnergyFraction, 1.0, 1e-6);
     std::vector<float> light(count + 9);
     for (size_t k = 0; k < count; ++k) light[k] = float(0.5 + 0.5 * std::sin(0.37 * double(k)));
@@ -249,8 +249,8 @@ TEST(IrradianceTransport, ShPartRelightsAsThePlainVector) {
         ASSERT_EQ(split.vectors[i].index.back(), count + 8);
         EXPECT_NEAR(relit(split.vectors[i]), relit(plain.vectors[i]), 1e-5 * relit(plain.vectors[i], true));
     }
-    opt.keepCoefficients = 32;
-    const IrradianceResult truncated = computeIrradianceTransport(&scene, samples, opt);
+    opt.sampleCoefficients = 32;
+    const IrradianceTransportResult truncated = computeIrradianceTransport(&scene, samples, opt);
     for (const prt::SparseVector& v : truncated.vectors) {
         ASSERT_EQ(v.size(), 32u);
         EXPECT_EQ(v.index[32 - 9], count);
@@ -267,7 +267,7 @@ TEST(IrradianceTransport, CoherentVisibilityMatchesEveryRayWithFewerRays) {
     RayScene scene(torus);
     SampleSet samples = poissonDiskSamples(torus, 60, 9);
     const TexelDirections dirs = makeTexelDirections(32, 2);
-    IrradianceScratch scratch;
+    IrradianceTransportScratch scratch;
     std::vector<float> every(6 * 1024), coherent(6 * 1024);
     uint64_t raysEvery = 0, raysCoherent = 0;
     double sumSq = 0.0, sumSqDiff = 0.0, worstTexel = 0.0, worstSample = 0.0;

@@ -29,8 +29,8 @@ bool sameSettings(const PrecomputeSettings& a, const PrecomputeSettings& b) {
            a.scale.mmPerUnit == b.scale.mmPerUnit && a.material.name == b.material.name &&
            a.material.sigmaA == b.material.sigmaA && a.material.sigmaSPrime == b.material.sigmaSPrime &&
            a.material.eta == b.material.eta && a.material.g == b.material.g && a.cubemapSize == b.cubemapSize &&
-           a.vertexCoefficients == b.vertexCoefficients && a.epsilon == b.epsilon && a.seed == b.seed &&
-           a.components == b.components && a.phaseTerms == b.phaseTerms;
+           a.vertexCoefficients == b.vertexCoefficients && a.pass2.epsilon == b.pass2.epsilon &&
+           a.samples.seed == b.samples.seed && a.components == b.components && a.phase.terms == b.phase.terms;
 }
 
 }  // namespace
@@ -75,31 +75,31 @@ TEST(JobOptions, DefaultsAndContradictions) {
 
 TEST(JobOptions, PathQuadratureChoosesTheDefaultPathSamples) {
     // Gauss-Legendre is the default rule; --path-samples defaults per rule, so
-    // --path-quadrature midpoint alone is the rule before issue 16 (16 midpoints).
+    // --path-quadrature midpoint alone is Wang's rule (16 midpoints).
     const PrecomputeSettings d = fromCommandLine({"m.obj", "-o", "o"});
-    EXPECT_EQ(d.pathQuadrature, PathQuadrature::GaussLegendre);
-    EXPECT_EQ(d.pathSamples, defaultPathSamples(PathQuadrature::GaussLegendre));
-    EXPECT_EQ(d.pathSamples, PrecomputeSettings{}.pathSamples);
+    EXPECT_EQ(d.singleScattering.pathQuadrature, PathQuadrature::GaussLegendre);
+    EXPECT_EQ(d.singleScattering.pathSamples, defaultPathSamples(PathQuadrature::GaussLegendre));
+    EXPECT_EQ(d.singleScattering.pathSamples, PrecomputeSettings{}.singleScattering.pathSamples);
     const PrecomputeSettings mid = fromCommandLine({"m.obj", "-o", "o", "--path-quadrature", "midpoint"});
-    EXPECT_EQ(mid.pathQuadrature, PathQuadrature::Midpoint);
-    EXPECT_EQ(mid.pathSamples, 16);
+    EXPECT_EQ(mid.singleScattering.pathQuadrature, PathQuadrature::Midpoint);
+    EXPECT_EQ(mid.singleScattering.pathSamples, 16);
     const PrecomputeSettings g8 =
         fromCommandLine({"m.obj", "-o", "o", "--path-samples", "8", "--path-quadrature", "gauss"});
-    EXPECT_EQ(g8.pathQuadrature, PathQuadrature::GaussLegendre);
-    EXPECT_EQ(g8.pathSamples, 8);
+    EXPECT_EQ(g8.singleScattering.pathQuadrature, PathQuadrature::GaussLegendre);
+    EXPECT_EQ(g8.singleScattering.pathSamples, 8);
     const PrecomputeSettings json = parseJob({{"path-quadrature", "midpoint"}}, {{"mesh", "m.obj"}, {"output", "o"}}, "j");
-    EXPECT_EQ(json.pathQuadrature, PathQuadrature::Midpoint);
-    EXPECT_EQ(json.pathSamples, 16);
+    EXPECT_EQ(json.singleScattering.pathQuadrature, PathQuadrature::Midpoint);
+    EXPECT_EQ(json.singleScattering.pathSamples, 16);
     const std::string bad = errorOf([] { fromCommandLine({"m", "--path-quadrature", "simpson"}); });
     EXPECT_NE(bad.find("--path-quadrature"), std::string::npos) << bad;
     EXPECT_NE(bad.find("midpoint or gauss"), std::string::npos) << bad;
 }
 
 TEST(JobOptions, DirectionStride) {
-    EXPECT_EQ(fromCommandLine({"m.obj", "-o", "o"}).ssDirectionStride, PrecomputeSettings{}.ssDirectionStride);
-    EXPECT_EQ(PrecomputeSettings{}.ssDirectionStride, 4);
-    EXPECT_EQ(fromCommandLine({"m.obj", "-o", "o", "--ss-direction-stride", "1"}).ssDirectionStride, 1);
-    EXPECT_EQ(parseJob({{"ss-direction-stride", "8"}}, {{"mesh", "m.obj"}, {"output", "o"}}, "j").ssDirectionStride, 8);
+    EXPECT_EQ(fromCommandLine({"m.obj", "-o", "o"}).singleScattering.directionStride, PrecomputeSettings{}.singleScattering.directionStride);
+    EXPECT_EQ(PrecomputeSettings{}.singleScattering.directionStride, 4);
+    EXPECT_EQ(fromCommandLine({"m.obj", "-o", "o", "--ss-direction-stride", "1"}).singleScattering.directionStride, 1);
+    EXPECT_EQ(parseJob({{"ss-direction-stride", "8"}}, {{"mesh", "m.obj"}, {"output", "o"}}, "j").singleScattering.directionStride, 8);
     for (const char* bad : {"0", "3", "32", "-4"}) {
         PrecomputeSettings s = fromCommandLine({"m.obj", "-o", "o", "--ss-direction-stride", bad});
         s.components = {true, true};
@@ -145,11 +145,11 @@ TEST(JobOptions, ACustomMaterialDoesNotSwallowTheMesh) {
 }
 
 TEST(JobOptions, SingleScatteringVisibility) {
-    EXPECT_TRUE(fromCommandLine({"m.obj", "-o", "o"}).ssVisibilityFromExitRay);
-    EXPECT_TRUE(PrecomputeSettings{}.ssVisibilityFromExitRay);
-    EXPECT_FALSE(fromCommandLine({"m.obj", "-o", "o", "--ss-visibility", "ray"}).ssVisibilityFromExitRay);
-    EXPECT_TRUE(fromCommandLine({"m.obj", "-o", "o", "--ss-visibility", "exit"}).ssVisibilityFromExitRay);
-    EXPECT_FALSE(parseJob({{"ss-visibility", "ray"}}, {{"mesh", "m.obj"}, {"output", "o"}}, "j").ssVisibilityFromExitRay);
+    EXPECT_TRUE(fromCommandLine({"m.obj", "-o", "o"}).singleScattering.visibilityFromExitRay);
+    EXPECT_TRUE(PrecomputeSettings{}.singleScattering.visibilityFromExitRay);
+    EXPECT_FALSE(fromCommandLine({"m.obj", "-o", "o", "--ss-visibility", "ray"}).singleScattering.visibilityFromExitRay);
+    EXPECT_TRUE(fromCommandLine({"m.obj", "-o", "o", "--ss-visibility", "exit"}).singleScattering.visibilityFromExitRay);
+    EXPECT_FALSE(parseJob({{"ss-visibility", "ray"}}, {{"mesh", "m.obj"}, {"output", "o"}}, "j").singleScattering.visibilityFromExitRay);
     const std::string bad = errorOf([] { fromCommandLine({"m.obj", "-o", "o", "--ss-visibility", "both"}); });
     EXPECT_NE(bad.find("--ss-visibility"), std::string::npos) << bad;
 }

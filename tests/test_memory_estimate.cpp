@@ -18,6 +18,7 @@
 #include "common/mesh_io.h"
 #include "common/progress.h"
 #include "common/shapes.h"
+#include "precompute/job/pipeline.h"
 #include "tests/test_support.h"
 
 using namespace prt;
@@ -44,7 +45,7 @@ TEST(MemoryEstimate, GrowsWithSamplesAndCoefficients) {
     // Per sample: 1.5 x (200 + 128 x 8 + 64 + (256 x 8 + 64) / 4) bytes = 2.7 kB.
     EXPECT_NEAR(double(b - a) / 100000.0, 1.5 * (200.0 + 128 * 8 + 64 + (256 * 8 + 64) / 4.0), 1.0);
     PrecomputeSettings more = s;
-    more.sampleCoefficients = 1024;
+    more.pass1.sampleCoefficients = 1024;
     EXPECT_GT(estimatePrecomputeMemory(more, 10000, 20000, 100000, 2).bytes, a);
     // Single scattering alone needs no samples: the sample count does not matter.
     PrecomputeSettings ss = s;
@@ -89,7 +90,7 @@ TEST(MemoryEstimate, PrecomputeRefusesAJobOverTheLimitAndKeepsTheOldOutput) {
         std::ofstream old(s.outputPath);
         old << "the previous output";
     }
-    s.sampleCount = 2'000'000;  // ~5.5 GB estimated
+    s.samples.count = 2'000'000;  // ~5.5 GB estimated
     s.maxMemoryGb = 1.0;
     const std::string message = test::errorOf([&] { precomputeTransport(s); });
     EXPECT_NE(message.find("memory"), std::string::npos) << message;

@@ -51,12 +51,12 @@ struct Rng {
     }
 };
 
-// A random sparse scalar vector with `count` distinct indices in [0, coefficientCount),
+// A random sparse scalar vector with `count` distinct indices in [0, texelCount),
 // values in [-1, 1] (index 0, the scaling coefficient, always present and positive).
-SparseVector randomVector(Rng& rng, size_t coefficientCount, size_t count) {
+SparseVector randomVector(Rng& rng, size_t texelCount, size_t count) {
     std::vector<uint32_t> idx{0};
     while (idx.size() < count) {
-        const uint32_t k = uint32_t(rng.uniform() * double(coefficientCount));
+        const uint32_t k = uint32_t(rng.uniform() * double(texelCount));
         if (std::find(idx.begin(), idx.end(), k) == idx.end()) idx.push_back(k);
     }
     std::sort(idx.begin(), idx.end());
@@ -74,25 +74,25 @@ struct Lobes {
     std::vector<uint32_t> index;
     std::vector<glm::vec3> dir;
     std::vector<float> amp;
-    Lobes(Rng& rng, size_t coefficientCount, size_t count) {
+    Lobes(Rng& rng, size_t texelCount, size_t count) {
         for (size_t j = 0; j < count; ++j) {
-            index.push_back(j == 0 ? 0u : uint32_t(1 + rng.uniform() * double(coefficientCount - 1)));
+            index.push_back(j == 0 ? 0u : uint32_t(1 + rng.uniform() * double(texelCount - 1)));
             dir.push_back(rng.direction());
             amp.push_back(j == 0 ? 2.0f : float((2.0 * rng.uniform() - 1.0) / (1.0 + 0.05 * double(j))));
         }
     }
-    SparseVector vectorFor(const glm::vec3& n, size_t coefficientCount, size_t keep) const {
-        std::vector<float> dense(coefficientCount, 0.0f);
+    SparseVector vectorFor(const glm::vec3& n, size_t texelCount, size_t keep) const {
+        std::vector<float> dense(texelCount, 0.0f);
         for (size_t j = 0; j < index.size(); ++j) {
             const float c = std::max(0.0f, glm::dot(n, dir[j]));
             dense[index[j]] += amp[j] * (j == 0 ? 1.0f : c * c);
         }
-        return prt::truncateLargest(dense.data(), coefficientCount, 1, keep);
+        return prt::truncateLargest(dense.data(), texelCount, 1, keep);
     }
 };
 
 // n samples uniformly on a sphere of the given radius (mm), A_i = 4 pi R^2 / n.
-SampleCloud sphereCloud(size_t n, float radius, uint64_t seed, size_t coefficientCount,
+SampleCloud sphereCloud(size_t n, float radius, uint64_t seed, size_t texelCount,
                         size_t entries, const Lobes* lobes = nullptr) {
     Rng rng(seed);
     SampleCloud cloud;
@@ -102,12 +102,12 @@ SampleCloud sphereCloud(size_t n, float radius, uint64_t seed, size_t coefficien
         directions.push_back(rng.direction());
         cloud.positions.push_back(radius * directions.back());
         cloud.areas.push_back(area);
-        if (!lobes) cloud.irradiance.push_back(randomVector(rng, coefficientCount, entries));
+        if (!lobes) cloud.irradianceTransport.push_back(randomVector(rng, texelCount, entries));
     }
     if (lobes) {
-        cloud.irradiance.resize(n);
+        cloud.irradianceTransport.resize(n);
         tbb::parallel_for(size_t(0), n, [&](size_t i) {
-            cloud.irradiance[i] = lobes->vectorFor(directions[i], coefficientCount, entries);
+            cloud.irradianceTransport[i] = lobes->vectorFor(directions[i], texelCount, entries);
         });
     }
     return cloud;
@@ -137,7 +137,7 @@ Reference referenceSum(const SampleCloud& cloud, const glm::vec3& x, const Mater
     for (int c = 0; c < 3; ++c) dip[c] = prt::makeDipoleChannel(m, c);
     for (size_t i = 0; i < cloud.positions.size(); ++i) {
         const double r = glm::length(glm::dvec3(x) - glm::dvec3(cloud.positions[i]));
-        const SparseVector& e = cloud.irradiance[i];
+        const SparseVector& e = cloud.irradianceTransport[i];
         for (int c = 0; c < 3; ++c) {
             const double w = double(cloud.areas[i]) * prt::dipoleRd(dip[c], r) / kPi;
             for (size_t k = 0; k < e.index.size(); ++k) {
@@ -257,7 +257,7 @@ TEST(Hierarchy, SampleShPartsSumThroughTheTree) {
     Rng rng(31);
     const Lobes lobes(rng, count, 40);
     SampleCloud cloud = sphereCloud(600, 4.0f, 32, count, 40, &lobes);
-    for (SparseVector& e : cloud.irradiance) {  // re-split each sample: SH part + 30 Haar
+    for (SparseVector& e : cloud.irradianceTransport) {  // re-split each sample: SH part + 30 Haar
         std::vector<float> d = toDense(e, count);
         d.resize(count + terms, 0.0f);
         e = prt::truncateWithShPart(d.data(), count, 1, int(terms), 39);
@@ -289,8 +289,8 @@ TEST(Hierarchy, SampleShPartsSumThroughTheTree) {
         double direct[3] = {0, 0, 0}, scale[3] = {0, 0, 0};
         for (size_t i = 0; i < cloud.positions.size(); ++i) {
             double relit = 0.0;
-            for (size_t k = 0; k < cloud.irradiance[i].size(); ++k)
-                relit += double(cloud.irradiance[i].value[k]) * light[cloud.irradiance[i].index[k]];
+            for (size_t k = 0; k < cloud.irradianceTransport[i].size(); ++k)
+                relit += double(cloud.irradianceTransport[i].value[k]) * light[cloud.irradianceTransport[i].index[k]];
             const double r = glm::length(glm::dvec3(vertices[v]) - glm::dvec3(cloud.positions[i]));
             for (int c = 0; c < 3; ++c) {
                 const double w = double(cloud.areas[i]) * prt::dipoleRd(dip[c], r) / kPi;
@@ -371,7 +371,7 @@ TEST(Hierarchy, CentroidAndSumAreAreaWeighted) {
     e0.value = {1.0f};
     e1.index = {0, 5};
     e1.value = {1.0f, 2.0f};
-    cloud.irradiance = {e0, e1};
+    cloud.irradianceTransport = {e0, e1};
     HierarchyOptions o;
     o.leafSize = 1;
     const SampleTree tree(cloud, o);
@@ -418,7 +418,7 @@ TEST(Hierarchy, CentroidAndSumAreAreaWeighted) {
             const uint32_t s = orig[k];
             area += big.areas[s];
             weighted += double(big.areas[s]) * glm::dvec3(big.positions[s]);
-            const SparseVector& e = big.irradiance[s];
+            const SparseVector& e = big.irradianceTransport[s];
             for (size_t j = 0; j < e.index.size(); ++j) dense[e.index[j]] += double(big.areas[s]) * e.value[j];
         }
         ASSERT_NEAR(node.area, area, 1e-6 * area);
@@ -445,7 +445,7 @@ TEST(Hierarchy, NodeSumsAreTruncatedExactSums) {
         const SampleTree::Node& node = exactTree.nodes()[ni];
         std::vector<double> dense(count, 0.0);
         for (uint32_t k = node.first; k < node.first + node.count; ++k) {
-            const SparseVector& e = cloud.irradiance[orig[k]];
+            const SparseVector& e = cloud.irradianceTransport[orig[k]];
             for (size_t j = 0; j < e.index.size(); ++j) dense[e.index[j]] += double(cloud.areas[orig[k]]) * e.value[j];
         }
         std::vector<float> denseF(dense.begin(), dense.end());
@@ -494,7 +494,7 @@ TEST(Hierarchy, LinearityAndImpulseResponse) {
     const std::vector<glm::vec3> vertices = sphereVertices(50, 5.0f, 52);
     const HierarchyOptions o;  // defaults: hierarchy and truncations active
     const auto r1 = prt::multipleScatteringTransport(SampleTree(cloud, o), vertices, m, o, count);
-    for (SparseVector& e : cloud.irradiance) {
+    for (SparseVector& e : cloud.irradianceTransport) {
         for (float& v : e.value) v *= 2.0f;
     }
     const auto r2 = prt::multipleScatteringTransport(SampleTree(cloud, o), vertices, m, o, count);
@@ -510,7 +510,7 @@ TEST(Hierarchy, LinearityAndImpulseResponse) {
     SparseVector impulse;
     impulse.index = {1234};
     impulse.value = {1.0f};
-    one.irradiance = {impulse};
+    one.irradianceTransport = {impulse};
     const SampleTree tree(one, o);
     const std::vector<glm::vec3> xs = {one.positions[0], one.positions[0] + glm::vec3(1.5f, 0.0f, 0.0f),
                                        one.positions[0] + glm::vec3(0.0f, 7.0f, 0.0f)};
@@ -539,8 +539,8 @@ TEST(Hierarchy, FlatDiskMatchesTotalDiffuseReflectance) {
     // the integral of a Laplacian), so the discretisation error is of higher order in
     // h / z_r: with epsilon = 0 (no hierarchy) the tolerance is 0.1% (measured 2e-6).
     // With epsilon > 0 the centroid rule adds a systematic underestimate (R_d is
-    // convex) of about epsilon / 10: tolerance 0.5% at the default epsilon (the
-    // claim made in hierarchy.h), 5% above it.
+    // convex) of about epsilon / 10: tolerance 0.5% at the default epsilon (the claim
+    // of docs/performance.md, "Pass 2 design measurements"), 5% above it.
     const Material m = prt::customMaterial(glm::dvec3(1.0), glm::dvec3(0.1, 0.2, 0.4));
     double sigmaTrMin = 1e30;
     double zrMin = 1e30;
@@ -565,7 +565,7 @@ TEST(Hierarchy, FlatDiskMatchesTotalDiffuseReflectance) {
             if (double(i) * i + double(j) * j > double(n) * n) continue;
             cloud.positions.push_back(glm::vec3(float(i * h), 0.0f, float(j * h)));
             cloud.areas.push_back(float(h * h));
-            cloud.irradiance.push_back(e);
+            cloud.irradianceTransport.push_back(e);
         }
     }
     const size_t count = 6 * 8 * 8;
@@ -760,7 +760,7 @@ TEST(Hierarchy, NodesContainingTheVertexAreOpened) {
         for (int j = 0; j < 40; ++j) {
             cloud.positions.push_back(glm::vec3(0.125f + 0.25f * float(i), 0.0f, 0.125f + 0.25f * float(j)));
             cloud.areas.push_back(0.0625f);
-            cloud.irradiance.push_back(e);
+            cloud.irradianceTransport.push_back(e);
         }
     }
     HierarchyOptions o;
@@ -801,10 +801,10 @@ TEST(Hierarchy, RejectsInvalidInput) {
     bad.positions[5].x = std::nanf("");
     EXPECT_THROW(SampleTree{bad}, prt::Error);
     bad = good;
-    bad.irradiance[7].channels = 3;
+    bad.irradianceTransport[7].channels = 3;
     EXPECT_THROW(SampleTree{bad}, prt::Error);
     bad = good;
-    std::swap(bad.irradiance[7].index[1], bad.irradiance[7].index[2]);
+    std::swap(bad.irradianceTransport[7].index[1], bad.irradianceTransport[7].index[2]);
     EXPECT_THROW(SampleTree{bad}, prt::Error);
     HierarchyOptions o;
     o.leafSize = 0;

@@ -77,13 +77,13 @@ TEST(Precompute, LargeSphereUnderConstantLightMatchesTheDipoleClosedForm) {
     s.scale.mmPerUnit = 1.0;
     s.material = m;
     s.cubemapSize = 8;
-    s.sampleSpacingMm = 0.5 * m.minMeanFreePath();
-    s.sampleCoefficients = 64;
-    s.nodeCoefficients = 64;
+    s.samples.spacingMm = 0.5 * m.minMeanFreePath();
+    s.pass1.sampleCoefficients = 64;
+    s.pass2.nodeCoefficients = 64;
     s.vertexCoefficients = 64;
     PrecomputeSummary summary = precomputeTransport(s, /*force=*/true);
     EXPECT_FALSE(summary.skipped);
-    EXPECT_GT(summary.samples, 1000u);
+    EXPECT_GT(summary.samples.count, 1000u);
 
     TransportFile file = loadTransportFile(s.outputPath);
     const TransportComponent* ms = file.find(ComponentKind::MultipleScattering);
@@ -128,13 +128,13 @@ TEST(Precompute, SkipsUpToDateOutputAndRecomputesWhenSettingsChange) {
     s.scale.mmPerUnit = 1.0;
     s.material = materialByName("Skin1");
     s.cubemapSize = 4;
-    s.sampleCount = 200;
-    s.sampleCoefficients = s.nodeCoefficients = s.vertexCoefficients = 32;
+    s.samples.count = 200;
+    s.pass1.sampleCoefficients = s.pass2.nodeCoefficients = s.vertexCoefficients = 32;
 
     EXPECT_FALSE(precomputeTransport(s).skipped);
     EXPECT_TRUE(precomputeTransport(s).skipped);
     EXPECT_FALSE(precomputeTransport(s, /*force=*/true).skipped);
-    s.seed = 2;
+    s.samples.seed = 2;
     EXPECT_FALSE(precomputeTransport(s).skipped);
     // A damaged output is recomputed, not trusted.
     {
@@ -162,8 +162,8 @@ TEST(Precompute, RejectsNonsenseSettings) {
     bad([](PrecomputeSettings& t) { t.cubemapSize = 48; });
     bad([](PrecomputeSettings& t) { t.cubemapSize = 128; });
     bad([](PrecomputeSettings& t) { t.vertexCoefficients = 0; });
-    bad([](PrecomputeSettings& t) { t.epsilon = -1; });
-    bad([](PrecomputeSettings& t) { t.epsilon = NAN; });
+    bad([](PrecomputeSettings& t) { t.pass2.epsilon = -1; });
+    bad([](PrecomputeSettings& t) { t.pass2.epsilon = NAN; });
     bad([](PrecomputeSettings& t) { t.outputPath.clear(); });
     bad([](PrecomputeSettings& t) { t.material.sigmaA.x = -1; });
     EXPECT_THROW(precomputeTransport([&] {
@@ -205,20 +205,20 @@ TEST(Precompute, BlockedOutputIsTheJointTruncationOfThePerVertexVectors) {
     s.material = materialByName("Skin1");
     s.material.g = 0.3;  // single scattering with K = 2 term components
     s.components = ScatteringComponents::all();
-    s.phaseTerms = 2;
-    s.phaseMapSize = 4;
-    s.pathSamples = 4;
+    s.phase.terms = 2;
+    s.phase.mapSize = 4;
+    s.singleScattering.pathSamples = 4;
     s.cubemapSize = 4;
-    s.sampleCount = 200;
-    s.sampleCoefficients = s.nodeCoefficients = 32;
+    s.samples.count = 200;
+    s.pass1.sampleCoefficients = s.pass2.nodeCoefficients = 32;
     s.vertexCoefficients = 40;
     s.outputPath = (dir / "per_vertex.prt").string();
     precomputeTransport(s, /*force=*/true);
     s.blockCoefficients = 24;
     s.outputPath = (dir / "blocked.prt").string();
     const PrecomputeSummary summary = precomputeTransport(s, /*force=*/true);
-    EXPECT_GT(summary.blockRetainedEnergy, 0.5);
-    EXPECT_LT(summary.blockRetainedEnergy, 1.0);
+    EXPECT_GT(summary.blocks.retainedEnergy, 0.5);
+    EXPECT_LT(summary.blocks.retainedEnergy, 1.0);
 
     const TransportFile perVertex = loadTransportFile((dir / "per_vertex.prt").string());
     const TransportFile blocked = loadTransportFile((dir / "blocked.prt").string());
@@ -253,27 +253,27 @@ TEST(Precompute, ShardSummaryCountsItsOwnVertices) {
     s.scale.mmPerUnit = 1.0;
     s.material = materialByName("Skin1");
     s.components = ScatteringComponents::all();
-    s.pathSamples = 2;
+    s.singleScattering.pathSamples = 2;
     s.cubemapSize = 4;
-    s.sampleCount = 200;
-    s.sampleCoefficients = s.nodeCoefficients = s.vertexCoefficients = 40;
+    s.samples.count = 200;
+    s.pass1.sampleCoefficients = s.pass2.nodeCoefficients = s.vertexCoefficients = 40;
     s.outputPath = (dir / "whole.prt").string();
     const PrecomputeSummary whole = precomputeTransport(s, /*force=*/true);
-    EXPECT_EQ(whole.computedVertices, whole.vertices);
+    EXPECT_EQ(whole.setup.computedVertices, whole.setup.vertices);
     s.shard = ShardSpec{1, 3};
     s.outputPath = (dir / "shard.prt").string();
     const PrecomputeSummary shard = precomputeTransport(s, /*force=*/true);
-    const IndexRange range = evenRange(shard.vertices, 1, 3);
-    EXPECT_EQ(shard.computedVertices, range.size());
-    EXPECT_LT(shard.computedVertices, shard.vertices);
+    const IndexRange range = evenRange(shard.setup.vertices, 1, 3);
+    EXPECT_EQ(shard.setup.computedVertices, range.size());
+    EXPECT_LT(shard.setup.computedVertices, shard.setup.vertices);
     const auto json = summaryJson(shard);
     EXPECT_EQ(json["computed_vertices"].get<size_t>(), range.size());
-    EXPECT_DOUBLE_EQ(json["ss_rays_per_vertex"].get<double>(), double(shard.ssRaysTraced) / double(range.size()));
+    EXPECT_DOUBLE_EQ(json["ss_rays_per_vertex"].get<double>(), double(shard.singleScattering.rays) / double(range.size()));
     // Means over the shard's own vertices, not diluted by the others.
-    EXPECT_NEAR(shard.vertexRetainedEnergy, whole.vertexRetainedEnergy, 0.05);
-    EXPECT_NEAR(shard.ssMeanDepthMm / whole.ssMeanDepthMm, 1.0, 0.5);
+    EXPECT_NEAR(shard.pass2.retainedEnergy, whole.pass2.retainedEnergy, 0.05);
+    EXPECT_NEAR(shard.singleScattering.meanDepthMm / whole.singleScattering.meanDepthMm, 1.0, 0.5);
     // About the whole job's rays per vertex (the same vertices' rays, a third of them).
-    const double wholeRate = double(whole.ssRaysTraced) / double(whole.vertices);
+    const double wholeRate = double(whole.singleScattering.rays) / double(whole.setup.vertices);
     EXPECT_NEAR(json["ss_rays_per_vertex"].get<double>() / wholeRate, 1.0, 0.5);
     fs::remove_all(dir);
 }

@@ -913,11 +913,11 @@ TEST(ReferenceSamples, ShareNeitherSeedNorSamplesWithThePrecomputationByDefault)
     // a set with no point in common with the precomputation's.
     const TriangleMesh mesh = makeIcosphere(4, 4.0f);
     const double area = totalArea(mesh);
-    const uint64_t precomputeSeed = PrecomputeSettings{}.seed;
+    const uint64_t precomputeSeed = PrecomputeSettings{}.samples.seed;
     for (const std::string& name : materialNames()) {
         const Material m = materialByName(name);
         const ReferenceSamplePlan plan = planReferenceSamples(m, area, precomputeSeed, 1000000);
-        const size_t precomputeCount = defaultSampleCount(area, m.minMeanFreePath(), PrecomputeSettings{}.maxSamples);
+        const size_t precomputeCount = defaultSampleCount(area, m.minMeanFreePath(), PrecomputeSettings{}.samples.maxCount);
         EXPECT_NE(plan.seed, precomputeSeed) << name;
         EXPECT_GT(plan.count, 2 * precomputeCount) << name;  // at least 5x denser in fact
         EXPECT_LT(plan.spacingMm, 0.5 * m.minMeanFreePath()) << name;

@@ -63,7 +63,7 @@ const UnitSet& unitSet() {
 // The two quadratures under test: the reference's point rule (1/pi) sum_i A R_d(|x_i -
 // x_o|) (MultipleScatteringReference::diffuse with E_i = 1, exact, no Monte Carlo), and
 // the precomputation's cell-averaged rule (1/pi) sum_i A Rbar(|x_i - x_o|)
-// (precompute/cell_averaged_dipole.h).
+// (precompute/passes/cell_quadrature.h).
 enum class Rule { Point, Cells };
 
 // Per channel: the sum at 32 vertices of the sphere (on the surface, spread over it)
@@ -150,7 +150,7 @@ TEST(SampleSum, PointRuleConvergesAtTheReferenceSpacing) {
 }
 
 // The precomputation's cell rule at its default spacing (PrecomputeSettings::
-// sampleSpacingMm = 0 -> l_u = min z_r): every material and channel within 1%.
+// samples.spacingMm = 0 -> l_u = min z_r): every material and channel within 1%.
 // Measured: RMS over points 0.17-0.40%, mean within 0.1%, single points up to 1.24%
 // (Ketchup green). The point rule at this spacing: RMS 1.4-11.6% (next test).
 TEST(SampleSum, CellRuleConvergesAtThePrecomputesDefaultSpacing) {

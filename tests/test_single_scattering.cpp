@@ -394,7 +394,7 @@ TEST(SingleScattering, ThickSlabMatchesTheHalfSpaceClosedForm) {
     o.pathQuadrature = rule;
     o.pathSamples = samples;
     o.minThroughput = 0.0;
-    o.keepCoefficients = size_t(6) * n * n;  // keep everything: the Haar path is exact
+    o.vertexCoefficients = size_t(6) * n * n;  // keep everything: the Haar path is exact
     const SingleScatteringContext ctx(scene, slab, m, nullptr, o);
     const size_t v = findVertex(slab, {0, H / 2, 0}, {0, 1, 0});
     SingleScatteringStats stats;
@@ -478,9 +478,9 @@ TEST(SingleScattering, PipelineFileMatchesTheHalfSpaceClosedForm) {
     s.components = parseScatteringComponents("ss");
     Progress::setEnabled(false);
     const PrecomputeSummary summary = precomputeTransport(s, true);
-    EXPECT_EQ(summary.ssTerms, 1);
-    EXPECT_TRUE(summary.ssIsotropic);
-    EXPECT_GT(summary.ssRaysTraced, 0u);
+    EXPECT_EQ(summary.singleScattering.terms, 1);
+    EXPECT_TRUE(summary.singleScattering.isotropic);
+    EXPECT_GT(summary.singleScattering.rays, 0u);
 
     const TransportFile file = loadTransportFile(s.outputPath);
     ASSERT_EQ(file.components.size(), 1u);
@@ -1172,7 +1172,7 @@ TEST(SingleScattering, ResultDoesNotDependOnTheThreadCount) {
     const RayScene scene(sphere);
     SingleScatteringOptions o;
     o.cubemapSize = 8;
-    o.keepCoefficients = 40;
+    o.vertexCoefficients = 40;
     const SingleScatteringContext ctx(scene, sphere, m, nullptr, o);
     std::vector<std::vector<SparseVector>> one, two;
     SingleScatteringResult r1, r2;
@@ -1223,9 +1223,9 @@ TEST(SingleScatteringPipeline, ParametersAndDigest) {
     EXPECT_EQ(value(ms, "path_samples"), "<absent>");
     EXPECT_EQ(value(ms, "path_quadrature"), "<absent>");
     PrecomputeSettings s2 = s;
-    s2.pathSamples = 8;
-    s2.pathQuadrature = PathQuadrature::Midpoint;
-    s2.phaseTerms = 2;
+    s2.singleScattering.pathSamples = 8;
+    s2.singleScattering.pathQuadrature = PathQuadrature::Midpoint;
+    s2.phase.terms = 2;
     EXPECT_EQ(settingsParameters(s2, fp), ms);
 
     // With single scattering they are, and every one changes the digest.
@@ -1241,19 +1241,19 @@ TEST(SingleScatteringPipeline, ParametersAndDigest) {
     EXPECT_EQ(value(both, "ss_refine_tolerances"), "0.5 0.01 0.3");
     EXPECT_NE(value(both, "input_digest"), value(ms, "input_digest"));
     s2 = s;
-    s2.pathSamples = 8;
+    s2.singleScattering.pathSamples = 8;
     EXPECT_NE(value(settingsParameters(s2, fp), "input_digest"), value(both, "input_digest"));
     s2 = s;
-    s2.ssSupersample = 2;
+    s2.singleScattering.supersample = 2;
     EXPECT_NE(value(settingsParameters(s2, fp), "input_digest"), value(both, "input_digest"));
     EXPECT_EQ(value(settingsParameters(s2, fp), "ss_direction_stride"), "<absent>");  // no effect there
     s2 = s;
-    s2.ssDirectionStride = 8;
+    s2.singleScattering.directionStride = 8;
     EXPECT_NE(value(settingsParameters(s2, fp), "input_digest"), value(both, "input_digest"));
-    s2.ssDirectionStride = 1;  // every texel: the parameters of files made before the option
+    s2.singleScattering.directionStride = 1;  // every texel: the parameters of files made before the option
     EXPECT_EQ(value(settingsParameters(s2, fp), "ss_direction_stride"), "<absent>");
     s2 = s;
-    s2.pathQuadrature = PathQuadrature::Midpoint;
+    s2.singleScattering.pathQuadrature = PathQuadrature::Midpoint;
     EXPECT_EQ(value(settingsParameters(s2, fp), "path_quadrature"), "midpoint");
     EXPECT_NE(value(settingsParameters(s2, fp), "input_digest"), value(both, "input_digest"));
     s2 = s;
@@ -1262,7 +1262,7 @@ TEST(SingleScatteringPipeline, ParametersAndDigest) {
     EXPECT_EQ(value(aniso, "ss_phase"), "henyey-greenstein svd");
     EXPECT_EQ(value(aniso, "phase_terms"), "4");
     EXPECT_EQ(value(aniso, "phase_map_size"), "16");
-    s2.phaseTerms = 3;
+    s2.phase.terms = 3;
     EXPECT_NE(value(settingsParameters(s2, fp), "input_digest"), value(aniso, "input_digest"));
 
     // Validation.
@@ -1270,19 +1270,19 @@ TEST(SingleScatteringPipeline, ParametersAndDigest) {
     s2.components = {false, false};
     EXPECT_THROW(validateSettings(s2), Error);
     s2 = s;
-    s2.pathSamples = 0;
+    s2.singleScattering.pathSamples = 0;
     EXPECT_THROW(validateSettings(s2), Error);
     s2 = s;
-    s2.phaseTerms = 0;
+    s2.phase.terms = 0;
     EXPECT_THROW(validateSettings(s2), Error);
     s2 = s;
-    s2.phaseMapSize = 12;
+    s2.phase.mapSize = 12;
     EXPECT_THROW(validateSettings(s2), Error);
     s2 = s;
-    s2.ssSupersample = 9;
+    s2.singleScattering.supersample = 9;
     EXPECT_THROW(validateSettings(s2), Error);
     s2 = s;
-    s2.ssDirectionStride = 6;
+    s2.singleScattering.directionStride = 6;
     EXPECT_THROW(validateSettings(s2), Error);
     EXPECT_NO_THROW(validateSettings(s));
 }
@@ -1296,19 +1296,19 @@ TEST(SingleScatteringPipeline, IsotropicFileHasOneDiffuseSingleScatteringCompone
     s.scale.sizeMm = 12;
     s.material = materialByName("Skin1");
     s.cubemapSize = 8;
-    s.supersample = 1;
+    s.pass1.supersample = 1;
     s.vertexCoefficients = 48;
     s.components = {true, true};
     Progress::setEnabled(false);
     const PrecomputeSummary sum = precomputeTransport(s, true);
     EXPECT_FALSE(sum.skipped);
-    EXPECT_EQ(sum.ssTerms, 1);
-    EXPECT_GT(sum.ssRaysTraced, sum.ssExitRays);
+    EXPECT_EQ(sum.singleScattering.terms, 1);
+    EXPECT_GT(sum.singleScattering.rays, sum.singleScattering.exitRays);
     // Adaptive directions (the default): exit rays for the traced texels only, every
     // texel traced or interpolated.
-    EXPECT_EQ(sum.ssExitRays, sum.ssTracedTexels * uint64_t(s.pathSamples));
-    EXPECT_EQ(sum.ssTracedTexels + sum.ssInterpolatedTexels, uint64_t(162) * 6 * 8 * 8);
-    EXPECT_GT(sum.ssInterpolatedTexels, 0u);
+    EXPECT_EQ(sum.singleScattering.exitRays, sum.singleScattering.tracedTexels * uint64_t(s.singleScattering.pathSamples));
+    EXPECT_EQ(sum.singleScattering.tracedTexels + sum.singleScattering.interpolatedTexels, uint64_t(162) * 6 * 8 * 8);
+    EXPECT_GT(sum.singleScattering.interpolatedTexels, 0u);
     EXPECT_NE(sum.format().find("interpolated from agreeing corners"), std::string::npos);
     EXPECT_NE(sum.format().find("single scattering"), std::string::npos);
 
@@ -1322,7 +1322,7 @@ TEST(SingleScatteringPipeline, IsotropicFileHasOneDiffuseSingleScatteringCompone
     EXPECT_EQ(ss->vectors.vertexCount(), 162u);
     EXPECT_LE(ss->vectors.coefficientCount(), 162u * 48);
     EXPECT_EQ(f.parameter("components"), "ms,ss");
-    EXPECT_EQ(f.parameter("path_samples"), std::to_string(s.pathSamples));
+    EXPECT_EQ(f.parameter("path_samples"), std::to_string(s.singleScattering.pathSamples));
     EXPECT_EQ(f.parameter("path_quadrature"), "gauss");
 
     // Up to date: skipped; round trip through another file is exact.
@@ -1343,13 +1343,13 @@ TEST(SingleScatteringPipeline, AnisotropicFileHasKTermsAndViewMaps) {
     s.material.g = 0.3;
     s.cubemapSize = 8;
     s.vertexCoefficients = 32;
-    s.phaseTerms = 3;
+    s.phase.terms = 3;
     s.components = parseScatteringComponents("ss");
     Progress::setEnabled(false);
     const PrecomputeSummary sum = precomputeTransport(s, true);
-    EXPECT_EQ(sum.ssTerms, 3);
-    EXPECT_FALSE(sum.ssIsotropic);
-    EXPECT_GT(sum.phaseRmsError, 0.0);
+    EXPECT_EQ(sum.singleScattering.terms, 3);
+    EXPECT_FALSE(sum.singleScattering.isotropic);
+    EXPECT_GT(sum.singleScattering.phaseRmsError, 0.0);
 
     const TransportFile f = loadTransportFile(s.outputPath);
     ASSERT_EQ(f.components.size(), 3u);

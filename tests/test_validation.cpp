@@ -65,12 +65,12 @@ Scene makeScene(bool keepEverything, bool singleScattering = false, double g = 0
     p.cubemapSize = 16;
     // Everything: the 6 N^2 Haar entries of the residual and the SH part.
     if (keepEverything)
-        p.sampleCoefficients = p.nodeCoefficients = p.vertexCoefficients = 6 * 16 * 16 + size_t(p.shTerms);
-    p.sampleSpacingMm = 0.25;
+        p.pass1.sampleCoefficients = p.pass2.nodeCoefficients = p.vertexCoefficients = 6 * 16 * 16 + size_t(p.shTerms);
+    p.samples.spacingMm = 0.25;
     if (singleScattering) {
         p.components = parseScatteringComponents("ss");
         p.material.g = g;
-        p.phaseTerms = 4;
+        p.phase.terms = 4;
     }
     precomputeTransport(p, /*force=*/true);
     return s;

@@ -31,17 +31,18 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     addMaterialOptions(app, raw.material, /*withG=*/true, "Object");
     app.add_option("--cubemap-size", s.cubemapSize, "Lighting cubemap face size N (power of two, <= 64)")
         ->capture_default_str();
-    app.add_option("--supersample", s.supersample, "s x s stratified directions per texel in pass 1")
+    app.add_option("--supersample", s.pass1.supersample, "s x s stratified directions per texel in pass 1")
         ->capture_default_str();
     app.add_option_function<std::string>(
            "--pass1-visibility",
-           [&s](const std::string& v) { s.pass1Visibility = parseVisibilitySampling(v); },
+           [&s](const std::string& v) { s.pass1.sampling = parseVisibilitySampling(v); },
            "Pass 1 occlusion rays: every (one per sub-direction) or coherent (a probe per texel, "
-           "every sub-direction only next to a change: 43% of the rays, 1.1x faster, 0.3% change)")
+           "every sub-direction only next to a change: fewer rays, misses occluders narrower than a "
+           "texel; docs/precompute.md)")
         ->default_str("every");
-    app.add_option("--sample-coefficients", s.sampleCoefficients, "Terms kept per sample (pass 1), the SH terms included")
+    app.add_option("--sample-coefficients", s.pass1.sampleCoefficients, "Terms kept per sample (pass 1), the SH terms included")
         ->capture_default_str();
-    app.add_option("--node-coefficients", s.nodeCoefficients, "Terms kept per kd-tree node (pass 2), the SH terms included")
+    app.add_option("--node-coefficients", s.pass2.nodeCoefficients, "Terms kept per kd-tree node (pass 2), the SH terms included")
         ->capture_default_str();
     app.add_option("-k,--coefficients", raw.coefficients,
                    "Terms kept per vertex, the SH terms included (with --block-coefficients: before the joint choice)")
@@ -49,21 +50,20 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     app.add_option("--sh-terms", s.shTerms,
                    "Of the terms kept per sample, node and vertex, this many (0, 1, 4 or 9) are a fit by "
                    "spherical harmonics of bands 0..2 whose residual no band-0..2 light sees, the rest the "
-                   "largest Haar terms of that residual (9: the smooth shape kept whole, about half the "
-                   "truncation error; 0: Haar only; docs/precompute.md)")
+                   "largest Haar terms of that residual (9: the smooth shape kept whole; 0: Haar only; "
+                   "docs/precompute.md)")
         ->capture_default_str();
     app.add_option("--block-coefficients", s.blockCoefficients,
                    "0: each vertex keeps its own terms. M > 0: blocks of 16 nearby vertices share M terms "
-                   "chosen jointly, 8-bit values (a ~2x smaller file that relights ~2x faster; 160 is a "
-                   "little more accurate than 128 per vertex, docs/precompute.md)")
+                   "chosen jointly, 8-bit values (a smaller file that relights faster; docs/precompute.md)")
         ->capture_default_str();
-    app.add_option("--epsilon", s.epsilon, "kd-tree threshold on A_node / r^2 (0 = exact sum)")
+    app.add_option("--epsilon", s.pass2.epsilon, "kd-tree threshold on A_node / r^2 (0 = exact sum)")
         ->capture_default_str();
-    app.add_option("--samples", s.sampleCount, "Number of surface samples (default: from the spacing)");
-    app.add_option("--sample-spacing", s.sampleSpacingMm,
+    app.add_option("--samples", s.samples.count, "Number of surface samples (default: from the spacing)");
+    app.add_option("--sample-spacing", s.samples.spacingMm,
                    "Sample spacing in mm (default: the material's mean free path 1/sigma_t')");
-    app.add_option("--max-samples", s.maxSamples, "Cap on the automatic sample count")->capture_default_str();
-    app.add_option("--seed", s.seed, "Seed of the sample placement")->capture_default_str();
+    app.add_option("--max-samples", s.samples.maxCount, "Cap on the automatic sample count")->capture_default_str();
+    app.add_option("--seed", s.samples.seed, "Seed of the sample placement")->capture_default_str();
     app.add_option("--max-memory", s.maxMemoryGb,
                    "Refuse the job up front when its estimated memory exceeds this many GB (0 = the available "
                    "memory)")
@@ -71,10 +71,10 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     app.add_option("--components", raw.components,
                    "Components to compute: ms (multiple scattering), ss (single scattering) or ms,ss")
         ->capture_default_str();
-    app.add_option("--phase-terms", s.phaseTerms,
+    app.add_option("--phase-terms", s.phase.terms,
                    "Single scattering with g != 0: K terms of the SVD-factored HG phase function")
         ->capture_default_str();
-    app.add_option("--phase-map-size", s.phaseMapSize,
+    app.add_option("--phase-map-size", s.phase.mapSize,
                    "Face size M of the 6 x M x M phase light/view maps")
         ->capture_default_str();
     app.add_option("--path-samples", raw.pathSamples,
@@ -82,14 +82,15 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
         ->default_str(std::to_string(defaultPathSamples(PathQuadrature::GaussLegendre)) + " with gauss, " +
                       std::to_string(defaultPathSamples(PathQuadrature::Midpoint)) + " with midpoint");
     app.add_option_function<std::string>(
-           "--path-quadrature", [&s](const std::string& v) { s.pathQuadrature = parsePathQuadrature(v); },
+           "--path-quadrature",
+           [&s](const std::string& v) { s.singleScattering.pathQuadrature = parsePathQuadrature(v); },
            "Single scattering: rule of the path samples in the sampled mass xi: gauss (Gauss-Legendre) "
-           "or midpoint (Wang 2005; with 16 samples the rule before issue 16)")
+           "or midpoint (Wang 2005)")
         ->default_str(toString(kDefaultPathQuadrature));
-    app.add_option("--ss-supersample", s.ssSupersample,
+    app.add_option("--ss-supersample", s.singleScattering.supersample,
                    "Single scattering: s x s sub-directions per texel")
         ->capture_default_str();
-    app.add_option("--ss-direction-stride", s.ssDirectionStride,
+    app.add_option("--ss-direction-stride", s.singleScattering.directionStride,
                    "Single scattering: trace the texels of a lattice of this stride per cube face "
                    "(1, 2, 4, 8 or 16), split the cells whose corners disagree (shadow or sheet edges, "
                    "the cut-off, bright cells) down to single texels and interpolate the others; 1 "
@@ -100,11 +101,11 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
            [&s](const std::string& v) {
                if (v != "exit" && v != "ray")
                    throw Error("--ss-visibility", "must be exit or ray, got '" + v + "'");
-               s.ssVisibilityFromExitRay = v == "exit";
+               s.singleScattering.visibilityFromExitRay = v == "exit";
            },
            "Single scattering: V from the exit ray's own traversal (exit: a surface beyond the exit "
-           "point shadows it) or from a second ray from each exit point (ray: the rule before, "
-           "about 1.25x slower; the two agree exit by exit on clean meshes)")
+           "point shadows it) or from a second ray from each exit point (ray: slower; the two agree "
+           "exit by exit on clean meshes; docs/single-scattering.md)")
         ->default_str("exit");
     app.add_option("--pass1-file", s.pass1File,
                    "Load the samples' pass-1 vectors from this file when it exists (made for the same "
@@ -124,7 +125,8 @@ PrecomputeSettings settingsFromOptions(const JobOptions& raw, PrecomputeSettings
     s.material = makeMaterial(raw.material);
     if (!raw.shard.empty()) s.shard = parseShard(raw.shard);
     s.vertexCoefficients = raw.coefficients ? *raw.coefficients : s.blockCoefficients ? 512 : 128;
-    s.pathSamples = raw.pathSamples ? *raw.pathSamples : defaultPathSamples(s.pathQuadrature);
+    s.singleScattering.pathSamples =
+        raw.pathSamples ? *raw.pathSamples : defaultPathSamples(s.singleScattering.pathQuadrature);
     return s;
 }
 

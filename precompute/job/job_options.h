@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "common/options.h"
-#include "precompute/job/pipeline.h"
+#include "precompute/job/settings.h"
 
 namespace prt {
 
@@ -29,7 +29,8 @@ struct JobOptions {
     std::optional<int> pathSamples;      // --path-samples; absent: defaultPathSamples(--path-quadrature)
 };
 
-// Declares every per-job option on `app`, bound to `raw` and `s`.
+// Declares every per-job option on `app`, bound to `raw` and to the fields of `s` (and of
+// its pass options) that they set, with `s`'s values as the defaults shown.
 void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s);
 
 // The settings of a parsed job: the material (named or custom, with --eta / --g),

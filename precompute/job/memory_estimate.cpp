@@ -19,14 +19,14 @@ MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vert
                                         size_t samples, int threads, double totalAreaMm2) {
     const double texels = 6.0 * double(s.cubemapSize) * double(s.cubemapSize);
     const bool ms = s.components.multipleScattering;
-    const double terms = s.components.singleScattering ? 1.0 + (s.material.g != 0.0 ? s.phaseTerms : 0) : 0.0;
+    const double terms = s.components.singleScattering ? 1.0 + (s.material.g != 0.0 ? s.phase.terms : 0) : 0.0;
     const double n = ms ? double(samples) : 0.0;
     const std::vector<std::pair<const char*, double>> parts = {
         // + 36 bytes per triangle of single scattering's corner normals
         {"mesh and ray scene", (s.components.singleScattering ? 286.0 : 250.0) * double(triangles)},
         {"samples", 200.0 * n},
-        {"pass 1 vectors", n * (double(s.sampleCoefficients) * 8.0 + 64.0)},
-        {"pass 2 kd-tree sums", n / 4.0 * (double(s.nodeCoefficients) * 8.0 + 64.0)},
+        {"pass 1 vectors", n * (double(s.pass1.sampleCoefficients) * 8.0 + 64.0)},
+        {"pass 2 kd-tree sums", n / 4.0 * (double(s.pass2.nodeCoefficients) * 8.0 + 64.0)},
         {"pass 2 cell sub-points",
          ms && totalAreaMm2 > 0.0 ? estimateCellSubPoints(totalAreaMm2, triangles, s.material) * kCellBytesPerSubPoint : 0.0},
         {"per-vertex results",

@@ -1,11 +1,11 @@
 #pragma once
 // The precomputation's memory, estimated before any pass runs, so that an absurd job
-// (a million samples x 1024 coefficients, a 64^2 cubemap on a big mesh) is refused
-// up front with its estimate instead of dying of std::bad_alloc or the kernel's
-// out-of-memory killer an hour in (issue 17; docs/reliability.md).
+// (a million samples x 1024 coefficients, a 64^2 cubemap on a big mesh) is refused up
+// front with its estimate instead of dying of std::bad_alloc or the out-of-memory
+// killer an hour in (docs/reliability.md).
 //
 // The estimate adds the largest live data of the passes, from their data structures:
-//   mesh + Embree scene        ~ 250 bytes per triangle
+//   mesh + Embree scene        ~ 250 bytes per triangle (286 with single scattering)
 //   samples (Poisson disk)     ~ 200 bytes per sample (candidates included)
 //   pass 1 vectors             samples x (sample coefficients x 8 + 64) bytes
 //   pass 2 kd-tree sums        samples / 4 nodes x (node coefficients x 8 + 64) bytes
@@ -14,17 +14,15 @@
 //   per-vertex results         vertices x vertex coefficients x 16 bytes (RGB float +
 //                              index) per component (MS, and 1 + K for single scattering)
 //   per-thread workspaces      threads x 6 N^2 x 64 bytes
-// times kSafety = 1.5 (allocator slack, vector growth). Against the peak RSS of real runs
-// (docs/reliability.md: bunny defaults, dragon res3 at 150K samples, dragon res4 with
-// single scattering, a 64^2 cubemap with 512 coefficients) it lands within -25%/+15%,
-// which is all a refusal needs: it only has to tell 40 GB from 24 GB.
+// times kSafety = 1.5 (allocator slack, vector growth). A refusal only has to tell 40 GB
+// from 24 GB (how close it lands to measured peaks: docs/reliability.md).
 
 #include <cstddef>
 #include <cstdint>
 #include <string>
 
 #include "common/util.h"  // availableMemoryBytes, formatBytes
-#include "precompute/job/pipeline.h"
+#include "precompute/job/settings.h"
 
 namespace prt {
 
@@ -33,6 +31,8 @@ struct MemoryEstimate {
     std::string largest;  // the largest term, e.g. "pass 1 vectors 31.2 GB"
 };
 
+// The samples count only with multiple scattering; totalAreaMm2 = 0 leaves out the cell
+// sub-points.
 MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vertices, size_t triangles,
                                         size_t samples, int threads, double totalAreaMm2 = 0.0);
 

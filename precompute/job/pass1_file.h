@@ -12,8 +12,9 @@
 //   u32      zlib crc32 of every byte before it
 //
 // The key (pass1Key) names everything that determines the vectors: the mesh fingerprint
-// and scale, the sample count and seed, the cubemap size, supersampling, coefficients
-// kept and eta. A file with another key belongs to another job and is refused.
+// and scale, the sample count and seed, the cubemap size, supersampling, pass-1
+// visibility, coefficients kept, SH terms (when not 0) and eta. A file with another key
+// belongs to another job and is refused.
 
 #include <string>
 #include <utility>
@@ -23,7 +24,7 @@
 
 namespace prt {
 
-// The pass-1 inputs among a job's parameters (pipeline.h settingsParameters), with the
+// The pass-1 inputs among a job's parameters (settings.h settingsParameters), with the
 // scale applied and the number of samples placed.
 std::string pass1Key(const std::vector<std::pair<std::string, std::string>>& parameters, double mmPerUnit,
                      size_t samples);

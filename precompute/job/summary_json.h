@@ -7,7 +7,8 @@
 
 #include <string>
 
-#include "precompute/job/pipeline.h"
+#include "precompute/job/settings.h"
+#include "precompute/job/summary.h"
 
 namespace prt {
 

@@ -1,48 +1,35 @@
 #pragma once
-// The quadrature of Wang Eq. 7 that pass 2 uses (issue 13, item 2): the irradiance is
-// read as constant over each sample's Voronoi cell on the mesh, and R_d is integrated
-// over the cells exactly enough that the sum converges, instead of being evaluated at
-// the sample positions.
+// The quadrature of Wang Eq. 7 that pass 2 uses: E (the samples' irradiance transport)
+// is read as constant over each sample's Voronoi cell on the mesh and R_d is integrated
+// over the cells,
 //
-// WHY. The point rule sum_i A R_d(|x_i - x_o|) E_i samples R_d's peak (width ~z_r) with
-// samples spaced ~z_r apart at random-looking positions: against the exact plane
-// integral it is 1.4-11.6% off per point (RMS over points; single points up to 28%),
-// though right on average. On a perfect lattice it would be within 0.5% (the lattice's
-// first reciprocal vector sees R_d's spectrum at e^(-7.3 z_r / h)); the error is the
-// irregularity of a Poisson-disk set, so neither a per-sample area (Voronoi areas) nor
-// a per-sample filter (R_d averaged over a disk) repairs it: both were measured and
-// leave 1-9% per point (docs/fidelity.md). What converges is a finer, structured
-// quadrature of R_d near x_o, while E keeps its coarse samples:
+//     T(x_o) = int R_d(|y - x_o|) E(y) dy = sum_i w_i(x_o) E_i,   w_i = int_{cell_i} R_d(|y - x_o|) dy,
 //
-//     T(x_o) = int R_d(|y - x_o|) E(y) dy,   E(y) = E_{nearest sample to y}
-//            = sum_i w_i(x_o) E_i,   w_i = int_{cell_i} R_d(|y - x_o|) dy.
+// which converges at the default sample spacing where the point rule
+// A_i R_d(|x_i - x_o|) does not (docs/fidelity.md, "The sample sum").
 //
-// THE CELLS. Every mesh triangle is split into n^2 congruent sub-triangles (n =
-// ceil(longest edge / s)); each sub-triangle's centroid is a SUB-POINT with the
+// The cells: every mesh triangle is split into n^2 congruent sub-triangles (n =
+// ceil(longest edge / s)); each sub-triangle's centroid is a sub-point with the
 // sub-triangle's area, assigned to the nearest sample whose triangle faces the same
-// way (geometric normals at less than 120 degrees, as poissonDiskSamples treats thin
+// way (geometric normals less than 120 degrees apart, as poissonDiskSamples treats thin
 // plates; the plain nearest sample when none does). A sample's cell area A_i is the sum
-// of its sub-points' areas (the areas of all cells add up to the mesh area exactly).
-// The sub-spacing s = options.subSpacingFraction (0.25) / max_c(sigma_t' + sigma_tr)
-// follows the narrowest channel's kernel (the width the reference's convergence rule
-// uses). Within a cell the sub-points lie along a Morton curve in chunks of 16 with a
+// of its sub-points' areas (all cells add up to the mesh area). The sub-spacing s =
+// subSpacingFraction / max_c(sigma_t' + sigma_tr) follows the narrowest channel's
+// kernel. Within a cell the sub-points lie along a Morton curve in chunks of 16 with a
 // bounding sphere, so that a vertex visits only the chunks that reach its near field.
 //
-// THE SPLIT. R_d = R_d chi + R_d (1 - chi), chi(r) = 1 for r <= r1, 0 for r >= r2,
-// a C^2 quintic step between (r1 = h, r2 = 3 h, h the sample spacing; r2 at most 6
-// widths of the widest channel's kernel, r1 = r2 / 3 then). The NEAR part R_d chi is
-// integrated with the sub-points (the sub-point rule on a per-triangle regular grid is
-// accurate for any kernel wider than s); the FAR part
-// R_d (1 - chi), zero near x_o and smooth at the scale of r1, with the point rule at
-// the samples and their cell areas. So
+// The split: R_d = R_d chi + R_d (1 - chi), chi(r) = 1 for r <= r1, 0 for r >= r2, a C^2
+// quintic step between (r1 = innerRadius h, r2 = outerRadius h, h the sample spacing;
+// r2 capped at maxOuterRadiusWidths widths of the widest channel's kernel, r1 scaled
+// with it). The near part is integrated with the sub-points, the far part (smooth at
+// the scale of r1) with the point rule:
 //
 //     w_i(x_o) = sum_{y in cell_i} a_y R_d chi(|y - x_o|) + A_i R_d (1 - chi)(|x_i - x_o|),
 //
 // the first sum skipped when the cell lies beyond r2 (|x_i - x_o| - cellRadius_i >= r2)
-// and, within it, every chunk that does.
-// The far kernel is what the hierarchy's nodes use (they are never within r2 of x_o:
-// multiple_scattering.h). Both kernels are tabulated (linear interpolation, relative
-// error < 1e-4 on [0, r2]; R_d itself beyond).
+// and, within it, every chunk that does. The far kernel is what the hierarchy's nodes
+// use (never within r2 of x_o: multiple_scattering.h). Both kernels are tabulated
+// (linear interpolation, relative error < 1e-4 on [0, r2]; R_d itself beyond).
 //
 // Units: mm, mm^2, mm^-2. Thread safety: immutable after construction.
 
@@ -64,11 +51,9 @@ struct CellQuadratureOptions {
     double innerRadius = 1.0;
     double outerRadius = 3.0;
     // ... with r2 at most this many widest-kernel widths max_c 1 / (sigma_t' + sigma_tr)
-    // (r1 scaled with it): the near part is there to resolve R_d's peak, and a coarse
-    // sample set would otherwise put most of the object's sub-points into every
-    // vertex's near field (bunny, Marble, --samples 64, h = 3.9 mm: pass 2 took 3 min
-    // with r2 = 3 h, 47 s at 12 widths, 16 s at 6). At the default spacing r2 = 3 h is
-    // below 6 widths for every measured material.
+    // (r1 scaled with it): the near part only resolves R_d's peak, and a coarse sample
+    // set would otherwise put most of the object's sub-points in every vertex's near
+    // field (docs/precompute.md, "Pipeline").
     double maxOuterRadiusWidths = 6.0;
     // Refuse to build more sub-points than this (16 bytes each once built, 36 while
     // being built; the default is 2^26, about 2.4 GB at the peak).
@@ -77,9 +62,8 @@ struct CellQuadratureOptions {
 
 // About the sub-point count the cells of a mesh of this area and triangle count will
 // need: area / (0.2 s^2) (an equilateral sub-triangle of edge s has 0.43 s^2; real
-// triangles are thinner and n = ceil(edge / s) rounds up: the bunny at 30 mm has 680K
-// for an estimate of 700K), and at least one per triangle. The construction holds
-// kCellBytesPerSubPoint bytes per sub-point at its peak.
+// triangles are thinner and n = ceil(edge / s) rounds up), and at least one per
+// triangle. The construction holds kCellBytesPerSubPoint bytes per sub-point at its peak.
 double estimateCellSubPoints(double totalAreaMm2, size_t triangles, const Material& material,
                              const CellQuadratureOptions& options = {});
 inline constexpr double kCellBytesPerSubPoint = 36.0;

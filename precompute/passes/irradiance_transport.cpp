@@ -63,7 +63,7 @@ namespace {
 // irradianceTransport gathers them): probes, then the texels that need all their rays.
 // Returns the rays traced; fills sc.occluded[0, m).
 uint64_t traceCoherent(const RayScene& scene, const glm::vec3& org, const TexelDirections& dirs,
-                       size_t m, IrradianceScratch& sc) {
+                       size_t m, IrradianceTransportScratch& sc) {
     const int n = dirs.size;
     const size_t texels = size_t(kCubeFaces) * size_t(n) * size_t(n);
     const uint32_t sub = uint32_t(dirs.subPerTexel());
@@ -137,7 +137,7 @@ uint64_t traceCoherent(const RayScene& scene, const glm::vec3& org, const TexelD
 
 uint64_t irradianceTransport(const RayScene* scene, const SurfaceSample& sample,
                              const TexelDirections& dirs, double eta, float* out,
-                             IrradianceScratch& sc, VisibilitySampling sampling) {
+                             IrradianceTransportScratch& sc, VisibilitySampling sampling) {
     const size_t texels = size_t(kCubeFaces) * dirs.size * dirs.size;
     const size_t sub = dirs.subPerTexel();
     const glm::vec3 n = sample.normal;
@@ -183,23 +183,23 @@ uint64_t irradianceTransport(const RayScene* scene, const SurfaceSample& sample,
     return traced;
 }
 
-IrradianceResult computeIrradianceTransport(const RayScene* scene, const SampleSet& samples,
-                                            const IrradianceOptions& options,
-                                            Progress* progress) {
+IrradianceTransportResult computeIrradianceTransport(const RayScene* scene, const SampleSet& samples,
+                                                     const IrradianceTransportOptions& options,
+                                                     Progress* progress) {
     if (!scene && options.visibility)
         throw Error("pass 1", "visibility requested without a ray scene");
-    if (options.keepCoefficients == 0)
+    if (options.sampleCoefficients == 0)
         throw Error("--sample-coefficients", "must be at least 1");
     const TexelDirections dirs = makeTexelDirections(options.cubemapSize, options.supersample);
     const int n = options.cubemapSize;
     const size_t texels = size_t(kCubeFaces) * n * n;
     const size_t count = samples.samples.size();
 
-    IrradianceResult result;
+    IrradianceTransportResult result;
     result.vectors.resize(count);
     std::vector<double> retained(count, 1.0);
     struct ThreadState {
-        IrradianceScratch scratch;
+        IrradianceTransportScratch scratch;
         uint64_t rays = 0;
     };
     tbb::combinable<ThreadState> states;
@@ -215,7 +215,7 @@ IrradianceResult computeIrradianceTransport(const RayScene* scene, const SampleS
             st.rays += irradianceTransport(visScene, samples.samples[i], dirs, options.eta, dense,
                                            st.scratch, options.sampling);
             for (int f = 0; f < kCubeFaces; ++f) haarForwardFace(dense + size_t(f) * n * n, n);
-            result.vectors[i] = truncateWithShPart(dense, texels, 1, options.shTerms, options.keepCoefficients,
+            result.vectors[i] = truncateWithShPart(dense, texels, 1, options.shTerms, options.sampleCoefficients,
                                                    &retained[i]);
         }
         if (progress) progress->advance(r.size());

@@ -1,22 +1,20 @@
 #pragma once
-// Pass 1 of the multiple-scattering precomputation (Wang et al. 2005, Eq. 8):
-// the irradiance transport of each surface sample x_i,
+// Pass 1 of multiple scattering (Wang et al. 2005, Eq. 8): the irradiance transport of
+// each surface sample x_i over the texels w_j of a 6 x N x N cubemap (docs/conventions.md),
 //
 //     E(x_i, w_j) = F_t(eta, w_j) V(x_i, w_j) max(0, n_i . w_j) dOmega_j,
 //
-// over the texels j of a 6 x N x N cubemap (docs/conventions.md), with the texel's
-// solid angle folded in so that relighting is a plain dot product with radiance.
-// Each texel is integrated with s x s stratified sub-directions (the centres of an
-// s x s grid of sub-texels, each weighted by its exact sub-solid-angle), so E_j is
-// the integral of F_t V cos over the texel, not a point sample. Visibility V comes
-// from Embree occlusion rays traced in packets from one offset origin per sample.
-// The dense cubemap is then Haar-transformed per face and non-linearly
-// approximated by its largest coefficients.
+// a function of direction (not an irradiance) with the texel's solid angle folded in,
+// so that relighting is a dot product with radiance. Each texel is integrated with
+// s x s stratified sub-directions weighted by their exact sub-solid-angles; V comes
+// from occlusion rays from one offset origin per sample. The dense cubemap is
+// Haar-transformed per face and truncated to its largest coefficients.
 //
-// Units: positions in mm (only ratios matter here); E is dimensionless (sr).
+// Units: positions in mm (only ratios matter); E is dimensionless (sr).
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "common/haar.h"
@@ -42,38 +40,33 @@ TexelDirections makeTexelDirections(int cubemapSize, int supersample);
 
 // How pass 1 finds V for the s x s sub-directions of each texel.
 //   Every:    one occlusion ray per sub-direction above the horizon (the reference).
-//   Coherent: first one probe ray per texel (its first sub-direction above the horizon);
-//             a texel whose sub-directions are all above the horizon and whose probe
-//             agrees with the probes of all 8 neighbours on its face gives every
-//             sub-direction the probe's V; every other texel (at a visibility or
-//             horizon edge, on a face border, or next to a texel below the horizon)
-//             traces all its sub-directions. Exact wherever visibility changes across
-//             at least one probe spacing (a texel); an occluder or hole smaller than a
-//             texel that falls between probes is missed. With s = 1 it is Every.
-//             Probes and refinements are traced in 4 x 4 texel tiles. Measured (dragon
-//             res3, 2,000 samples, prt-bench-pass1): 43.5% of the rays but only 1.13x
-//             faster, because the sparser rays make wider Embree packets (half the rays/s);
-//             the truncated sample vectors change by 0.26% (relative L2, worst sample
-//             5.2%). Not the default: docs/precompute.md ("Pass 1 visibility").
+//   Coherent: one probe ray per texel first (its first sub-direction above the
+//             horizon); a texel wholly above the horizon whose probe agrees with the
+//             probes of all 8 neighbours on its face gives every sub-direction the
+//             probe's V, every other texel (at a visibility or horizon edge, on a face
+//             border) traces all its sub-directions. Exact wherever visibility changes
+//             over at least a texel; an occluder or hole narrower than a texel that
+//             falls between probes is missed. With s = 1 it is Every. Not the default
+//             (docs/precompute.md, "Pass 1 visibility").
 enum class VisibilitySampling { Every, Coherent };
 // "every" / "coherent"; throws prt::Error("--pass1-visibility", ...) for anything else.
 VisibilitySampling parseVisibilitySampling(const std::string& text);
 const char* toString(VisibilitySampling mode);
 
-struct IrradianceOptions {
-    int cubemapSize = 32;           // N; a power of two
-    int supersample = 2;            // s: s x s sub-directions per texel
-    size_t keepCoefficients = 128;  // terms kept per sample: shTerms SH + the largest Haar
+struct IrradianceTransportOptions {
+    int cubemapSize = 32;            // N; a power of two
+    int supersample = 2;             // s: s x s sub-directions per texel
+    size_t sampleCoefficients = 128; // terms kept per sample, shTerms of them the SH part
     // SH part of each sample's vector (common/sh_part.h truncateWithShPart; indices
-    // 6 N^2 + i): 0, 1, 4 or 9, fewer than keepCoefficients.
+    // 6 N^2 + i): 0, 1, 4 or 9, fewer than sampleCoefficients.
     int shTerms = 0;
-    double eta = 1.3;               // relative index of refraction for F_t
-    bool visibility = true;         // false: V = 1 everywhere (tests, ablations)
+    double eta = 1.3;                // relative index of refraction for F_t
+    bool visibility = true;          // false: V = 1 everywhere (tests, ablations)
     VisibilitySampling sampling = VisibilitySampling::Every;
 };
 
 // Per-thread scratch so the hot loop never allocates.
-struct IrradianceScratch {
+struct IrradianceTransportScratch {
     std::vector<float> dirX, dirY, dirZ, weight;  // rays that face the sample's normal
     std::vector<uint32_t> texel;                  // their texel
     std::vector<uint8_t> occluded;
@@ -92,21 +85,20 @@ struct IrradianceScratch {
 // Coherent traces fewer, see VisibilitySampling).
 uint64_t irradianceTransport(const RayScene* scene, const SurfaceSample& sample,
                              const TexelDirections& dirs, double eta, float* out,
-                             IrradianceScratch& scratch,
+                             IrradianceTransportScratch& scratch,
                              VisibilitySampling sampling = VisibilitySampling::Every);
 
-struct IrradianceResult {
-    std::vector<SparseVector> vectors;  // one per sample, channels = 1, Haar basis
+struct IrradianceTransportResult {
+    std::vector<SparseVector> vectors;  // one per sample, channels = 1: Haar, then the SH part
     uint64_t raysTraced = 0;
     double retainedEnergyFraction = 1.0;  // mean over samples of kept / total energy
     double seconds = 0.0;
-    double traceSeconds = 0.0;  // summed over threads: time inside occlusion queries
 };
 
 // Pass 1 over all samples, in parallel (TBB). Deterministic: the result does not
 // depend on the thread count. scene may be null only when options.visibility is false.
-IrradianceResult computeIrradianceTransport(const RayScene* scene, const SampleSet& samples,
-                                            const IrradianceOptions& options,
-                                            Progress* progress = nullptr);
+IrradianceTransportResult computeIrradianceTransport(const RayScene* scene, const SampleSet& samples,
+                                                     const IrradianceTransportOptions& options,
+                                                     Progress* progress = nullptr);
 
 }  // namespace prt

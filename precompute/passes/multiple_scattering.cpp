@@ -103,10 +103,10 @@ std::vector<Entry> mergeSum(const std::vector<Entry>& a, const std::vector<Entry
 void validateCloud(const SampleCloud& cloud, const HierarchyOptions& o) {
     const size_t n = cloud.positions.size();
     if (n == 0) throw Error("hierarchy", "the sample cloud is empty");
-    if (cloud.areas.size() != n || cloud.irradiance.size() != n) {
+    if (cloud.areas.size() != n || cloud.irradianceTransport.size() != n) {
         throw Error("hierarchy", "sample cloud arrays differ in length (" + std::to_string(n) +
                                      " positions, " + std::to_string(cloud.areas.size()) + " areas, " +
-                                     std::to_string(cloud.irradiance.size()) + " vectors)");
+                                     std::to_string(cloud.irradianceTransport.size()) + " vectors)");
     }
     if (n >= (size_t(1) << 31)) {  // node indices (< 2n) must fit in 32 bits
         throw Error("hierarchy", "too many samples (" + std::to_string(n) + ")");
@@ -127,7 +127,7 @@ void validateCloud(const SampleCloud& cloud, const HierarchyOptions& o) {
             throw Error("hierarchy", "sample " + std::to_string(i) + " has an invalid area (" +
                                          std::to_string(a) + ")");
         }
-        const SparseVector& v = cloud.irradiance[i];
+        const SparseVector& v = cloud.irradianceTransport[i];
         if (v.channels != 1) {
             throw Error("hierarchy", "sample " + std::to_string(i) + " irradiance vector has " +
                                          std::to_string(v.channels) + " channels, expected 1");
@@ -292,7 +292,7 @@ SampleTree::SampleTree(SampleCloud cloud, const HierarchyOptions& options) {
     sampleAreas_.resize(n);
     sampleOffsets_.assign(size_t(n) + 1, 0);
     for (uint32_t k = 0; k < n; ++k) {
-        sampleOffsets_[k + 1] = sampleOffsets_[k] + cloud.irradiance[originalIndex_[k]].index.size();
+        sampleOffsets_[k + 1] = sampleOffsets_[k] + cloud.irradianceTransport[originalIndex_[k]].index.size();
     }
     sampleEntries_.resize(sampleOffsets_[n]);
     tbb::enumerable_thread_specific<uint32_t> maxIndex(0u);
@@ -303,7 +303,7 @@ SampleTree::SampleTree(SampleCloud cloud, const HierarchyOptions& options) {
             samplePositions_[k] = cloud.positions[s];
             const float a = cloud.areas[s];
             sampleAreas_[k] = a;
-            SparseVector& v = cloud.irradiance[s];
+            SparseVector& v = cloud.irradianceTransport[s];
             Entry* out = sampleEntries_.data() + sampleOffsets_[k];
             for (size_t e = 0; e < v.index.size(); ++e) out[e] = {v.index[e], a * v.value[e]};
             if (!v.index.empty()) localMax = std::max(localMax, v.index.back() + 1);
@@ -431,7 +431,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                                                       std::span<const glm::vec3> vertices,
                                                       const Material& material,
                                                       const HierarchyOptions& options,
-                                                      size_t coefficientCount,
+                                                      size_t texelCount,
                                                       MultipleScatteringStats* stats,
                                                       Progress* progress,
                                                       const CellQuadrature* cells) {
@@ -447,17 +447,17 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
     if (!(options.epsilon >= 0.0) || !std::isfinite(options.epsilon)) {
         throw Error("epsilon", "must be finite and >= 0");
     }
-    // Sample vectors may carry SH entries (indices coefficientCount + i, i < shTerms).
-    const size_t spaceCount = coefficientCount + size_t(options.shTerms);
-    if (options.sampleShFrom != UINT32_MAX && options.sampleShFrom != coefficientCount)
+    // Sample vectors may carry SH entries (indices texelCount + i, i < shTerms).
+    const size_t spaceCount = texelCount + size_t(options.shTerms);
+    if (options.sampleShFrom != UINT32_MAX && options.sampleShFrom != texelCount)
         throw Error("hierarchy", "the samples' SH part starts at index " + std::to_string(options.sampleShFrom) +
-                                     ", not at coefficientCount " + std::to_string(coefficientCount));
+                                     ", not at coefficientCount " + std::to_string(texelCount));
     if (spaceCount < tree.coefficientBound()) {
-        throw Error("hierarchy", "coefficientCount " + std::to_string(coefficientCount) + " + " +
+        throw Error("hierarchy", "coefficientCount " + std::to_string(texelCount) + " + " +
                                      std::to_string(options.shTerms) + " SH terms is too small for coefficient index " +
                                      std::to_string(tree.coefficientBound() - 1));
     }
-    if (coefficientCount > size_t(std::numeric_limits<uint32_t>::max()) + 1) {
+    if (texelCount > size_t(std::numeric_limits<uint32_t>::max()) + 1) {
         throw Error("hierarchy", "coefficientCount too large");
     }
     const double epsilon = options.epsilon;
@@ -467,10 +467,16 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
     if (vertices.size() > size_t(std::numeric_limits<uint32_t>::max())) {
         throw Error("hierarchy", "too many vertices");
     }
+    // Along a Morton curve, consecutive vertices of a thread reuse the node sums in cache.
     const std::vector<uint32_t> order = mortonOrder(vertices, "hierarchy");
     std::vector<SparseVector> result(vertices.size());
     std::vector<VertexCounters> counters(vertices.size());
 
+    // A dense RGB accumulator of doubles per thread, (6 N^2 + shTerms) x 3: as fast as
+    // floats (the scattered additions are bound by reading the node sums) and closer to
+    // the brute force (docs/performance.md, "Pass 2 design measurements"). It is cleared
+    // with one fill: tracking the touched entries would test every scattered addition,
+    // and the truncation reads the whole block anyway.
     struct Scratch {
         std::vector<double> acc;     // the accumulator
         std::vector<float> rounded;  // its float copy for the truncation
@@ -524,7 +530,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
             }
             std::copy(s.acc.begin(), s.acc.end(), s.rounded.begin());
             std::fill(s.acc.begin(), s.acc.end(), 0.0);
-            result[v] = truncateWithShPart(s.rounded.data(), coefficientCount, 3, options.shTerms,
+            result[v] = truncateWithShPart(s.rounded.data(), texelCount, 3, options.shTerms,
                                            options.vertexCoefficients, &count.retained);
         }
         if (progress) progress->advance(r.size());
@@ -552,7 +558,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
 std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
                                                        std::span<const glm::vec3> vertices,
                                                        const Material& material,
-                                                       size_t coefficientCount,
+                                                       size_t texelCount,
                                                        size_t vertexCoefficients,
                                                        const CellQuadrature* cells, int shTerms) {
     const Dipoles dipoles(material);
@@ -560,27 +566,27 @@ std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
         throw Error("hierarchy", "the cell quadrature's samples are not the cloud's");
     }
     const size_t n = cloud.positions.size();
-    if (cloud.areas.size() != n || cloud.irradiance.size() != n) {
+    if (cloud.areas.size() != n || cloud.irradianceTransport.size() != n) {
         throw Error("hierarchy", "sample cloud arrays differ in length");
     }
-    for (const SparseVector& e : cloud.irradiance) {
+    for (const SparseVector& e : cloud.irradianceTransport) {
         if (e.channels != 1 || e.value.size() != e.index.size()) {
             throw Error("hierarchy", "irradiance vectors must have one channel and consistent sizes");
         }
         for (uint32_t idx : e.index) {
-            if (idx >= coefficientCount + size_t(shTerms)) {
+            if (idx >= texelCount + size_t(shTerms)) {
                 throw Error("hierarchy", "coefficient index " + std::to_string(idx) + " >= coefficientCount " +
-                                             std::to_string(coefficientCount) + " + " + std::to_string(shTerms) +
+                                             std::to_string(texelCount) + " + " + std::to_string(shTerms) +
                                              " SH terms");
             }
         }
     }
     std::vector<SparseVector> result(vertices.size());
     tbb::parallel_for(size_t(0), vertices.size(), [&](size_t v) {
-        std::vector<double> acc((coefficientCount + size_t(shTerms)) * 3, 0.0);
+        std::vector<double> acc((texelCount + size_t(shTerms)) * 3, 0.0);
         for (size_t i = 0; i < n; ++i) {
             const double r = distance(vertices[v], cloud.positions[i]);
-            const SparseVector& e = cloud.irradiance[i];
+            const SparseVector& e = cloud.irradianceTransport[i];
             double cellWeight[3] = {0.0, 0.0, 0.0};
             if (cells) cells->sampleWeightOverPi(i, vertices[v], cellWeight);
             for (int c = 0; c < 3; ++c) {
@@ -591,7 +597,7 @@ std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
             }
         }
         std::vector<float> dense(acc.begin(), acc.end());
-        result[v] = truncateWithShPart(dense.data(), coefficientCount, 3, shTerms, vertexCoefficients);
+        result[v] = truncateWithShPart(dense.data(), texelCount, 3, shTerms, vertexCoefficients);
     });
     return result;
 }

@@ -1,103 +1,36 @@
 #pragma once
-// Pass 2 of the multiple-scattering precomputation (SPEC section 6, Wang et al. 2005
-// section 3 "Diffuse Multiple Scattering"): the hierarchical integration of Jensen and
-// Buhler 2002, performed on sparse Haar coefficient vectors instead of scalars.
+// Pass 2 of multiple scattering (Wang et al. 2005, section 3): the hierarchical
+// integration of Jensen and Buhler 2002 on sparse Haar vectors. For each vertex x_o,
+// per colour channel c, Wang Eq. 7 as a sum over the pass-1 samples i (position x_i in
+// mm, area A_i in mm^2, irradiance transport vector E_i: irradiance_transport.h):
 //
-// WHAT IS COMPUTED. Pass 1 gives, for each surface sample i, its position x_i (mm),
-// its area A_i (mm^2; total area / N) and its irradiance transport vector E_i (Wang
-// Eq. 8 with the texel solid angle folded in, one scalar Haar vector, already
-// truncated). For each mesh vertex x_o this module evaluates Wang Eq. 7 by cubature,
-// per colour channel c (R_d^c is the dipole profile of channel c of the material):
+//     T_d^c(x_o) = sum_i w_i^c(x_o) E_i,
 //
-//     T_d^c(x_o) = sum_i A_i R_d^c(|x_i - x_o|) E_i
+// with the point rule w_i^c = A_i R_d^c(|x_i - x_o|) (R_d: the material's dipole) or,
+// given a CellQuadrature, R_d integrated over sample i's cell (cell_quadrature.h; what
+// prt-precompute uses). Each vertex gets V_o = T_d(x_o) / pi (channels = 3), so the
+// renderer's radiance is F_t(eta, w_o) (V_o . L), truncated to vertexCoefficients
+// entries by the Euclidean norm of their three channels (with an SH part:
+// common/sh_part.h truncateWithShPart).
 //
-// (the point rule; prt-precompute passes a CellQuadrature, which replaces A_i R_d by the
-// integral of R_d over sample i's Voronoi cell near x_o so that the sum converges at the
-// default spacing: cell_quadrature.h and QUADRATURE below)
+// The tree (SampleTree): a kd-tree split by count (left = floor(n/2)) at the median of
+// the longest axis of the node's box, down to leafSize samples or maxDepth. A node
+// stores its box, its area A_node = sum A_i, its area-weighted centroid p_node (the
+// plain mean when every area is 0) and the area-weighted SUM S_node = sum A_i E_i
+// truncated to nodeCoefficients entries, so that it contributes R_d(|x_o - p_node|)
+// S_node (averaging E without area weights is a known trap: SPEC section 5).
 //
-// and STORES T_d / pi, i.e. the returned RGB vector of vertex o is
+// Traversal: a node is used whole when (a) x_o lies outside its box enlarged by
+// kBoundsMargin of its longest extent on every side (a vertex can sit a hair off the
+// sampled surface, and flat nodes have no thickness) and (b) A_node / |x_o - p_node|^2
+// < epsilon (Jensen and Buhler's solid-angle criterion); otherwise its children are
+// visited, and a leaf adds its samples one by one. epsilon = 0 is the brute-force sum
+// up to rounding. Freezing R_d at the area-weighted centroid is exact to first order in
+// the node's angular size, so the error is of order epsilon and, R_d being convex,
+// mostly an underestimate (why 0.05: docs/performance.md, "Pass 2 design measurements").
 //
-//     V_o = T_d(x_o) / pi,
-//
-// so that the renderer evaluates Wang's relighting equation
-//     L_d(x_o, w_o) = F_t(eta, w_o) * (V_o . L)
-// with only the Fresnel transmittance of the view direction left to apply. The
-// vector is truncated to its vertexCoefficients largest coefficients, the magnitude
-// of an entry being the Euclidean norm of its three channels (haar.h
-// truncateLargest), and has channels = 3.
-//
-// THE TREE (SampleTree). A kd-tree over the samples: a node is split at the median
-// (std::nth_element) along the longest axis of its bounding box, until it holds at
-// most leafSize samples or reaches maxDepth (the depth guard; a node at maxDepth
-// becomes a leaf whatever its size). Splitting is by COUNT (left half gets
-// floor(n/2) samples), so even coincident samples halve the node at each level and
-// the depth is at most ceil(log2(n / leafSize)) regardless of geometry (maxDepth
-// matters only when it is smaller than that).
-// Each node stores
-//   - its bounding box and total area A_node = sum A_i (summed in double),
-//   - its AREA-WEIGHTED centroid p_node = sum A_i x_i / sum A_i (the plain mean of
-//     the positions only when every sample of the node has zero area), and
-//   - its AREA-WEIGHTED SUM vector S_node = sum A_i E_i, truncated to the
-//     nodeCoefficients entries of largest magnitude.
-// It is a sum, not a mean: the node contributes R_d(|x_o - p_node|) S_node, the
-// cubature of its samples with R_d frozen at the centroid. (Averaging E without area
-// weights is a known trap: see SPEC section 5.)
-//
-// Node sums are the truncation of the EXACT sum of the node's samples' vectors by
-// default (HierarchyOptions::exactNodeSums): the exact sums are merged bottom-up as
-// sparse vectors (each parent merges its children's exact sums, so the cost is that
-// of a merge sort, not of re-adding every sample at every level) and only the stored
-// copy is truncated. With exactNodeSums = false the parent merges its children's
-// TRUNCATED sums instead (Wang's "clustering" read literally; the truncation error
-// compounds up the tree, and it is hardly faster). Both are built in parallel with
-// TBB and give results independent of the number of threads (build times and
-// memory: docs/performance.md, "Pass 2 design measurements").
-//
-// Storage is compact: nodes are one contiguous array in depth-first (pre-order)
-// layout (left child = node + 1), node sums and sample vectors live in two pools of
-// (index, value) pairs addressed by offsets; there is no per-node allocation. The
-// tree takes the SampleCloud by value (std::move it in to avoid a copy) and repacks
-// the sample vectors, premultiplied by A_i, into its pool in leaf order.
-//
-// TRAVERSAL. For a vertex x_o, starting at the root: a node is used whole when
-//   (a) x_o is not inside the node's bounding box enlarged by a margin of
-//       kBoundsMargin times the box's longest extent on every side (a mesh vertex can
-//       sit a hair off the sampled surface and flat nodes have zero thickness; the
-//       margin keeps a node that really contains x_o from being approximated), and
-//   (b) A_node / |x_o - p_node|^2 < epsilon (Jensen and Buhler's solid-angle
-//       criterion; evaluated as A_node < epsilon |x_o - p_node|^2, so epsilon = 0
-//       never uses a node whole);
-// otherwise its children are visited; a leaf that is not used whole contributes its
-// samples individually with their exact A_i E_i and positions. With epsilon = 0 the
-// result is the brute-force sum up to rounding (measured: 1e-7 of the sum of the
-// absolute values of the terms).
-//
-// Vertices are processed along a Morton curve of their positions (consecutive
-// vertices of a thread reuse the node sums in cache: 1.4x faster than random order
-// in TimingReport); results are returned in the caller's order. Contributions are
-// accumulated into a dense per-thread RGB accumulator of coefficientCount x 3
-// DOUBLES (147 KB for a 6x32x32 cubemap, well inside L2): as fast as floats, and the
-// epsilon = 0 result matches the brute force ~70x closer (docs/performance.md). Per vertex the accumulator is rounded
-// to float, split and truncated to vertexCoefficients entries (sh_part.h
-// truncateWithShPart; haar.h truncateLargest without an SH part), and
-// cleared with one fill of the whole block (a few us, ~2% of a vertex's time);
-// tracking touched entries would put a test on every one of the ~10^5 scattered
-// additions instead, and the truncation reads the whole block anyway.
-//
-// DEFAULT EPSILON = 0.05. Freezing R_d at the centroid is exact to first order in
-// the node's angular size s / d ~ sqrt(A_node) / d <= sqrt(epsilon) (the
-// area-weighted centroid cancels the linear term for the area-weighted part of E);
-// the remainder is of order epsilon times the relative curvature of R_d and, R_d
-// being convex in the distance, it is mostly a systematic UNDERestimate. The error
-// and cost against epsilon (tests/test_multiple_scattering.cpp ErrorShrinksAsEpsilonShrinks,
-// FlatDiskMatchesTotalDiffuseReflectance, TimingReport) are tabulated in
-// docs/performance.md, "Pass 2 design measurements": 0.05 keeps the hierarchy's
-// error, bias included, below 0.5% (under the 8-bit display step) for about 1.7x
-// the work of 0.1.
-//
-// Thread safety: a built SampleTree is immutable; any number of threads may traverse
-// it. Results are deterministic: every vertex is computed independently by the same
-// sequential code, and the tree build does not depend on the thread count.
+// Thread safety: a built SampleTree is immutable. Results do not depend on the thread
+// count.
 
 #include "common/bssrdf.h"
 #include "common/haar.h"
@@ -118,30 +51,29 @@ class CellQuadrature;
 struct SampleCloud {
     std::vector<glm::vec3> positions;      // mm
     std::vector<float> areas;              // mm^2, >= 0 and finite
-    std::vector<SparseVector> irradiance;  // channels = 1, strictly increasing indices
+    std::vector<SparseVector> irradianceTransport;  // E_i: channels = 1, strictly increasing indices
 };
 
+// The options of pass 2 (its tree and its per-vertex vectors).
 struct HierarchyOptions {
-    // Solid-angle criterion A_node / |x_o - p_node|^2 < epsilon for using a node whole
-    // (see the top of this file for why 0.05). 0 = exact (no node used whole).
+    // Solid-angle criterion A_node / |x_o - p_node|^2 < epsilon for using a node whole;
+    // 0 = exact (no node used whole).
     double epsilon = 0.05;
-    // Entries kept in each node's area-weighted sum vector.
-    size_t nodeCoefficients = 256;
-    // Largest leaf (samples), and the depth guard (the root has depth 0).
-    int leafSize = 8;
-    int maxDepth = 48;
-    // Entries kept in each vertex's RGB transport vector (Wang: 128), of which shTerms
-    // (0, 1, 4 or 9) are its SH part (common/sh_part.h truncateWithShPart; indices
-    // 6 N^2 + i) and the rest the largest Haar coefficients of the residual.
+    size_t nodeCoefficients = 256;  // entries kept in each node's sum S_node
+    int leafSize = 8;               // largest leaf (samples)
+    int maxDepth = 48;              // depth guard (the root has depth 0)
+    // Entries kept in each vertex's RGB vector, of which shTerms (0, 1, 4 or 9) are its
+    // SH part (indices 6 N^2 + i) and the rest the largest Haar coefficients.
     size_t vertexCoefficients = 128;
     int shTerms = 0;
-    // Sample vectors that carry an SH part (pass 1 with IrradianceOptions::shTerms) hold
-    // it at indices >= sampleShFrom (= 6 N^2, with the same shTerms as the vertices):
-    // node truncations keep those entries whatever their size, and each vertex folds
-    // the summed SH part into its own split. UINT32_MAX: the samples carry none.
+    // Where the samples' SH part starts (= 6 N^2, with the vertices' shTerms; pass 1 with
+    // IrradianceTransportOptions::shTerms): node truncations keep those entries whatever
+    // their size and each vertex folds the summed SH part into its own split.
+    // UINT32_MAX: the samples carry none.
     uint32_t sampleShFrom = UINT32_MAX;
-    // true: node sums are truncations of the exact sums; false: truncated children's
-    // sums are merged (see the top of this file).
+    // true: node sums are truncations of the exact sums, merged bottom-up; false: the
+    // children's truncated sums are merged (Wang's clustering read literally; the
+    // truncation error compounds up the tree).
     bool exactNodeSums = true;
 };
 
@@ -149,6 +81,10 @@ struct HierarchyOptions {
 // longest extent added on every side).
 inline constexpr float kBoundsMargin = 0.01f;
 
+// Nodes in one array in pre-order (left child = node + 1), node sums and sample vectors
+// in two pools of (index, value) entries: no per-node allocation. The tree takes the
+// cloud by value (std::move it in) and repacks the vectors, premultiplied by A_i, in
+// leaf order.
 class SampleTree {
 public:
     // One sparse entry of a pool.
@@ -241,27 +177,24 @@ struct MultipleScatteringStats {
     size_t treeBytes = 0;           // SampleTree::bytes()
 };
 
-// Pass 2: the RGB multiple-scattering transport T_d / pi of every vertex (see the top
-// of this file), truncated to options.vertexCoefficients entries, channels = 3.
-// Only options.epsilon, vertexCoefficients, shTerms and sampleShFrom are used here (the
-// tree was built with the rest). coefficientCount = 6 N^2 of the cubemap; with the
-// samples' SH entries, coefficientCount + shTerms must exceed every index in the tree
-// (else prt::Error). Parallel over vertices (TBB); deterministic. The
-// material must be valid (validateMaterial). progress, when given, advances once per
-// vertex.
-// QUADRATURE. With cells (what prt-precompute uses), a sample in a leaf contributes
-// w_k(x_o) E_k with the cell rule's weight (cell_quadrature.h: R_d integrated over its
-// Voronoi cell near x_o, A_k R_d far away); the tree must have been built with
-// cloud.areas = cells->cellAreas() (else prt::Error), and a node is used whole only
-// when, besides (a) and (b) above, no sample's cell can reach within the near radius
-// r2 of x_o (distance to its box >= r2 + the largest cell radius). Without cells, the
-// point rule A_k R_d(|x_k - x_o|) of Jensen and Buhler (not converged at the default
-// spacing: 1.4-11.6% per point; kept for the hierarchy's tests on synthetic clouds).
+// Pass 2: V_o = T_d(x_o) / pi of every vertex (see the top of this file), channels = 3,
+// in the caller's order. Uses options.epsilon, vertexCoefficients, shTerms and
+// sampleShFrom (the tree was built with the rest). texelCount = 6 N^2 of the cubemap:
+// with the samples' SH entries, texelCount + shTerms must exceed every index in the
+// tree (else prt::Error). The material must be valid (validateMaterial). Parallel over
+// vertices (TBB), deterministic; progress, when given, advances once per vertex.
+// With cells, a sample in a leaf contributes w_k(x_o) E_k with the cell rule's weight;
+// the tree must have been built with cloud.areas = cells->cellAreas() (else
+// prt::Error), and a node is used whole only when, besides (a) and (b) above, no
+// sample's cell can reach within the near radius r2 of x_o (distance to its box >= r2
+// + the largest cell radius). Without cells, the point rule (the hierarchy's tests on
+// synthetic clouds; not converged at the default spacing: docs/fidelity.md, "The
+// sample sum").
 std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                                                       std::span<const glm::vec3> vertices,
                                                       const Material& material,
                                                       const HierarchyOptions& options,
-                                                      size_t coefficientCount,
+                                                      size_t texelCount,
                                                       MultipleScatteringStats* stats = nullptr,
                                                       Progress* progress = nullptr,
                                                       const CellQuadrature* cells = nullptr);
@@ -273,7 +206,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
 std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
                                                        std::span<const glm::vec3> vertices,
                                                        const Material& material,
-                                                       size_t coefficientCount,
+                                                       size_t texelCount,
                                                        size_t vertexCoefficients,
                                                        const CellQuadrature* cells = nullptr,
                                                        int shTerms = 0);

@@ -102,7 +102,7 @@ void storeFactors(PhaseFactorization& f, const Tabulation& tab, int terms, UFn u
     }
 }
 
-// The symmetric-eigen route (see PhaseSolver::SymmetricEigen in phase.h).
+// The symmetric-eigen route (see PhaseSolver::SymmetricEigen in phase_factoring.h).
 //
 // Qs[a][c] = sqrt(dOmega_a) p_HG(dot(a, c)) sqrt(dOmega_c) is symmetric, and the phase
 // of the pair (a, b) is p_HG(dot(a, -b)) = p_HG(dot(a, direction[R b])), so

@@ -65,14 +65,20 @@ struct PhaseFactorization {
 //     U = E, s_k = |l_k|, V = R E sign(L); hence h_k(b) = sign(l_k) g_k(-b).
 //     l_k < 0 occurs for g < 0 (the HG Legendre coefficients g^l alternate in sign).
 //     Qs commutes with R, so it is solved as two 3 M^2 blocks (even / odd functions
-//     under d -> -d): ~0.4 s CPU at M = 16 against 3.7 s for BDCSVD (docs/phase.md).
+//     under d -> -d; docs/phase.md, "How it is computed, and why").
 //   BdcSvd: Eigen::BDCSVD of Q (thin U, V).
-//   JacobiSvd: Eigen::JacobiSVD of Q (thin U, V); very slow at M = 16, for checks.
+//   JacobiSvd: Eigen::JacobiSVD of Q (thin U, V); slow, for checks.
 enum class PhaseSolver { SymmetricEigen, BdcSvd, JacobiSvd };
 const char* phaseSolverName(PhaseSolver solver);
 
 // Largest accepted M: the dense table is (6 M^2)^2 doubles (302 MB at M = 32).
 inline constexpr int kMaxPhaseMapSize = 32;
+
+// K and M as a job asks for them (prt-precompute --phase-terms, --phase-map-size).
+struct PhaseFactoringOptions {
+    int terms = 4;     // K
+    int mapSize = 16;  // M
+};
 
 // Tabulates HG(g) on 6 x M x M directions, SVD, keeps K terms (1 <= K <= 6 M^2).
 // Throws prt::Error for |g| >= 1 (or NaN), M not a power of two in [1, kMaxPhaseMapSize],
@@ -80,6 +86,10 @@ inline constexpr int kMaxPhaseMapSize = 32;
 PhaseFactorization factorPhaseFunction(double g, int terms, int mapSize = 16);
 // The same with an explicit solver.
 PhaseFactorization factorPhaseFunction(double g, int terms, int mapSize, PhaseSolver solver);
+// The same with K and M from the options.
+inline PhaseFactorization factorPhaseFunction(double g, const PhaseFactoringOptions& options) {
+    return factorPhaseFunction(g, options.terms, options.mapSize);
+}
 
 // Relative RMS error of the K-term approximation over the tabulated directions,
 // solid-angle weighted: ||Q - Q_K||_F / ||Q||_F = sqrt(sum_{k>K} s_k^2 / sum s_k^2).

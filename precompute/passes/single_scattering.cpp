@@ -96,7 +96,7 @@ void makePathSamples(double sigma, double dm, const std::vector<QuadratureNode>&
         const double s = -std::log1p(-lambda * xi) / sigma;
         // w / pdf(s) = w lambda e^(sigma s) / sigma = w lambda / ((1 - lambda xi) sigma).
         // The midpoint rule keeps its historical expression (w = 1 / N folded into the
-        // denominator), so its samples are bit-identical to the rule before issue 16.
+        // denominator), so its samples stay bit-identical to those of earlier files.
         const double weight = kind == PathQuadrature::Midpoint
                                   ? lambda / ((1.0 - lambda * xi) * double(count) * sigma)
                                   : rule[i].weight * lambda / ((1.0 - lambda * xi) * sigma);
@@ -178,7 +178,7 @@ SingleScatteringContext::SingleScatteringContext(const RayScene& scene, const Tr
     if (options.pathSamples < 1 || options.pathSamples > 4096)
         throw Error("--path-samples",
                     "must be between 1 and 4096, got " + std::to_string(options.pathSamples));
-    if (options.keepCoefficients < 1)
+    if (options.vertexCoefficients < 1)
         throw Error("--coefficients", "must be at least 1");
     if (!(options.depthCapMeanFreePaths > 0) || !std::isfinite(options.depthCapMeanFreePaths))
         throw Error("single scattering", "the depth cap must be a positive number of mean free paths");
@@ -840,14 +840,14 @@ double compressSingleScattering(const SingleScatteringContext& ctx, float* dense
         const int shTerms = ctx.options().shTerms;
         double retained = 1.0;
         if (shTerms == 0) {
-            out[size_t(k)] = truncateWithShPart(term, texels, 3, 0, ctx.options().keepCoefficients, &retained);
+            out[size_t(k)] = truncateWithShPart(term, texels, 3, 0, ctx.options().vertexCoefficients, &retained);
         } else {
             // The SH split needs room for the SH entries after the Haar ones.
             thread_local std::vector<float> withSh;
             withSh.assign((texels + size_t(shTerms)) * 3, 0.0f);
             std::copy(term, term + texels * 3, withSh.begin());
             out[size_t(k)] = truncateWithShPart(withSh.data(), texels, 3, shTerms,
-                                                ctx.options().keepCoefficients, &retained);
+                                                ctx.options().vertexCoefficients, &retained);
         }
         kept += retained * termEnergy;
     }

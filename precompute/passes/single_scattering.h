@@ -29,7 +29,8 @@
 //   * w_i'   = refractDirection(w_j, n_i, eta): the light's propagation direction
 //            after it entered at x_i, pointing INTO the medium; the light maps g_k of
 //            precompute/passes/phase_factoring.h are indexed by it (see the conventions there).
-//   * V      1 when the ray from x_i (offset outward) toward w_j hits nothing.
+//   * V      1 when nothing lies beyond x_i toward w_j (found by the exit ray itself, or
+//            by a second ray from x_i offset outward: visibilityFromExitRay).
 // The integral over s uses N deterministic importance samples (Wang Sec. 3)
 //     s_i = -ln(1 - lambda xi_i) / |sigma_t|,
 //     lambda = 1 - e^(-|sigma_t| d_m),  pdf(s) = |sigma_t| e^(-|sigma_t| s) / lambda,
@@ -45,7 +46,7 @@
 //
 // STORAGE. Per vertex and term the dense RGB cubemap (6 N^2 x 3, solid angle folded
 // in) is Haar-transformed per face and channel (common/haar.h) and truncated to the
-// largest keepCoefficients coefficients (Euclidean norm over RGB).
+// largest vertexCoefficients coefficients (Euclidean norm over RGB).
 //
 // Units: lengths in mm, coefficients in mm^-1; T is dimensionless (sr x sr^-1).
 
@@ -93,26 +94,20 @@ double pathSampleDistance(double sigma, double dm, double xi);
 double pathSamplePdf(double sigma, double dm, double s);
 // The rule on [0, 1] in xi = the sampled mass, in which a flat surface's integrand is
 // (1 - lambda xi)^p, p = sigma_t^c (1 + 1/cos_t) / |sigma_t| - 1 in [0.7, 2.6]: smooth, so
-// Gauss-Legendre with 4 points integrates it as well as 16 midpoints (both exact for
-// p = 1; 4 points: <= 8e-4 relative, 6 points: <= 2.2e-4). Geometry (exits that jump
-// to another surface as the depth grows, shadow edges) makes it non-smooth, where no
-// rule has an order; docs/single-scattering.md has the measured errors on meshes.
+// a few Gauss-Legendre points integrate it as well as many midpoints. Geometry (exits
+// that jump to another surface as the depth grows, shadow edges) makes it non-smooth,
+// where no rule has an order (docs/single-scattering.md, "Gauss path samples").
 enum class PathQuadrature {
-    Midpoint,      // xi_i = (i - 0.5) / N, w_i = 1 / N (Wang 2005; the rule before issue 16)
+    Midpoint,      // xi_i = (i - 0.5) / N, w_i = 1 / N (Wang 2005)
     GaussLegendre, // the N Gauss-Legendre nodes and weights mapped to [0, 1]
 };
 // "midpoint" / "gauss"; parsePathQuadrature throws prt::Error("--path-quadrature", ...)
 // on anything else.
 const char* toString(PathQuadrature q);
 PathQuadrature parsePathQuadrature(const std::string& text);
-// The default N of each rule: Wang's 16 midpoints; 4 Gauss-Legendre points with the
-// default rule since issue 16. On meshes (where exits jump between sheets and the
-// integrand is not smooth) the per-vertex transport of 4 Gauss points is 2.5% (bunny) /
-// 4.8% (dragon res2) from a 64-midpoint integration against 0.8% / 1.5% for 16
-// midpoints, and its renders are within 0.07% (bunny, ms + ss, forest, with adaptive
-// directions) of 6 Gauss points' and 0.15% (dragon res4) of 16 midpoints': an order
-// of magnitude below the 128-term truncation, for 4x fewer rays than 16 midpoints
-// (docs/single-scattering.md "Speed").
+// The default N of each rule: Wang's 16 midpoints, 4 Gauss-Legendre points (with the
+// adaptive directions, within the 128-term truncation's error for 4x fewer rays:
+// docs/single-scattering.md, "adaptive directions and 4 Gauss points").
 constexpr int defaultPathSamples(PathQuadrature q) { return q == PathQuadrature::Midpoint ? 16 : 4; }
 constexpr PathQuadrature kDefaultPathQuadrature = PathQuadrature::GaussLegendre;
 struct QuadratureNode {
@@ -159,7 +154,7 @@ struct SingleScatteringOptions {
     int supersample = 1;           // s x s sub-directions per texel (each with its solid angle)
     PathQuadrature pathQuadrature = kDefaultPathQuadrature;  // the rule of the samples in xi
     int pathSamples = defaultPathSamples(kDefaultPathQuadrature);  // samples along -n_o
-    size_t keepCoefficients = 128; // terms kept per vertex and term: shTerms SH + the largest Haar
+    size_t vertexCoefficients = 128; // terms kept per vertex and term: shTerms SH + the largest Haar
     int shTerms = 0;               // SH part of each vector (common/sh_part.h truncateWithShPart)
     // d_m when the inward ray leaves an open mesh: this many mean free paths
     // 1 / |sigma_t| (the sampled mass beyond it is e^-16 ~ 1e-7).
@@ -167,18 +162,15 @@ struct SingleScatteringOptions {
     // An exit point whose throughput F_t max_c e^(-sigma_t^c s_i') is below this
     // contributes nothing and gets no occlusion ray (relative to an unattenuated
     // normal-incidence ray, whose throughput is F_t(1) ~ 0.98). 0 traces every ray.
-    // Measured at 1e-4 (bunny and dragon, Marble): 20% fewer occlusion rays, relative
-    // L2 change of a vertex's dense transport <= 3e-5 (docs/single-scattering.md).
+    // What it saves and costs: docs/single-scattering.md, "Throughput cut-off".
     double minThroughput = 1e-4;
     bool visibility = true;        // false: V = 1 (no occlusion rays; tests, ablations)
     // V from the exit ray itself (RayScene::intersectBatchWithBeyond): x_i is occluded
     // when the exit ray meets another surface more than the scene's epsilon beyond it,
     // found by the same traversal that finds x_i, so no second ray is traced. false: an
-    // occlusion ray from x_i offset along its geometric normal (the rule before, kept
-    // as the reference; sharedVisibility always uses it). The two differ only where a
-    // surface lies within ~epsilon of x_i (~1e-4 mm at 30 mm): 197 of 2.46e6 exits on
-    // dragon res2, 14 on the bunny. The exit-and-visibility query runs 1.4-1.5x the rate
-    // of the two rays (docs/single-scattering.md, "visibility from the exit ray").
+    // occlusion ray from x_i offset along its geometric normal (the reference;
+    // sharedVisibility always uses it). The two differ only where a surface lies within
+    // ~epsilon of x_i (docs/single-scattering.md, "visibility from the exit ray").
     bool visibilityFromExitRay = true;
     // Whether V comes from the exit rays: visibility on, visibilityFromExitRay, and not
     // shared visibility (which always traces its own rays).
@@ -187,24 +179,20 @@ struct SingleScatteringOptions {
     // survives the cut-off), only the shallowest and the deepest sample's get an
     // occlusion ray; when both are visible (or both occluded) the samples between take
     // that V, otherwise each gets its own ray. Exact when every shadow edge that crosses
-    // a direction's exits also separates its ends (wide occluders; tested), but on
-    // meshes the ends' exits often lie on different sheets of the surface (folds, thin
-    // parts) with occluded exits between them. Measured against 64 midpoints (Marble,
-    // 16 midpoints, 200 vertices each): occlusion rays 90,024 -> 24,961 per vertex on
-    // dragon res4 and 78,460 -> 15,836 on the bunny, but the relative L2 of the dense
-    // transport grows from 1.6% to 7.1% (0.8% to 3.8%) and light is added: uniform-light
-    // sum +1.5% (+0.5%). Not the default (false: one occlusion ray per exit, the
-    // behaviour before issue 16); kept for measurements.
+    // a direction's exits also separates its ends (wide occluders; tested); on meshes
+    // the ends often lie on different sheets of the surface with occluded exits between
+    // them, and light is added. Not the default; kept for measurements
+    // (docs/single-scattering.md, "Gauss path samples").
     bool sharedVisibility = false;
     // Trace the exit and occlusion rays as COHERENT 16-ray packets (Embree's
     // RTC_INTERSECT_CONTEXT_FLAG_COHERENT, RayScene's batches with coherent = true); each
     // packet holds one direction from 16 neighbouring points (with 16 path samples; with
-    // 4, neighbouring directions from 4 points), which is what that flag is for. The hits are the same either way (tested); ~1.8x the exit-ray rate, 1.26x the
-    // whole pass on a robust scene (docs/single-scattering.md, "Speed").
+    // 4, neighbouring directions from 4 points), which is what that flag is for. The
+    // hits are the same either way (tested); docs/single-scattering.md, "Speed".
     bool coherentRays = true;
-    // Adaptive texel directions (issue 16, item 1). With a stride S > 1 only the texels
-    // of a lattice of spacing S on each cube face (and the face's last row and column)
-    // are traced first. A lattice cell whose four corners AGREE has the texels inside it
+    // Adaptive texel directions. With a stride S > 1 only the texels of a lattice of
+    // spacing S on each cube face (and the face's last row and column) are traced
+    // first. A lattice cell whose four corners AGREE has the texels inside it
     // interpolated bilinearly (per steradian) from its corners; any other cell is split
     // in four, its new corners traced, and so on down to single texels. Corners agree
     // when (refineDirections in the .cpp):
@@ -218,11 +206,9 @@ struct SingleScatteringOptions {
     //     at stake before occlusion.
     // Shadow edges, the cut-off and steep changes show as disagreeing corners; an
     // occluder or a lit gap that fits between agreeing corners is missed, which the last
-    // rule confines to dim cells or cells 2 texels wide. Measured against 64 midpoints
-    // (docs/single-scattering.md "Speed ... adaptive directions"): the per-vertex error
-    // of a path rule unchanged by it (bunny, 4 Gauss points: 2.52% against 2.57%
-    // relative L2) with 2.6x fewer rays. 1 traces every texel (the rule before); used
-    // only with supersample == 1 (ignored otherwise).
+    // rule confines to dim cells or cells 2 texels wide (what it costs in accuracy:
+    // docs/single-scattering.md, "adaptive directions and 4 Gauss points"). 1 traces
+    // every texel; used only with supersample == 1 (ignored otherwise).
     int directionStride = 1;
     double refineValueTolerance = 0.5;
     double refineValueFloor = 1e-2;
@@ -278,11 +264,10 @@ public:
     float fresnel(float cosTheta) const;
 
     // Where the inward path of vertex v starts: the vertex moved 1% of the way toward
-    // the mean centroid of its own triangles. On smooth meshes this is a shift of
-    // ~0.3% of an edge; at a crease with split vertices (a box edge, each face with
-    // its own vertices and flat normals) it takes the path -n_o off the plane of the
-    // adjacent face, on which it would otherwise run (half its rays then leave
-    // through that face at t ~ 0 and are lost: black edges).
+    // the mean centroid of its own triangles, so that at a crease with split vertices
+    // (a box edge, each face with its own vertices and flat normals) the path -n_o
+    // leaves the plane of the adjacent face instead of running in it (half its rays
+    // would leave through that face at t ~ 0: black edges).
     const glm::vec3& pathOrigin(size_t v) const { return pathOrigins_[v]; }
     // The vertex normals at the three corners of triangle t (mesh.normals of its
     // indices), stored per triangle: one memory access per exit instead of two
@@ -397,7 +382,7 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
                             SingleScatteringScratch& scratch, SingleScatteringStats& stats);
 
 // Haar transform (per face, per channel) of a dense vertex result in place, then the
-// largest keepCoefficients entries of each term: out[k] (channels = 3). Returns the
+// largest vertexCoefficients entries of each term: out[k] (channels = 3). Returns the
 // retained energy fraction (kept / total over all terms; 1 for an all-zero vertex).
 double compressSingleScattering(const SingleScatteringContext& ctx, float* dense,
                                 std::vector<SparseVector>& out);

@@ -95,7 +95,7 @@ int main(int argc, char** argv) {
         SampleSet samples = poissonDiskSamples(mesh, count, 1);
         const TexelDirections dirs = makeTexelDirections(cubemapSize, supersample);
 
-        IrradianceOptions options;
+        IrradianceTransportOptions options;
         options.cubemapSize = cubemapSize;
         options.supersample = supersample;
         options.eta = materialByName(material).eta;
@@ -106,8 +106,8 @@ int main(int argc, char** argv) {
             computeIrradianceTransport(&scene, SampleSet{{samples.samples.begin(), samples.samples.begin() + std::min<size_t>(64, count)}, 0, 0, 0}, options);
             return computeIrradianceTransport(&scene, samples, options);
         };
-        const IrradianceResult pass1 = runPass1(VisibilitySampling::Every);
-        const IrradianceResult coherent = runPass1(VisibilitySampling::Coherent);
+        const IrradianceTransportResult pass1 = runPass1(VisibilitySampling::Every);
+        const IrradianceTransportResult coherent = runPass1(VisibilitySampling::Coherent);
         const double achieved = pass1.raysTraced / pass1.seconds;
         // What coherent visibility delivers, counted as the rays it stands for (every
         // sub-direction above the horizon) per second.

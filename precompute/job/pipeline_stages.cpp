@@ -1,0 +1,356 @@
+#include "precompute/job/pipeline_stages.h"
+
+#include <tbb/task_arena.h>
+
+#include <cmath>
+#include <filesystem>
+#include <utility>
+
+#include "common/atomic_file.h"
+#include "common/blocked_vectors.h"
+#include "common/error.h"
+#include "common/mesh_io.h"
+#include "common/progress.h"
+#include "precompute/job/memory_estimate.h"
+#include "precompute/job/pass1_file.h"
+#include "precompute/job/pipeline.h"
+#include "precompute/passes/cell_quadrature.h"
+#include "precompute/passes/irradiance_transport.h"
+#include "precompute/passes/multiple_scattering.h"
+#include "precompute/passes/phase_factoring.h"
+#include "precompute/passes/single_scattering.h"
+
+namespace prt {
+
+namespace {
+
+std::string fmt(double v) { return formatParameter(v); }
+
+}  // namespace
+
+JobInputs readInputs(const JobContext& job, bool force) {
+    const PrecomputeSettings& s = job.settings;
+    Distribution& dist = job.distribution;
+    JobInputs in;
+    dist.stage([&] {
+        validateSettings(s);
+        if (dist.writes() && !s.outputPath.empty()) checkOutputPath(s.outputPath);
+        if (dist.writes() && !s.pass1File.empty()) checkOutputPath(s.pass1File);
+        in.mesh = loadMesh(s.meshPath);
+        in.fingerprint = MeshFingerprint{in.mesh.vertexCount(), meshFingerprint(in.mesh)};
+        in.parameters = settingsParameters(s, in.fingerprint);
+        const std::string digest = in.parameters.back().second;
+        if (force || !dist.writes() || s.pass1Only || !std::filesystem::exists(s.outputPath)) return;
+        try {
+            const TransportFileInfo info = readTransportFileInfo(s.outputPath);
+            bool same = info.parameter("input_digest") == digest && info.mesh == in.fingerprint;
+            for (const auto& [key, value] : dist.outputParameters(in.mesh.vertexCount()))
+                same = same && info.parameter(key) == value;
+            // A whole file is not up to date for a shard job nor a shard for a whole job.
+            same = same && info.hasParameter(kShardParameter) == dist.shard();
+            if (same) {
+                loadTransportFile(s.outputPath);  // every checksum
+                in.upToDate = true;
+            }
+        } catch (const Error&) {
+            // Not valid: recompute and replace it.
+        }
+    });
+    return in;
+}
+
+PreparedJob setUp(const JobContext& job, JobInputs inputs, const Stopwatch& jobStart) {
+    const PrecomputeSettings& s = job.settings;
+    Distribution& dist = job.distribution;
+    PreparedJob p;
+    p.mesh = std::move(inputs.mesh);
+    p.fingerprint = inputs.fingerprint;
+    p.parameters = std::move(inputs.parameters);
+    p.vertexShares = dist.vertexShares(p.mesh.vertexCount());
+    p.myVertices = totalSize(p.vertexShares);
+    p.summary.computedVertices = size_t(dist.sum(double(p.myVertices)));
+    dist.stage([&] {
+        p.mmPerUnit = scaleToPhysical(p.mesh, s.scale);
+        p.summary.vertices = p.mesh.vertexCount();
+        p.summary.triangles = p.mesh.triangleCount();
+        p.summary.totalAreaMm2 = totalArea(p.mesh);
+        p.derived.push_back({"mm_per_unit", fmt(p.mmPerUnit)});
+        if (s.components.multipleScattering) {
+            // Spacing about the mean free path l_u = 1 / sigma_t' (Jensen-Buhler).
+            const double spacing = s.samples.spacingMm > 0 ? s.samples.spacingMm : s.material.minMeanFreePath();
+            p.sampleCount = s.samples.count > 0
+                                ? s.samples.count
+                                : defaultSampleCount(p.summary.totalAreaMm2, spacing, s.samples.maxCount);
+        }
+        const MemoryEstimate need =
+            estimatePrecomputeMemory(s, p.mesh.vertexCount(), p.mesh.triangleCount(), p.sampleCount,
+                                     tbb::this_task_arena::max_concurrency(),
+                                     s.components.multipleScattering ? p.summary.totalAreaMm2 : 0.0);
+        checkMemory(need, s.maxMemoryGb);
+        p.summary.estimatedMemoryBytes = need.bytes;
+        if (s.components.multipleScattering) p.scene.emplace(p.mesh);
+        p.summary.seconds = jobStart.seconds();
+        p.summary.peakMemoryBytes = peakMemoryBytes();
+    });
+    return p;
+}
+
+PlacedSamples placeSamples(const JobContext& job, const PreparedJob& prepared) {
+    PlacedSamples out;
+    job.distribution.stage([&] {
+        const Stopwatch start;
+        {
+            Progress p("samples", prepared.sampleCount, "samples");
+            out.samples = poissonDiskSamples(prepared.mesh, prepared.sampleCount, job.settings.samples.seed);
+            p.advance(prepared.sampleCount);
+        }
+        out.summary.seconds = start.seconds();
+        out.summary.peakMemoryBytes = peakMemoryBytes();
+        out.summary.count = out.samples.samples.size();
+        out.summary.spacingMm = std::sqrt(2.0 * out.samples.areaPerSample / std::sqrt(3.0));
+        out.derived.push_back({"samples", std::to_string(out.summary.count)});
+        out.derived.push_back({"sample_area_mm2", fmt(out.samples.areaPerSample)});
+    });
+    return out;
+}
+
+Pass1Output runPass1(const JobContext& job, const PreparedJob& prepared, const PlacedSamples& placed) {
+    const PrecomputeSettings& s = job.settings;
+    Distribution& dist = job.distribution;
+    const size_t sampleCount = placed.samples.samples.size();
+    Pass1Output out;
+    out.summary.file = s.pass1File;
+    // A pass-1 file that exists is read by every process (rank 0 decides, so all agree).
+    const bool fromFile = dist.agree(!s.pass1File.empty() && std::filesystem::exists(s.pass1File));
+    const std::string key =
+        s.pass1File.empty() ? std::string() : pass1Key(prepared.parameters, prepared.mmPerUnit, sampleCount);
+    IrradianceTransportResult pass1;
+    IndexRange mine{0, sampleCount};
+    dist.stage([&] {
+        if (fromFile) {
+            const Stopwatch loadStart;
+            pass1.vectors = loadPass1File(s.pass1File, key);
+            pass1.seconds = loadStart.seconds();
+            out.summary.loaded = true;
+            return;
+        }
+        mine = dist.sampleShare(sampleCount);
+        SampleSet share;
+        share.areaPerSample = placed.samples.areaPerSample;
+        share.samples.assign(placed.samples.samples.begin() + ptrdiff_t(mine.begin),
+                             placed.samples.samples.begin() + ptrdiff_t(mine.end));
+        Progress p("pass 1 (irradiance transport)" + job.share, share.samples.size(), "samples");
+        pass1 = computeIrradianceTransport(&*prepared.scene, share, s.pass1, &p);
+        out.busySeconds = pass1.seconds;
+    });
+    const Stopwatch exchangeStart;
+    // What MpiDistribution::gatherSamples sends: two 8-byte counts + 8 bytes per coefficient.
+    double exchangeBytes = 0;
+    for (const SparseVector& v : pass1.vectors) exchangeBytes += 16 + 8 * double(v.size());
+    if (!fromFile) pass1.vectors = dist.gatherSamples(std::move(pass1.vectors), sampleCount);
+    out.summary.exchangeBytes = dist.ranks() > 1 ? dist.sum(exchangeBytes) : 0.0;
+    out.summary.exchangeSeconds = exchangeStart.seconds();
+    out.summary.rays = uint64_t(dist.sum(double(pass1.raysTraced)));
+    out.summary.seconds = pass1.seconds + out.summary.exchangeSeconds;
+    // All ranks' rays over this rank's time: the shares run side by side.
+    out.summary.raysPerSecond = pass1.seconds > 0 ? double(out.summary.rays) / pass1.seconds : 0;
+    out.summary.retainedEnergy =
+        dist.sum(pass1.retainedEnergyFraction * double(mine.size())) / double(sampleCount);
+    out.summary.peakMemoryBytes = peakMemoryBytes();
+    if (!s.pass1File.empty() && !fromFile)
+        dist.stage([&] {
+            if (dist.writes()) savePass1File(s.pass1File, key, pass1.vectors);
+        });
+    out.vectors = std::move(pass1.vectors);
+    return out;
+}
+
+Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const PlacedSamples& placed,
+                     std::vector<SparseVector> pass1Vectors) {
+    const PrecomputeSettings& s = job.settings;
+    Distribution& dist = job.distribution;
+    const size_t texelCount = size_t(6) * s.cubemapSize * s.cubemapSize;
+    Pass2Output out;
+    std::vector<SparseVector> transport;
+    MultipleScatteringStats stats;
+    const Stopwatch start;
+    dist.stage([&] {
+        SampleCloud cloud;
+        cloud.positions.reserve(placed.samples.samples.size());
+        std::vector<glm::vec3> normals;
+        normals.reserve(placed.samples.samples.size());
+        for (const SurfaceSample& sample : placed.samples.samples) {
+            cloud.positions.push_back(sample.position);
+            normals.push_back(sample.geometricNormal);
+        }
+        // The converged quadrature of Eq. 7 (cell_quadrature.h): E constant over each
+        // sample's Voronoi cell, R_d integrated over the cells near each vertex.
+        const Stopwatch cellsStart;
+        const CellQuadrature cells(prepared.mesh, cloud.positions, normals, placed.summary.spacingMm, s.material);
+        out.summary.cellSeconds = cellsStart.seconds();
+        out.summary.cellSubPoints = cells.subPointCount();
+        cloud.areas.assign(cells.cellAreas().begin(), cells.cellAreas().end());
+        cloud.irradianceTransport = std::move(pass1Vectors);
+        const SampleTree tree(std::move(cloud), s.pass2);
+        std::vector<glm::vec3> positions;
+        positions.reserve(prepared.myVertices);
+        for (const IndexRange& r : prepared.vertexShares)
+            positions.insert(positions.end(), prepared.mesh.positions.begin() + ptrdiff_t(r.begin),
+                             prepared.mesh.positions.begin() + ptrdiff_t(r.end));
+        Progress p("pass 2 (multiple scattering)" + job.share, prepared.myVertices, "vertices");
+        transport = multipleScatteringTransport(tree, positions, s.material, s.pass2, texelCount, &stats, &p, &cells);
+        out.busySeconds = start.seconds();
+    });
+    // Means over the vertices computed (all ranks'; a shard's own range).
+    const size_t computed = prepared.summary.computedVertices;
+    const double vertexWeight = computed ? double(prepared.myVertices) / double(computed) : 0.0;
+    out.summary.meanNodesVisited = dist.sum(stats.meanNodesVisited * vertexWeight);
+    out.summary.retainedEnergy = dist.sum(stats.retainedEnergyFraction * vertexWeight);
+
+    TransportComponent& ms = out.component;
+    ms.kind = ComponentKind::MultipleScattering;
+    ms.vectors.reserve(transport.size(), transport.size() * s.vertexCoefficients);
+    for (const SparseVector& v : transport) ms.vectors.appendVertex(v.index, v.value);
+    transport.clear();
+    const Stopwatch gatherStart;
+    ms.vectors = dist.gatherVertices(std::move(ms.vectors), prepared.mesh.vertexCount());
+    out.summary.gatherSeconds = gatherStart.seconds();
+    out.summary.seconds = start.seconds();
+    // After the copy into the file's arrays, which coexists with the per-vertex vectors.
+    out.summary.peakMemoryBytes = peakMemoryBytes();
+    return out;
+}
+
+SingleScatteringOutput runSingleScattering(const JobContext& job, const PreparedJob& prepared) {
+    const PrecomputeSettings& s = job.settings;
+    Distribution& dist = job.distribution;
+    SingleScatteringOutput out;
+    SingleScatteringSummary& summary = out.summary;
+    std::optional<PhaseFactorization> phase;
+    SingleScatteringResult result;
+    dist.stage([&] {
+        // Isotropic for g = 0, else the K-term SVD of HG(g) (phase_factoring.h).
+        if (s.material.g != 0.0) {
+            const Stopwatch phaseStart;
+            phase = factorPhaseFunction(s.material.g, s.phase);
+            summary.phaseSeconds = phaseStart.seconds();
+            summary.phaseRmsError = phaseApproximationError(*phase, s.phase.terms);
+            out.derived.push_back({"phase_rms_error", fmt(summary.phaseRmsError)});
+        }
+        // Its own scene with robust traversal, traced in coherent packets (fewer rays slip
+        // through shared edges; docs/single-scattering.md, "Speed").
+        const RayScene scene(prepared.mesh, RaySceneOptions{RayBuildQuality::High, true});
+        const SingleScatteringContext context(scene, prepared.mesh, s.material, phase ? &*phase : nullptr,
+                                              s.singleScattering);
+        const int terms = context.terms();
+        out.components.resize(size_t(terms));
+        for (int k = 0; k < terms; ++k) {
+            TransportComponent& c = out.components[size_t(k)];
+            c.kind = context.isotropic() ? ComponentKind::SingleScatteringIsotropic : ComponentKind::SingleScatteringTerm;
+            c.term = context.isotropic() ? 0 : uint32_t(k);
+            c.vectors.reserve(prepared.myVertices, prepared.myVertices * s.vertexCoefficients);
+        }
+        Progress p((context.isotropic() ? "single scattering (isotropic)"
+                                        : "single scattering (" + std::to_string(terms) + " terms)") +
+                       job.share,
+                   prepared.myVertices, "vertices");
+        double retained = 0.0;
+        for (const IndexRange& r : prepared.vertexShares) {
+            const SingleScatteringResult part = computeSingleScattering(
+                context,
+                [&](size_t, const std::vector<SparseVector>& vectors) {
+                    for (int k = 0; k < terms; ++k)
+                        out.components[size_t(k)].vectors.appendVertex(vectors[size_t(k)].index,
+                                                                       vectors[size_t(k)].value);
+                },
+                &p, std::pair{r.begin, r.end});
+            result.stats.add(part.stats);
+            result.seconds += part.seconds;
+            retained += part.retainedEnergyFraction * double(r.size());
+        }
+        result.isotropic = context.isotropic();
+        result.terms = terms;
+        result.retainedEnergyFraction = prepared.myVertices ? retained / double(prepared.myVertices) : 1.0;
+        out.busySeconds = result.seconds;
+    });
+    const Stopwatch gatherStart;
+    for (TransportComponent& c : out.components)
+        c.vectors = dist.gatherVertices(std::move(c.vectors), prepared.mesh.vertexCount());
+    summary.gatherSeconds = gatherStart.seconds();
+    if (phase) {
+        ViewMaps maps;
+        maps.size = phase->mapSize;
+        maps.terms = result.terms;
+        for (const Cubemap& h : phase->viewMaps) maps.data.insert(maps.data.end(), h.data().begin(), h.data().end());
+        out.viewMaps = std::move(maps);
+    }
+    summary.terms = result.terms;
+    summary.isotropic = result.isotropic;
+    summary.seconds = result.seconds;
+    const SingleScatteringStats& st = result.stats;
+    const auto total = [&](uint64_t v) { return uint64_t(dist.sum(double(v))); };
+    summary.rays = total(st.rays());
+    summary.exitRays = total(st.exitRays);
+    summary.occlusionRays = total(st.occlusionRays);
+    summary.occludedExits = total(st.occludedExits);
+    summary.culledRays = total(st.culledRays);
+    summary.tracedTexels = total(st.tracedTexels);
+    summary.interpolatedTexels = total(st.interpolatedTexels);
+    summary.reversedHits = total(st.reversedHits);
+    summary.outsideSamples = total(st.outsideSamples);
+    summary.flippedNormals = total(st.flippedNormals);
+    summary.escapedRays = total(st.escapedRays);
+    summary.cappedDepths = total(st.cappedDepths);
+    summary.raysPerSecond = result.seconds > 0 ? double(summary.rays) / result.seconds : 0.0;
+    const size_t computed = prepared.summary.computedVertices;
+    summary.meanDepthMm = computed ? dist.sum(st.depthSum) / double(computed) : 0.0;
+    summary.retainedEnergy =
+        computed ? dist.sum(result.retainedEnergyFraction * double(prepared.myVertices)) / double(computed) : 1.0;
+    summary.peakMemoryBytes = peakMemoryBytes();
+    return out;
+}
+
+WriteOutput writeTransport(const JobContext& job, const PreparedJob& prepared,
+                           std::vector<TransportComponent> components, std::optional<ViewMaps> viewMaps,
+                           ParameterList derived) {
+    const PrecomputeSettings& s = job.settings;
+    Distribution& dist = job.distribution;
+    WriteOutput out;
+    dist.stage([&] {
+        if (!dist.writes()) return;
+        TransportFile file;
+        file.cubemapSize = uint32_t(s.cubemapSize);
+        file.shTerms = uint32_t(s.shTerms);
+        file.mesh = prepared.fingerprint;
+        file.mmPerUnit = prepared.mmPerUnit;
+        file.parameters = prepared.parameters;
+        file.components = std::move(components);
+        file.viewMaps = std::move(viewMaps);
+        if (s.blockCoefficients > 0) {
+            // The joint choice needs every vertex's vectors: after the gather, on the writer.
+            const Stopwatch blockStart;
+            const std::vector<uint32_t> order = spatialBlockOrder(prepared.mesh.positions);
+            const size_t texelCount = size_t(6) * s.cubemapSize * s.cubemapSize;
+            double retained = 0.0;
+            for (TransportComponent& c : file.components) {
+                c.blocks = jointTruncate(c.vectors, s.blockCoefficients, order,
+                                         s.shTerms > 0 ? uint32_t(texelCount) : UINT32_MAX);
+                retained += retainedEnergyFraction(c.vectors, c.blocks);
+                c.vectors = SparseRgbVectors();  // frees the per-vertex arrays
+            }
+            out.blockSeconds = blockStart.seconds();
+            out.blockRetainedEnergy = file.components.empty() ? 1.0 : retained / double(file.components.size());
+            derived.push_back({"block_retained_energy", fmt(out.blockRetainedEnergy)});
+        }
+        const ParameterList shard = dist.outputParameters(prepared.mesh.vertexCount());
+        derived.insert(derived.end(), shard.begin(), shard.end());
+        file.parameters.insert(file.parameters.end() - 1, derived.begin(), derived.end());
+        const Stopwatch writeStart;
+        saveTransportFile(s.outputPath, file);
+        out.summary.seconds = writeStart.seconds();
+        out.summary.fileBytes = std::filesystem::file_size(s.outputPath);
+    });
+    return out;
+}
+
+}  // namespace prt

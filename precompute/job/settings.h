@@ -1,0 +1,86 @@
+#pragma once
+// The settings of one precompute job: what prt-precompute's options and JSON job keys
+// set (job_options.h), with the options of each pass held as the very struct that pass
+// takes (settings.pass1 is what computeIrradianceTransport runs with, and so on), and
+// their text as stored in the transport file and hashed into its input digest.
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "common/bssrdf.h"
+#include "common/mesh.h"
+#include "common/transport_file.h"
+#include "common/transport_params.h"
+#include "precompute/job/distribution.h"
+#include "precompute/passes/irradiance_transport.h"
+#include "precompute/passes/multiple_scattering.h"
+#include "precompute/passes/phase_factoring.h"
+#include "precompute/passes/single_scattering.h"
+
+namespace prt {
+
+// Where the surface samples x_i of pass 1 go (Poisson disk, common/sampling.h).
+struct SamplePlacement {
+    size_t count = 0;          // 0: from spacingMm
+    double spacingMm = 0;      // 0: the material's smallest mean free path l_u
+    size_t maxCount = 300000;  // cap on the automatic count
+    uint64_t seed = 1;
+};
+
+struct PrecomputeSettings {
+    std::string meshPath;
+    std::string outputPath;           // empty only with pass1Only
+    MeshScale scale;                  // exactly one of sizeMm / mmPerUnit
+    Material material;                // with eta and g
+    ScatteringComponents components;  // default: multiple scattering only
+
+    // What every pass and the file share; withSharedValues() sets them (and the
+    // material's eta) on the pass options below, whose own copies are not read.
+    int cubemapSize = 32;             // N of the 6 x N x N lighting cubemap (<= 64)
+    int shTerms = 9;                  // SH part of every multiple-scattering vector: 0, 1, 4 or 9
+    size_t vertexCoefficients = 128;  // terms kept per vertex and component, the SH terms included
+    // > 0: the file stores blocks of 16 nearby vertices sharing this many jointly chosen
+    // terms, picked from each vertex's vertexCoefficients (common/blocked_vectors.h).
+    size_t blockCoefficients = 0;
+
+    SamplePlacement samples;
+    IrradianceTransportOptions pass1;  // its supersample, sampleCoefficients, sampling
+    HierarchyOptions pass2;            // its epsilon, nodeCoefficients
+    PhaseFactoringOptions phase;       // single scattering with g != 0
+    // Used when components.singleScattering: its supersample, pathQuadrature,
+    // pathSamples, directionStride, visibilityFromExitRay. Adaptive directions by
+    // default (docs/single-scattering.md, "adaptive directions and 4 Gauss points").
+    SingleScatteringOptions singleScattering{.directionStride = 4};
+
+    // Not physics settings: neither stored in the file nor part of the input digest.
+    // Refuse the job up front when its estimated memory (memory_estimate.h) exceeds
+    // this many GB; 0 = the machine's available memory.
+    double maxMemoryGb = 0.0;
+    // --shard i/n: only the vertices of shard i of n, into a shard file that prt-merge
+    // joins (distribution.h); the shards of a job share its input_digest.
+    std::optional<ShardSpec> shard;
+    // --pass1-file: the samples' pass-1 vectors are loaded from this file when it exists
+    // (made for this job's pass-1 inputs, pass1_file.h), else computed and saved there,
+    // so the shards of a job compute pass 1 once. pass1Only: stop after writing it.
+    std::string pass1File;
+    bool pass1Only = false;
+};
+
+// The settings as the passes take them: cubemapSize, shTerms, vertexCoefficients and
+// the material's eta set on pass1, pass2 and singleScattering, and pass2's sampleShFrom.
+// Single-scattering vectors get no SH part (docs/single-scattering.md, "Storage").
+PrecomputeSettings withSharedValues(PrecomputeSettings s);
+
+// Throws prt::Error naming the bad option.
+void validateSettings(const PrecomputeSettings& s);
+
+// Every setting as text, in a fixed order, with the input digest (a hash of the rest)
+// last: stored in the transport file, so that a batch run can tell whether an output
+// is up to date. The single-scattering settings are listed only when single scattering
+// is selected, and block_coefficients only when > 0, so files without them keep their
+// parameters and digest.
+ParameterList settingsParameters(const PrecomputeSettings& s, const MeshFingerprint& mesh);
+
+}  // namespace prt
