@@ -14,10 +14,12 @@
 # rank that fails (PRT_MPI_FAIL fault injection) must stop the whole job with exit 1 and
 # the failing rank named on one line of prt-precompute's, leaving no output; a missing
 # or duplicated shard and a shard handed to the renderer are one-line errors.
-# Without mpirun (a build without MPI) the MPI cases are skipped and said so.
+# MPI is what the build says (CMake passes it): "on" runs the MPI cases and fails without
+# mpirun; "off" (configured with -DPRT_MPI=OFF) skips them and says so; "missing" (MPI
+# requested but not found at configure time) fails.
 set -u
-if [ $# -ne 2 ]; then echo "usage: $0 BUILD_DIR WORKDIR" >&2; exit 2; fi
-BUILD=$1 WORK=$2
+if [ $# -ne 3 ]; then echo "usage: $0 BUILD_DIR WORKDIR on|off|missing" >&2; exit 2; fi
+BUILD=$1 WORK=$2 MPI=$3
 PRE=$BUILD/bin/prt-precompute MERGE=$BUILD/bin/prt-merge
 RELIGHT=$BUILD/bin/prt-relight
 rm -rf "$WORK" && mkdir -p "$WORK" && cd "$WORK" || exit 1
@@ -78,9 +80,15 @@ one_line "^prt-relight: error: part1.prt: is shard 1/4 .*prt-merge" "$RELIGHT" r
 one_line "^prt-precompute: error: --shard: " "$PRE" "${job[@]}" --shard 4/4 -o bad.prt
 [ ! -e bad.prt ] || fail "a failed merge left bad.prt"
 
-if ! command -v mpirun > /dev/null || ! grep -q "PRT_HAVE_MPI" "$BUILD/precompute/CMakeFiles/prt_mpi_distribution.dir/flags.make" 2> /dev/null; then
-    echo "SKIPPED: the MPI cases (no mpirun, or prt-precompute built without MPI)"
-else
+run_mpi=0
+case "$MPI" in
+    on) if command -v mpirun > /dev/null; then run_mpi=1
+        else fail "prt-precompute was built with MPI but mpirun is not on PATH"; fi ;;
+    off) echo "SKIPPED: the MPI cases (configured with -DPRT_MPI=OFF)" ;;
+    missing) fail "MPI was requested (PRT_MPI=ON) but CMake did not find it: install libopenmpi-dev openmpi-bin (tools/setup.sh) or configure with -DPRT_MPI=OFF" ;;
+    *) echo "usage: $0 BUILD_DIR WORKDIR on|off|missing" >&2; exit 2 ;;
+esac
+if [ "$run_mpi" = 1 ]; then
     mpi=(mpirun --oversubscribe)
     for np in 1 2 4; do
         "${mpi[@]}" -np $np "$PRE" "${job[@]}" -o mpi$np.prt > mpi$np.log 2>&1 || { cat mpi$np.log; fail "mpirun -np $np"; }

@@ -9,7 +9,7 @@
 # Defaults: data/meshes/dragon_vrip_res4.ply.gz, 2 runs each, --size-mm 30
 # --components ss (single scattering alone: no samples, no multiple scattering).
 # BEFORE_OPTIONS / AFTER_OPTIONS (space-separated) go to one binary only, so one build
-# can be timed against itself, e.g. the path rule before issue 16 against the default:
+# can be timed against itself, e.g. the midpoint path rule against the default:
 #   BEFORE_OPTIONS="--path-quadrature midpoint" tools/ss-bench.sh B B mesh 2
 # Outputs go to ${OUT:-out/ss-bench}.
 set -euo pipefail
