@@ -146,7 +146,7 @@ void main() {
             if (refractDirection(wo, n, uEta, wt)) {
                 vec3 ss = vec3(0.0);
                 for (int k = 0; k < uTermCount; ++k) ss += viewMap(k, wt) * interpolated(k + 1);
-                sum += max(ss, vec3(0.0));  // the K-term phase's negative lobes, as render.cpp
+                sum += max(ss, vec3(0.0));  // the K-term phase's negative lobes, as translucent_shader.cpp
             }
         }
         L = (1.0 - fr) * max(sum, vec3(0.0));
