@@ -50,8 +50,8 @@ double latLongIntegral(const Image& latlong, int c);
 enum class NonFinitePolicy {
     Reject,         // throw prt::Error(path, "pixel (x, y) is NaN in channel R ...")
     ClampNegative,  // reject NaN and Inf as above, but replace negative values by 0 and
-                    // prt::warn their count. Real maps often hold small negatives from
-                    // resampling (all eight Blender studio-light maps do, down to -0.004).
+                    // prt::warn their count: real maps often hold small negatives from
+                    // resampling (docs/conventions.md, "Lat-long").
     Clamp,          // NaN, -Inf, negatives -> 0; +Inf -> largest finite value of that
                     // channel (0 if none); prt::warn with the number of values replaced
 };
@@ -94,14 +94,14 @@ bool rotationAboutY(const glm::dmat3& rotation, double& degrees);
 // proportion to the exact spherical areas of the pieces. A texel's value is the sum of
 // radiance * area over what it received divided by the total area it received. So a
 // constant map gives an exactly constant cubemap, and the integral over the sphere is
-// preserved to ~1e-6 relative or better (measured: ~1e-7 on real maps at N = 32,
-// ~2e-6 for one-pixel suns); the only approximation is the geodesic-vs-parallel shape of a
-// straddling cell, of relative order cell^2. Multithreaded over lat-long rows; the
+// preserved to ~1e-6 relative; the only approximation is the geodesic-vs-parallel shape
+// of a straddling cell, of relative order cell^2. Multithreaded over lat-long rows; the
 // result does not depend on the number of threads. Throws prt::Error for an empty or
 // inconsistent image or an n that is not a power of two.
 //
-// This is the reference implementation (its time: docs/performance.md). For rotations about +Y, LatLongCubemapFilter below gives the same cubemap at
-// whole-pixel angles, and a close one between them, in a few ms.
+// This is the reference implementation. For rotations about +Y, LatLongCubemapFilter
+// below gives the same cubemap at whole-pixel angles, and a close one between them, far
+// faster (docs/relight.md, "Turning the environment: the fast path").
 Cubemap latLongToCubemap(const Image& latlong, int n,
                          const glm::dmat3& rotation = glm::dmat3(1.0));
 
@@ -114,35 +114,34 @@ Cubemap latLongToCubemap(const Image& latlong, int n,
 // with pixel columns, so apply(latlong, 360 k / width) equals
 // latLongToCubemap(latlong, n, rotationY(360 k / width)) up to rounding: the weights are
 // stored as float (~6e-8 relative each), so each texel agrees to ~1e-7 relative for a
-// non-negative map (measured 1.2e-7 on the eight maps of data/envmaps). The one other
-// difference: the rotated exact path's corner directions carry ~1e-16 of rounding, so
-// where a column border lies exactly on a texel border it leaves slivers of ~1e-14 of a
-// pixel's solid angle in the neighbouring texel, which this filter (built at identity)
-// does not; that shows only next to pixels ~1e9 times brighter (an absolute difference
-// of ~2e-14 of the brightest texel). For a fractional shift k + f (0 < f < 1)
-// apply returns (1 - f) apply(k) + f apply(k + 1): the exact box filter of the map
-// linearly interpolated in longitude between pixel centres. That keeps the integral over
-// the sphere exactly as latLongToCubemap does (~1e-6) but differs from the exact rotated
-// filter by a sub-pixel blur (docs/relight.md gives the size on the real maps). Shifts
-// within 1e-9 pixel of a whole number are taken as whole.
+// non-negative map. The one other difference: the rotated exact path's corner
+// directions carry ~1e-16 of rounding, so where a column border lies exactly on a texel
+// border it leaves slivers of ~1e-14 of a pixel's solid angle in the neighbouring
+// texel, which this filter (built at identity) does not; that shows only next to
+// pixels ~1e9 times brighter (an absolute difference of ~2e-14 of the brightest texel).
+// For a fractional shift k + f (0 < f < 1) apply returns (1 - f) apply(k) + f
+// apply(k + 1): the exact box filter of the map linearly interpolated in longitude
+// between pixel centres. That keeps the integral over the sphere exactly as
+// latLongToCubemap does (~1e-6) but differs from the exact rotated filter by a
+// sub-pixel blur (docs/relight.md gives the size on the real maps). Shifts within 1e-9
+// pixel of a whole number are taken as whole.
 //
 // Two ways to apply it, with the same result up to rounding:
 // - apply(const Image&, degrees) reads every stored entry (the lat-long pixels a texel
-//   receives area from, with float weights), ~1 ms at N = 32 for 1024 x 512 on 2 cores.
-//   It needs nothing but the image and is the reference for the faster one.
+//   receives area from, with float weights). It needs nothing but the image and is the
+//   reference for the faster one.
 // - apply(const LatLongRowSums&, degrees) reads the environment's row running sums
 //   (built once per environment, below). Within one texel and one lat-long row the
 //   pixels form runs of consecutive columns whose weights are all equal but perhaps the
 //   first and the last (every pixel wholly inside the texel gets the same one), so a run
 //   costs the running sums at its two ends instead of one read per pixel, and the blend
 //   of a fractional shift is linear in the running sums too. Same float weights, double
-//   sums: it matched apply(const Image&) bit for bit on forest at N = 32 over 40 angles
-//   (tests: LatLongFilter.RowSums*); its own rounding: see LatLongRowSums.
+//   sums (tests: LatLongFilter.RowSums*); its own rounding: see LatLongRowSums.
 //
 // Storage: per texel (CSR), the lat-long pixels it receives area from with their
-// normalised weights (area received / the texel's total), 8 bytes per entry: 1.25
-// entries per lat-long pixel at N = 32, 1.54 at N = 64 for 1024 x 512; and the same
-// weights as runs along rows, 20 bytes per run (runCount(); all of it in memoryBytes()).
+// normalised weights (area received / the texel's total), 8 bytes per entry
+// (entryCount()); and the same weights as runs along rows, 20 bytes per run
+// (runCount(); all of it in memoryBytes()).
 class LatLongRowSums;
 
 class LatLongCubemapFilter {
@@ -150,23 +149,22 @@ public:
     static constexpr int kMaxLatLongSize = 65535;          // pixel coordinates are 16-bit
     static constexpr double kIntegerShiftTolerance = 1e-9;  // pixels
 
-    // Builds the filter (the cost of about 1.4 latLongToCubemap calls, multithreaded over
-    // rows; deterministic). Throws prt::Error for sizes outside 1 .. kMaxLatLongSize or an
-    // n that is not a power of two.
+    // Builds the filter (multithreaded over rows; deterministic). Throws prt::Error for
+    // sizes outside 1 .. kMaxLatLongSize or an n that is not a power of two.
     LatLongCubemapFilter(int width, int height, int n);
 
     // Cubemap of face size n, one channel per lat-long channel, of `latlong` (width x
     // height, any channel count) turned by rotationY(rotationYDegrees): see above.
     // Multithreaded over texels (the result does not depend on the thread count); for
     // RGB the loop is AVX2 where the CPU has it (the same double sums, so the same
-    // cubemap up to the order of the final rounding). Throws prt::Error for an inconsistent or empty image, a size other
-    // than the filter's, or a non-finite angle.
+    // cubemap up to the order of the final rounding). Throws prt::Error for an
+    // inconsistent or empty image, a size other than the filter's, or a non-finite angle.
     Cubemap apply(const Image& latlong, double rotationYDegrees = 0.0) const;
-    // The same cubemap (up to rounding) from the environment's row running sums: 0.4 of
-    // apply(const Image&)'s time at N = 32 for 1024 x 512 (0.55 at N = 64; runCount()
-    // against entryCount() says why). Multithreaded over texels, the result does not
-    // depend on the thread count; RGB uses AVX2 where the CPU has it. Throws prt::Error
-    // for sums of a size other than the filter's or a non-finite angle.
+    // The same cubemap (up to rounding) from the environment's row running sums, in less
+    // time (runCount() against entryCount() says how much less). Multithreaded over
+    // texels, the result does not depend on the thread count; RGB uses AVX2 where the
+    // CPU has it. Throws prt::Error for sums of a size other than the filter's or a
+    // non-finite angle.
     Cubemap apply(const LatLongRowSums& sums, double rotationYDegrees = 0.0) const;
 
     int width() const { return width_; }
@@ -213,8 +211,8 @@ private:
 
 // Running sums along the rows of a lat-long map, in double: the per-environment half of
 // LatLongCubemapFilter::apply(const LatLongRowSums&, ...). Build it once per environment
-// image (one pass over the map, a few ms for 1024 x 512) and keep it for as long as the
-// environment is turned; it does not refer to the image afterwards.
+// image (one pass over the map) and keep it for as long as the environment is turned;
+// it does not refer to the image afterwards.
 //
 // at(y, j, c) is the sum of channel c over columns 0 .. j - 1 of row y, the row repeated
 // periodically (column x + width is column x), for j in [0, 2 width + 1]: two periods, so

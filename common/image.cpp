@@ -110,7 +110,8 @@ Image readImage(const std::string& path) {
     const int w = spec.width, h = spec.height, c = spec.nchannels;
     // No environment or frame of ours comes near 65536 pixels a side, and OpenImageIO's
     // EXR reader buffers many scanlines at once: a corrupt header claiming 14 million
-    // columns made it allocate 59 GB for one strip (found by tools/fuzz).
+    // columns makes it allocate 59 GB for one strip
+    // (tools/fuzz/crashes/environment/oiio-exr-huge-width-oom).
     if (w > kMaxImageSide || h > kMaxImageSide || c > 64)
         throw Error(path, "the header declares " + std::to_string(w) + " x " + std::to_string(h) + " pixels of " +
                               std::to_string(c) + " channels; at most " + std::to_string(kMaxImageSide) +
@@ -124,7 +125,7 @@ Image readImage(const std::string& path) {
 
     // Rows are read in strips of about 16 MB and the buffer grows with them, so a small
     // corrupt file whose header claims a huge image fails at its first missing rows
-    // instead of allocating the whole claim first (found by tools/fuzz).
+    // instead of allocating the whole claim first (docs/reliability.md, "Fuzzing").
     Image image;
     image.width = w;
     image.height = h;

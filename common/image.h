@@ -45,7 +45,8 @@ struct Image {
 };
 
 // Reads the first subimage (top MIP level) of any file OpenImageIO can read, all
-// channels, as float: the stored pixels (data window), any display-window offset ignored. Unassociated alpha is kept as stored (no premultiplication).
+// channels, as float: the stored pixels (data window), any display-window offset
+// ignored. Unassociated alpha is kept as stored (no premultiplication).
 // Throws prt::Error(path, reason) for a missing file, a directory, an unknown or
 // corrupt format, deep or volume images, more than kMaxImageSide pixels a side or 64
 // channels, and a header claiming more pixels than the available memory.

@@ -27,7 +27,7 @@ void checkImage(const Image& image, const char* which) {
     if (!image.consistent()) throw Error(which, "image is inconsistent (pixel count does not match its size)");
 }
 
-// Which pixels are compared (see compare.h), and a description of the rule.
+// Which pixels are compared (see image_compare.h), and a description of the rule.
 std::vector<uint8_t> maskOf(const Image& test, const Image& reference, const CompareOptions& options,
                             std::string& description) {
     const size_t count = size_t(reference.width) * reference.height;

@@ -12,11 +12,8 @@ namespace prt {
 
 namespace {
 
-std::string formatRgb(const glm::dvec3& v) {
-    std::ostringstream os;
-    os << "(" << v.x << ", " << v.y << ", " << v.z << ")";
-    return os.str();
-}
+// "(r, g, b)" in iostream's default notation (%.6g) for the messages below.
+std::string bracketedRgb(const glm::dvec3& v) { return "(" + formatRgb(v, 6) + ")"; }
 
 bool allFiniteNonNegative(const glm::dvec3& v) {
     for (int c = 0; c < 3; ++c) {
@@ -84,17 +81,17 @@ glm::dvec3 Material::totalDiffuseReflectance() const {
 void validateMaterial(const Material& m) {
     if (!allFiniteNonNegative(m.sigmaSPrime)) {
         throw Error("sigma_s'", "reduced scattering coefficient must be finite and >= 0 in every "
-                                "channel (mm^-1), got " + formatRgb(m.sigmaSPrime));
+                                "channel (mm^-1), got " + bracketedRgb(m.sigmaSPrime));
     }
     if (!allFiniteNonNegative(m.sigmaA)) {
         throw Error("sigma_a", "absorption coefficient must be finite and >= 0 in every channel "
-                               "(mm^-1), got " + formatRgb(m.sigmaA));
+                               "(mm^-1), got " + bracketedRgb(m.sigmaA));
     }
     const glm::dvec3 st = m.sigmaTPrime();
     if (!(st.x > 0.0 && st.y > 0.0 && st.z > 0.0)) {
         throw Error("sigma_t'", "sigma_s' + sigma_a must be > 0 in every channel (a medium that "
                                 "neither scatters nor absorbs has no dipole), got " +
-                                    formatRgb(st));
+                                    bracketedRgb(st));
     }
     if (!std::isfinite(m.eta) || m.eta < kMinEta || m.eta > kMaxEta) {
         std::ostringstream os;

@@ -24,9 +24,9 @@
 //   vertex normals from facet normals" (1999): at a vertex with triangle edge vectors
 //   e1, e2 a triangle contributes cross(e1, e2) / (|e1|^2 |e2|^2), i.e. its unit normal
 //   weighted by sin(corner angle) / (|e1| |e2|). This is exact for vertices on a sphere
-//   (area weighting is only first-order accurate on an irregular icosphere: 2e-2 at
-//   level 2) and flat on planar regions. A vertex whose sum is zero (no incident
-//   triangle, or cancelling ones) gets +Y (0, 1, 0).
+//   (area weighting is not: docs/conventions.md, "World frame") and flat on planar
+//   regions. A vertex whose sum is zero (no incident triangle, or cancelling ones) gets
+//   +Y (0, 1, 0).
 
 #include <glm/glm.hpp>
 

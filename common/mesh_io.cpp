@@ -311,7 +311,7 @@ ScanResult scanObj(const std::string& path, std::string_view data) {
             ++v;
         } else if (tok[0] == "f") {
             // OpenMesh 9.0 aborts (an assertion) on a face whose corners all lack a
-            // vertex index ("f /1 /2 /3"; found by tools/fuzz): each corner must be
+            // vertex index ("f /1 /2 /3"; tools/fuzz/crashes/mesh/): each corner must be
             // V, V/T, V//N or V/T/N with non-zero integers, V required.
             if (tok.size() < 2)
                 throw Error(path, "line " + std::to_string(lines.number()) + ": face without corners");
@@ -349,8 +349,8 @@ size_t plyTypeBytes(std::string_view type) {
 }
 
 // The header is checked strictly, line by line, before OpenMesh sees the file: OpenMesh
-// 9.0's reader loops forever on some malformed headers (found by tools/fuzz, input in
-// tools/fuzz/crashes/mesh/), and reserves memory for whatever counts the header claims.
+// 9.0's reader loops forever on some malformed headers (tools/fuzz/crashes/mesh/), and
+// reserves memory for whatever counts the header claims.
 ScanResult scanPly(const std::string& path, std::string_view data) {
     Lines lines(data);
     std::string_view line;
@@ -463,7 +463,7 @@ ScanResult scanOff(const std::string& path, std::string_view data) {
         throw Error(path, "not an OFF file (the first line has no 'OFF' keyword)");
     // OpenMesh reads the letters around OFF as options (C colours, N normals, ST texture
     // coordinates, 4 homogeneous, n dimension) and then reads the records differently
-    // from the pre-scan below (found by tools/fuzz: a header 'OFF\x0414M' made it loop).
+    // from the pre-scan below (a header 'OFF\x0414M' makes it loop: tools/fuzz/crashes/mesh/).
     if (head[0] != "OFF")
         throw Error(path, "unsupported OFF header " + shown(head[0]) +
                               " (plain OFF only: no colour, normal, texture, 4D or nOFF variants)");
@@ -494,9 +494,9 @@ ScanResult scanOff(const std::string& path, std::string_view data) {
     tokens.skipLine();
     // The body line by line, as OpenMesh 9.0 reads vertices: one vertex per line (x y z
     // first, then optional colours or normals), one face per line (its corner count,
-    // then that many indices, then optional colours). Anything else reached OpenMesh's
-    // stream reader out of step and it looped forever (found by tools/fuzz: a face
-    // index '1p', inputs in tools/fuzz/crashes/mesh/).
+    // then that many indices, then optional colours). Anything else reaches OpenMesh's
+    // stream reader out of step and it loops forever (a face index '1p':
+    // tools/fuzz/crashes/mesh/).
     Lines body(data.substr(std::min(data.size(), tokens.offset())));
     const size_t firstBodyLine = tokens.line();
     std::string_view line;
@@ -526,8 +526,8 @@ ScanResult scanOff(const std::string& path, std::string_view data) {
         if (!parseCount(fields[0], corners))
             throw Error(path, at() + "cannot parse the corner count " + shown(fields[0]) + " of face " +
                                   std::to_string(i));
-        // OpenMesh reads the numbers after a face of no corners as the next face (found by
-        // tools/fuzz); faces of one or two corners are not surfaces either.
+        // OpenMesh reads the numbers after a face of no corners as the next face
+        // (tools/fuzz/crashes/mesh/); faces of one or two corners are not surfaces either.
         if (corners < 3)
             throw Error(path, at() + "face " + std::to_string(i) + " has " + std::to_string(corners) +
                                   " corners (a face needs at least 3)");

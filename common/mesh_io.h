@@ -38,8 +38,8 @@ struct MeshReport {
     size_t inputTriangles = 0;        // triangles after triangulation, counting a face
                                       // record the reader itself dropped as one
     size_t degenerateFaces = 0;       // triangles dropped: < 3 distinct vertices or zero area
-    size_t removedFaces = 0;          // all input triangles not in the result; today
-                                      // exactly the degenerate ones
+    size_t removedFaces = 0;          // all input triangles not in the result (the
+                                      // degenerate ones)
     size_t unreferencedVertices = 0;  // vertices used by no kept triangle (removed)
     // Topology of the result, analyseTopology(mesh, /*weldCoincident=*/true):
     size_t boundaryEdges = 0;

@@ -329,12 +329,8 @@ void occludedFromPointStreamNp(RTCScene scene, bool coherent, const glm::vec3& o
 }
 
 OcclusionKernel chooseDefaultKernel() {
-    // Measured with Benchmark.DISABLED_OcclusionKernels (tests/test_raytrace.cpp):
-    // one origin, 6x32x32 cube map x 2x2 sub-directions, Embree 3.13.5 on an AVX-512
-    // CPU. Rays/s relative to the rtcOccluded1 loop, same run: packet16 + coherent
-    // flag x3.2 (23K triangles) and x2.0-2.2 (330K), packet8 x2.7-3.1 / x1.9, 1M and
-    // Np streams x2.6-3.0 / x1.9, packet4 x1.9 / x1.5; the incoherent flag loses
-    // 10-30% everywhere. So: the widest native packet, coherent.
+    // The widest native packet, coherent: the fastest of the kernels in
+    // Benchmark.DISABLED_OcclusionKernels (docs/performance.md, "Design measurements").
     const RayDeviceInfo& info = device().info;
     if (info.nativeRay16) return OcclusionKernel::Packet16;
     if (info.nativeRay8) return OcclusionKernel::Packet8;
@@ -496,8 +492,8 @@ void RayScene::build(const std::vector<glm::vec3>& positions,
         capture.check("rtcAttachGeometry");
 
         rtcSetSceneBuildQuality(scene, quality);
-        // The context filter of intersectBatchWithBeyond; costs nothing measurable on
-        // queries without one (single scattering, dragon res2: 1.23 s either way).
+        // The context filter of intersectBatchWithBeyond; it costs nothing measurable
+        // on queries without one (docs/performance.md, "Design measurements").
         rtcSetSceneFlags(scene, RTCSceneFlags((options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE) |
                                               RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION));
         rtcCommitScene(scene);

@@ -71,9 +71,9 @@ struct RaySceneOptions {
 };
 
 // How occludedFromPoint / occludedBatch (and intersectBatchWithBeyond: packet widths
-// and Single only) hand rays to Embree. Auto is the fastest on this machine's Embree
-// (see defaultOcclusionKernel()); the others exist so that benchmarks and tests can
-// compare them; they gave identical flags in every test.
+// and Single only) hand rays to Embree. Auto is defaultOcclusionKernel(); the others
+// exist so that benchmarks and tests can compare them, and give the same flags
+// (tested; their rates: docs/performance.md, "Design measurements").
 enum class OcclusionKernel {
     Auto,
     Single,    // a loop of rtcOccluded1 (the reference)
@@ -84,7 +84,8 @@ enum class OcclusionKernel {
     StreamNp,  // rtcOccludedNp (SoA stream)
 };
 const char* toString(OcclusionKernel kernel);
-// The kernel Auto stands for (a packet width the device supports natively).
+// The kernel Auto stands for: the widest packet the device supports natively, traced
+// with the coherent flag (Single when it has none).
 OcclusionKernel defaultOcclusionKernel();
 
 inline constexpr uint32_t kNoTriangle = 0xffffffffu;
@@ -140,10 +141,9 @@ public:
     // occludedOut[i] = 1 if the ray org + t (dirX[i], dirY[i], dirZ[i]) is occluded
     // for some t in [tnear, tfar], else 0. Any count (not only multiples of the packet
     // width); the arrays need no particular alignment. Rays are traced in packets of
-    // consecutive directions (16 on AVX-512) with Embree's coherent-ray flag, about
-    // 2-3x the rate of the rtcOccluded1 loop: order directions coherently (cube face by
-    // face, neighbouring texels together; 2x2-texel tiles of 2x2 sub-directions, i.e.
-    // a 4x4 block per packet, gain another ~5% over row order).
+    // consecutive directions (16 on AVX-512) with Embree's coherent-ray flag, so order
+    // directions coherently: cube face by face, neighbouring texels together (2x2-texel
+    // tiles of 2x2 sub-directions, a 4x4 block per packet, beat row order).
     void occludedFromPoint(const glm::vec3& org, const float* dirX, const float* dirY,
                            const float* dirZ, size_t count, float tnear, float tfar,
                            uint8_t* occludedOut) const;
@@ -161,8 +161,8 @@ public:
     // --- many rays with their own origins ----------------------------------------
     // occludedOut[i] for the ray (org[i], dir[i]) as in occluded(). coherent sets
     // RTC_INTERSECT_CONTEXT_FLAG_COHERENT: for packets of rays that share a direction
-    // (single scattering: one direction from 16 neighbouring points, ~1.8x the rate);
-    // the hits are the same either way.
+    // (single scattering: one direction from 16 neighbouring points); the hits are the
+    // same either way.
     void occludedBatch(const float* orgX, const float* orgY, const float* orgZ,
                        const float* dirX, const float* dirY, const float* dirZ, size_t count,
                        float tnear, float tfar, uint8_t* occludedOut, bool coherent = false) const;
@@ -180,9 +180,10 @@ public:
     // rejects the hits Embree reports (so the traversal goes on past the first) until
     // two lie more than `separation` apart, then accepts one, which bounds the rest of
     // the traversal below it, where every closer hit is still reported; the first hit is
-    // the closest reported. 1.4-1.5x the rate of intersectBatch followed by occludedBatch
-    // from the offset hits (docs/single-scattering.md). separation >= 0; hits closer
-    // together than it (a shared edge, coincident triangles) count as one surface.
+    // the closest reported: one traversal instead of intersectBatch followed by
+    // occludedBatch from the offset hits (docs/single-scattering.md, "visibility from the
+    // exit ray"). separation >= 0; hits closer together than it (a shared edge,
+    // coincident triangles) count as one surface.
     // kernel: the packet width (Auto: the device's native one; Single: rtcIntersect1
     // through the same filter, what a device without packets runs); the stream kernels
     // are refused (std::invalid_argument). Every width gives the same results (tested).

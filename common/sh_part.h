@@ -10,8 +10,7 @@
 // the city error was"). Splitting each vector into a fit by the first 1, 4 or 9 real
 // spherical harmonics (bands 0..2) plus a Haar residual, and truncating only the
 // residual, keeps the smooth shape exact and spends the budget on what the harmonics
-// cannot carry (shadows, edges). At 9 + 119 terms the per-vertex truncation error of
-// dragon res4 under city drops from 3.7% to 1.6% (docs/fidelity.md, "The SH part").
+// cannot carry (shadows, edges) (docs/fidelity.md, "The SH part").
 //
 // SPACES. A transport vector T lives in the 6 N^2-dimensional Haar space of the
 // N x N cubemap (common/haar.h); relighting is sum_t T_t L_t over texels t, with L_t
@@ -26,10 +25,8 @@
 // sky-ground gradient) sees only the SH part, which is kept whole: of the residual's
 // truncation it sees only the dropped entries' share of <R, L> = 0, which is small.
 // (A least-squares fit, R orthogonal to the W_i instead, leaves R with a plain sum
-// that a constant light sees whole: on a sphere under constant light, rms deviation
-// per vertex 1.22% against 0.80% for this fit (0.83% with pass 1 split too) and 0.92%
-// for Haar terms alone,
-// tests/test_pipeline.cpp.) Relighting the SH part needs only the light's
+// that a constant light sees whole, worse than no fit at all under a constant light:
+// docs/fidelity.md, "The SH part".) Relighting the SH part needs only the light's
 // projections
 //     l_i = sum_t W_i(t) L_t = <W^_i, L^>        (Haar domain, by Parseval)
 // and T . L = sum_i c_i l_i + <R^, L^> exactly, whatever is later done to R.

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cstdio>
 #include <fstream>
@@ -12,6 +13,24 @@ namespace prt {
 std::string toLower(std::string s) {
     for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
     return s;
+}
+
+double median(std::vector<double> values) {
+    if (values.empty()) return 0.0;
+    std::sort(values.begin(), values.end());
+    const size_t n = values.size();
+    return n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+}
+
+std::string formatRgb(const glm::dvec3& rgb, int significantDigits, const char* separator) {
+    std::string out;
+    for (int c = 0; c < 3; ++c) {
+        char buf[64];
+        std::snprintf(buf, sizeof buf, "%.*g", significantDigits, rgb[c]);
+        if (c > 0) out += separator;
+        out += buf;
+    }
+    return out;
 }
 
 bool cpuHasAvx2Fma() {

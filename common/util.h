@@ -1,13 +1,17 @@
 #pragma once
 // Small helpers that several modules need, in one place: the constant pi, ASCII
-// lowercasing, memory sizes (available memory, "41.2 GB"), the CPU's AVX2 + FMA support, and a wall-clock stopwatch
-// for the per-stage times the tools report.
+// lowercasing, memory sizes (available memory, "41.2 GB"), RGB triples as text, the
+// median, the CPU's AVX2 + FMA support, and a wall-clock stopwatch for the per-stage
+// times the tools report.
+
+#include <glm/glm.hpp>
 
 #include <chrono>
 #include <cstdint>
 #include <ctime>
 #include <numbers>
 #include <string>
+#include <vector>
 
 namespace prt {
 
@@ -23,6 +27,15 @@ uint64_t availableMemoryBytes();
 
 // "41.2 GB", "830 MB", "12 kB" (decimal units).
 std::string formatBytes(uint64_t bytes);
+
+// An RGB triple (or any 3-vector) as the tools print it: each component as printf's
+// %.<significantDigits>g, joined by `separator`; formatRgb({0.5, 1, 2}) is "0.5, 1, 2".
+// significantDigits >= 1.
+std::string formatRgb(const glm::dvec3& rgb, int significantDigits = 4, const char* separator = ", ");
+
+// The median of `values` (taken by value and reordered): the middle value, or the mean
+// of the two middle ones for an even count; 0 for none.
+double median(std::vector<double> values);
 
 // Whether this CPU runs AVX2 + FMA code (x86-64-v3), for the kernels compiled with a
 // target attribute and chosen at run time; false on other architectures. Cached.

@@ -1,9 +1,9 @@
 // prt-pointlight: offline frames of a translucent object under point and directional
-// lights (docs/point-lights.md; issue 14): the translucent irradiance cache of Keng et
-// al. 2006 (--method cache, the default; irradiance_cache.h), the Jensen-Buhler
-// hierarchical renderer it accelerates (--method jb) or the brute-force sum (--method
-// brute). Mesh + material + physical size + lights in, linear EXR + sRGB PNG out, with
-// the time of every stage.
+// lights (docs/point-lights.md): the translucent irradiance cache of Keng et al. 2006
+// (--method cache, the default; irradiance_cache.h), the Jensen-Buhler hierarchical
+// renderer it accelerates (--method jb), the brute-force sum (--method brute) or
+// texture-space importance sampling (--method tsis). Mesh + material + physical size +
+// lights in, linear EXR + sRGB PNG out, with the time of every stage.
 //
 // Animations (--turntable N; --light-path P0:P1 --frames N) run in
 // point_animation.h, whose header states what is reused between frames: for a
@@ -81,12 +81,6 @@ struct Options {
     std::string split = "hybrid", evaluate = "pixel";
     int atlasSize = 1024;
 };
-
-std::string rgb(const glm::dvec3& v) {
-    char buf[96];
-    std::snprintf(buf, sizeof buf, "%.4g %.4g %.4g", v.x, v.y, v.z);
-    return buf;
-}
 
 // <output>_error.png: the relative error of `image` against `reference` as a heat map
 // scaled to its 99th percentile (rounded up); returns that scale.
@@ -371,7 +365,8 @@ int run(const Options& o) {
                 o.mesh.c_str(), mesh.vertexCount(), mesh.triangleCount(), factor, box.lo.x, box.lo.y, box.lo.z,
                 box.hi.x, box.hi.y, box.hi.z);
     std::printf("material: %s, sigma_s' %s /mm, sigma_a %s /mm, eta %.4g; Fresnel %s\n", material.name.c_str(),
-                rgb(material.sigmaSPrime).c_str(), rgb(material.sigmaA).c_str(), material.eta, toString(fresnel));
+                formatRgb(material.sigmaSPrime, 4, " ").c_str(), formatRgb(material.sigmaA, 4, " ").c_str(),
+                material.eta, toString(fresnel));
     for (const Light& l : lights) std::printf("light: %s\n", describe(l).c_str());
     if (animation.kind == AnimationKind::LightPath)
         std::printf("light path: light 1 from (%.4g, %.4g, %.4g) to (%.4g, %.4g, %.4g) mm over %d frames\n",

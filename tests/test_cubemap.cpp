@@ -6,6 +6,7 @@
 #include <random>
 
 #include "common/error.h"
+#include "common/util.h"
 
 using namespace prt;
 
@@ -61,7 +62,7 @@ TEST(Cubemap, SolidAnglesSumToFourPi) {
     for (int n : {1, 2, 4, 32, 64, 128}) {
         double sum = 0;
         for (double w : faceSolidAngles(n)) sum += 6 * w;
-        EXPECT_NEAR(sum, 4 * M_PI, 1e-6) << "n = " << n;
+        EXPECT_NEAR(sum, 4 * kPi, 1e-6) << "n = " << n;
     }
 }
 
@@ -97,9 +98,9 @@ TEST(Cubemap, ConstantIntegratesToFourPiTimesValue) {
         c.data()[3 * k + 2] = 0.5f;
     }
     std::vector<double> s = c.integrate();
-    EXPECT_NEAR(s[0], 4 * M_PI, 1e-5);
-    EXPECT_NEAR(s[1], 8 * M_PI, 1e-5);
-    EXPECT_NEAR(s[2], 2 * M_PI, 1e-5);
+    EXPECT_NEAR(s[0], 4 * kPi, 1e-5);
+    EXPECT_NEAR(s[1], 8 * kPi, 1e-5);
+    EXPECT_NEAR(s[2], 2 * kPi, 1e-5);
 }
 
 TEST(Cubemap, BilinearReproducesLinearFunctionInsideAFace) {

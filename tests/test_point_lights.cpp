@@ -20,6 +20,7 @@
 #include "common/error.h"
 #include "common/sampling.h"
 #include "common/shapes.h"
+#include "common/util.h"
 
 using namespace prt;
 
@@ -190,7 +191,7 @@ TEST(PointLights, InsideTestOnSphereAndTorus) {
     EXPECT_TRUE(insideClosedSurface(torus, {0, 2, -22}));
     // Along the axes (rays in the parity directions still cross edges of the grid mesh).
     for (int i = 0; i < 16; ++i) {
-        const double a = 2 * M_PI * i / 16;
+        const double a = 2 * kPi * i / 16;
         EXPECT_TRUE(insideClosedSurface(torus, {20 * std::cos(a), 0, 20 * std::sin(a)})) << i;
         EXPECT_FALSE(insideClosedSurface(torus, {27 * std::cos(a), 0, 27 * std::sin(a)})) << i;
         EXPECT_FALSE(insideClosedSurface(torus, {13 * std::cos(a), 0, 13 * std::sin(a)})) << i;

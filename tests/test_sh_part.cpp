@@ -5,6 +5,7 @@
 #include "common/cubemap.h"
 #include "common/error.h"
 #include "common/haar.h"
+#include "common/util.h"
 
 #include <gtest/gtest.h>
 
@@ -37,9 +38,9 @@ TEST(ShBasis, OrthonormalOnTheSphere) {
 TEST(ShBasis, MatchesTheClosedFormsAtTheAxes) {
     double y[9];
     prt::shBasis(glm::dvec3(0, 0, 1), 9, y);
-    EXPECT_NEAR(y[0], 0.5 / std::sqrt(M_PI), 1e-12);
-    EXPECT_NEAR(y[2], std::sqrt(3.0 / (4.0 * M_PI)), 1e-12);  // Y_10 = sqrt(3/4pi) z
-    EXPECT_NEAR(y[6], 0.25 * std::sqrt(5.0 / M_PI) * 2.0, 1e-12);  // Y_20(z=1) = sqrt(5/pi)/2
+    EXPECT_NEAR(y[0], 0.5 / std::sqrt(prt::kPi), 1e-12);
+    EXPECT_NEAR(y[2], std::sqrt(3.0 / (4.0 * prt::kPi)), 1e-12);  // Y_10 = sqrt(3/4pi) z
+    EXPECT_NEAR(y[6], 0.25 * std::sqrt(5.0 / prt::kPi) * 2.0, 1e-12);  // Y_20(z=1) = sqrt(5/pi)/2
     EXPECT_EQ(y[1], 0.0);
     EXPECT_EQ(y[3], 0.0);
 }

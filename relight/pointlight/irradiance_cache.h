@@ -1,6 +1,7 @@
 #pragma once
 // The translucent irradiance cache of Keng, Lee and Chuang 2006 (section 3; SPEC
-// section 9; issue 14; docs/point-lights.md): the Jensen-Buhler sum (jensen_buhler.h)
+// section 9; docs/point-lights.md, "The translucent irradiance cache"): the
+// Jensen-Buhler sum (jensen_buhler.h)
 // evaluated at a few visible points only ("caches", about 2% of the object pixels),
 // and every visible point interpolated from them with the gradient of the subsurface
 // illuminance. The three passes of section 3.4:
@@ -40,8 +41,8 @@
 //   G(R) = 2 alpha' / (pi R) sum_z (e^(-sigma_tr z) - z/R_z e^(-sigma_tr R_z)),  R_z = sqrt(R^2 + z^2)
 // (SplitDiskModel::Paper, Keng's four-sector approximation of the half-bright disk;
 // SplitDiskModel::Exact is the exact derivative of the half-bright disk,
-// G = 4 int_0^R R_d(y) dy, which is 1.3x to 8x larger: the paper's approximation
-// underestimates the gradient, more so for large R / z_r; see the tests). Over the
+// G = 4 int_0^R R_d(y) dy, which is larger: the paper's approximation underestimates
+// the gradient, more so for large R / z_r; docs/point-lights.md). Over the
 // channels the largest bound is used:
 //   eps_k(p) = |p - p_k| g_k,   g_k = max_c V_k^c G^c     (floored, see below)
 //   w_k(p)   = 1 / eps_k(p)   for |p - p_k| < R, 0 beyond R (the split disk says

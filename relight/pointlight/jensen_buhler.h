@@ -37,12 +37,11 @@
 // its samples one by one. epsilon = 0 never uses a node whole: the result is the
 // brute-force sum in another order (equal to float rounding; the sums are in double).
 // Larger epsilon means fewer, coarser terms; 0.05 is the default (as the
-// precompute's kd-tree, hierarchy.h).
+// precompute's kd-tree, precompute/passes/multiple_scattering.h).
 //
 // Threads: the octree is immutable after construction; every query is const and may
-// run concurrently. Construction is serial and deterministic (a few tens of ms for
-// 200k samples); render() is parallel over rows and deterministic (every pixel is
-// summed serially in a fixed order).
+// run concurrently. Construction is serial and deterministic; render() is parallel over
+// rows and deterministic (every pixel is summed serially in a fixed order).
 
 #include <glm/glm.hpp>
 
@@ -63,7 +62,8 @@ namespace prt {
 // has, and returns R_d per channel (mm^-2) as dipoleRd(material, sqrt(r2)) does, but
 // in single precision (relative error below 1e-6) and with the six exponentials (3
 // channels x real and virtual source) in one SIMD evaluation (Eigen's vectorised
-// exp): exp was most of the renderer's time. Sums over terms stay in double.
+// exp), since exp dominates the renderer's time (docs/point-lights.md, "The
+// Jensen-Buhler renderer"). Sums over terms stay in double.
 struct DipoleRGB {
     DipoleChannel channel[3];
 
@@ -124,7 +124,7 @@ public:
     // Calls term(position, area, irradiance) for every term of the hierarchical sum at
     // x with this epsilon (nodes used whole, then samples of leaves that are not), in a
     // fixed order. Returns the number of terms. Templated so that other evaluations
-    // (the cache's gradient, later) can share the walk.
+    // (the irradiance cache's gradient and spread) share the walk.
     template <class Term>
     size_t traverse(const glm::dvec3& x, double epsilon, Term&& term) const;
 

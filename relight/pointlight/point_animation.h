@@ -1,5 +1,5 @@
 #pragma once
-// prt-pointlight's frames and animations (docs/point-lights.md, "Animation"; issue 14).
+// prt-pointlight's frames and animations (docs/point-lights.md, "Animation").
 //
 // ONE FRAME is pass 1 (lightSamples: the transmitted irradiance of the placed samples
 // under the lights, and their octree), the G-buffer of the camera, then passes 2-3 of

@@ -20,8 +20,8 @@
 // both. Sum over texels of area = the mesh area, up to float rounding.
 //
 // DETERMINISM. No randomness; the same mesh and resolution give the same atlas on any
-// thread count. Building costs O(texels + triangles) (a few hundred ms at 1024^2 for
-// 200K triangles); see the build time in SurfaceAtlas::stats.
+// thread count. Building costs O(texels + triangles) (SurfaceAtlas::stats.buildSeconds;
+// docs/point-lights.md, "The pipeline, module by module").
 //
 // Threads: build is serial over the packing and parallel over triangles for the
 // clipping (per-texel accumulation is done in a fixed order afterwards).

@@ -73,7 +73,7 @@ struct TextureSpaceOptions {
     double importanceBound = kDefaultImportanceBound;  // c, mm^-1
     double sharpness = kDefaultSplitSharpness;         // K, mm^-1
     SplitWeights weights = SplitWeights::Paper;
-    int lightMapSize = 256;            // translucent shadow map resolution (256: as accurate as 512 on the dragon, 4x cheaper)
+    int lightMapSize = 256;            // translucent shadow map resolution (docs/point-lights.md)
     int rings = 20, ringSamples = 20;  // L, C
     FresnelModel fresnel = FresnelModel::Exact;
 };

@@ -17,10 +17,10 @@
 // normal's cosine cos_s, so a face seen edge-on whose interpolated normals face the
 // light would give one pixel the flux of a wide strip (cos_s / cos_g unbounded): one
 // tap of the filter, which stands for far more area than a pixel, then sparkles. The
-// ratio is capped at 2; with the pixels that see no grazing surface at all, the map
-// then holds 2.6% less power than the atlas on the 11K-face dragon (0.3% on a fine
-// sphere), which normalisePower gives back (spread over the map in proportion to its
-// flux). The sum over all pixels of
+// ratio is capped at 2; that and the pixels that see no grazing surface at all leave
+// the map short of the light's power, which normalisePower gives back (spread over the
+// map in proportion to its flux; docs/point-lights.md, "The pipeline, module by
+// module"). The sum over all pixels of
 // flux x measure x K(|x_o - x_p|) is the local exitance at x_o (a cubature of the lit
 // surface); the filter evaluates a sparse version of it.
 //
@@ -97,8 +97,8 @@ public:
     // Rescales the map's flux per channel so that totalFlux() equals `power`, the light's
     // transmitted power over the whole surface (the atlas's, computeIrradiance's
     // lightPower): the map misses what it cannot see (surfaces grazing the light's rays,
-    // the cosine cap above), 2-3% on the 11K-face dragon, and would bias the local part
-    // low by as much. Channels where either is 0 are left alone. Returns the factors.
+    // the cosine cap above) and would bias the local part low by as much. Channels where
+    // either is 0 are left alone. Returns the factors.
     glm::dvec3 normalisePower(const glm::dvec3& power);
 
 private:

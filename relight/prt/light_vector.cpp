@@ -34,7 +34,8 @@ LightVector makeLightVector(const Image& latlong, int n, const glm::dmat3& rotat
                             size_t keepTerms) {
     requireRgb(latlong);
     // Rotations about +Y (all the viewer and prt-relight use) take the cached sparse
-    // filter: about 1 ms instead of ~100 ms.
+    // filter, far cheaper than the exact resampling (docs/relight.md, "Turning the
+    // environment: the fast path").
     double degrees = 0.0;
     if (filterFits(latlong, n) && rotationAboutY(rotation, degrees)) {
         const std::shared_ptr<const LatLongCubemapFilter> filter =

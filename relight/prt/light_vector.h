@@ -28,9 +28,9 @@ struct LightVector {
     size_t keptTerms = 0;         // non-zero coefficients after approximation
     double relativeL2Error = 0;   // of the approximation, ||L - L_approx|| / ||L|| (Parseval)
     // The light's SH projections l_i = <W^_i, L^> (common/sh_part.h), kMaxShTerms x 3
-    // (RGB per term; 4 x 3 for N = 1), of the whole light even when it is approximated: what the SH part
-    // of a transport file relights against. makeLightVector fills it; the relight
-    // kernel derives it from `rgb` when it is empty (a hand-built vector).
+    // (RGB per term; 4 x 3 for N = 1), of the whole light even when it is approximated:
+    // what the SH part of a transport file relights against. makeLightVector fills it;
+    // the relight kernel derives it from `rgb` when it is empty (a hand-built vector).
     std::vector<float> sh;
 
     size_t coefficientCount() const { return rgb.size() / 3; }
@@ -41,13 +41,14 @@ struct LightVector {
 //
 // Resampling: when `rotation` is a rotation about +Y (rotationAboutY, which includes
 // the identity and any product of rotationY matrices) the cubemap comes from the
-// process-wide LatLongCubemapFilter::shared(width, height, n): the first call for a
-// (width, height, n) builds it (about 1.4 exact resamplings), later calls take a few ms.
-// For angles that are whole lat-long pixels (360 k / width degrees) the result equals
-// the exact latLongToCubemap to ~1e-7 relative; between them it is the exact filter of
-// the map linearly interpolated in longitude (envmap.h, docs/relight.md). Any other
-// rotation uses latLongToCubemap. For the exact filter at any angle, use
-// makeLightVector(latLongToCubemap(latlong, n, rotation), keepTerms).
+// process-wide LatLongCubemapFilter::shared(width, height, n), which the first call for
+// a (width, height, n) builds (docs/performance.md, "Design measurements"). For angles
+// that are whole lat-long pixels (360 k / width degrees) the result equals the exact
+// latLongToCubemap to ~1e-7 relative; between them it is the exact filter of the map
+// linearly interpolated in longitude (common/envmap.h; docs/relight.md, "Turning the
+// environment: the fast path"). Any other rotation uses latLongToCubemap. For the exact
+// filter at any angle, use makeLightVector(latLongToCubemap(latlong, n, rotation),
+// keepTerms).
 LightVector makeLightVector(const Image& latlong, int n, const glm::dmat3& rotation = glm::dmat3(1.0),
                             size_t keepTerms = 0);
 // From an RGB radiance cubemap (3 channels).
@@ -56,15 +57,15 @@ LightVector makeLightVector(const Cubemap& radiance, size_t keepTerms = 0);
 // An environment prepared for many light vectors under turns about +Y (the viewer's
 // slider, prt-relight's spin and turntable frames, benchmarks): it keeps the map, the
 // shared LatLongCubemapFilter for its size and N, and the map's row running sums
-// (LatLongRowSums), so each light vector costs the filter's running-sum apply (0.4 of
-// makeLightVector(latlong, ...)'s time at N = 32 for 1024 x 512) and the Haar transform.
+// (LatLongRowSums), so each light vector costs the filter's running-sum apply (cheaper
+// than makeLightVector(latlong, ...)'s) and the Haar transform.
 //
 // lightVector(rotation, keepTerms) equals makeLightVector(image(), n, rotation, keepTerms)
 // up to float rounding for every rotation: about +Y through the running sums, anything
 // else through latLongToCubemap like makeLightVector. Building costs one pass over the
-// map for the running sums (a few ms) plus, for the first (width, height, N) in the
-// process, the filter (~100 ms at 1024 x 512). Memory: the image, the running sums
-// (8 (2 width + 2) height x 3 bytes, 25 MB for 1024 x 512) and a share of the filter.
+// map for the running sums plus, for the first (width, height, N) in the process, the
+// filter. Memory: the image, the running sums (8 (2 width + 2) height x 3 bytes, 25 MB
+// for 1024 x 512) and a share of the filter.
 //
 // Thread-safe: lightVector may be called concurrently (everything is immutable after
 // construction). The constructor throws prt::Error("light vector", ...) for an image

@@ -44,12 +44,11 @@ constexpr size_t kVertexGrain = 512;
 
 // Software prefetch distance, in coefficients, for the index and value streams (the
 // arrays are contiguous across vertices, so the prefetches run ahead into the next
-// vertices). 256 coefficients = 1.5 KB of values, 512 B of indices ahead. The hardware
-// prefetchers alone left a single core at ~2/3 of its streaming rate (measured with
-// tools/bench_relight, one thread: 14.3 -> 9.9 ms per 104 MB relight, i.e. the rate
-// of a plain single-core sum over a float array). 128 and 512 measured slightly worse.
-// Prefetches never fault, so running past the end of an array is harmless; the
-// address is formed as an integer so no out-of-range pointer is ever created.
+// vertices). 256 coefficients = 1.5 KB of values, 512 B of indices ahead: the hardware
+// prefetchers alone leave a single core well short of its streaming rate, and 256 beat
+// 128 and 512 (docs/performance.md, "Design measurements"). Prefetches never fault, so
+// running past the end of an array is harmless; the address is formed as an integer so
+// no out-of-range pointer is ever created.
 constexpr size_t kPrefetchAhead = 256;
 
 #if PRT_RELIGHT_SSE2
@@ -169,8 +168,9 @@ std::vector<float> lightShPart(const LightVector& light, uint32_t terms) {
 }
 
 // The light vector converted for gathering: `Stride` floats per coefficient, RGB
-// first, the file's SH terms after the 6 N^2 Haar coefficients (common/sh_part.h). Stride 4 pads each coefficient to 16 bytes (one aligned SSE load, never
-// straddling a cache line); stride 3 is the plain interleaved layout (25% smaller, an
+// first, the file's SH terms after the 6 N^2 Haar coefficients (common/sh_part.h).
+// Stride 4 pads each coefficient to 16 bytes (one aligned SSE load, never straddling a
+// cache line); stride 3 is the plain interleaved layout (25% smaller, an
 // unaligned 16-byte load that reads the next coefficient's R, which is ignored). The
 // buffer has one extra coefficient of zeros so the stride-3 over-read stays inside.
 template <int Stride>
@@ -379,10 +379,8 @@ constexpr size_t kBlockGrain = 32;
 // Software prefetch distance for the values stream, in bytes (~85 indices of 48 bytes
 // ahead, half a block of 160; the arrays are contiguous across blocks, so it runs into
 // the task's next block). One prefetch per index covers every 64-byte line, the stride
-// being 48. Measured (100,000 vertices, 160 per block, after a 1 GiB read, ~17 GB/s):
-// without it the kernel took 1.03-1.2x the time to stream its bytes, with it 0.71-0.94x;
-// 1-8 KB ahead, T0 or T1 hints were within the noise of a shared machine, NTA worse.
-// (Prefetching the scattered outputs of the next block did not help.)
+// being 48. Without it the kernel takes longer than streaming its bytes
+// (docs/performance.md, "Design measurements").
 constexpr size_t kBlockPrefetchBytes = 4096;
 
 // Per-component view of a blocked component's arrays.
@@ -472,7 +470,7 @@ inline void scatterBlock(const BlockSpan& span, const float r[kBlockValuesPerInd
 // accumulator per lane and channel, in index order, then times the scale.
 // SSE2 (any x86-64): a channel's 16 lanes are four xmm; the int8 values are
 // sign-extended by unpacking each byte into the top of a 32-bit lane and shifting it
-// down arithmetically (GCC leaves the plain loop below scalar: ~9x slower, measured).
+// down arithmetically (GCC leaves the plain loop below scalar, several times slower).
 // Without SSE2 (other architectures) the plain loop, the same sums in the same order.
 template <int Stride>
 inline void dotBlockBaseline(const BlockSpan& span, const float* light, float r[kBlockValuesPerIndex]) {

@@ -19,13 +19,14 @@
 // with saveTransportFile (every checksum verified), from the page cache and after
 // dropping the file from it.
 //
-// Blocked workloads (common/blocked_vectors.h, issue 16 item 3): the same per-vertex
-// vectors converted with jointTruncate to blocks of 16 vertices sharing 160 indices
+// Blocked workloads (common/blocked_vectors.h): the same per-vertex vectors converted
+// with jointTruncate to blocks of 16 vertices sharing 160 indices
 // (--block-coefficients), for the diffuse and the K = 4 workloads. BM_BlockedRelight
 // times each kernel (baseline, AVX2, AVX-512); BM_BlockedRelightVsStream interleaves
-// 1 GiB sums, the blocked relight and today's per-vertex relight of the same vectors,
-// and reports the blocked kernel's time against the time to stream today's 8-byte
-// per-vertex bytes (the issue's goal: <= 0.5, i.e. >= 2x faster) and its own bytes.
+// 1 GiB sums, the blocked relight and the per-vertex relight of the same vectors, and
+// reports the blocked kernel's time against the time to stream the per-vertex file's
+// 8-byte coefficients (goal <= 0.5, i.e. >= 2x faster; docs/performance.md) and its
+// own bytes.
 //
 // Usage: bench_relight [--vertices=V] [--coefficients=M] [--n=N] [--block-coefficients=B]
 //                      [--block-order=surface|random|identity] [--tmp-dir=DIR] [--summary-json=FILE]
@@ -71,8 +72,11 @@
 #include "relight/prt/light_vector.h"
 #include "relight/prt/relight_kernel.h"
 #include "common/transport_file.h"
+#include "common/util.h"
 
 namespace {
+
+using prt::median;
 
 size_t gVertices = 100000;
 size_t gCoefficients = 128;
@@ -116,7 +120,8 @@ Workload makeWorkload(int terms) {
     w.terms = terms;
     w.file.cubemapSize = gCubemapSize;
     w.file.mesh.vertexCount = gVertices;
-    // Seed 1234 for the diffuse component: the same data as before the K-term workload.
+    // Seed 1234 for the diffuse component, whatever the term count: the diffuse data of
+    // every workload are the same.
     w.file.components.push_back(randomComponent(prt::ComponentKind::MultipleScattering, 0, 1234));
     for (int k = 0; k < terms; ++k)
         w.file.components.push_back(
@@ -155,8 +160,7 @@ const Workload& workload(int terms = 0) {
 //   random    spatialBlockOrder of random points in a cube: vertex numbers unrelated to
 //             position, every store of the scatter a cache miss (the worst case);
 //   identity  blocks of consecutive vertices (sequential stores, the best case).
-// Measured with a scratch program: spatialBlockOrder of the dragon res2 (100,207
-// vertices) relit within 2% of the identity's time, random orders 10-15% slower.
+// How far apart they are: docs/performance.md, "Design measurements".
 struct BlockedWorkload {
     prt::TransportFile file;  // every component blocked
     size_t streamBytes = 0;   // relightStreamBytes of the blocked file
@@ -177,8 +181,8 @@ const BlockedWorkload& blockedWorkload(int terms = 0) {
         const size_t rings = std::max<size_t>(1, size_t(std::lround(std::sqrt(double(gVertices) / 2.0))));
         const size_t perRing = (gVertices + rings - 1) / rings;
         for (size_t i = 0; i < gVertices; ++i) {
-            const double theta = M_PI * (double(i / perRing) + 0.5) / double(rings);
-            const double phi = 2.0 * M_PI * double(i % perRing) / double(perRing);
+            const double theta = prt::kPi * (double(i / perRing) + 0.5) / double(rings);
+            const double phi = 2.0 * prt::kPi * double(i % perRing) / double(perRing);
             positions[i] = glm::vec3(float(std::sin(theta) * std::cos(phi)), float(std::cos(theta)),
                                      float(std::sin(theta) * std::sin(phi)));
         }
@@ -347,12 +351,6 @@ float parallelSum(const std::vector<float>& a) {
         [](float x, float y) { return x + y; });
 }
 
-double median(std::vector<double> v) {
-    if (v.empty()) return 0.0;
-    std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
-    return v[v.size() / 2];
-}
-
 // A 1024 x 512 lat-long environment of random radiance (fixed seed), built once.
 const prt::Image& syntheticEnvironment() {
     static const prt::Image env = [] {
@@ -467,19 +465,21 @@ BENCHMARK(BM_RelightVsStream)
     ->Unit(benchmark::kMillisecond)
     ->MinTime(3.0);
 
-// The blocked workload against today's bytes, interleaved like BM_RelightVsStream: every
-// iteration sums the 1 GiB array, relights the blocked file from memory ("cold", the
-// time reported) and again right away ("warm"), sums the 1 GiB array again and relights
-// the per-vertex file of the same vectors (today's kernel, cold). Counters (medians over
-// iterations of per-iteration ratios, at that iteration's bandwidth):
-//   ratio_vs_8byte_cold_median   blocked cold time / time to stream today's 8-byte
-//                                per-vertex bytes (the issue's goal: <= 0.5);
+// The blocked workload against the per-vertex file's bytes, interleaved like
+// BM_RelightVsStream: every iteration sums the 1 GiB array, relights the blocked file
+// from memory ("cold", the time reported) and again right away ("warm"), sums the 1 GiB
+// array again and relights the per-vertex file of the same vectors (the per-vertex
+// kernel, cold; "today" in the counter names). Counters (medians over iterations of
+// per-iteration ratios, at that iteration's bandwidth):
+//   ratio_vs_8byte_cold_median   blocked cold time / time to stream the per-vertex
+//                                file's 8-byte coefficients (goal: <= 0.5);
 //   ratio_vs_8byte_warm_median   the same for the warm relight;
 //   ratio_own_cold_median        blocked cold time / time to stream its own bytes;
-//   ratio_today_cold_median      today's kernel / its bytes (BM_RelightVsStream's ratio);
-//   speedup_median               today's cold time / the blocked cold time;
-//   cold_ms_median, warm_ms_median, today_cold_ms_median; dram_GBps (mean of the sums);
-//   stream_MB (blocked), stream_8byte_MB (today's).
+//   ratio_today_cold_median      the per-vertex kernel / its bytes (BM_RelightVsStream's
+//                                ratio);
+//   speedup_median               per-vertex cold time / the blocked cold time;
+//   cold_ms_median, warm_ms_median, today_cold_ms_median (per-vertex); dram_GBps (mean
+//   of the sums); stream_MB (blocked), stream_8byte_MB (per-vertex).
 // range(0): single-scattering terms besides the diffuse vector (0 or 4).
 void BM_BlockedRelightVsStream(benchmark::State& state) {
     const int terms = int(state.range(0));
@@ -544,8 +544,8 @@ void BM_BlockedRelightVsStream(benchmark::State& state) {
     state.SetLabel((terms == 0 ? std::string("diffuse") : "1 diffuse + " + std::to_string(terms) + " terms") +
                    ", blocks of 16 sharing " + std::to_string(gBlockCoefficients));
 }
-// A fixed 100 iterations (~11 s diffuse, ~15 s K = 4): with the manual time being the
-// cold relight alone, a minimum time would take thousands of 1 GiB sums.
+// A fixed 100 iterations (docs/tools.md, "bench_relight"): with the manual time being
+// the cold relight alone, a minimum time would take thousands of 1 GiB sums.
 BENCHMARK(BM_BlockedRelightVsStream)
     ->ArgName("terms")
     ->Arg(0)

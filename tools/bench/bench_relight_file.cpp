@@ -33,6 +33,7 @@
 #include "relight/prt/relight_kernel.h"
 #include "common/transport_file.h"
 #include "common/options.h"
+#include "common/util.h"
 
 using namespace prt;
 
@@ -42,13 +43,6 @@ using Clock = std::chrono::steady_clock;
 
 double secondsSince(Clock::time_point t) {
     return std::chrono::duration<double>(Clock::now() - t).count();
-}
-
-double median(std::vector<double> v) {
-    if (v.empty()) return 0.0;
-    std::sort(v.begin(), v.end());
-    const size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 // Reads `a` (all threads) so the transport data is evicted from the caches.

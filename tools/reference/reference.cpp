@@ -53,7 +53,9 @@ uint64_t mix64(uint64_t z) {
     return z ^ (z >> 31);
 }
 
-double median(std::vector<double> v) {
+// The upper median: the middle value, the upper of the two middle ones for an even
+// count (prt::median averages them), 0 for none. The reference reports this one.
+double upperMedian(std::vector<double> v) {
     if (v.empty()) return 0.0;
     const size_t mid = v.size() / 2;
     std::nth_element(v.begin(), v.begin() + mid, v.end());
@@ -273,7 +275,7 @@ SampleIrradiance computeSampleIrradiance(const EnvironmentSampler& env, const Ra
         if (v > 0.0)
             relative.push_back(std::sqrt(out.variance[i].x + out.variance[i].y + out.variance[i].z) / v);
     }
-    out.medianRelativeStandardError = median(std::move(relative));
+    out.medianRelativeStandardError = upperMedian(std::move(relative));
     out.seconds = start.seconds();
     return out;
 }
@@ -572,7 +574,7 @@ void frameStatistics(ReferenceFrame& frame, const std::vector<uint8_t>& object, 
     }
     frame.expectedRelativeRmse = sumSquares > 0.0 ? std::sqrt(sumVariance / sumSquares) : 0.0;
     frame.maxRelativeStandardError = relative.empty() ? 0.0 : *std::max_element(relative.begin(), relative.end());
-    frame.medianRelativeStandardError = median(std::move(relative));
+    frame.medianRelativeStandardError = upperMedian(std::move(relative));
 }
 
 }  // namespace

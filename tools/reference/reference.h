@@ -243,7 +243,7 @@ private:
 //   a    = refractDirection(w, n_i, eta), the light's propagation direction inside;
 //   p    = henyeyGreensteinDirections(g, a, -w_o'): theta between the propagation
 //          directions before (a) and after (-w_o', toward the eye) scattering, g > 0
-//          forward (bssrdf.h, phase.h). In Normal mode only the path changes: the phase
+//          forward (common/bssrdf.h). In Normal mode only the path changes: the phase
 //          still uses the true w_o' (what the precomputation's h_k(w_o') factor stands
 //          for), as do F_t(eta, n_o.w_o) and sigma_s;
 //   V    = 1 when the ray from x_i toward w meets nothing more.
@@ -377,19 +377,17 @@ ReferenceFrame renderReference(const GBuffer& g, const std::vector<const Referen
 ReferenceFrame sumReferenceFrames(const std::vector<const ReferenceFrame*>& parts);
 
 // ---------------------------------------------------------------------------
-// The reference's own sample set (issue 13): independent of the precomputation
+// The reference's own sample set: independent of the precomputation
 // ---------------------------------------------------------------------------
 //
 // The dipole sum over surface samples is a quadrature of R_d, whose peak is about
 // z_r wide and whose fall-off length is 1/sigma_tr. Its per-point error (the samples
 // fall differently around every x_o) shrinks with the spacing h relative to the
 // width w = 1 / (sigma_t' + sigma_tr) = 1 / (1/z_r + sigma_tr) (<= min(z_r,
-// 1/sigma_tr), >= half of it) of the narrowest channel: measured on a sphere (where
-// the area within chord c is exactly pi c^2, so the plane integral of R_d is the exact
-// answer) for every measured material and channel, h = 0.3 w gives a per-point RMS
-// error of 0.12-0.88% and a mean error below 0.1% (tests/test_sample_sum.cpp), while
-// the precomputation's default h = l_u = min z_r gives 1-10% RMS. The error falls as
-// about N^-0.6 (h^1.2) with the sample count N.
+// 1/sigma_tr), >= half of it) of the narrowest channel, and falls as N^-q with the
+// sample count N (q = kDiscretisationRate); a reference sharing the precomputation's
+// samples would repeat its quadrature error and never measure it (docs/reference.md,
+// "Its own sample set").
 //
 // The reference therefore chooses, unless told otherwise:
 // - spacing h = kReferenceSpacingFraction x w (referenceSampleSpacing), count from
@@ -407,7 +405,8 @@ inline constexpr double kReferenceSpacingFraction = 0.2;
 inline constexpr uint64_t kReferenceSampleSeed = 0x7e5f3a9d2c41b6e1ull;
 // Default ray budget of the irradiance estimates (directions per sample x samples).
 inline constexpr double kReferenceRayBudget = 16.0 * 1024 * 1024;
-// Measured convergence rate of the per-pixel quadrature error: error ~ N^-q.
+// Convergence rate q of the per-pixel quadrature error, error ~ N^-q (measured:
+// docs/reference.md, "Its own sample set").
 inline constexpr double kDiscretisationRate = 0.6;
 
 // w = 1 / max over channels of (sigma_t' + sigma_tr), times `fraction` (mm). Throws

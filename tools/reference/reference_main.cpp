@@ -54,12 +54,6 @@ T require(const std::optional<T>& value, const std::string& path, const std::str
     return *value;
 }
 
-std::string formatRgb(const glm::dvec3& v) {
-    char buf[128];
-    std::snprintf(buf, sizeof buf, "%.4g, %.4g, %.4g", v.x, v.y, v.z);
-    return buf;
-}
-
 SingleScatteringPath parsePath(const std::string& text) {
     if (text == "refracted" || text == "true") return SingleScatteringPath::Refracted;
     if (text == "normal") return SingleScatteringPath::Normal;
