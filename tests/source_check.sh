@@ -17,6 +17,7 @@
 #      tools/ (comments, help text and strings alike: history belongs in docs/).
 #   c. every header of a module folder has its module name (the file stem) as a word of
 #      docs/building.md's "Layout" section (from "## Layout" to the next "## " heading).
+#   d. a room's code includes only its own room and the rooms below it (allowedIncludes).
 # Usage: source_check.sh SOURCE_ROOT. Prints one line "file:line: reason" per finding and
 # exits 1 when there is any, 0 when there is none (2 for a bad root). Needs only bash,
 # grep, sed, find and sort (no python: it runs on a fresh CI machine).
@@ -200,6 +201,38 @@ else
             report "$header" 1 "module $stem is missing from docs/building.md's Layout section"
     done < <(find "${moduleDirs[@]}" -maxdepth 1 -type f -name '*.h' | sort)
 fi
+
+# --- d. includes run down the floors -----------------------------------------------------------
+# A room's code includes only its own room and the rooms below it, the order its libraries
+# link in (docs/building.md, "Layout"); the executables at a folder's top (*_main.cpp) may
+# include any room of their folder. tools/reference's library stands on relight/render only.
+allowedIncludes() {  # room -> the folders it may include
+    case "$1" in
+        common) echo "common" ;;
+        precompute/passes) echo "common precompute/passes" ;;
+        precompute/job) echo "common precompute/passes precompute/job" ;;
+        relight/render) echo "common relight/render" ;;
+        relight/prt) echo "common relight/render relight/prt" ;;
+        relight/pointlight) echo "common relight/render relight/pointlight" ;;
+        relight/viewer) echo "common relight/render relight/prt relight/pointlight relight/viewer" ;;
+        tools/reference) echo "common relight/render tools/reference" ;;
+    esac
+}
+for room in "${moduleDirs[@]}"; do
+    read -r -a allowed <<< "$(allowedIncludes "$room")"
+    while IFS=: read -r file line text; do
+        included=$(sed -E 's/^[[:space:]]*#[[:space:]]*include[[:space:]]*"([^"]+)".*/\1/' <<< "$text")
+        [[ $included == */* ]] || continue
+        ok=0
+        for folder in "${allowed[@]}"; do
+            if [[ ${included%/*} == "$folder" ]]; then ok=1; break; fi
+        done
+        # relight/viewer/shaders/shaders.h is generated into the viewer's own room.
+        [[ $room == relight/viewer && $included == relight/viewer/shaders/* ]] && ok=1
+        ((ok)) || report "$file" "$line" "$room includes $included, above its floor (allowed: ${allowed[*]})"
+    done < <(find "$room" -maxdepth 1 -type f \( -name '*.h' -o -name '*.cpp' \) ! -name '*_main.cpp' -print0 |
+             xargs -0 grep -H -n -E '^[[:space:]]*#[[:space:]]*include[[:space:]]*"' 2> /dev/null)
+done
 
 if ((failures > 0)); then
     echo "source_check.sh: $failures finding(s)" >&2

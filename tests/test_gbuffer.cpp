@@ -12,12 +12,11 @@
 #include "common/error.h"
 #include "common/mesh_io.h"
 #include "common/shapes.h"
+#include "common/util.h"
 
 using namespace prt;
 
 namespace {
-
-constexpr double kPi = std::numbers::pi;
 
 // Radius in pixels of the image of a sphere of radius r whose centre lies on the
 // optical axis at distance d: the silhouette cone has half-angle asin(r / d), and the
@@ -25,8 +24,6 @@ constexpr double kPi = std::numbers::pi;
 double projectedRadiusPx(double r, double d, const Camera& c) {
     return std::tan(std::asin(r / d)) / std::tan(glm::radians(c.fovY) * 0.5) * c.height * 0.5;
 }
-
-const GBufferPixel& at(const GBuffer& g, int x, int y) { return g.pixels[size_t(y) * g.width + x]; }
 
 }  // namespace
 
@@ -56,17 +53,17 @@ TEST(GBuffer, CoverageIsTheProjectedDiscExplicitCamera) {
     // Silhouette: the image centre is hit, the corners are not; along the horizontal
     // and vertical axes the edge is at r_px.
     const double cx = c.width / 2.0, cy = c.height / 2.0;
-    EXPECT_TRUE(at(g, int(cx), int(cy)).hit);
-    EXPECT_FALSE(at(g, 0, 0).hit);
-    EXPECT_FALSE(at(g, c.width - 1, 0).hit);
-    EXPECT_FALSE(at(g, 0, c.height - 1).hit);
-    EXPECT_FALSE(at(g, c.width - 1, c.height - 1).hit);
-    EXPECT_TRUE(at(g, int(cx + 0.95 * rpx), int(cy)).hit);
-    EXPECT_FALSE(at(g, int(cx + 1.05 * rpx), int(cy)).hit);
-    EXPECT_TRUE(at(g, int(cx - 0.95 * rpx), int(cy)).hit);
-    EXPECT_FALSE(at(g, int(cx - 1.05 * rpx), int(cy)).hit);
-    EXPECT_TRUE(at(g, int(cx), int(cy - 0.95 * rpx)).hit);
-    EXPECT_FALSE(at(g, int(cx), int(cy - 1.05 * rpx)).hit);
+    EXPECT_TRUE(g.at(int(cx), int(cy)).hit);
+    EXPECT_FALSE(g.at(0, 0).hit);
+    EXPECT_FALSE(g.at(c.width - 1, 0).hit);
+    EXPECT_FALSE(g.at(0, c.height - 1).hit);
+    EXPECT_FALSE(g.at(c.width - 1, c.height - 1).hit);
+    EXPECT_TRUE(g.at(int(cx + 0.95 * rpx), int(cy)).hit);
+    EXPECT_FALSE(g.at(int(cx + 1.05 * rpx), int(cy)).hit);
+    EXPECT_TRUE(g.at(int(cx - 0.95 * rpx), int(cy)).hit);
+    EXPECT_FALSE(g.at(int(cx - 1.05 * rpx), int(cy)).hit);
+    EXPECT_TRUE(g.at(int(cx), int(cy - 0.95 * rpx)).hit);
+    EXPECT_FALSE(g.at(int(cx), int(cy - 1.05 * rpx)).hit);
 }
 
 TEST(GBuffer, CoverageIsTheProjectedDiscFrameSphere) {
@@ -83,9 +80,9 @@ TEST(GBuffer, CoverageIsTheProjectedDiscFrameSphere) {
         const double rpx = fill * c.height * 0.5;
         EXPECT_NEAR(projectedRadiusPx(r, glm::length(c.eye - centre), c), rpx, 1e-9 * rpx);
         EXPECT_NEAR(double(g.objectPixels()) / (kPi * rpx * rpx), 1.0, 0.02) << "azimuth " << azimuth;
-        EXPECT_TRUE(at(g, 128, 128).hit);
-        EXPECT_FALSE(at(g, 0, 0).hit);
-        EXPECT_FALSE(at(g, 255, 255).hit);
+        EXPECT_TRUE(g.at(128, 128).hit);
+        EXPECT_FALSE(g.at(0, 0).hit);
+        EXPECT_FALSE(g.at(255, 255).hit);
     }
 }
 
@@ -101,7 +98,7 @@ TEST(GBuffer, PixelAttributes) {
     GBuffer g = traceGBuffer(scene, sphere, c);
 
     // Centre pixel: on the axis, at z ~ r, normal facing the camera.
-    const GBufferPixel& centre = at(g, 50, 50);
+    const GBufferPixel& centre = g.at(50, 50);
     ASSERT_TRUE(centre.hit);
     EXPECT_NEAR(glm::length(centre.rayDirection - glm::vec3(0, 0, -1)), 0.0f, 1e-6f);
     EXPECT_NEAR(glm::length(centre.toViewer - glm::vec3(0, 0, 1)), 0.0f, 1e-6f);
@@ -113,7 +110,7 @@ TEST(GBuffer, PixelAttributes) {
     size_t hits = 0;
     for (int y = 0; y < g.height; ++y)
         for (int x = 0; x < g.width; ++x) {
-            const GBufferPixel& p = at(g, x, y);
+            const GBufferPixel& p = g.at(x, y);
             const glm::dvec3 expectedDir = cameraRayDirection(c, x + 0.5, y + 0.5);
             ASSERT_NEAR(glm::length(glm::dvec3(p.rayDirection) - expectedDir), 0.0, 1e-6);
             ASSERT_NEAR(glm::length(p.toViewer + p.rayDirection), 0.0f, 1e-7f);
@@ -244,7 +241,7 @@ TEST(Compose, AlphaIsOneExactlyOnHitPixelsAndBackgroundIsTheEnvironment) {
     size_t hits = 0;
     for (int y = 0; y < img.height; ++y)
         for (int x = 0; x < img.width; ++x) {
-            const GBufferPixel& p = at(g, x, y);
+            const GBufferPixel& p = g.at(x, y);
             const float* o = img.pixel(x, y);
             if (p.hit) {
                 ++hits;

@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "common/util.h"
 #include "common/bssrdf.h"
 #include "common/cubemap.h"
 #include "common/error.h"
@@ -24,7 +25,7 @@ double hemisphericalFresnelCosine(double eta) {
         double mu = (k + 0.5) / m;
         sum += fresnelTransmittance(eta, mu) * mu;
     }
-    return 2 * M_PI * sum / m;
+    return 2 * kPi * sum / m;
 }
 
 SurfaceSample sampleAt(glm::vec3 p, glm::vec3 n) {
@@ -70,7 +71,7 @@ TEST(TexelDirections, SubSolidAnglesSumToFourPiAndDirectionsStayInTheirTexel) {
     for (int s : {1, 2, 3}) {
         TexelDirections d = makeTexelDirections(8, s);
         ASSERT_EQ(d.count(), size_t(6 * 64 * s * s));
-        EXPECT_NEAR(sum(d.solidAngle), 4 * M_PI, 1e-4);
+        EXPECT_NEAR(sum(d.solidAngle), 4 * kPi, 1e-4);
         for (size_t k = 0; k < d.count(); ++k) {
             TexelCoord t = directionToTexel(8, glm::dvec3(d.x[k], d.y[k], d.z[k]));
             ASSERT_EQ(size_t(t.face * 64 + t.j * 8 + t.i), k / d.subPerTexel());

@@ -263,7 +263,7 @@ TEST(JensenBuhler, RenderFarPointLightEqualsDirectionalLight) {
     size_t checked = 0;
     for (int y = 0; y < g.height; y += 5)
         for (int x = 0; x < g.width; x += 5) {
-            const GBufferPixel& p = g.pixels[size_t(y) * g.width + x];
+            const GBufferPixel& p = g.at(x, y);
             const float* o = b.pixel(x, y);
             EXPECT_EQ(o[3], p.hit ? 1.0f : 0.0f);
             if (!p.hit) {

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <unistd.h>
 
+#include "common/util.h"
 #include "common/cubemap.h"
 #include "common/error.h"
 #include "common/haar.h"
@@ -43,7 +44,7 @@ double hemisphericalFresnelCosine(double eta) {
     const int m = 100000;
     double sum = 0;
     for (int k = 0; k < m; ++k) sum += fresnelTransmittance(eta, (k + 0.5) / m) * (k + 0.5) / m;
-    return 2 * M_PI * sum / m;
+    return 2 * kPi * sum / m;
 }
 
 }  // namespace
@@ -97,7 +98,7 @@ TEST(Precompute, LargeSphereUnderConstantLightMatchesTheDipoleClosedForm) {
     std::vector<uint32_t> idx;
     std::vector<float> rgb;
     for (int c = 0; c < 3; ++c) {
-        const double expected = eEff * dipoleTotalDiffuseReflectance(makeDipoleChannel(m, c)) / M_PI;
+        const double expected = eEff * dipoleTotalDiffuseReflectance(makeDipoleChannel(m, c)) / kPi;
         double mean = 0, worst = 0, squares = 0;
         for (size_t v = 0; v < ms->vectors.vertexCount(); ++v) {
             ms->vectors.dequantizeVertex(v, idx, rgb);

@@ -369,7 +369,7 @@ TEST(ReferenceMultipleScattering, LargeSphereUnderConstantLightMatchesThePlaneIn
     int count = 0;
     for (int y = 0; y < 33; ++y)
         for (int x = 0; x < 33; ++x) {
-            const GBufferPixel& p = g.pixels[size_t(y) * 33 + x];
+            const GBufferPixel& p = g.at(x, y);
             const double mu = glm::dot(glm::dvec3(p.normal), glm::dvec3(p.toViewer));
             if (!p.hit || mu < 0.5) continue;
             const double ft = fresnelTransmittance(s.material.eta, mu) / ftNormal;

@@ -21,10 +21,6 @@ using namespace prt;
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-
-const GBufferPixel& at(const GBuffer& g, int x, int y) { return g.pixels[size_t(y) * g.width + x]; }
-
 std::string scratchDir(const std::string& name) {
     const std::filesystem::path p = std::filesystem::current_path() / "test_relight_object_scratch" / name;
     std::filesystem::remove_all(p);
@@ -101,7 +97,7 @@ TEST(RenderEndToEnd, ConstantEnvironmentGivesFresnelTimesClosedFormDot) {
     const TranslucentShader shader(object.mesh, object.eta);
     const Image img = compose(g, env, glm::dmat3(1.0), [&](const GBufferPixel& p) { return shader.shade(p, rad); });
 
-    const GBufferPixel& centre = at(g, 32, 32);
+    const GBufferPixel& centre = g.at(32, 32);
     ASSERT_TRUE(centre.hit);
     const double cosO = glm::dot(centre.normal, centre.toViewer);
     EXPECT_GT(cosO, 0.999);
@@ -118,7 +114,7 @@ TEST(RenderEndToEnd, ConstantEnvironmentGivesFresnelTimesClosedFormDot) {
     // Every object pixel: the same law with its own normal and position.
     for (int y = 0; y < g.height; ++y)
         for (int x = 0; x < g.width; ++x) {
-            const GBufferPixel& p = at(g, x, y);
+            const GBufferPixel& p = g.at(x, y);
             if (!p.hit) {
                 EXPECT_FLOAT_EQ(img.at(x, y, 1), cst.y);
                 continue;

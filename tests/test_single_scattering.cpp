@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <limits>
 
+#include "common/util.h"
 #include "common/cubemap.h"
 #include "common/error.h"
 #include "common/haar.h"
@@ -127,7 +128,7 @@ double halfSpaceSingleScattering(double sigmaS, double sigmaT, double eta, doubl
 double halfSpaceTopTexel(const Material& m, int n, int i, int j, int ch, double H) {
     const glm::dvec3 w = texelDirection(n, 2, i, j);
     return halfSpaceSingleScattering(m.sigmaS()[ch], m.sigmaT()[ch], m.eta, w.y, texelSolidAngle(n, i, j),
-                                     1.0 / (4.0 * M_PI), H);
+                                     1.0 / (4.0 * kPi), H);
 }
 
 }  // namespace
@@ -362,7 +363,7 @@ TEST(SingleScatteringHelpers, FresnelTableAndLightMapLookup) {
     const SingleScatteringContext iso(scene, box, m, nullptr, {});
     float g0 = 0;
     iso.lightMapValues(glm::vec3(0, 0, 1), &g0);
-    EXPECT_FLOAT_EQ(g0, float(1.0 / (4.0 * M_PI)));
+    EXPECT_FLOAT_EQ(g0, float(1.0 / (4.0 * kPi)));
     // Phase and material must agree; g != 0 needs a factorisation.
     EXPECT_THROW(SingleScatteringContext(scene, box, m, &phase, {}), Error);
     m.g = 0.3;
@@ -553,7 +554,7 @@ TEST(SingleScattering, ForwardScatteringFavoursBacklitViews) {
         ASSERT_TRUE(refractDirection({0, 1, 0}, {0, 1, 0}, m.eta, bCheck));
         EXPECT_NEAR(glm::length(bCheck - b), 0.0, 1e-12);
         const double ft = fresnelTransmittance(m.eta, 1.0);
-        const double dOmega = 4.0 * M_PI / 6.0;
+        const double dOmega = 4.0 * kPi / 6.0;
         auto relit = [&](int face, int ch) {
             double sum = 0;
             for (int k = 0; k < terms; ++k)

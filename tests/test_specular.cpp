@@ -15,15 +15,6 @@
 
 using namespace prt;
 
-namespace {
-
-constexpr double kPi = std::numbers::pi;
-
-const GBufferPixel& at(const GBuffer& g, int x, int y) { return g.pixels[size_t(y) * g.width + x]; }
-
-}  // namespace
-
-
 TEST(Specular, FresnelReflectionOfThePrefilteredEnvironment) {
     TriangleMesh sphere = makeIcosphere(3, 10.0f);
     RayScene scene(sphere);
@@ -48,7 +39,7 @@ TEST(Specular, FresnelReflectionOfThePrefilteredEnvironment) {
     EXPECT_GT(hits, 100u);
     // The mirror direction: at the centre pixel (normal ~ toward the eye) the
     // reflection looks back toward +Z; a sun there is seen, one at -Z is not.
-    const GBufferPixel& centre = at(g, 16, 16);
+    const GBufferPixel& centre = g.at(16, 16);
     const Image sunBack = sunEnvironment(64, latLongPixelDirection(0, 16, 64, 32), {1, 1, 1});
     const Image sunFront = sunEnvironment(64, latLongPixelDirection(32, 16, 64, 32), {1, 1, 1});
     EXPECT_GT(specularReflection(centre, 1.3, sunBack, glm::dmat3(1.0)).x, 0.0f);

@@ -16,14 +16,6 @@
 
 using namespace prt;
 
-namespace {
-
-constexpr double kPi = std::numbers::pi;
-
-const GBufferPixel& at(const GBuffer& g, int x, int y) { return g.pixels[size_t(y) * g.width + x]; }
-
-}  // namespace
-
 // ---------------------------------------------------------------------------
 // Shading
 // ---------------------------------------------------------------------------
@@ -77,7 +69,7 @@ TEST(TranslucentShader, ViewMapsAreLookedUpAtTheRefractedViewDirection) {
     c.width = 33;
     c.height = 33;
     GBuffer g = traceGBuffer(scene, sphere, c);
-    const GBufferPixel& centre = at(g, 16, 16);
+    const GBufferPixel& centre = g.at(16, 16);
     ASSERT_TRUE(centre.hit);
 
     // Two terms: h_0 = 1 on the -Z face (where w_o' points at the centre pixel: into

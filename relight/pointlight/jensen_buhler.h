@@ -52,7 +52,6 @@
 #include "common/bssrdf.h"
 #include "common/image.h"
 #include "relight/render/gbuffer.h"
-#include "relight/prt/translucent_shader.h"
 #include "relight/pointlight/point_lights.h"
 
 namespace prt {

@@ -35,6 +35,8 @@ struct GBuffer {
     int width = 0, height = 0;
     std::vector<GBufferPixel> pixels;  // row-major, top row first
     size_t objectPixels() const;
+    // The pixel of column x, row y (row 0 at the top); no bounds check.
+    const GBufferPixel& at(int x, int y) const { return pixels[size_t(y) * size_t(width) + size_t(x)]; }
 };
 
 // Traces one primary ray per pixel (multithreaded).
