@@ -192,7 +192,8 @@ SparseVector truncateWithShPart(float* dense, size_t count, int channels, int te
     if (size_t(6) * size_t(n) * size_t(n) != count)
         throw Error("sh part", std::to_string(count) + " Haar entries are not a 6 x N x N cubemap");
     const ShTables& t = shTables(n, terms);
-    if (channels > 4) throw Error("sh part", "at most 4 channels");
+    if (channels < 1 || channels > kMaxShChannels)
+        throw Error("sh part", "1 to " + std::to_string(kMaxShChannels) + " channels, got " + std::to_string(channels));
     // Channel planes, so every product below runs over contiguous floats.
     thread_local std::vector<float> planes;
     planes.resize(count * ch);
@@ -201,8 +202,8 @@ SparseVector truncateWithShPart(float* dense, size_t count, int channels, int te
     // d = P T^ (the fit of the Haar entries); the carried part s adds to it unchanged
     // (P W = I), and the residual of the whole vector T^ + W s is T^ - W d.
     float* carried = dense + count * ch;
-    double c[kMaxShTerms * 4] = {};
-    double d[kMaxShTerms * 4] = {};
+    double c[kMaxShTerms * kMaxShChannels] = {};
+    double d[kMaxShTerms * kMaxShChannels] = {};
     // Term-major, so each table row is read once for all channels (it stays in L1
     // while the channels' planes pass by); per channel the sums are those of a
     // channel-major loop, bit for bit.
@@ -212,7 +213,7 @@ SparseVector truncateWithShPart(float* dense, size_t count, int channels, int te
             c[size_t(i) * ch + k] = d[size_t(i) * ch + k] + double(carried[size_t(i) * ch + k]);
         }
     for (int i = 0; i < terms; ++i) {
-        float di[4];
+        float di[kMaxShChannels];
         for (size_t k = 0; k < ch; ++k) di[k] = float(d[size_t(i) * ch + k]);
         subtractRow(planes.data(), count, ch, &t.weightedHaar[size_t(i) * count], di);
     }

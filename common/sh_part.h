@@ -77,7 +77,8 @@ struct ShTables {
 const ShTables& shTables(int n, int terms);
 
 // The SH split of one dense Haar-domain vector, then the truncation of its residual.
-// `dense` holds count = 6 N^2 Haar entries + terms entries of `channels` (<= 4) floats,
+// `dense` holds count = 6 N^2 Haar entries + terms entries of `channels` floats
+// (1 .. kMaxShChannels: RGB, or the profiles of editable transport),
 // channel-interleaved (with terms = 0 any count is accepted):
 // the Haar coefficients, then SH coefficients s_i the vector already carries (zeros
 // for a plain vector; a sum of vectors that were split already carries one). The
@@ -92,6 +93,7 @@ const ShTables& shTables(int n, int terms);
 // the SH part are not orthogonal, so the denominator is not exactly ||T||^2.)
 // Float arithmetic in 16 partial sums per product (relative error ~1e-6, below the
 // files' 16-bit quantization): about 0.3 M multiply-adds per RGB vector at N = 32.
+inline constexpr int kMaxShChannels = 32;
 SparseVector truncateWithShPart(float* dense, size_t count, int channels, int terms, size_t keep,
                                 double* retained = nullptr);
 

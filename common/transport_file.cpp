@@ -43,7 +43,62 @@ std::string checkViewMaps(const ViewMaps& m) {
     return {};
 }
 
+// The profile components (each already checked alone) hold one index list: equal
+// offsets and indices. Names the first vertex where one differs from the first.
+std::string checkSharedIndices(const std::vector<const TransportComponent*>& profiles) {
+    if (profiles.empty()) return {};
+    const TransportComponent& first = *profiles.front();
+    const SparseRgbVectors& a = first.vectors;
+    for (size_t i = 1; i < profiles.size(); ++i) {
+        const SparseRgbVectors& b = profiles[i]->vectors;
+        if (a.offsets == b.offsets && a.indices == b.indices) continue;
+        const std::string names = "'" + componentName(profiles[i]->kind, profiles[i]->term) + "' and '" +
+                                  componentName(first.kind, first.term) + "'";
+        const std::string why = " (the profile components share one index list)";
+        // Both passed checkVectors for the same vertex count: offsets are monotone.
+        for (size_t v = 0; v + 1 < a.offsets.size(); ++v) {
+            const uint32_t countA = a.offsets[v + 1] - a.offsets[v], countB = b.offsets[v + 1] - b.offsets[v];
+            if (countA != countB)
+                return names + " differ at vertex " + u64(v) + ": " + u64(countB) + " and " + u64(countA) +
+                       " coefficients" + why;
+            if (!std::equal(a.indices.begin() + a.offsets[v], a.indices.begin() + a.offsets[v + 1],
+                            b.indices.begin() + b.offsets[v]))
+                return names + " differ at vertex " + u64(v) + ": different coefficient indices" + why;
+        }
+        return names + " have different index lists" + why;
+    }
+    return {};
+}
+
 }  // namespace
+
+std::string checkProfileTerms(const std::vector<uint32_t>& terms, int basisSize) {
+    if (basisSize < 0) {
+        if (terms.empty()) return {};
+        return "multiple-scattering profile components present but no radial basis";
+    }
+    if (terms.empty()) return "radial basis present but no multiple-scattering profile components";
+    const std::set<uint32_t> sorted(terms.begin(), terms.end());
+    const uint64_t count = terms.size();
+    if (uint64_t(basisSize) != kProfilesPerComponent * count)
+        return "the radial basis has " + std::to_string(basisSize) + " profiles but there are " + u64(count) +
+               " profile components of 3 (J must be 3 x their count)";
+    if (sorted.size() != count || *sorted.rbegin() != count - 1)
+        return "multiple-scattering profile components must be terms 0.." + u64(count - 1) + ", found " +
+               u64(sorted.size()) + " distinct with largest term " + u64(*sorted.rbegin());
+    return {};
+}
+
+std::string checkRadialBasis(const StoredRadialBasis& b) {
+    if (!validRadialConstruction(uint32_t(b.tables.construction)))
+        return "radial basis: construction " + u64(uint32_t(b.tables.construction)) + " is not 0, 1 or 2";
+    try {
+        RadialBasis basis(b.range, b.tables);
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return {};
+}
 
 std::string checkVectors(const SparseRgbVectors& s, uint64_t vertices, uint32_t cubemapSize,
                          uint32_t shTerms) {
@@ -135,6 +190,8 @@ std::string checkFile(const TransportFile& f) {
     if (f.components.size() > UINT32_MAX) return "too many components";
     std::set<std::pair<uint32_t, uint32_t>> seen;
     std::set<uint32_t> terms;
+    std::vector<uint32_t> profileTerms;
+    std::vector<const TransportComponent*> profiles;
     for (size_t i = 0; i < f.components.size(); ++i) {
         const TransportComponent& c = f.components[i];
         const std::string name = "component " + u64(i + 1) + " (" +
@@ -142,11 +199,19 @@ std::string checkFile(const TransportFile& f) {
                                                               : std::string("unknown kind")) +
                                  ")";
         if (!validKind(uint32_t(c.kind)))
-            return name + ": kind " + u64(uint32_t(c.kind)) + " is not 1, 2 or 3";
-        if (c.kind != ComponentKind::SingleScatteringTerm && c.term != 0)
+            return name + ": kind " + u64(uint32_t(c.kind)) + " is not 1, 2, 3 or 4";
+        if (!hasTerms(c.kind) && c.term != 0)
             return name + ": term " + u64(c.term) + " on a component that has no terms";
         if (!seen.insert({uint32_t(c.kind), c.term}).second) return name + ": appears twice";
         if (c.kind == ComponentKind::SingleScatteringTerm) terms.insert(c.term);
+        if (c.kind == ComponentKind::MultipleScatteringProfiles) {
+            // The relight walks one index list for all profiles (TransportComponent's
+            // blocks would give each component its own).
+            if (c.blocked())
+                return name + ": a blocked multiple-scattering profile component is not supported in version 5";
+            profileTerms.push_back(c.term);
+            profiles.push_back(&c);
+        }
         if (c.vertexCount() != f.mesh.vertexCount)
             return name + ": has " + u64(c.vertexCount()) +
                    " vertices, the mesh fingerprint has " + u64(f.mesh.vertexCount);
@@ -180,6 +245,11 @@ std::string checkFile(const TransportFile& f) {
                    std::to_string(f.viewMaps->terms - 1) + " (one per view map), found " +
                    u64(terms.size()) + " with largest term " + u64(*terms.rbegin());
     }
+    std::string reason = checkProfileTerms(profileTerms, f.radialBasis ? f.radialBasis->tables.size : -1);
+    if (!reason.empty()) return reason;
+    reason = checkSharedIndices(profiles);
+    if (!reason.empty()) return reason;
+    if (f.radialBasis) return checkRadialBasis(*f.radialBasis);
     return {};
 }
 
@@ -212,6 +282,9 @@ std::string componentName(ComponentKind kind, uint32_t term) {
         case ComponentKind::SingleScatteringIsotropic: return "single scattering (isotropic)";
         case ComponentKind::SingleScatteringTerm:
             return "single scattering term " + std::to_string(term);
+        case ComponentKind::MultipleScatteringProfiles:
+            return "multiple scattering profiles " + std::to_string(uint64_t(term) * kProfilesPerComponent) + "-" +
+                   std::to_string(uint64_t(term) * kProfilesPerComponent + kProfilesPerComponent - 1);
     }
     return "unknown component kind " + std::to_string(uint32_t(kind));
 }
@@ -298,6 +371,15 @@ void SparseRgbVectors::clear() {
 size_t SparseRgbVectors::byteSize() const {
     return offsets.size() * sizeof(uint32_t) + indices.size() * sizeof(uint16_t) +
            values.size() * sizeof(int16_t) + scales.size() * sizeof(float);
+}
+
+bool StoredRadialBasis::operator==(const StoredRadialBasis& o) const {
+    const RadialRange& a = range;
+    const RadialRange& b = o.range;
+    return a.zrMin == b.zrMin && a.zrMax == b.zrMax && a.alphaMin == b.alphaMin && a.alphaMax == b.alphaMax &&
+           a.eta == b.eta && a.rMax == b.rMax && tables.size == o.tables.size &&
+           tables.nodeCount == o.tables.nodeCount && tables.construction == o.tables.construction &&
+           tables.normExponent == o.tables.normExponent && tables.values == o.tables.values;
 }
 
 const TransportComponent* TransportFile::find(ComponentKind kind, uint32_t term) const {

@@ -3,11 +3,12 @@
 // reference tools read (SPEC sections 5-6, byte layout in docs/transport-format.md).
 //
 // In memory a transport file is a few components (multiple scattering, isotropic
-// single scattering, the K terms of the SVD-factored single-scattering phase), each
-// one sparse RGB vector per mesh vertex in Haar coefficient space (common/haar.h:
-// coefficient index face * N * N + j * N + i of a 6 x N x N cubemap), plus the h_k
-// view maps when K-term components exist, the parameters the file was made with and
-// a fingerprint of the mesh it belongs to.
+// single scattering, the K terms of the SVD-factored single-scattering phase, the
+// per-profile transport of editable multiple scattering), each one sparse RGB vector
+// per mesh vertex in Haar coefficient space (common/haar.h: coefficient index
+// face * N * N + j * N + i of a 6 x N x N cubemap), plus the h_k view maps when K-term
+// components exist, the radial basis when profile components exist, the parameters
+// the file was made with and a fingerprint of the mesh it belongs to.
 //
 // Relighting a vertex v of a component against a Haar light vector L (RGB):
 //     out_c = scales[3v + c] * sum_{n = offsets[v]}^{offsets[v+1]-1}
@@ -27,6 +28,7 @@
 #include <vector>
 
 #include "common/blocked_vectors.h"
+#include "common/radial_basis.h"
 
 namespace prt {
 
@@ -43,9 +45,21 @@ enum class ComponentKind : uint32_t {
     MultipleScattering = 1,
     SingleScatteringIsotropic = 2,
     SingleScatteringTerm = 3,  // k-th term of the SVD-factored phase; term index stored
+    // Editable multiple scattering (format version 5): the transport vectors U_j of the
+    // file's radial basis profiles B_j (TransportFile::radialBasis), packed three per
+    // component: term p holds profiles 3p, 3p+1, 3p+2 in its channels R, G, B. The
+    // relit multiple scattering of channel c is sum_j w_cj U_j with w_c =
+    // RadialBasis::materialWeights (see common/radial_basis.h). The P components of a
+    // file are terms 0..P-1, per vertex (never blocked), and share one index list:
+    // equal `offsets` and `indices`, so a relight walks the indices once for all J.
+    MultipleScatteringProfiles = 4,
 };
 
-// "multiple scattering", "single scattering (isotropic)", "single scattering term 2".
+// The profiles component term p packs, 3p .. 3p + 2 (kProfilesPerComponent of them).
+inline constexpr uint32_t kProfilesPerComponent = 3;
+
+// "multiple scattering", "single scattering (isotropic)", "single scattering term 2",
+// "multiple scattering profiles 3-5" (kind 4, term 1).
 std::string componentName(ComponentKind kind, uint32_t term = 0);
 
 // One sparse RGB vector per vertex, CSR layout, 16-bit quantized.
@@ -121,6 +135,17 @@ struct ViewMaps {
     bool operator==(const ViewMaps&) const = default;
 };
 
+// The radial basis of a file with MultipleScatteringProfiles components, as stored:
+// RadialBasis(range, tables) rebuilds the basis the precompute used, giving the same
+// weights bit for bit. tables.size (J) is 3 x the number of profile components.
+struct StoredRadialBasis {
+    RadialRange range;
+    RadialBasisTables tables;
+
+    // Every field equal (the table values compared as floats).
+    bool operator==(const StoredRadialBasis& other) const;
+};
+
 struct TransportFile {
     uint32_t cubemapSize = 0;  // N of the 6 x N x N lighting cubemap, power of two, 1..64
     // Terms of the SH part of every vector (common/sh_part.h): 0, 1, 4 or 9. Vectors
@@ -135,6 +160,8 @@ struct TransportFile {
     std::vector<std::pair<std::string, std::string>> parameters;
     std::vector<TransportComponent> components;
     std::optional<ViewMaps> viewMaps;  // present iff SingleScatteringTerm components exist
+    // Present iff MultipleScatteringProfiles components exist (format version 5).
+    std::optional<StoredRadialBasis> radialBasis;
 
     // The component of that kind (and term), or nullptr.
     const TransportComponent* find(ComponentKind kind, uint32_t term = 0) const;
@@ -155,11 +182,14 @@ inline constexpr const char* kShardVerticesParameter = "shard_vertices";
 // Writes `file` to `path` atomically: validates it (one vertex count everywhere,
 // equal to mesh.vertexCount; indices < 6 N^2 + shTerms and increasing; view maps present iff
 // term components exist, one term component per view-map term; finite values; a
-// blocked component passes checkBlockedVectors and has empty `vectors`), then
-// writes through writeAtomically (common/atomic_file.h): on any failure an existing
-// file at `path` is untouched, no temporary file is left and prt::Error(path, reason)
-// is thrown. The format version is the lowest that holds the file: 4 with SH terms and
-// a blocked component (varint indices, SH scales where BlockedRgbVectors::shFrom is
+// blocked component passes checkBlockedVectors and has empty `vectors`; the radial
+// basis present iff profile components exist, which are per vertex, terms 0..P-1 with
+// J = 3P, share their offsets and indices, and the basis passes RadialBasis's
+// construction), then writes through writeAtomically (common/atomic_file.h): on any
+// failure an existing file at `path` is untouched, no temporary file is left and
+// prt::Error(path, reason) is thrown. The format version is the lowest that holds the
+// file: 5 with a radial basis (whatever else it holds), else 4 with SH terms and a
+// blocked component (varint indices, SH scales where BlockedRgbVectors::shFrom is
 // set), 3 with SH terms, 2 with a blocked component, else 1, so older readers keep
 // reading what needs nothing newer (docs/transport-format.md, "Compatibility").
 // Deterministic: the same TransportFile gives the same bytes.
@@ -177,7 +207,7 @@ TransportFile loadTransportFile(const std::string& path, const MeshFingerprint& 
 
 // What readTransportFileInfo returns: everything except the vectors and view maps.
 struct TransportFileInfo {
-    uint32_t version = 0;  // the file's format version, 1..4 (see saveTransportFile)
+    uint32_t version = 0;  // the file's format version, 1..5 (see saveTransportFile)
     uint32_t cubemapSize = 0;
     uint32_t shTerms = 0;
     MeshFingerprint mesh;
@@ -198,6 +228,15 @@ struct TransportFileInfo {
     std::vector<Component> components;
     int viewMapSize = 0;   // 0 when the file has no view maps
     int viewMapTerms = 0;
+    // The radial basis (version 5), from its section's fixed part; radialRange is empty
+    // and radialProfiles 0 when the file has none. The range is checked by
+    // validateRadialRange, the table values are neither read nor checked.
+    std::optional<RadialRange> radialRange;
+    int radialProfiles = 0;  // J
+    int radialNodeCount = 0;
+    RadialConstruction radialConstruction = RadialConstruction::Pca;
+    double radialNormExponent = 0.0;
+    uint64_t radialBasisBytes = 0;  // the section's payload in the file
     uint64_t fileBytes = 0;
 
     std::string parameter(const std::string& key) const;
@@ -206,14 +245,17 @@ struct TransportFileInfo {
 
 // Cheap look at a file (a few small reads, no large allocation): the preamble and the
 // header and parameter sections (checksums verified), the fixed part of every
-// component and view-map section and the end marker. The section structure is
+// component, view-map and radial-basis section and the end marker, and the profile
+// components' terms against the basis size. The section structure is
 // checked to span the file exactly, so a truncated file is refused; the large arrays
 // are neither read nor checksummed (loadTransportFile does that).
 TransportFileInfo readTransportFileInfo(const std::string& path);
 
 // Multi-line human-readable summary (prt-relight info): N, mesh, parameters, components
 // with vertex and coefficient counts (per vertex, or for a blocked component blocks and
-// indices per block; mean, and max where the arrays are at hand) and bytes, view maps.
+// indices per block; mean, and max where the arrays are at hand) and bytes, view maps,
+// and for a version-5 file a "radial basis:" line (J, construction, the z_r and alpha'
+// range, eta, rMax, node count, the profile components' names).
 // The first line is always a header line ("transport file..."). The bytes differ by
 // source: describe(TransportFile) counts the in-memory arrays the relight streams
 // (16-bit indices; labelled "in memory", with a "total:" line); describe(TransportFileInfo)

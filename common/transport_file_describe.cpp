@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cinttypes>
 #include <cstdio>
+#include <cstdlib>
 
 #include "common/transport_file.h"
 #include "common/transport_file_format.h"
@@ -70,6 +71,38 @@ void describeCommon(std::string& out, uint32_t n, uint32_t shTerms, const MeshFi
     for (const auto& [k, v] : parameters) out += "  " + k + " = " + v + "\n";
 }
 
+// The shortest of %.6g .. %.17g that reads back as v: plain decimals for the ranges a
+// basis has ("20", "0.4"), where formatDouble's shortest form may be "2e+01".
+std::string numberText(double v) {
+    for (int precision = 6; precision <= 17; ++precision) {
+        char buf[64];
+        std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+        if (std::strtod(buf, nullptr) == v) return buf;
+    }
+    return formatDouble(v);
+}
+
+// "radial basis: 12 profiles (pca, norm r^3), z_r 0.25..12 mm, alpha' 0.5..0.999, eta
+// 1.3, rMax 30 mm, 1200 nodes; in multiple scattering profiles 0-2, ..., 9-11", plus
+// the bytes where given.
+std::string describeRadialBasis(const RadialRange& r, int size, int nodeCount, RadialConstruction construction,
+                                double normExponent, const std::vector<std::pair<ComponentKind, uint32_t>>& components,
+                                const std::string& bytes) {
+    std::string out = "radial basis: " + std::to_string(size) + " profiles (" +
+                      radialConstructionName(construction) + ", norm r^" + numberText(normExponent) + "), z_r " +
+                      numberText(r.zrMin) + ".." + numberText(r.zrMax) + " mm, alpha' " +
+                      numberText(r.alphaMin) + ".." + numberText(r.alphaMax) + ", eta " + numberText(r.eta) +
+                      ", rMax " + numberText(r.rMax) + " mm, " + std::to_string(nodeCount) + " nodes";
+    std::string names;
+    for (const auto& [kind, term] : components) {
+        if (kind != ComponentKind::MultipleScatteringProfiles) continue;
+        names += (names.empty() ? "" : ", ") + componentName(kind, term);
+    }
+    out += "; in " + (names.empty() ? std::string("no component") : names);
+    if (!bytes.empty()) out += "; " + bytes;
+    return out + "\n";
+}
+
 }  // namespace
 
 std::string describe(const TransportFile& file) {
@@ -111,6 +144,14 @@ std::string describe(const TransportFile& file) {
                "\n";
     else
         out += "view maps: none\n";
+    if (file.radialBasis) {
+        const StoredRadialBasis& b = *file.radialBasis;
+        std::vector<std::pair<ComponentKind, uint32_t>> kinds;
+        for (const TransportComponent& c : file.components) kinds.emplace_back(c.kind, c.term);
+        out += describeRadialBasis(b.range, b.tables.size, b.tables.nodeCount, b.tables.construction,
+                                   b.tables.normExponent, kinds,
+                                   formatBinaryBytes(b.tables.values.size() * sizeof(float)) + " of tables in memory");
+    }
     out += "total: " + formatBinaryBytes(total) + " of vectors in memory\n";
     return out;
 }
@@ -142,6 +183,13 @@ std::string describe(const TransportFileInfo& info) {
                std::to_string(info.viewMapSize) + " x " + std::to_string(info.viewMapSize) + "\n";
     else
         out += "view maps: none\n";
+    if (info.radialRange) {
+        std::vector<std::pair<ComponentKind, uint32_t>> kinds;
+        for (const TransportFileInfo::Component& c : info.components) kinds.emplace_back(c.kind, c.term);
+        out += describeRadialBasis(*info.radialRange, info.radialProfiles, info.radialNodeCount,
+                                   info.radialConstruction, info.radialNormExponent, kinds,
+                                   formatBinaryBytes(info.radialBasisBytes) + " on disk");
+    }
     return out;
 }
 

@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 #include "common/transport_file.h"
 
@@ -24,12 +25,15 @@ inline constexpr std::array<char, 8> kMagic = {'P', 'R', 'T', 'X', 'P', 'O', 'R'
 
 // The preamble's version field. The writer picks the lowest version that can hold the
 // file (formatVersionOf), so a file without blocked components or SH terms stays
-// version 1 byte for byte; a reader accepts 1..4 and refuses a version that disagrees
+// version 1 byte for byte; a reader accepts 1..5 and refuses a version that disagrees
 // with the sections (docs/transport-format.md, "Compatibility").
 inline constexpr uint32_t kFormatVersion = 1;             // per-vertex components (COMP) only
 inline constexpr uint32_t kBlockedFormatVersion = 2;      // + blocked components (BLKC)
 inline constexpr uint32_t kShFormatVersion = 3;           // + SH term count in HEAD (indices < 6 N^2 + S)
 inline constexpr uint32_t kBlockVarintFormatVersion = 4;  // + varint BLKC indices and SH scales
+// + the radial basis (RBAS) and profile components (kind 4); the SH term count may be 0.
+inline constexpr uint32_t kRadialFormatVersion = 5;
+inline constexpr uint32_t kNewestFormatVersion = kRadialFormatVersion;
 
 inline constexpr uint32_t kEndianMarker = 0x01020304u;
 inline constexpr uint64_t kAlignment = 64;  // every section payload and array starts at a multiple
@@ -40,6 +44,15 @@ inline constexpr uint64_t kHeadBytes = 40;
 inline constexpr uint64_t kComponentFixedBytes = 64;
 inline constexpr uint64_t kBlockedFixedBytes = 64;
 inline constexpr uint64_t kViewFixedBytes = 64;
+// RBAS: 72 bytes of fields (range, J, N, construction, reserved, norm exponent), then
+// reserved zeros so that the table starts 64-byte aligned like every other array.
+inline constexpr uint64_t kRadialFieldBytes = 72;
+inline constexpr uint64_t kRadialFixedBytes = 128;
+// The bounds RadialBasis's constructor accepts (common/radial_basis.h), checked on the
+// fixed part before the table is sized from it.
+inline constexpr uint32_t kMaxRadialProfiles = 64;
+inline constexpr uint32_t kMinRadialNodes = 2;
+inline constexpr uint32_t kMaxRadialNodes = 1000000;
 inline constexpr uint64_t kMaxParameterBytes = uint64_t(16) << 20;
 inline constexpr uint32_t kMaxCubemapSize = 64;
 inline constexpr uint64_t kMaxVertices = uint64_t(1) << 40;
@@ -47,7 +60,7 @@ inline constexpr uint32_t kMaxViewMapSize = 4096;
 inline constexpr uint32_t kMaxViewMapTerms = 4096;
 
 // The sections, in file order.
-enum class Section { Head, Parameters, Component, BlockedComponent, ViewMaps, End };
+enum class Section { Head, Parameters, Component, BlockedComponent, ViewMaps, RadialBasis, End };
 
 inline const char* tagOf(Section s) {
     switch (s) {
@@ -56,6 +69,7 @@ inline const char* tagOf(Section s) {
         case Section::Component: return "COMP";
         case Section::BlockedComponent: return "BLKC";
         case Section::ViewMaps: return "VIEW";
+        case Section::RadialBasis: return "RBAS";
         case Section::End: return "END ";
     }
     return "????";
@@ -117,6 +131,11 @@ inline BlockedLayout blockedLayout(uint64_t vertices, uint64_t indices, uint64_t
 // Requires size <= kMaxViewMapSize and terms <= kMaxViewMapTerms.
 inline uint64_t viewMapsPayloadBytes(uint64_t size, uint64_t terms) {
     return kViewFixedBytes + terms * 6 * size * size * sizeof(float);
+}
+
+// Requires size <= kMaxRadialProfiles and nodeCount <= kMaxRadialNodes.
+inline uint64_t radialBasisPayloadBytes(uint64_t size, uint64_t nodeCount) {
+    return kRadialFixedBytes + nodeCount * size * sizeof(float);
 }
 
 // ---- encoding -------------------------------------------------------------------
@@ -189,7 +208,17 @@ inline std::string formatDouble(double v) {
 
 inline bool validKind(uint32_t kind) {
     return kind >= uint32_t(ComponentKind::MultipleScattering) &&
-           kind <= uint32_t(ComponentKind::SingleScatteringTerm);
+           kind <= uint32_t(ComponentKind::MultipleScatteringProfiles);
+}
+
+// Kinds whose components carry a term index (0 for the others).
+inline bool hasTerms(ComponentKind kind) {
+    return kind == ComponentKind::SingleScatteringTerm || kind == ComponentKind::MultipleScatteringProfiles;
+}
+
+// The construction field of RBAS: a RadialConstruction value.
+inline bool validRadialConstruction(uint32_t c) {
+    return c <= uint32_t(RadialConstruction::ExpLadder);
 }
 
 inline bool validShTermCount(uint32_t terms) { return terms == 0 || terms == 1 || terms == 4 || terms == 9; }
@@ -199,6 +228,13 @@ std::string checkVectors(const SparseRgbVectors& s, uint64_t vertices, uint32_t 
 // Blocked vectors of `vertices` vertices (offsets checked monotone before
 // checkBlockedVectors walks them).
 std::string checkBlocked(const BlockedRgbVectors& b, uint64_t vertices, uint32_t cubemapSize, uint32_t shTerms);
+// The profile components' terms (the term of every kind-4 component, in file order)
+// against the basis: none without a basis (basisSize < 0), else terms exactly
+// 0..P-1 with basisSize == 3P. Shared by checkFile and readTransportFileInfo.
+std::string checkProfileTerms(const std::vector<uint32_t>& terms, int basisSize);
+// A stored basis: RadialBasis(range, tables) accepts it (a valid range, bounds, table
+// size, finite values, independent profiles) and the construction is a known one.
+std::string checkRadialBasis(const StoredRadialBasis& b);
 // Everything saveTransportFile promises (transport_file.h) that does not depend on the
 // byte layout.
 std::string checkFile(const TransportFile& f);

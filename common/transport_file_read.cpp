@@ -38,6 +38,7 @@ std::string sectionLabel(Section s, size_t index = 0, size_t count = 0) {
             return label + " (blocked component " + std::to_string(index + 1) + " of " +
                    std::to_string(count) + ")";
         case Section::ViewMaps: return label + " (view maps)";
+        case Section::RadialBasis: return label + " (radial basis)";
         case Section::End: return label + " (end marker)";
     }
     return label;
@@ -266,7 +267,7 @@ struct HeadFields {
     bool hasViewMaps = false;
 };
 
-// Returns the format version (1 to 4).
+// Returns the format version (1 to 5).
 uint32_t readPreamble(FileReader& r) {
     const uint64_t size = r.size();
     if (size == 0) r.fail("truncated: the file is empty (not a transport file)");
@@ -285,10 +286,10 @@ uint32_t readPreamble(FileReader& r) {
                "big-endian; transport files are little-endian");
     if (marker != kEndianMarker)
         r.fail("bad endianness marker " + hex32(marker) + " (expected 0x01020304): corrupt file");
-    if (version < kFormatVersion || version > kBlockVarintFormatVersion)
+    if (version < kFormatVersion || version > kNewestFormatVersion)
         r.fail("unsupported transport file format version " + u64(version) +
                " (this build reads versions " + u64(kFormatVersion) + " to " +
-               u64(kBlockVarintFormatVersion) + ")");
+               u64(kNewestFormatVersion) + ")");
     return version;
 }
 
@@ -317,7 +318,15 @@ HeadFields readHead(FileReader& r, uint32_t version) {
     if (!std::isfinite(h.mmPerUnit) || h.mmPerUnit <= 0.0)
         r.fail(where + "mm per unit is not a positive finite number");
     if (viewFlag > 1) r.fail(where + "view-map flag " + u64(viewFlag) + " is not 0 or 1");
-    if (version >= kShFormatVersion) {
+    if (version >= kRadialFormatVersion) {
+        // Version 5 is chosen by the radial basis alone, with or without an SH part.
+        if (!validShTermCount(reserved))
+            r.fail(where + "SH term count " + u64(reserved) + " is not 0, 1, 4 or 9 (format version " +
+                   u64(version) + ")");
+        h.shTerms = reserved;
+        if (h.shTerms == 9 && h.cubemapSize < 2)
+            r.fail(where + "9 SH terms on a 6 x 1 x 1 cubemap (they are not independent there)");
+    } else if (version >= kShFormatVersion) {
         if (reserved == 0 || !validShTermCount(reserved))
             r.fail(where + "SH term count " + u64(reserved) + " is not 1, 4 or 9 (format version " +
                    u64(version) + ")");
@@ -373,11 +382,19 @@ std::vector<std::pair<std::string, std::string>> readParameters(FileReader& r) {
 
 // The checks of a component's kind, term and reserved bytes (COMP and BLKC alike),
 // made after the section's checksum.
-void checkComponentHeader(FileReader& r, const OpenSection& s, uint32_t kind, uint32_t term,
-                          bool reservedZero) {
+void checkComponentHeader(FileReader& r, const OpenSection& s, const HeadFields& h, uint32_t kind,
+                          uint32_t term, bool reservedZero) {
     const std::string where = "inconsistent: " + s.label + ": ";
     if (!validKind(kind)) r.fail(where + "unknown component kind " + u64(kind));
-    if (ComponentKind(kind) != ComponentKind::SingleScatteringTerm && term != 0)
+    if (ComponentKind(kind) == ComponentKind::MultipleScatteringProfiles) {
+        if (h.version < kRadialFormatVersion)
+            r.fail(where + "component kind 4 (multiple scattering profiles) in a format version " +
+                   u64(h.version) + " file (it needs version " + u64(kRadialFormatVersion) + ")");
+        if (s.kind == Section::BlockedComponent)
+            r.fail(where + "a blocked multiple-scattering profile component is not supported in version " +
+                   u64(kRadialFormatVersion));
+    }
+    if (!hasTerms(ComponentKind(kind)) && term != 0)
         r.fail(where + "term " + u64(term) + " on a component that has no terms");
     if (!reservedZero) r.fail(where + "reserved header bytes are not zero");
 }
@@ -460,7 +477,7 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
         closeSection(r, s);
         if (!paddingZero) r.fail("inconsistent: " + s.label + ": non-zero padding between arrays");
     }
-    checkComponentHeader(r, s, kind, term, reservedZero);
+    checkComponentHeader(r, s, h, kind, term, reservedZero);
     if (!infoOnly) {
         BlockedRgbVectors& v = c.blocks;
         if (varints) {
@@ -539,7 +556,7 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
         closeSection(r, s);
         if (!paddingZero) r.fail("inconsistent: " + s.label + ": non-zero padding between arrays");
     }
-    checkComponentHeader(r, s, kind, term, reservedZero);
+    checkComponentHeader(r, s, h, kind, term, reservedZero);
     if (!infoOnly) {
         const std::string reason = checkVectors(c.vectors, vertices, h.cubemapSize, h.shTerms);
         if (!reason.empty()) r.fail("inconsistent: " + s.label + ": " + reason);
@@ -592,8 +609,69 @@ ViewMaps readViewMaps(FileReader& r, bool infoOnly) {
     return m;
 }
 
-void readEnd(FileReader& r) {
-    OpenSection s = openSection(r, Section::End, sectionLabel(Section::End));
+// Reads an RBAS section (version 5). In info mode only the fixed part is read: `out`
+// gets the range and the table's shape, with empty values.
+StoredRadialBasis readRadialBasis(FileReader& r, bool infoOnly) {
+    // A version-5 file always has one (the writer picks version 5 for it alone).
+    const AlternativeSection end{Section::End, sectionLabel(Section::End),
+                                 "format version 5 but no radial basis (a file without one is version 1 to 4)"};
+    OpenSection s = openSection(r, Section::RadialBasis, sectionLabel(Section::RadialBasis), &end);
+    if (s.length < kRadialFixedBytes)
+        failAfterChecksum(r, s, "payload is " + u64(s.length) + " bytes, less than the " +
+                                    u64(kRadialFixedBytes) + "-byte radial basis header");
+    uint8_t b[kRadialFixedBytes];
+    readPayload(r, s, b, kRadialFixedBytes);
+    StoredRadialBasis basis;
+    RadialRange& range = basis.range;
+    double* fields[] = {&range.zrMin, &range.zrMax, &range.alphaMin, &range.alphaMax, &range.eta, &range.rMax};
+    for (int i = 0; i < 6; ++i) *fields[i] = std::bit_cast<double>(getU64(b + 8 * i));
+    const uint32_t size = getU32(b + 48);
+    const uint32_t nodeCount = getU32(b + 52);
+    const uint32_t construction = getU32(b + 56);
+    const bool reservedZero = getU32(b + 60) == 0 && allZero(b + kRadialFieldBytes, size_t(kRadialFixedBytes - kRadialFieldBytes));
+    basis.tables.normExponent = std::bit_cast<double>(getU64(b + 64));
+    auto fail = [&](const std::string& reason) {
+        if (infoOnly) r.fail("inconsistent: " + s.label + ": " + reason);
+        failAfterChecksum(r, s, reason);
+    };
+    // The shape bounds the table (at most 256 MB), whose size is then checked against
+    // the section length (itself within the file) before anything is allocated.
+    if (size < 1 || size > kMaxRadialProfiles)
+        fail("profile count " + u64(size) + " outside 1.." + u64(kMaxRadialProfiles));
+    if (nodeCount < kMinRadialNodes || nodeCount > kMaxRadialNodes)
+        fail("node count " + u64(nodeCount) + " outside " + u64(kMinRadialNodes) + ".." + u64(kMaxRadialNodes));
+    const uint64_t expected = radialBasisPayloadBytes(size, nodeCount);
+    if (expected != s.length)
+        fail(u64(nodeCount) + " nodes of " + u64(size) + " profiles need a " + u64(expected) +
+             "-byte payload, the section has " + u64(s.length));
+    basis.tables.size = int(size);
+    basis.tables.nodeCount = int(nodeCount);
+    basis.tables.construction = RadialConstruction(construction);
+    if (infoOnly) {
+        skipSection(r, s);
+    } else {
+        readArray(r, s, basis.tables.values, uint64_t(size) * nodeCount);
+        closeSection(r, s);
+    }
+    const std::string where = "inconsistent: " + s.label + ": ";
+    if (!reservedZero) r.fail(where + "reserved header bytes are not zero");
+    if (!validRadialConstruction(construction))
+        r.fail(where + "construction " + u64(construction) + " is not 0, 1 or 2");
+    try {
+        validateRadialRange(range);
+    } catch (const Error& e) {
+        r.fail(where + e.what());
+    }
+    return basis;
+}
+
+void readEnd(FileReader& r, uint32_t version) {
+    const AlternativeSection radial{
+        Section::RadialBasis, sectionLabel(Section::RadialBasis),
+        "a radial basis in a format version " + u64(version) + " file (it needs version " +
+            u64(kRadialFormatVersion) + ")"};
+    OpenSection s = openSection(r, Section::End, sectionLabel(Section::End),
+                                version < kRadialFormatVersion ? &radial : nullptr);
     if (s.length != 0)
         failAfterChecksum(r, s, "payload is " + u64(s.length) + " bytes, expected 0");
     closeSection(r, s);
@@ -632,7 +710,8 @@ TransportFile loadImpl(const std::string& path, const MeshFingerprint* expected)
     checkVersionMatchesComponents(
         r, h, std::any_of(f.components.begin(), f.components.end(), [](const auto& c) { return c.blocked(); }));
     if (h.hasViewMaps) f.viewMaps = readViewMaps(r, false);
-    readEnd(r);
+    if (version >= kRadialFormatVersion) f.radialBasis = readRadialBasis(r, false);
+    readEnd(r, version);
     const std::string reason = checkFile(f);
     if (!reason.empty()) r.fail("inconsistent: " + reason);
     return f;
@@ -670,7 +749,22 @@ TransportFileInfo readTransportFileInfo(const std::string& path) {
         info.viewMapSize = m.size;
         info.viewMapTerms = m.terms;
     }
-    readEnd(r);
+    int basisSize = -1;
+    if (version >= kRadialFormatVersion) {
+        const StoredRadialBasis b = readRadialBasis(r, true);
+        info.radialRange = b.range;
+        info.radialProfiles = basisSize = b.tables.size;
+        info.radialNodeCount = b.tables.nodeCount;
+        info.radialConstruction = b.tables.construction;
+        info.radialNormExponent = b.tables.normExponent;
+        info.radialBasisBytes = radialBasisPayloadBytes(uint64_t(b.tables.size), uint64_t(b.tables.nodeCount));
+    }
+    readEnd(r, version);
+    std::vector<uint32_t> profileTerms;
+    for (const TransportFileInfo::Component& c : info.components)
+        if (c.kind == ComponentKind::MultipleScatteringProfiles) profileTerms.push_back(c.term);
+    const std::string reason = checkProfileTerms(profileTerms, basisSize);
+    if (!reason.empty()) r.fail("inconsistent: " + reason);
     return info;
 }
 

@@ -137,6 +137,7 @@ private:
 
 // The lowest version that holds f (docs/transport-format.md, "Preamble").
 uint32_t formatVersionOf(const TransportFile& f) {
+    if (f.radialBasis) return kRadialFormatVersion;
     const bool blocked = std::any_of(f.components.begin(), f.components.end(),
                                      [](const TransportComponent& c) { return c.blocked(); });
     if (f.shTerms > 0) return blocked ? kBlockVarintFormatVersion : kShFormatVersion;
@@ -249,6 +250,23 @@ void writeFile(FileWriter& w, const TransportFile& f) {
         w.u32(uint32_t(m.terms));
         w.padTo(kViewFixedBytes);
         w.array(m.data);
+        w.endSection();
+    }
+
+    if (f.radialBasis) {
+        const RadialRange& r = f.radialBasis->range;
+        const RadialBasisTables& t = f.radialBasis->tables;
+        w.beginSection(Section::RadialBasis,
+                       radialBasisPayloadBytes(uint64_t(t.size), uint64_t(t.nodeCount)));
+        for (double x : {r.zrMin, r.zrMax, r.alphaMin, r.alphaMax, r.eta, r.rMax})
+            w.u64(std::bit_cast<uint64_t>(x));
+        w.u32(uint32_t(t.size));
+        w.u32(uint32_t(t.nodeCount));
+        w.u32(uint32_t(t.construction));
+        w.u32(0);  // reserved
+        w.u64(std::bit_cast<uint64_t>(t.normExponent));
+        w.padTo(kRadialFixedBytes);
+        w.array(t.values);
         w.endSection();
     }
 

@@ -79,14 +79,18 @@ std::string toString(const ScatteringComponents& c) {
 ScatteringComponents componentsOf(const TransportFile& file) {
     ScatteringComponents c = ScatteringComponents::none();
     for (const TransportComponent& t : file.components)
-        (t.kind == ComponentKind::MultipleScattering ? c.multipleScattering : c.singleScattering) = true;
+        (t.kind == ComponentKind::MultipleScattering || t.kind == ComponentKind::MultipleScatteringProfiles
+             ? c.multipleScattering
+             : c.singleScattering) = true;
     return c;
 }
 
 ScatteringComponents componentsOf(const TransportFileInfo& info) {
     ScatteringComponents c = ScatteringComponents::none();
     for (const TransportFileInfo::Component& t : info.components)
-        (t.kind == ComponentKind::MultipleScattering ? c.multipleScattering : c.singleScattering) = true;
+        (t.kind == ComponentKind::MultipleScattering || t.kind == ComponentKind::MultipleScatteringProfiles
+             ? c.multipleScattering
+             : c.singleScattering) = true;
     return c;
 }
 

@@ -1,9 +1,12 @@
 #include "common/util.h"
 
+#include "common/error.h"
+
 #include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -13,6 +16,41 @@ namespace prt {
 std::string toLower(std::string s) {
     for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
     return s;
+}
+
+std::string trim(const std::string& s) {
+    size_t a = 0, b = s.size();
+    while (a < b && std::isspace(static_cast<unsigned char>(s[a]))) ++a;
+    while (b > a && std::isspace(static_cast<unsigned char>(s[b - 1]))) --b;
+    return s.substr(a, b - a);
+}
+
+std::vector<std::string> splitText(const std::string& s, char separator) {
+    std::vector<std::string> parts;
+    size_t start = 0;
+    for (;;) {
+        const size_t end = s.find(separator, start);
+        parts.push_back(s.substr(start, end == std::string::npos ? std::string::npos : end - start));
+        if (end == std::string::npos) return parts;
+        start = end + 1;
+    }
+}
+
+std::vector<double> parseNumberList(const std::string& text, const std::string& subject, const std::string& what) {
+    std::vector<double> values;
+    for (const std::string& raw : splitText(text, ',')) {
+        const std::string t = trim(raw);
+        if (t.empty()) throw Error(subject, "empty number in the " + what);
+        double v = 0.0;
+        const char* first = t.data();
+        // from_chars takes no leading '+'; accept it as people write it.
+        if (*first == '+') ++first;
+        const auto [end, ec] = std::from_chars(first, t.data() + t.size(), v);
+        if (ec != std::errc() || end != t.data() + t.size())
+            throw Error(subject, "'" + t + "' in the " + what + " is not a number");
+        values.push_back(v);
+    }
+    return values;
 }
 
 double median(std::vector<double> values) {

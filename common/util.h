@@ -1,6 +1,6 @@
 #pragma once
 // Small helpers that several modules need, in one place: the constant pi, ASCII
-// lowercasing, memory sizes (available memory, "41.2 GB"), RGB triples as text, the
+// lowercasing, trimming, splitting and number lists, memory sizes (available memory, "41.2 GB"), RGB triples as text, the
 // median, the CPU's AVX2 + FMA support, and a wall-clock stopwatch for the per-stage
 // times the tools report.
 
@@ -20,6 +20,15 @@ inline constexpr double kPi = std::numbers::pi;
 // ASCII lowercase (file extensions, material names, option values); other bytes
 // are left as they are.
 std::string toLower(std::string s);
+
+// s without its leading and trailing whitespace.
+std::string trim(const std::string& s);
+// s cut at every `separator` ("a::b" gives "a", "", "b"; "" gives one empty part).
+std::vector<std::string> splitText(const std::string& s, char separator);
+// A comma-separated list of numbers as people type them (whitespace around each, a
+// leading '+'), e.g. "1, 0.5,2". Throws prt::Error(subject, "... in the <what> ...")
+// for an empty item or one that is not a number; values are not checked for range.
+std::vector<double> parseNumberList(const std::string& text, const std::string& subject, const std::string& what);
 
 // MemAvailable of /proc/meminfo (what can be allocated without swapping), or the
 // physical memory when that is not readable; 0 when neither is known.

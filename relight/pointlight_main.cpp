@@ -10,7 +10,9 @@
 // turntable the irradiance samples and the octree (the lights are fixed relative to
 // the object) but not the caches (they live on the visible points of each frame); for
 // a moving light only the mesh, its ray scene, the sample positions/areas and the
-// G-buffer of the fixed camera.
+// G-buffer of the fixed camera; for a material / size path (--material-path,
+// --size-path: Chang et al. Fig. 11) everything but what depends on the material, the
+// renderer changing its material in place (setMaterial).
 //
 // Placement: like prt-precompute, the mesh is scaled about the origin by --size-mm
 // (bounding-box diagonal, default 30 mm) or --mm-per-unit; lights are given in mm in
@@ -34,6 +36,7 @@
 #include "common/image_compare.h"
 #include "common/error.h"
 #include "common/image.h"
+#include "common/material_edit.h"
 #include "common/mesh.h"
 #include "common/mesh_io.h"
 #include "common/progress.h"
@@ -75,7 +78,7 @@ struct Options {
     int threads = 0;
     CameraOptions camera;
     int turntable = 0, frames = 0;
-    std::string lightPath;
+    std::string lightPath, materialPath, sizePath;
     // Texture-space importance sampling (--method tsis).
     TextureSpaceOptions tsis;
     std::string split = "hybrid", evaluate = "pixel";
@@ -136,25 +139,32 @@ void writeCacheImages(const std::string& output, const Image& frame, const GBuff
     writePng(output + "_variance.png", spread);
 }
 
-// --turntable N / --light-path P0:P1 --frames N: renderAnimation (point_animation.h,
-// which states what is reused between frames and why it is valid), one summary line
-// per frame, then the mean time per frame of every pass.
+// --turntable N / --light-path P0:P1 --frames N / --material-path A:B and/or --size-path
+// S0:S1 with --frames N: renderAnimation (point_animation.h, which states what is reused
+// between frames and why it is valid), one summary line per frame, then the mean time
+// per frame of every pass.
 int runAnimation(const Options& o, const PointAnimation& animation, const TriangleMesh& mesh, const RayScene& scene,
                  const IrradianceSamples& placed, const std::vector<Light>& lights, const Camera& camera,
                  const glm::dvec3& pivot, const PointRenderSettings& settings, const std::string& output,
                  const Stopwatch& start) {
     const bool turntable = animation.kind == AnimationKind::Turntable;
+    const bool materialPath = animation.kind == AnimationKind::MaterialPath;
     const int count = animation.frames;
-    std::printf("animation: %s, %d frames; reused between frames: %s\n",
-                turntable ? "turntable (camera orbit about +Y through the box centre, lights fixed in the object)"
-                          : "light path (the first light moves linearly from P0 to P1)",
-                count,
-                turntable ? "the irradiance samples (with their irradiance) and the octree; NOT the G-buffer or "
-                            "the caches (they live on each frame's visible points)"
-                          : "the mesh, its ray scene, the sample positions/areas and the G-buffer (fixed camera); "
-                            "NOT the irradiance, the octree or the caches (they all depend on the light)");
+    const char* what = turntable ? "turntable (camera orbit about +Y through the box centre, lights fixed in the object)"
+                       : materialPath
+                           ? "material / size path (Chang et al. Fig. 11: coefficients and size interpolated "
+                             "linearly; lights, camera and irradiance attached to the object)"
+                           : "light path (the first light moves linearly from P0 to P1)";
+    const char* reused =
+        turntable ? "the irradiance samples (with their irradiance) and the octree; NOT the G-buffer or the caches "
+                    "(they live on each frame's visible points)"
+        : materialPath ? "the irradiance samples (with their irradiance), the octree, the G-buffer and the renderer "
+                         "(setMaterial); NOT the caches (they depend on the material)"
+                       : "the mesh, its ray scene, the sample positions/areas and the G-buffer (fixed camera); NOT the "
+                         "irradiance, the octree or the caches (they all depend on the light)";
+    std::printf("animation: %s, %d frames; reused between frames: %s\n", what, count, reused);
     std::fflush(stdout);
-    double sumIrr = 0, sumTree = 0, sumG = 0, sumPass2 = 0, sumPass3 = 0, sumRender = 0, sumWrite = 0;
+    double sumIrr = 0, sumTree = 0, sumG = 0, sumPass2 = 0, sumPass3 = 0, sumRender = 0, sumWrite = 0, sumMat = 0;
     size_t sumCaches = 0, sumHit = 0;
     std::string first, last;
     const Stopwatch runStart;
@@ -173,17 +183,30 @@ int runAnimation(const Options& o, const PointAnimation& animation, const Triang
         sumRender += frame.renderSeconds;
         sumWrite += tWrite;
         sumHit += info.hitPixels;
+        sumMat += info.materialSeconds;
         std::printf("frame %d/%d", info.frame + 1, count);
         if (turntable) std::printf(" (object %.1f deg)", turntableDegrees(animation, info.frame));
+        else if (materialPath)
+            std::printf(" (%s; size %.4g mm)", describeMaterial(info.material).c_str(), info.sizeMm);
         else {
             const glm::dvec3 p = info.lights.front().position;
             std::printf(" (light 1 at %.4g, %.4g, %.4g mm)", p.x, p.y, p.z);
         }
         std::printf(": ");
-        if (turntable && info.frame > 0) std::printf("irradiance + octree reused, ");
-        else std::printf("irradiance %.3f s, octree %.3f s, ", info.irradianceSeconds, info.octreeSeconds);
-        if (!turntable && info.frame > 0) std::printf("G-buffer reused, ");
-        else std::printf("G-buffer %.3f s, ", info.gbufferSeconds);
+        if (!turntable && !materialPath) {
+            std::printf("irradiance %.3f s, octree %.3f s, ", info.irradianceSeconds, info.octreeSeconds);
+            if (info.frame > 0) std::printf("G-buffer reused, ");
+            else std::printf("G-buffer %.3f s, ", info.gbufferSeconds);
+        } else if (info.frame > 0) {
+            std::printf(materialPath ? "irradiance + octree + G-buffer reused, " : "irradiance + octree reused, ");
+        } else {
+            std::printf("irradiance %.3f s, octree %.3f s, ", info.irradianceSeconds, info.octreeSeconds);
+        }
+        if (turntable) std::printf("G-buffer %.3f s, ", info.gbufferSeconds);
+        if (materialPath) {
+            if (info.frame == 0) std::printf("G-buffer %.3f s, ", info.gbufferSeconds);
+            std::printf("material change %.3f ms, ", 1e3 * info.materialSeconds);
+        }
         if (settings.method == PointMethod::Cache) {
             const IrradianceCacheStats& cs = frame.cacheStats;
             sumPass2 += cs.pass2Seconds;
@@ -202,14 +225,59 @@ int runAnimation(const Options& o, const PointAnimation& animation, const Triang
     const double n = double(count);
     std::printf("done: %d frame%s in %s; mean per frame: irradiance %.3f s, octree %.3f s, G-buffer %.3f s, ", count,
                 count == 1 ? "" : "s", formatDuration(runStart.seconds()).c_str(), sumIrr / n, sumTree / n, sumG / n);
+    if (materialPath) std::printf("material change %.3f ms, ", 1e3 * sumMat / n);
     if (settings.method == PointMethod::Cache)
         std::printf("pass 2 %.3f s, pass 3 %.3f s (T_cache %.3f s), %.0f caches / %.0f hit pixels, ", sumPass2 / n,
                     sumPass3 / n, sumRender / n, double(sumCaches) / n, double(sumHit) / n);
     else
         std::printf("%s %.3f s, ", toString(settings.method), sumRender / n);
     std::printf("write %.3f s (%s)\n", sumWrite / n,
-                turntable ? "irradiance and octree computed once, shown amortised"
-                          : "G-buffer traced once, shown amortised");
+                turntable      ? "irradiance and octree computed once, shown amortised"
+                : materialPath ? "irradiance, octree and G-buffer computed once, shown amortised"
+                               : "G-buffer traced once, shown amortised");
+    std::printf("wrote %s.exr/.png ... %s.exr/.png in %s\n", first.c_str(), last.c_str(),
+                formatDuration(start.seconds()).c_str());
+    return 0;
+}
+
+// --method tsis with --material-path / --size-path: the renderer lit once (irradiance
+// map, draws, shadow maps) and one G-buffer; per frame setMaterial (the R_d tables, R_p,
+// the local filter) and the sums (renderTextureSpaceAnimation, point_animation.h).
+int runTextureSpaceAnimation(const Options& o, const PointAnimation& animation, TextureSpaceRenderer& renderer,
+                             const GBuffer& g, bool perVertex, const Material& base, double tGBuffer,
+                             const std::string& output, const Stopwatch& start) {
+    const TextureSpaceTimings& tt = renderer.timings();
+    std::printf("animation: material / size path (Chang et al. Fig. 11: coefficients and size interpolated linearly; "
+                "lights, camera and irradiance attached to the object), %d frames; reused between frames: the atlas, "
+                "the irradiance map, the draws, the shadow maps (irradiance map %.4f s, shadow maps %.4f s, draws "
+                "%.4f s) and the G-buffer (%.4f s); rebuilt per frame: R_p, the R_d tables and the local filter\n",
+                animation.frames, tt.irradianceSeconds, tt.shadowMapSeconds, tt.samplingSeconds, tGBuffer);
+    std::fflush(stdout);
+    double sumMat = 0.0, sumEval = 0.0, sumWrite = 0.0;
+    std::string first, last;
+    const Stopwatch runStart;
+    renderTextureSpaceAnimation(animation, renderer, g, perVertex, base,
+                                [&](const AnimationFrameInfo& info, PointFrame& frame) {
+        const std::string name = animationFrameName(output, info.frame);
+        const Stopwatch t;
+        writeExr(name + ".exr", frame.image);
+        writePng(name + ".png", frame.image, o.exposure);
+        const double tWrite = t.seconds();
+        if (first.empty()) first = name;
+        last = name;
+        sumMat += info.materialSeconds;
+        sumEval += frame.renderSeconds;
+        sumWrite += tWrite;
+        std::printf("frame %d/%d (%s; size %.4g mm): R_p %.4g mm, material change %.3f ms, evaluation %.4f s, "
+                    "write %.3f s -> %s.exr/.png\n",
+                    info.frame + 1, animation.frames, describeMaterial(info.material).c_str(), info.sizeMm,
+                    renderer.split().rp, 1e3 * info.materialSeconds, frame.renderSeconds, tWrite, name.c_str());
+        std::fflush(stdout);
+    });
+    const double n = double(animation.frames);
+    std::printf("done: %d frames in %s; mean per frame: material change %.3f ms, evaluation %.4f s, write %.3f s\n",
+                animation.frames, formatDuration(runStart.seconds()).c_str(), 1e3 * sumMat / n, sumEval / n,
+                sumWrite / n);
     std::printf("wrote %s.exr/.png ... %s.exr/.png in %s\n", first.c_str(), last.c_str(),
                 formatDuration(start.seconds()).c_str());
     return 0;
@@ -233,8 +301,10 @@ TextureSpaceOptions textureSpaceOptions(const Options& o, FresnelModel fresnel) 
 
 int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& scene, const IrradianceSamples& placed,
                     const std::vector<Light>& lights, const PointRenderSettings& settings, SampleSource source,
-                    const Camera& camera, const std::string& output, const Stopwatch& start) {
-    const Material& material = settings.material;
+                    const Camera& camera, const PointAnimation& animation, const std::string& output,
+                    const Stopwatch& start) {
+    // The frame-0 material of a material / size path (the base material otherwise).
+    const Material material = animationMaterial(animation, settings.material, 0);
     const TextureSpaceOptions to = textureSpaceOptions(o, settings.fresnel);
     const std::string evaluate = toLower(o.evaluate);
 
@@ -263,6 +333,9 @@ int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& 
     const GBuffer g = traceGBuffer(scene, mesh, camera);
     const double tGBuffer = t.seconds();
     t.restart();
+    if (animation.kind == AnimationKind::MaterialPath)
+        return runTextureSpaceAnimation(o, animation, renderer, g, evaluate == "vertex", settings.material, tGBuffer,
+                                        output, start);
     const Image image = evaluate == "vertex" ? renderer.renderPerVertex(g) : renderer.render(g);
     const double tEval = t.seconds();
     std::printf("frame: %d x %d, %zu hit pixels; %zu distinct sample texels of %d draws\n", g.width, g.height,
@@ -327,27 +400,53 @@ int run(const Options& o) {
 
     // Animation mode.
     PointAnimation animation;
+    const bool materialPath = !o.materialPath.empty() || !o.sizePath.empty();
+    const char* pathOption = !o.materialPath.empty() ? "--material-path" : "--size-path";
     if (o.turntable < 0) throw Error("--turntable", "the frame count must be >= 1, got " + std::to_string(o.turntable));
     if (o.turntable > 0 && !o.lightPath.empty())
         throw Error("--turntable", "give either --turntable N or --light-path P0:P1 --frames N, not both");
+    if (materialPath && (o.turntable > 0 || !o.lightPath.empty()))
+        throw Error(pathOption, "cannot be combined with --turntable or --light-path (one animation at a time)");
     if (!o.lightPath.empty()) {
         if (o.frames < 1) throw Error("--frames", "--light-path needs --frames N with N >= 1");
         animation.kind = AnimationKind::LightPath;
         animation.frames = o.frames;
         parseLightPath(o.lightPath, animation.from, animation.to);
+    } else if (materialPath) {
+        if (o.frames < 2)
+            throw Error("--frames", std::string(pathOption) + " needs --frames N with N >= 2 (t = k / (N - 1))");
+        animation.kind = AnimationKind::MaterialPath;
+        animation.frames = o.frames;
+        if (!o.materialPath.empty()) {
+            if (!o.material.sigmaA.empty() || !o.material.sigmaSPrime.empty())
+                throw Error("--material-path", "replaces --sigma-a / --sigma-s-prime: give custom ends as "
+                                               "sigma:SA_R,SA_G,SA_B:SS_R,SS_G,SS_B");
+            animation.materials =
+                parseMaterialPath(o.materialPath, o.material.eta.value_or(1.3), o.material.g.value_or(0.0));
+        }
+        if (!o.sizePath.empty()) {
+            double s0 = 0.0, s1 = 0.0;
+            parseSizePath(o.sizePath, s0, s1);
+            animation.sizesMm = std::make_pair(s0, s1);
+        }
+        // The placed size: --size-mm; with --mm-per-unit the bounding-box diagonal once
+        // the mesh is read (1 until then: only its sign is checked before).
+        animation.geometrySizeMm = scale.sizeMm.value_or(1.0);
     } else if (o.frames != 0) {
-        throw Error("--frames", "applies to --light-path only (--turntable N takes its own frame count)");
+        throw Error("--frames", "applies to --light-path, --material-path and --size-path only (--turntable N takes "
+                                "its own frame count)");
     } else if (o.turntable > 0) {
         animation.kind = AnimationKind::Turntable;
         animation.frames = o.turntable;
     }
     const bool animated = animation.kind != AnimationKind::None;
-    if (animated && method == PointMethod::TextureSpace)
-        throw Error("--method", "tsis renders single frames here; move its lights interactively in prt-relight view");
+    if (animated && !materialPath && method == PointMethod::TextureSpace)
+        throw Error("--method", "tsis animates the material and size here (--material-path / --size-path); move its "
+                                "lights interactively in prt-relight view");
     if (method == PointMethod::TextureSpace) (void)textureSpaceOptions(o, fresnel);
     if (animated && (o.compareJb || o.compareBrute || o.cacheImage))
         throw Error(o.compareJb ? "--compare-jb" : o.compareBrute ? "--compare-brute" : "--cache-image",
-                    "applies to single frames, not to --turntable / --light-path");
+                    "applies to single frames, not to --turntable / --light-path / --material-path / --size-path");
 
     std::vector<Light> lights;
     if (!o.lightsFile.empty()) lights = loadLightScene(o.lightsFile);
@@ -364,9 +463,22 @@ int run(const Options& o) {
     std::printf("mesh: %s, %zu vertices, %zu triangles, x %.4g mm per unit; box (%.4g, %.4g, %.4g) .. (%.4g, %.4g, %.4g) mm\n",
                 o.mesh.c_str(), mesh.vertexCount(), mesh.triangleCount(), factor, box.lo.x, box.lo.y, box.lo.z,
                 box.hi.x, box.hi.y, box.hi.z);
-    std::printf("material: %s, sigma_s' %s /mm, sigma_a %s /mm, eta %.4g; Fresnel %s\n", material.name.c_str(),
-                formatRgb(material.sigmaSPrime, 4, " ").c_str(), formatRgb(material.sigmaA, 4, " ").c_str(),
-                material.eta, toString(fresnel));
+    if (materialPath && !scale.sizeMm) animation.geometrySizeMm = glm::length(glm::dvec3(box.size()));
+    // The frame-0 material of a material / size path (what a single render would use).
+    const Material firstMaterial = animationMaterial(animation, material, 0);
+    if (materialPath) {
+        std::printf("material path: %s -> %s over %d frames; size %.4g -> %.4g mm (the mesh stays at %.4g mm: frame k "
+                    "uses scaledMaterial(m_k, S_k / %.4g); lights, camera and irradiance stay attached to the "
+                    "object); Fresnel %s\n",
+                    describeMaterial(animation.materials ? animation.materials->first : material).c_str(),
+                    describeMaterial(animation.materials ? animation.materials->second : material).c_str(),
+                    animation.frames, animationSizeMm(animation, 0), animationSizeMm(animation, animation.frames - 1),
+                    animation.geometrySizeMm, animation.geometrySizeMm, toString(fresnel));
+    } else {
+        std::printf("material: %s, sigma_s' %s /mm, sigma_a %s /mm, eta %.4g; Fresnel %s\n", material.name.c_str(),
+                    formatRgb(material.sigmaSPrime, 4, " ").c_str(), formatRgb(material.sigmaA, 4, " ").c_str(),
+                    material.eta, toString(fresnel));
+    }
     for (const Light& l : lights) std::printf("light: %s\n", describe(l).c_str());
     if (animation.kind == AnimationKind::LightPath)
         std::printf("light path: light 1 from (%.4g, %.4g, %.4g) to (%.4g, %.4g, %.4g) mm over %d frames\n",
@@ -384,7 +496,7 @@ int run(const Options& o) {
     if (source == SampleSource::FaceCentroids) {
         placed = faceCentroidSamples(mesh);
     } else {
-        const size_t n = o.sampleCount.value_or(defaultSampleCount(totalArea(mesh), material.minMeanFreePath()));
+        const size_t n = o.sampleCount.value_or(defaultSampleCount(totalArea(mesh), firstMaterial.minMeanFreePath()));
         placed = samplesFromSampleSet(poissonDiskSamples(mesh, n, o.seed));
     }
     const double tPlace = t.seconds();
@@ -401,7 +513,7 @@ int run(const Options& o) {
     if (!parent.empty()) std::filesystem::create_directories(parent);
 
     if (method == PointMethod::TextureSpace)
-        return runTextureSpace(o, mesh, scene, placed, lights, settings, source, camera, output, start);
+        return runTextureSpace(o, mesh, scene, placed, lights, settings, source, camera, animation, output, start);
 
     if (animated) {
         std::printf("samples: %zu (%s), %.4g mm^2 in all; load %.3f s, Embree scene %.3f s, sample placement %.3f s\n",
@@ -501,7 +613,9 @@ int main(int argc, char** argv) {
             "in W/(m^2 sr). Example:\n"
             "  prt-pointlight bunny.off --size-mm 60 -m Marble --light point:40,80,60:3 -o out/bunny_pl\n"
             "  prt-pointlight bunny.off -m Skin1 --light point:-20,30,-40:1 --method tsis --compare-jb -o out/tsis\n"
-            "Animations (frames <prefix>_0000.exr/.png ...): --turntable N, or --light-path P0:P1 --frames N\n"
+            "Animations (frames <prefix>_0000.exr/.png ...): --turntable N, or --light-path P0:P1 --frames N, or\n"
+            "--material-path A:B and/or --size-path S0:S1 with --frames N (Chang et al. Fig. 11; lights and\n"
+            "irradiance stay attached to the object)\n"
             "(what each reuses between frames, and why that is valid: docs/point-lights.md, \"Animation\").\n"
             "Vector options take comma-separated values; write negative ones as --eye=-10,0,50."};
         Options o;
@@ -591,7 +705,22 @@ int main(int argc, char** argv) {
                        "the sample positions/areas and the G-buffer (fixed camera); irradiance, octree and caches "
                        "are recomputed every frame. Write a negative first value as --light-path=-20,...")
             ->group("Animation");
-        app.add_option("--frames", o.frames, "Frame count of --light-path")->group("Animation");
+        app.add_option("--material-path", o.materialPath,
+                       "A:B: with --frames N (>= 2), the material moves linearly from A (frame 0) to B (frame N-1), "
+                       "t = k / (N - 1), coefficients interpolated (Chang et al. Fig. 11). Each end is a measured "
+                       "name, sigma:SA_R,SA_G,SA_B:SS_R,SS_G,SS_B (mm^-1) or colour:R,G,B:MFP (the artist's pair); "
+                       "--eta applies to both ends; replaces -m. Works with every --method. Reused between frames: "
+                       "everything that does not depend on the material (irradiance samples and octree, G-buffer; "
+                       "for tsis the atlas, irradiance map, draws and shadow maps)")
+            ->group("Animation");
+        app.add_option("--size-path", o.sizePath,
+                       "S0:S1 (mm): with --frames N (>= 2), the object's size moves linearly from S0 to S1, alone or "
+                       "with --material-path. The mesh stays at --size-mm; frame k renders scaledMaterial(m_k, S_k / "
+                       "size-mm, or the bounding-box diagonal with --mm-per-unit) (scaling an object by s = scaling sigma by s), so the lights, the camera and the "
+                       "irradiance stay attached to the object: how it would look s times larger, lit the same way")
+            ->group("Animation");
+        app.add_option("--frames", o.frames, "Frame count of --light-path, --material-path or --size-path")
+            ->group("Animation");
         app.add_option("--exposure", o.exposure, "PNG exposure in stops (the EXR is unscaled)")->capture_default_str();
         addThreadsOption(app, o.threads);
         addCameraOptions(app, o.camera);

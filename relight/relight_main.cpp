@@ -23,6 +23,7 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/image.h"
+#include "common/material_edit.h"
 #include "common/options.h"
 #include "common/progress.h"
 #include "common/raytrace.h"
@@ -95,7 +96,8 @@ int runRender(const RenderOptions& o) {
     if (output.empty()) throw Error("--output", "empty prefix");
 
     const Stopwatch loadStart;
-    const RelightObject object = loadRelightObject(o.mesh, o.transport);
+    RelightObject object = loadRelightObject(o.mesh, o.transport);
+    const std::string materialLine = applyMaterialEdit(object, look.material, look.sizeMm, o.transport);
     const ScatteringComponents components =
         selectComponents(look.components, componentsOf(object.transport), o.transport);
     const Camera camera = makeCamera(o.camera, object.sphereCentre, object.sphereRadius);
@@ -118,6 +120,7 @@ int runRender(const RenderOptions& o) {
     std::printf("object: %zu vertices, %zu triangles, %.4g mm across, eta %.4g; cubemap 6x%ux%u\n",
                 object.mesh.vertexCount(), object.mesh.triangleCount(), double(object.box.diagonal()),
                 object.eta, object.transport.cubemapSize, object.transport.cubemapSize);
+    if (!materialLine.empty()) std::printf("%s\n", materialLine.c_str());
     std::printf("camera: eye (%.4g, %.4g, %.4g) target (%.4g, %.4g, %.4g) fov %.4g, %dx%d\n",
                 camera.eye.x, camera.eye.y, camera.eye.z, camera.target.x, camera.target.y,
                 camera.target.z, camera.fovY, camera.width, camera.height);
@@ -310,6 +313,7 @@ int runView(const ViewOptions& o) {
 
     const Stopwatch loadStart;
     setup.object = loadRelightObject(o.mesh, o.transport);
+    const std::string materialLine = applyMaterialEdit(setup.object, o.frame.material, o.frame.sizeMm, o.transport);
     setup.meshPath = o.mesh;
     setup.transportPath = o.transport;
     setup.frame = o.frame;
@@ -319,6 +323,7 @@ int runView(const ViewOptions& o) {
                 setup.object.mesh.vertexCount(), setup.object.mesh.triangleCount(),
                 double(setup.object.box.diagonal()), setup.object.eta, setup.object.transport.cubemapSize,
                 setup.object.transport.cubemapSize, loadStart.milliseconds());
+    if (!materialLine.empty()) std::printf("%s\n", materialLine.c_str());
     std::fflush(stdout);
     setup.tsis = o.tsis;
     setup.frames = o.frames;
@@ -328,7 +333,12 @@ int runView(const ViewOptions& o) {
     setup.orbitDegreesPerFrame = o.orbit;
     setup.vsync = !o.noVsync;
     setup.showPanel = !o.hidePanel;
-    setup.material = readTransportParameters(setup.object.transport.parameters, o.transport).material;
+    // The point lights render the object's current material (an editable file's edit).
+    setup.material = setup.object.editable
+                         ? std::optional<Material>(scaledMaterial(setup.object.editable->material(),
+                                                                  setup.object.editable->sizeMm() /
+                                                                      setup.object.editable->objectSizeMm()))
+                         : readTransportParameters(setup.object.transport.parameters, o.transport).material;
     if (!o.lightsFile.empty()) setup.pointLights = loadLightScene(o.lightsFile);
     for (const std::string& text : o.lights) setup.pointLights.push_back(parseLight(text));
     if (!setup.pointLights.empty() && !setup.material)

@@ -370,3 +370,48 @@ TEST(IrradianceCache, BadOptionsAreOneLineErrors) {
     const IrradianceSamples s = faceCentroidSamples(mesh);
     EXPECT_THROW(IrradianceCache(materialByName("Marble"), IrradianceOctree(s), {.a = -2.0}), Error);
 }
+
+// setMaterial keeps the tree and rebuilds the rest (R, G, S_ref, the dipole lanes) and
+// drops the caches: the next render equals a cache built with the new material, caches
+// included; going back gives the first image; another eta is refused.
+TEST(IrradianceCache, SetMaterialEqualsANewCacheBitForBit) {
+    const TorusScene t(40);
+    const Material a = materialByName("Skimmilk"), b = materialByName("Skin2");
+    for (const SplitDiskModel model : {SplitDiskModel::Paper, SplitDiskModel::Exact}) {
+        const IrradianceCacheOptions o{.splitDisk = model};
+        auto fresh = [&](const Material& m, std::vector<CacheRecord>* caches) {
+            IrradianceCache c(m, IrradianceOctree(t.samples), o);
+            const Image image = c.render(t.g);
+            *caches = c.caches();
+            return image;
+        };
+        std::vector<CacheRecord> cachesA, cachesB;
+        const Image imageA = fresh(a, &cachesA), imageB = fresh(b, &cachesB);
+        ASSERT_NE(imageA.pixels, imageB.pixels);
+
+        IrradianceCache cache(a, IrradianceOctree(t.samples), o);
+        cache.render(t.g);
+        cache.setMaterial(b);
+        EXPECT_TRUE(cache.caches().empty());
+        EXPECT_EQ(cache.radius(), defaultSplitDiskRadius(b));
+        EXPECT_EQ(cache.render(t.g).pixels, imageB.pixels) << toString(model);
+        ASSERT_EQ(cache.caches().size(), cachesB.size());
+        for (size_t k = 0; k < cachesB.size(); ++k) {
+            EXPECT_EQ(cache.caches()[k].pixel, cachesB[k].pixel);
+            EXPECT_EQ(cache.caches()[k].s, cachesB[k].s);
+            EXPECT_EQ(cache.caches()[k].validRadius, cachesB[k].validRadius);
+        }
+        cache.setMaterial(a);
+        EXPECT_EQ(cache.render(t.g).pixels, imageA.pixels) << toString(model);
+        EXPECT_EQ(cache.caches().size(), cachesA.size());
+
+        Material otherEta = b;
+        otherEta.eta = 1.2;
+        test::expectErrorSubject([&] { cache.setMaterial(otherEta); }, "material");
+        EXPECT_EQ(cache.render(t.g).pixels, imageA.pixels);
+    }
+    // An explicit radius stays.
+    IrradianceCache fixed(a, IrradianceOctree(t.samples), {.radius = 0.8});
+    fixed.setMaterial(b);
+    EXPECT_EQ(fixed.radius(), 0.8);
+}

@@ -19,6 +19,7 @@
 #include "common/progress.h"
 #include "common/shapes.h"
 #include "common/mesh_io.h"
+#include "common/radial_basis.h"
 
 using namespace prt;
 namespace fs = std::filesystem;
@@ -276,5 +277,129 @@ TEST(Precompute, ShardSummaryCountsItsOwnVertices) {
     // About the whole job's rays per vertex (the same vertices' rays, a third of them).
     const double wholeRate = double(whole.singleScattering.rays) / double(whole.setup.vertices);
     EXPECT_NEAR(json["ss_rays_per_vertex"].get<double>() / wholeRate, 1.0, 0.5);
+    fs::remove_all(dir);
+}
+
+namespace {
+
+// Per vertex and channel, the radiance per unit F_t(w_o) under the constant light: the
+// file's multiple-scattering vectors, or an editable file's profile vectors recombined
+// with the basis weights of `m` (V_c = sum_j w_cj U_j, editable_transport.h) -- here by
+// hand, from the stored basis, so the test shares nothing with the relight room.
+std::vector<glm::dvec3> constantLightRadiance(const TransportFile& file, const std::vector<float>& light,
+                                              const Material* m) {
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    std::vector<glm::dvec3> out;
+    if (!m) {
+        const TransportComponent* ms = file.find(ComponentKind::MultipleScattering);
+        for (size_t v = 0; v < ms->vectors.vertexCount(); ++v) {
+            ms->vectors.dequantizeVertex(v, idx, rgb);
+            glm::dvec3 r(0.0);
+            for (size_t k = 0; k < idx.size(); ++k)
+                for (int c = 0; c < 3; ++c) r[c] += rgb[3 * k + c] * light[idx[k]];
+            out.push_back(r);
+        }
+        return out;
+    }
+    const RadialBasis basis(file.radialBasis->range, file.radialBasis->tables);
+    const auto w = basis.materialWeights(*m, 1.0);
+    out.assign(size_t(file.mesh.vertexCount), glm::dvec3(0.0));
+    for (const TransportComponent& c : file.components) {
+        if (c.kind != ComponentKind::MultipleScatteringProfiles) continue;
+        for (size_t v = 0; v < c.vectors.vertexCount(); ++v) {
+            c.vectors.dequantizeVertex(v, idx, rgb);
+            for (size_t k = 0; k < idx.size(); ++k)
+                for (int ch = 0; ch < 3; ++ch)
+                    for (int col = 0; col < 3; ++col)
+                        out[v][col] += w[size_t(col)][3 * c.term + size_t(ch)] * rgb[3 * k + ch] * light[idx[k]];
+        }
+    }
+    return out;
+}
+
+}  // namespace
+
+// An editable file (pass 2 against the radial basis) relit with material M against the
+// full precompute with M and the same samples (seed, count), under constant light.
+// The basis alone differs by < 0.3% (CellQuadrature.RecombinedProfilesEqualTheDipoleUpTo-
+// TheFit); the files also differ by the cell quadrature's near/far split and sub-point
+// spacing, which an editable job sets from the widest and narrowest dipoles of its range
+// rather than from one material's (measured here: 0.3-1.0% for Skin1 and Marble, falling
+// with finer sample spacing; docs/editable-transport.md). Hence, per material:
+//   - the strongly absorbing material of LargeSphereUnderConstantLightMatchesTheDipole-
+//     ClosedForm, on a sphere 30 of its diffusion lengths across, has the half-space
+//     closed form as the truth: both means within 3% of it (as in that test), and the
+//     editable file's per-vertex RMS deviation from it at most 0.3 points above the full
+//     precompute's (the accuracy goal of an editable render);
+//   - Skin1 and Marble: editable vs full within 1.5% relative RMS over vertices.
+TEST(Precompute, EditableMatchesFullPrecomputes) {
+    Progress::setEnabled(false);
+    const Material absorbing = customMaterial({1.0, 1.5, 2.0}, {1.0, 0.6, 0.3});
+    const double radius = 30.0 / std::min({absorbing.sigmaTr().x, absorbing.sigmaTr().y, absorbing.sigmaTr().z});
+    const fs::path dir = tempDir();
+    const std::string meshPath = (dir / "sphere.ply").string();
+    saveMesh(makeIcosphere(3, float(radius)), meshPath);
+    auto settings = [&](const Material& m, const std::string& out) {
+        PrecomputeSettings s;
+        s.meshPath = meshPath;
+        s.outputPath = (dir / out).string();
+        s.scale.mmPerUnit = 1.0;
+        s.material = m;
+        s.cubemapSize = 4;
+        s.shTerms = 4;
+        s.samples.count = 3000;
+        s.pass1.sampleCoefficients = 48;
+        s.pass2.nodeCoefficients = 48;
+        s.vertexCoefficients = 48;
+        return s;
+    };
+    PrecomputeSettings editable = settings(absorbing, "editable.prt");
+    editable.editable.enabled = true;
+    editable.editable.materials = {"Skin1", "Marble"};
+    precomputeTransport(editable, true);
+    const TransportFile ed = loadTransportFile(editable.outputPath);
+    ASSERT_TRUE(ed.radialBasis);
+    EXPECT_EQ(ed.find(ComponentKind::MultipleScattering), nullptr);
+    EXPECT_FALSE(ed.parameter("radial_fit_worst_l1").empty());
+
+    std::vector<float> light = constantLight(4, 1.0f);
+    light.resize(6 * 4 * 4 + 4);
+    shProjectLight(light.data(), 4, 1, 4, light.data() + 6 * 4 * 4);
+    const double eEff = hemisphericalFresnelCosine(1.3);
+    for (const Material& m : {absorbing, materialByName("Skin1"), materialByName("Marble")}) {
+        const PrecomputeSettings s = settings(m, m.name + ".prt");
+        precomputeTransport(s, true);
+        const std::vector<glm::dvec3> full = constantLightRadiance(loadTransportFile(s.outputPath), light, nullptr);
+        const std::vector<glm::dvec3> edited = constantLightRadiance(ed, light, &m);
+        ASSERT_EQ(full.size(), edited.size());
+        for (int c = 0; c < 3; ++c) {
+            const double expected = eEff * dipoleTotalDiffuseReflectance(makeDipoleChannel(m, c)) / kPi;
+            double diff = 0.0, norm = 0.0, meanFull = 0.0, meanEdited = 0.0, devFull = 0.0, devEdited = 0.0;
+            for (size_t v = 0; v < full.size(); ++v) {
+                diff += (edited[v][c] - full[v][c]) * (edited[v][c] - full[v][c]);
+                norm += full[v][c] * full[v][c];
+                meanFull += full[v][c] / double(full.size());
+                meanEdited += edited[v][c] / double(full.size());
+                devFull += std::pow(full[v][c] / expected - 1.0, 2) / double(full.size());
+                devEdited += std::pow(edited[v][c] / expected - 1.0, 2) / double(full.size());
+            }
+            std::printf("%s channel %d: editable vs full %.5f rel. RMS; against the half-space closed form: mean "
+                        "full %.4f, editable %.4f, RMS deviation full %.4f, editable %.4f\n",
+                        m.name.c_str(), c, std::sqrt(diff / norm), meanFull / expected, meanEdited / expected,
+                        std::sqrt(devFull), std::sqrt(devEdited));
+            if (m.name == "custom") {
+                EXPECT_NEAR(meanFull / expected, 1.0, 0.03) << "channel " << c;
+                EXPECT_NEAR(meanEdited / expected, 1.0, 0.03) << "channel " << c;
+                EXPECT_LT(std::sqrt(devEdited), std::sqrt(devFull) + 0.003) << "channel " << c;
+            } else {
+                EXPECT_LT(std::sqrt(diff / norm), 0.015) << m.name << " channel " << c;
+            }
+        }
+    }
+    // A job whose basis cannot exist (sigma_a = 0) is refused before any work.
+    PrecomputeSettings spectralon = settings(materialByName("Spectralon"), "spectralon.prt");
+    spectralon.editable.enabled = true;
+    EXPECT_THROW(precomputeTransport(spectralon, true), Error);
     fs::remove_all(dir);
 }

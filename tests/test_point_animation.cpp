@@ -5,7 +5,10 @@
 // first and last frames (and a middle one) equal single renders with the light at P0,
 // P1 (and the interpolated point) bit for bit, the other lights untouched; a path
 // through the object and bad --light-path / --frames values are one-line errors
-// raised before any frame is rendered.
+// raised before any frame is rendered; the material / size path's end frames (and a
+// middle one) equal single renders with A at S_0 and B at S_1 bit for bit for every
+// method (tsis included), a size path is scaledMaterial, and bad paths are one-line
+// errors naming the option.
 
 #include "relight/pointlight/point_animation.h"
 
@@ -14,12 +17,15 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/bssrdf.h"
 #include "common/camera.h"
 #include "common/error.h"
+#include "common/material_edit.h"
 #include "common/shapes.h"
+#include "relight/pointlight/surface_atlas.h"
 #include "relight/render/gbuffer.h"
 #include "test_support.h"
 
@@ -211,4 +217,140 @@ TEST(PointAnimation, ErrorsBeforeAnyFrame) {
     parseLightPath("-1.5,2,3e1:4,-5,6", p0, p1);
     EXPECT_EQ(p0, glm::dvec3(-1.5, 2, 30));
     EXPECT_EQ(p1, glm::dvec3(4, -5, 6));
+}
+
+// The material / size path (Chang et al. Fig. 11): frame 0 is a single render with A at
+// S_0, frame N-1 with B at S_1, the middle frame with the interpolated material, bit for
+// bit, although pass 1, the G-buffer and the renderer are kept between frames.
+TEST(PointAnimation, MaterialPathEndsEqualSingleRenders) {
+    const Scene s;
+    const Material a = materialByName("Marble"), b = materialByName("Skin1");
+    for (const PointMethod method : {PointMethod::Cache, PointMethod::JensenBuhler, PointMethod::Brute}) {
+        const int size = method == PointMethod::Brute ? 16 : 32;
+        const Camera cam = s.camera(15.0, size);
+        PointAnimation anim{.kind = AnimationKind::MaterialPath, .frames = 3};
+        anim.materials = std::make_pair(a, b);
+        std::vector<AnimationFrameInfo> infos;
+        const std::vector<Image> frames = s.animate(anim, kLights, cam, s.settings(method), &infos);
+        ASSERT_EQ(frames.size(), 3u);
+        auto single = [&](const Material& m) {
+            PointRenderSettings st = s.settings(method);
+            st.material = m;
+            return s.single(cam, kLights, st);
+        };
+        EXPECT_TRUE(identical(frames[0], single(a))) << toString(method);
+        EXPECT_TRUE(identical(frames[2], single(b))) << toString(method);
+        EXPECT_TRUE(identical(frames[1], single(lerpMaterial(a, b, 0.5)))) << toString(method);
+        EXPECT_FALSE(identical(frames[0], frames[2]));
+        EXPECT_EQ(infos[0].material.sigmaA, a.sigmaA);
+        EXPECT_EQ(infos[2].material.sigmaSPrime, b.sigmaSPrime);
+        for (size_t k = 1; k < infos.size(); ++k) {
+            EXPECT_EQ(infos[k].irradianceSeconds, 0.0);
+            EXPECT_EQ(infos[k].gbufferSeconds, 0.0);
+        }
+    }
+}
+
+TEST(PointAnimation, SizePathIsAScaledMaterial) {
+    const Scene s;
+    const Material a = materialByName("Marble"), b = materialByName("Ketchup");
+    const Camera camera = s.camera(-30.0, 32);
+    auto single = [&](const Material& m) {
+        PointRenderSettings st = s.settings();
+        st.material = m;
+        return s.single(camera, kLights, st);
+    };
+    // The size alone (the settings' material), then with the material.
+    PointAnimation size{.kind = AnimationKind::MaterialPath, .frames = 4};
+    size.sizesMm = std::make_pair(20.0, 45.0);
+    size.geometrySizeMm = 30.0;
+    std::vector<AnimationFrameInfo> infos;
+    std::vector<Image> frames = s.animate(size, kLights, camera, s.settings(), &infos);
+    ASSERT_EQ(frames.size(), 4u);
+    EXPECT_TRUE(identical(frames[0], single(scaledMaterial(a, 20.0 / 30.0))));
+    EXPECT_TRUE(identical(frames[3], single(scaledMaterial(a, 45.0 / 30.0))));
+    EXPECT_EQ(infos[0].sizeMm, 20.0);
+    EXPECT_EQ(infos[3].sizeMm, 45.0);
+    EXPECT_DOUBLE_EQ(infos[1].sizeMm, 28.333333333333332);
+
+    PointAnimation both = size;
+    both.materials = std::make_pair(a, b);
+    frames = s.animate(both, kLights, camera, s.settings());
+    EXPECT_TRUE(identical(frames[0], single(scaledMaterial(a, 20.0 / 30.0))));
+    EXPECT_TRUE(identical(frames[3], single(scaledMaterial(b, 45.0 / 30.0))));
+    // The size at the geometry's own size is the plain material.
+    EXPECT_EQ(animationMaterial(both, a, 0).sigmaA, scaledMaterial(a, 20.0 / 30.0).sigmaA);
+    PointAnimation unit = size;
+    unit.sizesMm = std::make_pair(30.0, 60.0);
+    EXPECT_EQ(animationMaterial(unit, a, 0).sigmaSPrime, a.sigmaSPrime);
+}
+
+// --method tsis: the lit renderer is kept and only its material changes.
+TEST(PointAnimation, TextureSpaceMaterialPathEndsEqualFreshRenderers) {
+    const Scene s;
+    const SurfaceAtlas atlas = buildSurfaceAtlas(s.mesh, 128);
+    const Material a = materialByName("Skin2"), b = materialByName("Apple");
+    const GBuffer g = traceGBuffer(s.scene, s.mesh, s.camera(40.0, 32));
+    const TextureSpaceOptions o{.samples = 200, .seed = 3};
+    PointAnimation anim{.kind = AnimationKind::MaterialPath, .frames = 2};
+    anim.materials = std::make_pair(a, b);
+    anim.sizesMm = std::make_pair(30.0, 15.0);
+    anim.geometrySizeMm = 30.0;
+    for (const bool perVertex : {false, true}) {
+        TextureSpaceRenderer renderer(s.mesh, s.scene, atlas, a, o);
+        renderer.setLights(kLights);
+        std::vector<Image> frames;
+        renderTextureSpaceAnimation(anim, renderer, g, perVertex, a, [&](const AnimationFrameInfo& info, PointFrame& f) {
+            EXPECT_EQ(info.frame, int(frames.size()));
+            frames.push_back(std::move(f.image));
+        });
+        ASSERT_EQ(frames.size(), 2u);
+        auto fresh = [&](const Material& m) {
+            TextureSpaceRenderer r(s.mesh, s.scene, atlas, m, o);
+            r.setLights(kLights);
+            return perVertex ? r.renderPerVertex(g) : r.render(g);
+        };
+        EXPECT_TRUE(identical(frames[0], fresh(a))) << perVertex;
+        EXPECT_TRUE(identical(frames[1], fresh(scaledMaterial(b, 0.5)))) << perVertex;
+    }
+    TextureSpaceRenderer renderer(s.mesh, s.scene, atlas, a, o);
+    PointAnimation turntable{.kind = AnimationKind::Turntable, .frames = 2};
+    test::expectErrorSubject(
+        [&] { renderTextureSpaceAnimation(turntable, renderer, g, false, a, [](const AnimationFrameInfo&, PointFrame&) {}); },
+        "--method");
+}
+
+TEST(PointAnimation, MaterialPathErrors) {
+    const Scene s;
+    int rendered = 0;
+    auto run = [&](const PointAnimation& a) {
+        renderAnimation(a, s.mesh, s.scene, s.placed, kLights, s.camera(0.0, 8), s.pivot, s.settings(),
+                        [&](const AnimationFrameInfo&, PointFrame&) { ++rendered; });
+    };
+    PointAnimation a{.kind = AnimationKind::MaterialPath, .frames = 1};
+    a.materials = std::make_pair(materialByName("Marble"), materialByName("Skin1"));
+    test::expectErrorSubject([&] { run(a); }, "--frames");
+    a.frames = 3;
+    a.materials->second.eta = 1.4;
+    test::expectErrorSubject([&] { run(a); }, "--material-path");
+    a.materials.reset();
+    test::expectErrorSubject([&] { run(a); }, "--material-path");
+    a.sizesMm = std::make_pair(10.0, 0.0);
+    a.geometrySizeMm = 30.0;
+    test::expectErrorSubject([&] { run(a); }, "--size-path");
+    a.sizesMm = std::make_pair(10.0, 20.0);
+    a.geometrySizeMm = 0.0;
+    test::expectErrorSubject([&] { run(a); }, "--size-path");
+    EXPECT_EQ(rendered, 0);
+
+    double s0 = 0.0, s1 = 0.0;
+    for (const char* bad : {"", "10", "10:", ":10", "10:20:30", "0:10", "10:-1", "x:10", "10,20:30", "nan:1", "1:inf"}) {
+        const std::string e = test::errorOf([&] { parseSizePath(bad, s0, s1); });
+        EXPECT_NE(e, test::kNoError) << bad;
+        EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+        test::expectErrorSubject([&] { parseSizePath(bad, s0, s1); }, "--size-path");
+    }
+    parseSizePath(" 12.5 : 40", s0, s1);
+    EXPECT_EQ(s0, 12.5);
+    EXPECT_EQ(s1, 40.0);
 }

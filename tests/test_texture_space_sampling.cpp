@@ -9,15 +9,19 @@
 //     atlas's), and its L x C + 1 filter approximates the map's full cubature;
 //   - the hybrid with all weight global IS sampling alone, with all weight local IS
 //     the local filter alone, and hybrid = local part + global part;
-//   - determinism per seed and across thread counts.
+//   - determinism per seed and across thread counts;
+//   - setMaterial equals a renderer built with that material, bit for bit (hybrid and
+//     sampling), and another eta is refused.
 
 #include "relight/pointlight/texture_space_sampling.h"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 #include "common/bssrdf.h"
 #include "common/camera.h"
@@ -248,4 +252,54 @@ TEST(TextureSpaceSampling, BadOptionsAreErrors) {
     // A point light right next to the object cannot be framed by one planar map.
     TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m, {.mode = TextureSpaceMode::Hybrid});
     test::expectErrorSubject([&] { r.setLights({pointLight({6.3, 0, 0}, {1, 1, 1}, "near")}); }, "near");
+}
+
+// setMaterial rebuilds R_p, the kernels and the filter and keeps the irradiance map,
+// the draws and the shadow maps: after it the renderer renders exactly as one built
+// with that material and lit with the same lights, N and seed; going back gives the
+// first image again; another eta is refused and leaves the renderer as it was.
+TEST(TextureSpaceSampling, SetMaterialEqualsANewRendererBitForBit) {
+    const Scene s(makeTorus(6.0f, 2.5f, 32, 16), 128, 32);
+    const Material a = materialByName("Marble"), b = materialByName("Skin1");
+    const std::vector<Light> lights{pointLight({-20, 25, 30}, {1, 1, 1}), directionalLight({1, 2, 0.5}, {300, 250, 200})};
+    for (const TextureSpaceMode mode : {TextureSpaceMode::Hybrid, TextureSpaceMode::Sampling}) {
+        const TextureSpaceOptions o{.mode = mode, .samples = 300, .seed = 7};
+        auto fresh = [&](const Material& m) {
+            TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m, o);
+            r.setLights(lights);
+            return std::make_pair(r.render(s.g), r.renderPerVertex(s.g));
+        };
+        const auto [imageA, vertexA] = fresh(a);
+        const auto [imageB, vertexB] = fresh(b);
+        ASSERT_NE(imageA.pixels, imageB.pixels) << toString(mode);
+
+        TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, a, o);
+        r.setLights(lights);
+        const std::vector<glm::vec3> flux = r.texelFlux();
+        const size_t samples = r.uniqueSamples();
+        r.setMaterial(b);
+        EXPECT_EQ(r.render(s.g).pixels, imageB.pixels) << toString(mode);
+        EXPECT_EQ(r.renderPerVertex(s.g).pixels, vertexB.pixels) << toString(mode);
+        EXPECT_EQ(r.split().rp, importanceRadius(b, o.importanceBound)) << toString(mode);
+        EXPECT_EQ(r.texelFlux(), flux);  // the irradiance map and the draws are kept
+        EXPECT_EQ(r.uniqueSamples(), samples);
+        r.setMaterial(a);
+        EXPECT_EQ(r.render(s.g).pixels, imageA.pixels) << toString(mode);
+        EXPECT_EQ(r.renderPerVertex(s.g).pixels, vertexA.pixels) << toString(mode);
+
+        Material otherEta = b;
+        otherEta.eta = 1.4;
+        test::expectErrorSubject([&] { r.setMaterial(otherEta); }, "material");
+        Material bad = b;
+        bad.sigmaA.x = -1.0;
+        EXPECT_NE(test::errorOf([&] { r.setMaterial(bad); }), test::kNoError);
+        EXPECT_EQ(r.render(s.g).pixels, imageA.pixels) << toString(mode);
+    }
+    // Before the first setLights too.
+    TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, a, {.samples = 300, .seed = 7});
+    r.setMaterial(b);
+    r.setLights(lights);
+    TextureSpaceRenderer direct(s.mesh, s.scene, s.atlas, b, {.samples = 300, .seed = 7});
+    direct.setLights(lights);
+    EXPECT_EQ(r.render(s.g).pixels, direct.render(s.g).pixels);
 }

@@ -847,8 +847,11 @@ TEST_F(TransportTest, ForeignFilesAreRefusedClearly) {
     refused(Bytes{'P', 'K', 3, 4, 0, 0}, "not a transport file");
     refused(Bytes{}, "empty");
     x = b;
+    putLe32(&x[8], 6);
+    refused(x, "unsupported transport file format version 6 (this build reads versions 1 to 5)");
+    x = b;  // version 5 is only written for files with a radial basis
     putLe32(&x[8], 5);
-    refused(x, "unsupported transport file format version 5 (this build reads versions 1 to 4)");
+    refused(x, "format version 5 but no radial basis");
     x = b;  // version 4 is only written for files with SH scales in a blocked component
     putLe32(&x[8], 4);
     refused(x, "SH term count 0 is not 1, 4 or 9 (format version 4)");
@@ -1360,9 +1363,9 @@ TEST_F(TransportTest, BlockedValidChecksumButInconsistentContentsIsRefused) {
         EXPECT_TRUE(contains(e, "corrupt: section 'BLKC' (blocked component 1 of 4)")) << e;
         EXPECT_TRUE(contains(e, "format version 1 file")) << e;
     }
-    putLe32(&x[8], 5);
+    putLe32(&x[8], 6);
     writeBytes(p, x);
-    EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "unsupported transport file format version 5"));
+    EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "unsupported transport file format version 6"));
 }
 
 TEST_F(TransportTest, InvalidBlockedDataIsRefusedOnSave) {
@@ -1748,4 +1751,392 @@ TEST_F(TransportTest, ShIndicesAreBoundedByTheTermCount) {
     x = b;
     putLe32(&x[8], 1);
     refused(x, "reserved field is 0x00000004, not 0");
+}
+
+// ---- editable multiple scattering (format version 5) ------------------------------
+
+namespace {
+
+// A small valid basis: 3 * profileComponents profiles on a coarse grid (few nodes, so
+// that every-byte tests stay quick).
+StoredRadialBasis smallBasis(uint32_t profileComponents, RadialConstruction construction = RadialConstruction::Pca) {
+    RadialRange range;
+    range.zrMin = 0.4;
+    range.zrMax = 4.0;
+    range.alphaMin = 0.6;
+    range.alphaMax = 0.99;
+    range.eta = 1.3;
+    range.rMax = 20.0;
+    RadialBasisOptions o;
+    o.size = int(3 * profileComponents);
+    o.gridStep = 0.25;
+    o.construction = construction;
+    const RadialBasis basis = makeRadialBasis(range, o);
+    return {basis.range(), basis.tables()};
+}
+
+// P profile components sharing one random index list per vertex (with the SH part when
+// shTerms > 0), then the basis; extras: a kind-1 and/or a kind-2 component of their own.
+TransportFile makeProfileFile(std::mt19937& rng, size_t vertices, uint32_t n, uint32_t profileComponents,
+                              uint32_t shTerms, bool withMultipleScattering, bool withIsotropic) {
+    TransportFile f = makeFile(rng, vertices, n, 12, 0);
+    f.shTerms = shTerms;
+    f.components.clear();
+    if (withMultipleScattering) {
+        TransportComponent c;
+        c.kind = ComponentKind::MultipleScattering;
+        c.vectors = randomVectors(rng, vertices, n, 12);
+        f.components.push_back(std::move(c));
+    }
+    std::vector<TransportComponent> profiles(profileComponents);
+    for (uint32_t p = 0; p < profileComponents; ++p) {
+        profiles[p].kind = ComponentKind::MultipleScatteringProfiles;
+        profiles[p].term = p;
+    }
+    const uint32_t limit = 6 * n * n;
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    for (size_t v = 0; v < vertices; ++v) {
+        std::vector<uint32_t> idx;
+        const size_t count = v % 5 == 2 ? 0 : 1 + rng() % 9;  // some empty vertices
+        for (size_t k = 0; k < count; ++k) idx.push_back((uint32_t(v) * 13 + uint32_t(k) * 7) % limit);
+        std::sort(idx.begin(), idx.end());
+        idx.erase(std::unique(idx.begin(), idx.end()), idx.end());
+        for (uint32_t i = 0; i < shTerms; ++i) idx.push_back(limit + i);
+        std::reverse(idx.begin(), idx.end());  // appendVertex sorts
+        for (TransportComponent& c : profiles) {
+            std::vector<float> rgb(3 * idx.size());
+            for (float& x : rgb) x = unit(rng) * float(1 + rng() % 100);
+            c.vectors.appendVertex(idx, rgb);
+        }
+    }
+    for (TransportComponent& c : profiles) f.components.push_back(std::move(c));
+    if (withIsotropic) {
+        TransportComponent c;
+        c.kind = ComponentKind::SingleScatteringIsotropic;
+        c.vectors = randomVectors(rng, vertices, n, 12);
+        f.components.push_back(std::move(c));
+    }
+    f.radialBasis = smallBasis(profileComponents);
+    return f;
+}
+
+// Copies the section `s` of `from` (header, payload, checksum) into `to` at its end,
+// with the padding the format requires there.
+void appendSection(Bytes& to, const Bytes& from, const Sec& s) {
+    to.resize(to.size() + (64 - (to.size() + 16) % 64) % 64, 0);
+    to.insert(to.end(), from.begin() + long(s.header), from.begin() + long(s.end));
+}
+
+class TransportFileV5 : public TransportTest {};
+
+}  // namespace
+
+TEST_F(TransportFileV5, RoundTripIsVersion5AndByteIdentical) {
+    std::mt19937 rng(51);
+    struct Variant {
+        uint32_t shTerms;
+        bool multipleScattering, isotropic, blockedIsotropic;
+    };
+    for (const Variant& var : {Variant{9, false, true, false}, Variant{0, true, false, false},
+                               Variant{4, true, true, true}, Variant{0, false, false, false}}) {
+        SCOPED_TRACE("SH terms " + std::to_string(var.shTerms));
+        TransportFile f = makeProfileFile(rng, 37, 4, 4, var.shTerms, var.multipleScattering, var.isotropic);
+        if (var.blockedIsotropic) makeBlocked(rng, f, f.components.size() - 1, 16);
+        const std::string p = path("v5");
+        saveTransportFile(p, f);
+        const Bytes b = readBytes(p);
+        EXPECT_EQ(le32(&b[8]), 5u) << "a file with a radial basis is version 5";
+        EXPECT_EQ(le32(&b[walk(b)[0].payload + 36]), var.shTerms) << "the header's SH term count (0 allowed)";
+        const TransportFile g = loadTransportFile(p);
+        EXPECT_EQ(g, f);
+        ASSERT_TRUE(g.radialBasis.has_value());
+        EXPECT_EQ(g.radialBasis->tables.values, f.radialBasis->tables.values);
+        EXPECT_EQ(loadTransportFile(p, f.mesh), f);
+        saveTransportFile(path("again"), g);
+        EXPECT_EQ(readBytes(path("again")), b) << "load + save writes the same bytes";
+
+        const TransportFileInfo info = readTransportFileInfo(p);
+        EXPECT_EQ(info.version, 5u);
+        EXPECT_EQ(info.shTerms, var.shTerms);
+        ASSERT_TRUE(info.radialRange.has_value());
+        EXPECT_EQ(info.radialRange->zrMin, f.radialBasis->range.zrMin);
+        EXPECT_EQ(info.radialRange->rMax, f.radialBasis->range.rMax);
+        EXPECT_EQ(info.radialProfiles, 12);
+        EXPECT_EQ(info.radialNodeCount, f.radialBasis->tables.nodeCount);
+        EXPECT_EQ(info.radialConstruction, RadialConstruction::Pca);
+        EXPECT_EQ(info.radialNormExponent, 3.0);
+        EXPECT_EQ(info.radialBasisBytes, 128 + 4 * 12 * uint64_t(f.radialBasis->tables.nodeCount));
+        const std::string di = describe(info);
+        EXPECT_TRUE(contains(di, "format version 5")) << di;
+        EXPECT_TRUE(contains(di, "radial basis: 12 profiles (pca, norm r^3), z_r 0.4..4 mm, alpha' 0.6..0.99, "
+                                 "eta 1.3, rMax 20 mm, " + std::to_string(info.radialNodeCount) + " nodes; in "
+                                 "multiple scattering profiles 0-2, multiple scattering profiles 3-5, "
+                                 "multiple scattering profiles 6-8, multiple scattering profiles 9-11; "))
+            << di;
+        EXPECT_TRUE(contains(di, "  multiple scattering profiles 9-11: 37 vertices")) << di;
+        const std::string d = describe(g);
+        EXPECT_TRUE(contains(d, "radial basis: 12 profiles (pca")) << d;
+        EXPECT_TRUE(contains(d, "of tables in memory")) << d;
+    }
+    // Files without a basis keep their versions (and bytes: the golden tests above).
+    const TransportFile plain = makeShFile(rng, 10, 4, 9);
+    saveTransportFile(path("plain"), plain);
+    EXPECT_EQ(readTransportFileInfo(path("plain")).version, 3u);
+    EXPECT_FALSE(readTransportFileInfo(path("plain")).radialRange.has_value());
+    EXPECT_FALSE(contains(describe(readTransportFileInfo(path("plain"))), "radial basis")) << "no line without one";
+    EXPECT_TRUE(tempFiles().empty());
+}
+
+TEST_F(TransportFileV5, TheStoredBasisGivesTheSameWeightsBitForBit) {
+    std::mt19937 rng(52);
+    for (RadialConstruction c : {RadialConstruction::Pca, RadialConstruction::Greedy, RadialConstruction::ExpLadder}) {
+        TransportFile f = makeProfileFile(rng, 5, 2, 2, 0, false, false);
+        f.radialBasis = smallBasis(2, c);
+        saveTransportFile(path("w"), f);
+        const TransportFile g = loadTransportFile(path("w"));
+        ASSERT_TRUE(g.radialBasis.has_value());
+        EXPECT_EQ(g.radialBasis->tables.construction, c);
+        const RadialBasis written(f.radialBasis->range, f.radialBasis->tables);
+        const RadialBasis read(g.radialBasis->range, g.radialBasis->tables);
+        for (double zr : {0.4, 1.0, 4.0})
+            for (double alpha : {0.6, 0.9, 0.99}) {
+                const double sigmaT = 1.0 / zr;
+                const DipoleChannel d = makeDipoleChannel(alpha * sigmaT, (1.0 - alpha) * sigmaT, 1.3);
+                EXPECT_EQ(read.weights(d), written.weights(d)) << radialConstructionName(c);
+            }
+    }
+}
+
+TEST_F(TransportFileV5, LayoutMatchesTheFormatDocument) {
+    std::mt19937 rng(53);
+    const TransportFile f = makeProfileFile(rng, 21, 4, 2, 9, true, true);
+    const std::string p = path("layout");
+    saveTransportFile(p, f);
+    const Bytes b = readBytes(p);
+    const std::vector<Sec> secs = walk(b);
+    std::vector<std::string> tags;
+    for (const Sec& s : secs) tags.push_back(s.tag);
+    EXPECT_EQ(tags, (std::vector<std::string>{"HEAD", "PARM", "COMP", "COMP", "COMP", "COMP", "RBAS", "END "}));
+    EXPECT_EQ(secs.back().end, b.size());
+    Bytes recomputed = b;
+    for (const Sec& s : secs) {
+        EXPECT_EQ(s.payload % 64, 0u) << s.tag;
+        EXPECT_EQ(le32(&b[s.header + 4]), 0u) << s.tag;
+        for (size_t i = s.regionStart; i < s.header; ++i) EXPECT_EQ(b[i], 0) << "padding";
+        fixChecksum(recomputed, s);
+    }
+    EXPECT_EQ(recomputed, b);
+    // The profile components: kind 4, terms 0 and 1, one index list (equal offsets and
+    // index arrays on disk).
+    for (size_t i : {size_t(3), size_t(4)}) {
+        const uint8_t* q = &b[secs[i].payload];
+        EXPECT_EQ(le32(q), 4u);
+        EXPECT_EQ(le32(q + 4), uint32_t(i - 3));
+        EXPECT_EQ(secs[i].length, secs[3].length);
+    }
+    const size_t indexEnd = (64 + 4 * 22 + 63) / 64 * 64 + 2 * le64(&b[secs[3].payload + 16]);
+    EXPECT_TRUE(std::equal(b.begin() + long(secs[3].payload) + 64, b.begin() + long(secs[3].payload + indexEnd),
+                           b.begin() + long(secs[4].payload) + 64));
+    // RBAS: 6 f64 of the range, J, N, construction, reserved, f64 norm exponent,
+    // reserved zeros to 128, then N x J f32 node-major.
+    const Sec& r = secs[6];
+    const uint8_t* q = &b[r.payload];
+    const StoredRadialBasis& basis = *f.radialBasis;
+    auto f64 = [](const uint8_t* at) {
+        const uint64_t bits = le64(at);
+        double x;
+        std::memcpy(&x, &bits, 8);
+        return x;
+    };
+    const RadialRange& range = basis.range;
+    EXPECT_EQ(f64(q), range.zrMin);
+    EXPECT_EQ(f64(q + 8), range.zrMax);
+    EXPECT_EQ(f64(q + 16), range.alphaMin);
+    EXPECT_EQ(f64(q + 24), range.alphaMax);
+    EXPECT_EQ(f64(q + 32), range.eta);
+    EXPECT_EQ(f64(q + 40), range.rMax);
+    const uint32_t j = le32(q + 48), nodes = le32(q + 52);
+    EXPECT_EQ(j, 6u);
+    EXPECT_EQ(nodes, uint32_t(basis.tables.nodeCount));
+    EXPECT_EQ(le32(q + 56), 0u) << "construction: PCA";
+    EXPECT_EQ(le32(q + 60), 0u) << "reserved";
+    EXPECT_EQ(f64(q + 64), 3.0);
+    for (size_t k = 72; k < 128; ++k) EXPECT_EQ(q[k], 0) << "reserved byte " << k;
+    EXPECT_EQ(r.length, 128 + 4 * uint64_t(j) * nodes);
+    for (size_t k = 0; k < size_t(j) * nodes; ++k) {
+        const uint32_t bits = le32(q + 128 + 4 * k);
+        float x;
+        std::memcpy(&x, &bits, 4);
+        ASSERT_EQ(x, basis.tables.values[k]) << k;
+    }
+}
+
+TEST_F(TransportFileV5, TruncatedOrFlippedIsRefusedNamingTheSection) {
+    std::mt19937 rng(54);
+    const TransportFile f = makeProfileFile(rng, 6, 1, 1, 4, false, true);
+    const std::string good = path("good");
+    saveTransportFile(good, f);
+    const Bytes b = readBytes(good);
+    ASSERT_EQ(walk(b)[4].tag, "RBAS");
+    expectEveryCutRefused(b);
+    const std::string p = path("flip");
+    writeBytes(p, b);
+    expectEveryFlipRefused(p);
+    EXPECT_EQ(loadTransportFile(p), f);
+}
+
+TEST_F(TransportFileV5, InvalidDataIsRefusedOnSave) {
+    std::mt19937 rng(55);
+    const TransportFile good = makeProfileFile(rng, 12, 4, 3, 9, true, false);
+    const std::string p = path("v");
+    saveTransportFile(p, good);
+    fs::remove(p);
+    // components: [0] multiple scattering, [1..3] profiles 0-2, 3-5, 6-8.
+    struct Case {
+        std::string expected;
+        std::function<void(TransportFile&)> edit;
+    };
+    const std::vector<Case> cases = {
+        {"'multiple scattering profiles 3-5' and 'multiple scattering profiles 0-2' differ at vertex 0: "
+         "different coefficient indices (the profile components share one index list)",
+         [](TransportFile& f) { f.components[2].vectors.indices[0] ^= 1; }},
+        {"'multiple scattering profiles 6-8' and 'multiple scattering profiles 0-2' differ at vertex 1:",
+         [](TransportFile& f) {  // vertex 1 loses a coefficient in one profile component
+             SparseRgbVectors& s = f.components[3].vectors;
+             SparseRgbVectors t;
+             std::vector<uint32_t> idx;
+             std::vector<float> rgb;
+             for (size_t v = 0; v < s.vertexCount(); ++v) {
+                 s.dequantizeVertex(v, idx, rgb);
+                 if (v == 1) idx.pop_back(), rgb.resize(3 * idx.size());
+                 t.appendVertex(idx, rgb);
+             }
+             s = t;
+         }},
+        {"multiple-scattering profile components present but no radial basis",
+         [](TransportFile& f) { f.radialBasis.reset(); }},
+        {"radial basis present but no multiple-scattering profile components",
+         [](TransportFile& f) { f.components.resize(1); }},
+        {"the radial basis has 9 profiles but there are 2 profile components of 3",
+         [](TransportFile& f) { f.components.pop_back(); }},
+        {"the radial basis has 12 profiles but there are 3 profile components of 3",
+         [](TransportFile& f) { f.radialBasis = smallBasis(4); }},
+        {"multiple-scattering profile components must be terms 0..2, found 3 distinct with largest term 3",
+         [](TransportFile& f) { f.components[2].term = 3; }},
+        {"component 3 (multiple scattering profiles 3-5): a blocked multiple-scattering profile component is not "
+         "supported in version 5",
+         [&](TransportFile& f) {
+             std::mt19937 r(1);
+             makeBlocked(r, f, 2, 8);
+         }},
+        {"radial basis: table holds a non-finite value",
+         [](TransportFile& f) { f.radialBasis->tables.values[7] = std::numeric_limits<float>::infinity(); }},
+        {"radial basis: table holds",
+         [](TransportFile& f) { f.radialBasis->tables.values.pop_back(); }},
+        {"radial basis: construction 3 is not 0, 1 or 2",
+         [](TransportFile& f) { f.radialBasis->tables.construction = RadialConstruction(3); }},
+        {"radial range", [](TransportFile& f) { f.radialBasis->range.alphaMax = 1.0; }},
+        {"radial basis: norm exponent", [](TransportFile& f) { f.radialBasis->tables.normExponent = 0.0; }},
+    };
+    for (const Case& c : cases) {
+        TransportFile f = good;
+        c.edit(f);
+        const std::string e = errorOf([&] { saveTransportFile(p, f); });
+        EXPECT_TRUE(contains(e, "invalid transport data")) << e;
+        EXPECT_TRUE(contains(e, c.expected)) << "expected '" << c.expected << "' in: " << e;
+        EXPECT_FALSE(contains(e, "\n")) << "one line: " << e;
+        EXPECT_FALSE(fs::exists(p)) << c.expected;
+    }
+    EXPECT_TRUE(tempFiles().empty());
+}
+
+TEST_F(TransportFileV5, DamagedOrMisversionedFilesAreRefused) {
+    std::mt19937 rng(56);
+    const TransportFile f = makeProfileFile(rng, 12, 4, 2, 9, false, true);
+    const std::string p = path("x");
+    saveTransportFile(p, f);
+    const Bytes b = readBytes(p);
+    const std::vector<Sec> secs = walk(b);
+    const Sec& rbas = secs[5];
+    ASSERT_EQ(rbas.tag, "RBAS");
+    // (info: whether readTransportFileInfo, which reads RBAS's fixed part only, sees it too.)
+    auto refused = [&](const Bytes& x, const std::string& expected, bool info) {
+        writeBytes(p, x);
+        std::string e = errorOf([&] { loadTransportFile(p); });
+        EXPECT_TRUE(contains(e, expected)) << "expected '" << expected << "' in: " << e;
+        EXPECT_FALSE(contains(e, "\n")) << e;
+        if (!info) return;
+        e = errorOf([&] { readTransportFileInfo(p); });
+        EXPECT_TRUE(contains(e, expected)) << "info: expected '" << expected << "' in: " << e;
+    };
+    // A flipped table byte: the checksum.
+    Bytes x = b;
+    x[rbas.payload + 128 + 5] ^= 0x10;
+    refused(x, "checksum mismatch in section 'RBAS' (radial basis)", false);
+    // Truncated inside RBAS.
+    refused(Bytes(b.begin(), b.begin() + long(rbas.payload + 100)),
+            "truncated: section 'RBAS' (radial basis) at offset " + std::to_string(rbas.header), true);
+    // Valid checksums, inconsistent contents.
+    auto edited = [&](const std::function<void(uint8_t*)>& edit) {
+        Bytes y = b;
+        edit(&y[rbas.payload]);
+        fixChecksum(y, rbas);
+        return y;
+    };
+    refused(edited([](uint8_t* q) { putLe32(q + 48, 0); }), "profile count 0 outside 1..64", true);
+    refused(edited([](uint8_t* q) { putLe32(q + 52, 1); }), "node count 1 outside 2..1000000", true);
+    refused(edited([](uint8_t* q) { putLe32(q + 48, 5); }), "-byte payload, the section has", true);
+    refused(edited([](uint8_t* q) { putLe32(q + 56, 7); }), "construction 7 is not 0, 1 or 2", true);
+    refused(edited([](uint8_t* q) { putLe32(q + 60, 1); }), "reserved header bytes are not zero", true);
+    refused(edited([](uint8_t* q) { q[100] = 1; }), "reserved header bytes are not zero", true);
+    refused(edited([](uint8_t* q) { putLe64(q, 0); }), "radial range", true);
+    refused(edited([](uint8_t* q) { putLe32(q + 128, 0x7fc00000u); }),
+            "inconsistent: radial basis: table holds a non-finite value", false);
+    // The version field against the sections.
+    x = b;  // a kind-4 component in a version-4 file
+    putLe32(&x[8], 4);
+    refused(x, "component kind 4 (multiple scattering profiles) in a format version 4 file (it needs version 5)",
+            true);
+    {  // an RBAS section in a version-4 file (SH terms, a blocked component, no kind 4)
+        TransportFile v4 = makeShFile(rng, 20, 4, 9);
+        makeBlocked(rng, v4, 1, 8);
+        saveTransportFile(p, v4);
+        const Bytes b4 = readBytes(p);
+        ASSERT_EQ(le32(&b4[8]), 4u);
+        const std::vector<Sec> s4 = walk(b4);
+        Bytes y(b4.begin(), b4.begin() + long(s4.back().regionStart));
+        appendSection(y, b, rbas);
+        appendSection(y, b4, s4.back());
+        refused(y, "corrupt: section 'RBAS' (radial basis) at offset", true);
+        refused(y, "a radial basis in a format version 4 file (it needs version 5)", true);
+    }
+    {  // a version-5 header without RBAS
+        TransportFile v1 = makeFile(rng, 10, 2, 4, 0);
+        saveTransportFile(p, v1);
+        Bytes y = readBytes(p);
+        putLe32(&y[8], 5);
+        refused(y, "format version 5 but no radial basis", true);
+    }
+    x = b;
+    putLe32(&x[8], 6);
+    refused(x, "unsupported transport file format version 6 (this build reads versions 1 to 5)", true);
+}
+
+TEST_F(TransportFileV5, InfoChecksTheProfileTermsAgainstTheBasis) {
+    std::mt19937 rng(57);
+    const TransportFile f = makeProfileFile(rng, 8, 2, 2, 0, false, false);
+    const std::string p = path("t");
+    saveTransportFile(p, f);
+    Bytes b = readBytes(p);
+    const std::vector<Sec> secs = walk(b);
+    ASSERT_EQ(secs[3].tag, "COMP");
+    putLe32(&b[secs[3].payload + 4], 2);  // terms 0 and 2
+    fixChecksum(b, secs[3]);
+    writeBytes(p, b);
+    const std::string expected = "multiple-scattering profile components must be terms 0..1, found 2 distinct "
+                                 "with largest term 2";
+    std::string e = errorOf([&] { readTransportFileInfo(p); });
+    EXPECT_TRUE(contains(e, expected)) << e;
+    e = errorOf([&] { loadTransportFile(p); });
+    EXPECT_TRUE(contains(e, expected)) << e;
 }

@@ -4,6 +4,7 @@
 #include <fstream>
 
 #include "common/error.h"
+#include "common/util.h"
 
 namespace prt {
 
@@ -112,6 +113,21 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
                    "pass-1 inputs), else compute and save them there: the shards of a job then compute "
                    "pass 1 once (docs/cluster.md)");
     app.add_flag("--pass1-only", s.pass1Only, "Stop after writing --pass1-file (no transport file)");
+    app.add_flag("--editable", s.editable.enabled,
+                 "Editable transport: pass 2 against a radial basis, so prt-relight can change the material "
+                 "and the size without a new precompute (docs/editable-transport.md)")
+        ->group("Editable transport");
+    app.add_option("--editable-materials", raw.editableMaterials,
+                   "Materials the basis must cover, separated by ';' (names, sigma:SA:SS or colour:C:L forms; "
+                   "default: the measured ones with absorption), besides the job's own")
+        ->group("Editable transport");
+    app.add_option("--editable-sizes", raw.editableSizes,
+                   "S0:S1, the object sizes (mm, bounding-box diagonal) the basis must cover (default: half "
+                   "to twice the job's size)")
+        ->group("Editable transport");
+    app.add_option("--editable-profiles", s.editable.basis.size,
+                   "J, the number of radial profiles (a multiple of 3; more: a closer fit, a larger file)")
+        ->capture_default_str()->group("Editable transport");
     app.add_option("--shard", raw.shard,
                    "i/n: compute only shard i (0-based) of n of the vertices into a shard file; "
                    "prt-merge joins the n shard files (docs/cluster.md)");
@@ -123,6 +139,22 @@ PrecomputeSettings settingsFromOptions(const JobOptions& raw, PrecomputeSettings
     s.components = parseScatteringComponents(raw.components);
     s.scale = makeScale(raw.scale);
     s.material = makeMaterial(raw.material);
+    if (!raw.editableMaterials.empty()) {
+        s.editable.materials.clear();
+        for (const std::string& m : splitText(raw.editableMaterials, ';'))
+            if (!trim(m).empty()) s.editable.materials.push_back(trim(m));
+    }
+    if (!raw.editableSizes.empty()) {
+        const std::vector<std::string> ends = splitText(raw.editableSizes, ':');
+        if (ends.size() != 2) throw Error("--editable-sizes", "expected S0:S1 in mm, got '" + raw.editableSizes + "'");
+        const std::vector<double> lo = parseNumberList(ends[0], "--editable-sizes", "sizes");
+        const std::vector<double> hi = parseNumberList(ends[1], "--editable-sizes", "sizes");
+        if (lo.size() != 1 || hi.size() != 1)
+            throw Error("--editable-sizes", "expected S0:S1 in mm, got '" + raw.editableSizes + "'");
+        s.editable.sizeMinMm = lo[0];
+        s.editable.sizeMaxMm = hi[0];
+        if (!(lo[0] > 0.0)) throw Error("--editable-sizes", "sizes must be > 0 mm, got '" + raw.editableSizes + "'");
+    }
     if (!raw.shard.empty()) s.shard = parseShard(raw.shard);
     s.vertexCoefficients = raw.coefficients ? *raw.coefficients : s.blockCoefficients ? 512 : 128;
     s.singleScattering.pathSamples =

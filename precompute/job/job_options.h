@@ -27,6 +27,8 @@ struct JobOptions {
     std::string shard;  // "i/n" or empty
     std::optional<size_t> coefficients;  // -k; absent: 128, or 512 with --block-coefficients
     std::optional<int> pathSamples;      // --path-samples; absent: defaultPathSamples(--path-quadrature)
+    std::string editableMaterials;       // --editable-materials "A;B;...": parseMaterial texts
+    std::string editableSizes;           // --editable-sizes S0:S1 (mm)
 };
 
 // Declares every per-job option on `app`, bound to `raw` and to the fields of `s` (and of

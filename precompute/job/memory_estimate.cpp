@@ -8,6 +8,7 @@
 
 #include "common/error.h"
 #include "precompute/passes/cell_quadrature.h"
+#include "precompute/passes/radial_kernels.h"
 
 namespace prt {
 
@@ -16,11 +17,16 @@ constexpr double kSafety = 1.5;
 }
 
 MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vertices, size_t triangles,
-                                        size_t samples, int threads, double totalAreaMm2) {
+                                        size_t samples, int threads, double totalAreaMm2, double objectSizeMm) {
     const double texels = 6.0 * double(s.cubemapSize) * double(s.cubemapSize);
     const bool ms = s.components.multipleScattering;
     const double terms = s.components.singleScattering ? 1.0 + (s.material.g != 0.0 ? s.phase.terms : 0) : 0.0;
     const double n = ms ? double(samples) : 0.0;
+    // An editable job: J profiles per vertex instead of three channels, a narrower kernel.
+    const bool editable = ms && s.editable.enabled && objectSizeMm > 0.0;
+    const double channels = editable ? double(s.editable.basis.size) : 3.0;
+    const double narrowest = editable ? narrowestDipoleWidth(editableRange(s, objectSizeMm))
+                                      : RadialKernels(s.material).narrowestWidth();
     const std::vector<std::pair<const char*, double>> parts = {
         // + 36 bytes per triangle of single scattering's corner normals
         {"mesh and ray scene", (s.components.singleScattering ? 286.0 : 250.0) * double(triangles)},
@@ -28,10 +34,11 @@ MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vert
         {"pass 1 vectors", n * (double(s.pass1.sampleCoefficients) * 8.0 + 64.0)},
         {"pass 2 kd-tree sums", n / 4.0 * (double(s.pass2.nodeCoefficients) * 8.0 + 64.0)},
         {"pass 2 cell sub-points",
-         ms && totalAreaMm2 > 0.0 ? estimateCellSubPoints(totalAreaMm2, triangles, s.material) * kCellBytesPerSubPoint : 0.0},
+         ms && totalAreaMm2 > 0.0 ? estimateCellSubPoints(totalAreaMm2, triangles, narrowest) * kCellBytesPerSubPoint
+                                  : 0.0},
         {"per-vertex results",
-         double(vertices) * double(s.vertexCoefficients) * 16.0 * ((ms ? 1.0 : 0.0) + terms)},
-        {"per-thread workspaces", double(std::max(threads, 1)) * texels * 64.0},
+         double(vertices) * double(s.vertexCoefficients) * 16.0 * ((ms ? channels / 3.0 : 0.0) + terms)},
+        {"per-thread workspaces", double(std::max(threads, 1)) * texels * 64.0 * std::max(1.0, channels / 3.0)},
     };
     MemoryEstimate e;
     double total = 0.0, largest = -1.0;

@@ -32,9 +32,12 @@ struct MemoryEstimate {
 };
 
 // The samples count only with multiple scattering; totalAreaMm2 = 0 leaves out the cell
-// sub-points.
+// sub-points. An editable job (settings.h) integrates J radial profiles instead of three
+// channels, with sub-points spaced for the narrowest dipole of its range, which needs
+// the object's size (bounding-box diagonal, mm; 0: taken as the material's own widths).
 MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vertices, size_t triangles,
-                                        size_t samples, int threads, double totalAreaMm2 = 0.0);
+                                        size_t samples, int threads, double totalAreaMm2 = 0.0,
+                                        double objectSizeMm = 0.0);
 
 // Throws prt::Error("memory", "needs 41.2 GB (largest: ...), 23.8 GB available; use
 // --max-memory GB to allow more, or fewer samples / coefficients") when the estimate

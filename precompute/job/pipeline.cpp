@@ -67,6 +67,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& requested, bool 
     ParameterList derived = prepared.derived;
     std::vector<TransportComponent> components;
     std::optional<ViewMaps> viewMaps;
+    std::optional<StoredRadialBasis> radialBasis;
     double busy = 0.0;  // this process's compute seconds, for the balance of the split
 
     if (settings.components.multipleScattering) {
@@ -80,7 +81,9 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& requested, bool 
         Pass2Output pass2 = runPass2(job, prepared, samples, std::move(pass1.vectors));
         summary.pass2 = pass2.summary;
         busy += pass2.busySeconds;
-        components.push_back(std::move(pass2.component));
+        for (TransportComponent& c : pass2.components) components.push_back(std::move(c));
+        radialBasis = std::move(pass2.radialBasis);
+        append(derived, pass2.derived);
     }
     if (settings.components.singleScattering) {
         SingleScatteringOutput ss = runSingleScattering(job, prepared);
@@ -93,7 +96,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& requested, bool 
     std::tie(summary.distribution.busySecondsMin, summary.distribution.busySecondsMax) = dist.minMax(busy);
 
     const WriteOutput written = writeTransport(job, prepared, std::move(components), std::move(viewMaps),
-                                               std::move(derived));
+                                               std::move(radialBasis), std::move(derived));
     summary.blocks.seconds = written.blockSeconds;
     summary.blocks.retainedEnergy = written.blockRetainedEnergy;
     summary.write = written.summary;

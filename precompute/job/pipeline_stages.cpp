@@ -9,6 +9,8 @@
 #include "common/atomic_file.h"
 #include "common/blocked_vectors.h"
 #include "common/error.h"
+#include "common/material_edit.h"
+#include "common/radial_basis.h"
 #include "common/mesh_io.h"
 #include "common/progress.h"
 #include "precompute/job/memory_estimate.h"
@@ -18,6 +20,7 @@
 #include "precompute/passes/irradiance_transport.h"
 #include "precompute/passes/multiple_scattering.h"
 #include "precompute/passes/phase_factoring.h"
+#include "precompute/passes/radial_kernels.h"
 #include "precompute/passes/single_scattering.h"
 
 namespace prt {
@@ -85,7 +88,8 @@ PreparedJob setUp(const JobContext& job, JobInputs inputs, const Stopwatch& jobS
         const MemoryEstimate need =
             estimatePrecomputeMemory(s, p.mesh.vertexCount(), p.mesh.triangleCount(), p.sampleCount,
                                      tbb::this_task_arena::max_concurrency(),
-                                     s.components.multipleScattering ? p.summary.totalAreaMm2 : 0.0);
+                                     s.components.multipleScattering ? p.summary.totalAreaMm2 : 0.0,
+                                     bounds(p.mesh).diagonal());
         checkMemory(need, s.maxMemoryGb);
         p.summary.estimatedMemoryBytes = need.bytes;
         if (s.components.multipleScattering) p.scene.emplace(p.mesh);
@@ -165,6 +169,47 @@ Pass1Output runPass1(const JobContext& job, const PreparedJob& prepared, const P
     return out;
 }
 
+namespace {
+
+// An editable job's basis (radial_basis.h) for this mesh, and its fit errors as file
+// parameters: the worst over the covered materials at the smallest, the job's and the
+// largest size, and the job's own material's.
+RadialBasis editableBasis(const PrecomputeSettings& s, const TriangleMesh& mesh, ParameterList& derived) {
+    const double objectSizeMm = bounds(mesh).diagonal();
+    const RadialRange range = editableRange(s, objectSizeMm);
+    RadialBasis basis = makeRadialBasis(range, s.editable.basis);
+    const bool sized = s.editable.sizeMinMm > 0.0;
+    const double sizes[3] = {sized ? s.editable.sizeMinMm / objectSizeMm : 0.5, 1.0,
+                             sized ? s.editable.sizeMaxMm / objectSizeMm : 2.0};
+    double worstL1 = 0.0, worstDisk = 0.0;
+    std::string worstCase;
+    for (const Material& m : editableMaterials(s))
+        for (double f : sizes)
+            for (int c = 0; c < 3; ++c) {
+                const RadialFitError e = basis.fitError(makeDipoleChannel(scaledMaterial(m, f), c));
+                if (e.l1 > worstL1) {
+                    worstL1 = e.l1;
+                    worstCase = m.name + " channel " + "RGB"[c] + " at size x" + formatParameter(f);
+                }
+                worstDisk = std::max(worstDisk, e.disk);
+            }
+    double ownL1 = 0.0;
+    for (int c = 0; c < 3; ++c) ownL1 = std::max(ownL1, basis.fitError(makeDipoleChannel(s.material, c)).l1);
+    derived.push_back({"editable_object_size_mm", formatParameter(objectSizeMm)});
+    derived.push_back({"editable_sizes_mm", formatParameter(sizes[0] * objectSizeMm) + ":" +
+                                                formatParameter(sizes[2] * objectSizeMm)});
+    derived.push_back({"radial_range", "z_r " + formatParameter(range.zrMin) + " .. " + formatParameter(range.zrMax) +
+                                           " mm, alpha' " + formatParameter(range.alphaMin) + " .. " +
+                                           formatParameter(range.alphaMax) + ", r <= " + formatParameter(range.rMax) +
+                                           " mm"});
+    derived.push_back({"radial_fit_worst_l1", formatParameter(worstL1) + " (" + worstCase + ")"});
+    derived.push_back({"radial_fit_worst_disk", formatParameter(worstDisk)});
+    derived.push_back({"radial_fit_l1_own_material", formatParameter(ownL1)});
+    return basis;
+}
+
+}  // namespace
+
 Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const PlacedSamples& placed,
                      std::vector<SparseVector> pass1Vectors) {
     const PrecomputeSettings& s = job.settings;
@@ -174,6 +219,10 @@ Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const P
     std::vector<SparseVector> transport;
     MultipleScatteringStats stats;
     const Stopwatch start;
+    // Every process builds the same basis (deterministic), so only the writer's is kept.
+    std::optional<RadialBasis> basis;
+    if (s.editable.enabled) basis = editableBasis(s, prepared.mesh, out.derived);
+    const RadialKernels kernels = basis ? radialBasisKernels(*basis) : RadialKernels(s.material);
     dist.stage([&] {
         SampleCloud cloud;
         cloud.positions.reserve(placed.samples.samples.size());
@@ -184,9 +233,10 @@ Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const P
             normals.push_back(sample.geometricNormal);
         }
         // The converged quadrature of Eq. 7 (cell_quadrature.h): E constant over each
-        // sample's Voronoi cell, R_d integrated over the cells near each vertex.
+        // sample's Voronoi cell, R_d (or each radial profile) integrated over the cells
+        // near each vertex.
         const Stopwatch cellsStart;
-        const CellQuadrature cells(prepared.mesh, cloud.positions, normals, placed.summary.spacingMm, s.material);
+        const CellQuadrature cells(prepared.mesh, cloud.positions, normals, placed.summary.spacingMm, kernels);
         out.summary.cellSeconds = cellsStart.seconds();
         out.summary.cellSubPoints = cells.subPointCount();
         cloud.areas.assign(cells.cellAreas().begin(), cells.cellAreas().end());
@@ -197,8 +247,9 @@ Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const P
         for (const IndexRange& r : prepared.vertexShares)
             positions.insert(positions.end(), prepared.mesh.positions.begin() + ptrdiff_t(r.begin),
                              prepared.mesh.positions.begin() + ptrdiff_t(r.end));
-        Progress p("pass 2 (multiple scattering)" + job.share, prepared.myVertices, "vertices");
-        transport = multipleScatteringTransport(tree, positions, s.material, s.pass2, texelCount, &stats, &p, &cells);
+        Progress p("pass 2 (multiple scattering" + std::string(basis ? ", radial profiles" : "") + ")" + job.share,
+                   prepared.myVertices, "vertices");
+        transport = multipleScatteringTransport(tree, positions, kernels, s.pass2, texelCount, &stats, &p, &cells);
         out.busySeconds = start.seconds();
     });
     // Means over the vertices computed (all ranks'; a shard's own range).
@@ -207,14 +258,34 @@ Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const P
     out.summary.meanNodesVisited = dist.sum(stats.meanNodesVisited * vertexWeight);
     out.summary.retainedEnergy = dist.sum(stats.retainedEnergyFraction * vertexWeight);
 
-    TransportComponent& ms = out.component;
-    ms.kind = ComponentKind::MultipleScattering;
-    ms.vectors.reserve(transport.size(), transport.size() * s.vertexCoefficients);
-    for (const SparseVector& v : transport) ms.vectors.appendVertex(v.index, v.value);
+    // RGB transport; or profiles 3p, 3p+1, 3p+2 of every vertex in component p, all
+    // components sharing the vertex's one index list.
+    const int K = kernels.count();
+    const int groups = basis ? K / 3 : 1;
+    out.components.resize(size_t(groups));
+    std::vector<float> rgb;
+    for (int p = 0; p < groups; ++p) {
+        TransportComponent& c = out.components[size_t(p)];
+        c.kind = basis ? ComponentKind::MultipleScatteringProfiles : ComponentKind::MultipleScattering;
+        c.term = basis ? uint32_t(p) : 0;
+        c.vectors.reserve(transport.size(), transport.size() * s.vertexCoefficients);
+        for (const SparseVector& v : transport) {
+            if (!basis) {
+                c.vectors.appendVertex(v.index, v.value);
+                continue;
+            }
+            rgb.resize(3 * v.index.size());
+            for (size_t n = 0; n < v.index.size(); ++n)
+                for (int ch = 0; ch < 3; ++ch) rgb[3 * n + size_t(ch)] = v.value[n * size_t(K) + size_t(3 * p + ch)];
+            c.vectors.appendVertex(v.index, rgb);
+        }
+    }
     transport.clear();
     const Stopwatch gatherStart;
-    ms.vectors = dist.gatherVertices(std::move(ms.vectors), prepared.mesh.vertexCount());
+    for (TransportComponent& c : out.components)
+        c.vectors = dist.gatherVertices(std::move(c.vectors), prepared.mesh.vertexCount());
     out.summary.gatherSeconds = gatherStart.seconds();
+    if (basis) out.radialBasis = StoredRadialBasis{basis->range(), basis->tables()};
     out.summary.seconds = start.seconds();
     // After the copy into the file's arrays, which coexists with the per-vertex vectors.
     out.summary.peakMemoryBytes = peakMemoryBytes();
@@ -312,7 +383,7 @@ SingleScatteringOutput runSingleScattering(const JobContext& job, const Prepared
 
 WriteOutput writeTransport(const JobContext& job, const PreparedJob& prepared,
                            std::vector<TransportComponent> components, std::optional<ViewMaps> viewMaps,
-                           ParameterList derived) {
+                           std::optional<StoredRadialBasis> radialBasis, ParameterList derived) {
     const PrecomputeSettings& s = job.settings;
     Distribution& dist = job.distribution;
     WriteOutput out;
@@ -326,6 +397,7 @@ WriteOutput writeTransport(const JobContext& job, const PreparedJob& prepared,
         file.parameters = prepared.parameters;
         file.components = std::move(components);
         file.viewMaps = std::move(viewMaps);
+        file.radialBasis = std::move(radialBasis);
         if (s.blockCoefficients > 0) {
             // The joint choice needs every vertex's vectors: after the gather, on the writer.
             const Stopwatch blockStart;

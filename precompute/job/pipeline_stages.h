@@ -79,7 +79,12 @@ Pass1Output runPass1(const JobContext& job, const PreparedJob& prepared, const P
 // 5. Pass 2: the multiple-scattering vectors of this process's vertices, gathered at the
 // writing process into the file's component (empty elsewhere).
 struct Pass2Output {
-    TransportComponent component;
+    // The multiple-scattering component; or, for an editable job, the profile components
+    // (three radial profiles per component, one shared index list per vertex) and the
+    // basis they were computed against.
+    std::vector<TransportComponent> components;
+    std::optional<StoredRadialBasis> radialBasis;
+    ParameterList derived;  // an editable job's basis range and fit errors
     double busySeconds = 0;
     Pass2Summary summary;
 };
@@ -105,6 +110,6 @@ struct WriteOutput {
 };
 WriteOutput writeTransport(const JobContext& job, const PreparedJob& prepared,
                            std::vector<TransportComponent> components, std::optional<ViewMaps> viewMaps,
-                           ParameterList derived);
+                           std::optional<StoredRadialBasis> radialBasis, ParameterList derived);
 
 }  // namespace prt

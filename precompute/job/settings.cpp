@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "common/error.h"
+#include "common/material_edit.h"
 #include "common/sh_part.h"
 #include "common/util.h"
 
@@ -111,6 +112,50 @@ void validateSettings(const PrecomputeSettings& s) {
     if (!s.pass1File.empty() && !s.components.multipleScattering)
         throw Error("--pass1-file", "needs multiple scattering (--components ms or ms,ss): single scattering has no pass 1");
     if (s.pass1Only && s.pass1File.empty()) throw Error("--pass1-only", "needs --pass1-file");
+    if (s.editable.enabled) {
+        if (!s.components.multipleScattering)
+            throw Error("--editable", "edits multiple scattering: select it (--components ms or ms,ss)");
+        const int J = s.editable.basis.size;
+        if (J < 3 || J > 30 || J % 3 != 0)
+            throw Error("--editable-profiles", "must be a multiple of 3 between 3 and 30 (three profiles per stored "
+                                               "component), got " + std::to_string(J));
+        if (s.blockCoefficients > 0)
+            throw Error("--editable", "blocked components (--block-coefficients) are not editable yet");
+        if (s.shard) throw Error("--editable", "shard files are not editable yet (prt-merge does not join them)");
+        const double lo = s.editable.sizeMinMm, hi = s.editable.sizeMaxMm;
+        if (!(lo == 0.0 && hi == 0.0) && !(lo > 0.0 && hi >= lo && std::isfinite(hi)))
+            throw Error("--editable-sizes", "needs 0 < S0 <= S1 mm, got " + fmt(lo) + ":" + fmt(hi));
+        editableMaterials(s);  // every text parses
+    }
+}
+
+std::vector<Material> editableMaterials(const PrecomputeSettings& s) {
+    std::vector<Material> materials;
+    if (s.editable.materials.empty()) {
+        for (const std::string& name : materialNames()) {
+            Material m = materialByName(name);
+            if (m.sigmaA.x > 0.0 && m.sigmaA.y > 0.0 && m.sigmaA.z > 0.0) {
+                m.eta = s.material.eta;
+                materials.push_back(m);
+            }
+        }
+    } else {
+        for (const std::string& text : s.editable.materials)
+            materials.push_back(parseMaterial(text, s.material.eta, s.material.g, "--editable-materials"));
+    }
+    materials.push_back(s.material);
+    return materials;
+}
+
+RadialRange editableRange(const PrecomputeSettings& s, double objectSizeMm) {
+    const bool sized = s.editable.sizeMinMm > 0.0;
+    const double sMin = sized ? s.editable.sizeMinMm / objectSizeMm : 0.5;
+    const double sMax = sized ? s.editable.sizeMaxMm / objectSizeMm : 2.0;
+    try {
+        return rangeCovering(editableMaterials(s), sMin, sMax, objectSizeMm);
+    } catch (const Error& e) {
+        throw Error("--editable-materials", e.subject() + ": " + e.reason());
+    }
 }
 
 ParameterList settingsParameters(const PrecomputeSettings& settings, const MeshFingerprint& mesh) {
@@ -143,6 +188,18 @@ ParameterList settingsParameters(const PrecomputeSettings& settings, const MeshF
     };
     p.insert(p.end(), passes.begin(), passes.end());
     if (s.blockCoefficients > 0) p.push_back({"block_coefficients", std::to_string(s.blockCoefficients)});
+    // Recorded only for editable jobs, so other files keep their parameters and digest.
+    if (s.editable.enabled) {
+        std::string materials;
+        for (const std::string& m : s.editable.materials) materials += (materials.empty() ? "" : " ") + m;
+        p.push_back({"editable", "radial basis (docs/editable-transport.md)"});
+        p.push_back({"editable_materials", materials.empty() ? "measured with absorption" : materials});
+        p.push_back({"editable_sizes_requested_mm",
+                     s.editable.sizeMinMm > 0.0 ? fmt(s.editable.sizeMinMm) + ":" + fmt(s.editable.sizeMaxMm)
+                                                : "0.5x:2x"});
+        p.push_back({"radial_profiles", std::to_string(s.editable.basis.size)});
+        p.push_back({"radial_construction", radialConstructionName(s.editable.basis.construction)});
+    }
     if (s.components.singleScattering) {
         const SingleScatteringOptions& o = s.singleScattering;
         const bool isotropic = s.material.g == 0.0;

@@ -8,9 +8,11 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "common/bssrdf.h"
 #include "common/mesh.h"
+#include "common/radial_basis.h"
 #include "common/transport_file.h"
 #include "common/transport_params.h"
 #include "precompute/job/distribution.h"
@@ -27,6 +29,23 @@ struct SamplePlacement {
     double spacingMm = 0;      // 0: the material's smallest mean free path l_u
     size_t maxCount = 300000;  // cap on the automatic count
     uint64_t seed = 1;
+};
+
+// --editable: pass 2 against a radial basis instead of the material's dipole, so that
+// the material and the object's size can change at relight time without a new
+// precompute (docs/editable-transport.md). The basis covers every channel of
+// `materials` (and the job's own material) at every size in [sizeMinMm, sizeMaxMm]
+// (object sizes as --size-mm measures them, the bounding-box diagonal, in mm).
+struct EditableSettings {
+    bool enabled = false;
+    // Materials as parseMaterial text; empty: every measured material with absorption
+    // (all but Spectralon, whose sigma_a = 0 no fixed basis can follow).
+    std::vector<std::string> materials;
+    // 0, 0: half and twice the job's own size.
+    double sizeMinMm = 0.0, sizeMaxMm = 0.0;
+    // J (a multiple of 3: the file packs three profiles per component) and the
+    // construction (radial_basis.h).
+    RadialBasisOptions basis;
 };
 
 struct PrecomputeSettings {
@@ -53,6 +72,7 @@ struct PrecomputeSettings {
     // pathSamples, directionStride, visibilityFromExitRay. Adaptive directions by
     // default (docs/single-scattering.md, "adaptive directions and 4 Gauss points").
     SingleScatteringOptions singleScattering{.directionStride = 4};
+    EditableSettings editable;
 
     // Not physics settings: neither stored in the file nor part of the input digest.
     // Refuse the job up front when its estimated memory (memory_estimate.h) exceeds
@@ -75,6 +95,16 @@ PrecomputeSettings withSharedValues(PrecomputeSettings s);
 
 // Throws prt::Error naming the bad option.
 void validateSettings(const PrecomputeSettings& s);
+
+// The materials an editable job's basis covers: s.editable.materials parsed with the
+// job's eta (or the measured ones with absorption), then the job's own material.
+std::vector<Material> editableMaterials(const PrecomputeSettings& s);
+// The basis range of an editable job whose scaled mesh has bounding-box diagonal
+// `objectSizeMm`: editableMaterials at size factors sizeMin / objectSize .. sizeMax /
+// objectSize (defaults 0.5 .. 2), distances up to objectSizeMm. One-line prt::Error
+// naming --editable-materials or --editable-sizes when that is impossible (a material
+// with sigma_a = 0, ...).
+RadialRange editableRange(const PrecomputeSettings& s, double objectSizeMm);
 
 // Every setting as text, in a fixed order, with the input digest (a hash of the rest)
 // last: stored in the transport file, so that a batch run can tell whether an output

@@ -95,27 +95,28 @@ double quinticStep(double t) {
     return t * t * t * (t * (6.0 * t - 15.0) + 10.0);
 }
 
-double narrowestKernelWidth(const Material& material) {
-    double widest = 0.0;  // max_c (sigma_t' + sigma_tr)
-    for (int c = 0; c < 3; ++c) {
-        const DipoleChannel d = makeDipoleChannel(material, c);
-        widest = std::max(widest, 1.0 / d.zr + d.sigmaTr);
-    }
-    return 1.0 / widest;
-}
-
 }  // namespace
+
+double estimateCellSubPoints(double totalAreaMm2, size_t triangles, double narrowestKernelWidthMm,
+                             const CellQuadratureOptions& options) {
+    const double s = options.subSpacingFraction * narrowestKernelWidthMm;
+    return std::max(totalAreaMm2 / (0.2 * s * s), double(triangles));
+}
 
 double estimateCellSubPoints(double totalAreaMm2, size_t triangles, const Material& material,
                              const CellQuadratureOptions& options) {
-    const double s = options.subSpacingFraction * narrowestKernelWidth(material);
-    return std::max(totalAreaMm2 / (0.2 * s * s), double(triangles));
+    return estimateCellSubPoints(totalAreaMm2, triangles, RadialKernels(material).narrowestWidth(), options);
 }
 
 CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::vec3> samplePositions,
                                std::span<const glm::vec3> sampleNormals, double sampleSpacing,
-                               const Material& material, const CellQuadratureOptions& options) {
-    validateMaterial(material);
+                               const Material& material, const CellQuadratureOptions& options)
+    : CellQuadrature(mesh, samplePositions, sampleNormals, sampleSpacing, RadialKernels(material), options) {}
+
+CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::vec3> samplePositions,
+                               std::span<const glm::vec3> sampleNormals, double sampleSpacing,
+                               const RadialKernels& kernels, const CellQuadratureOptions& options)
+    : kernels_(kernels), k_(kernels.count()) {
     const size_t n = samplePositions.size();
     if (n == 0) throw Error("cell quadrature", "no samples");
     if (sampleNormals.size() != n) throw Error("cell quadrature", "sample positions and normals differ in length");
@@ -127,12 +128,9 @@ CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::ve
         !(options.maxOuterRadiusWidths > 0.0))
         throw Error("cell quadrature", "invalid options (need fraction > 0, 0 <= inner < outer, max widths > 0)");
 
-    for (int c = 0; c < 3; ++c) channel_[c] = makeDipoleChannel(material, c);
-    const double widest = 1.0 / narrowestKernelWidth(material);  // max_c (sigma_t' + sigma_tr)
+    const double widest = 1.0 / kernels_.narrowestWidth();
     subSpacing_ = options.subSpacingFraction / widest;
-    double widestWidth = 0.0;  // max_c 1 / (sigma_t' + sigma_tr)
-    for (int c = 0; c < 3; ++c) widestWidth = std::max(widestWidth, 1.0 / (1.0 / channel_[c].zr + channel_[c].sigmaTr));
-    r2_ = std::min(options.outerRadius * sampleSpacing, options.maxOuterRadiusWidths * widestWidth);
+    r2_ = std::min(options.outerRadius * sampleSpacing, options.maxOuterRadiusWidths * kernels_.widestWidth());
     r1_ = r2_ * options.innerRadius / options.outerRadius;
     r2f_ = float(r2_);
 
@@ -141,15 +139,18 @@ CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::ve
     const size_t entries = std::clamp<size_t>(size_t(std::ceil(r2_ / step)) + 1, 2, size_t(1) << 20);
     inverseStep_ = double(entries - 1) / r2_;
     lastInterval_ = entries - 2;
-    nearTable_.resize(3 * entries);
-    farTable_.resize(3 * entries);
+    const size_t kc = size_t(k_);
+    nearTable_.resize(kc * entries);
+    farTable_.resize(kc * entries);
+    double value[kMaxRadialKernels];
     for (size_t k = 0; k < entries; ++k) {
         const double r = double(k) / inverseStep_;
         const double chi = 1.0 - quinticStep((r - r1_) / (r2_ - r1_));
-        for (int c = 0; c < 3; ++c) {
-            const double rd = dipoleRd(channel_[c], r) / kPi;
-            nearTable_[3 * k + size_t(c)] = rd * chi;
-            farTable_[3 * k + size_t(c)] = rd * (1.0 - chi);
+        kernels_.evaluate(r, value);
+        for (size_t c = 0; c < kc; ++c) {
+            const double rd = value[c] / kPi;
+            nearTable_[kc * k + c] = rd * chi;
+            farTable_[kc * k + c] = rd * (1.0 - chi);
         }
     }
 
@@ -168,7 +169,7 @@ CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::ve
                         "needs more than " + std::to_string(options.maxSubPoints) + " sub-points (" +
                             std::to_string(options.maxSubPoints * 16 >> 20) +
                             " MB) at sub-spacing " + std::to_string(subSpacing_) +
-                            " mm (set by the material's narrowest kernel): use a smaller --size-mm");
+                            " mm (set by the narrowest kernel, " + kernels_.description() + "): use a smaller --size-mm");
         }
     }
     const size_t total = first[triangles];
@@ -273,20 +274,44 @@ CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::ve
     }
 }
 
-void CellQuadrature::farKernelOverPi(double r, double w[3]) const {
+void CellQuadrature::farKernelOverPi(double r, double* w) const {
     if (r >= r2_) {
-        for (int c = 0; c < 3; ++c) w[c] = dipoleRd(channel_[c], r) / kPi;
+        kernels_.evaluate(r, w);
+        for (int c = 0; c < k_; ++c) w[c] /= kPi;
         return;
     }
     const double x = r * inverseStep_;
     const size_t k = std::min(size_t(x), lastInterval_);
     const double f = x - double(k);
-    const double* p = farTable_.data() + 3 * k;
-    for (int c = 0; c < 3; ++c) w[c] = p[c] + f * (p[c + 3] - p[c]);
+    const double* p = farTable_.data() + size_t(k_) * k;
+    for (int c = 0; c < k_; ++c) w[c] = p[c] + f * (p[c + k_] - p[c]);
 }
 
-void CellQuadrature::nearWeightOverPi(size_t i, const glm::vec3& xo, double w[3]) const {
-    double s0 = 0.0, s1 = 0.0, s2 = 0.0;
+namespace {
+
+// The near sum of one cell for K kernels, K a compile-time constant for the dipole
+// (the hot case) or the run-time count.
+template <int Fixed>
+void nearSum(int count, const double* table, double inverseStep, size_t lastInterval, double limit,
+             std::span<const glm::vec3> position, std::span<const float> area, const glm::vec3& xo, double* s) {
+    const int K = Fixed > 0 ? Fixed : count;
+    for (size_t k = 0; k < position.size(); ++k) {
+        const glm::vec3 d = position[k] - xo;
+        const double d2 = double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z;
+        if (d2 >= limit) continue;
+        const double x = std::sqrt(d2) * inverseStep;
+        const size_t e = std::min(size_t(x), lastInterval);
+        const double f = x - double(e);
+        const double* p = table + size_t(K) * e;
+        const double a = area[k];
+        for (int c = 0; c < K; ++c) s[c] += a * (p[c] + f * (p[c + K] - p[c]));
+    }
+}
+
+}  // namespace
+
+void CellQuadrature::nearWeightOverPi(size_t i, const glm::vec3& xo, double* w) const {
+    for (int c = 0; c < k_; ++c) w[c] = 0.0;
     const double limit = r2_ * r2_;
     for (uint32_t c = chunkOffset_[i]; c < chunkOffset_[i + 1]; ++c) {
         const float reach = r2f_ + chunkRadius_[c];
@@ -294,31 +319,21 @@ void CellQuadrature::nearWeightOverPi(size_t i, const glm::vec3& xo, double w[3]
         if (glm::dot(dc, dc) >= reach * reach) continue;
         const uint32_t first = subOffset_[i] + (c - chunkOffset_[i]) * kChunk;
         const uint32_t last = std::min(first + kChunk, subOffset_[i + 1]);
-        for (uint32_t k = first; k < last; ++k) {
-            const glm::vec3 d = subPosition_[k] - xo;
-            const double d2 = double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z;
-            if (d2 >= limit) continue;
-            const double x = std::sqrt(d2) * inverseStep_;
-            const size_t e = std::min(size_t(x), lastInterval_);
-            const double f = x - double(e);
-            const double* p = nearTable_.data() + 3 * e;
-            const double a = subArea_[k];
-            s0 += a * (p[0] + f * (p[3] - p[0]));
-            s1 += a * (p[1] + f * (p[4] - p[1]));
-            s2 += a * (p[2] + f * (p[5] - p[2]));
-        }
+        const std::span<const glm::vec3> position(subPosition_.data() + first, last - first);
+        const std::span<const float> area(subArea_.data() + first, last - first);
+        if (k_ == 3)
+            nearSum<3>(3, nearTable_.data(), inverseStep_, lastInterval_, limit, position, area, xo, w);
+        else
+            nearSum<0>(k_, nearTable_.data(), inverseStep_, lastInterval_, limit, position, area, xo, w);
     }
-    w[0] = s0;
-    w[1] = s1;
-    w[2] = s2;
 }
 
-void CellQuadrature::sampleWeightOverPi(size_t i, const glm::vec3& xo, double w[3]) const {
-    double far[3];
+void CellQuadrature::sampleWeightOverPi(size_t i, const glm::vec3& xo, double* w) const {
+    double far[kMaxRadialKernels];
     farKernelOverPi(glm::length(samplePosition_[i] - xo), far);
-    double near[3] = {0.0, 0.0, 0.0};
+    double near[kMaxRadialKernels] = {};
     if (cellIsNear(i, xo)) nearWeightOverPi(i, xo, near);
-    for (int c = 0; c < 3; ++c) w[c] = near[c] + double(cellArea_[i]) * far[c];
+    for (int c = 0; c < k_; ++c) w[c] = near[c] + double(cellArea_[i]) * far[c];
 }
 
 size_t CellQuadrature::bytes() const {

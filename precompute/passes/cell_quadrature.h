@@ -14,13 +14,13 @@
 // way (geometric normals less than 120 degrees apart, as poissonDiskSamples treats thin
 // plates; the plain nearest sample when none does). A sample's cell area A_i is the sum
 // of its sub-points' areas (all cells add up to the mesh area). The sub-spacing s =
-// subSpacingFraction / max_c(sigma_t' + sigma_tr) follows the narrowest channel's
-// kernel. Within a cell the sub-points lie along a Morton curve in chunks of 16 with a
-// bounding sphere, so that a vertex visits only the chunks that reach its near field.
+// subSpacingFraction x the narrowest kernel's width (radial_kernels.h; for the dipole
+// 1 / max_c(sigma_t' + sigma_tr)). Within a cell the sub-points lie along a Morton
+// curve in chunks of 16 with a bounding sphere, so that a vertex visits only the chunks that reach its near field.
 //
 // The split: R_d = R_d chi + R_d (1 - chi), chi(r) = 1 for r <= r1, 0 for r >= r2, a C^2
 // quintic step between (r1 = innerRadius h, r2 = outerRadius h, h the sample spacing;
-// r2 capped at maxOuterRadiusWidths widths of the widest channel's kernel, r1 scaled
+// r2 capped at maxOuterRadiusWidths widths of the widest kernel, r1 scaled
 // with it). The near part is integrated with the sub-points, the far part (smooth at
 // the scale of r1) with the point rule:
 //
@@ -31,10 +31,14 @@
 // use (never within r2 of x_o: multiple_scattering.h). Both kernels are tabulated
 // (linear interpolation, relative error < 1e-4 on [0, r2]; R_d itself beyond).
 //
+// R_d stands for every kernel of the set integrated (radial_kernels.h): the material's
+// dipole per colour channel, or the profiles of a radial basis.
+//
 // Units: mm, mm^2, mm^-2. Thread safety: immutable after construction.
 
 #include "common/bssrdf.h"
 #include "common/mesh.h"
+#include "precompute/passes/radial_kernels.h"
 
 #include <glm/glm.hpp>
 
@@ -45,12 +49,12 @@
 namespace prt {
 
 struct CellQuadratureOptions {
-    // Sub-spacing s = fraction / max_c(sigma_t' + sigma_tr).
+    // Sub-spacing s = fraction x the narrowest kernel width.
     double subSpacingFraction = 0.25;
     // The near/far split in units of the sample spacing h ...
     double innerRadius = 1.0;
     double outerRadius = 3.0;
-    // ... with r2 at most this many widest-kernel widths max_c 1 / (sigma_t' + sigma_tr)
+    // ... with r2 at most this many widest-kernel widths (radial_kernels.h)
     // (r1 scaled with it): the near part only resolves R_d's peak, and a coarse sample
     // set would otherwise put most of the object's sub-points in every vertex's near
     // field (docs/precompute.md, "Pipeline").
@@ -64,6 +68,8 @@ struct CellQuadratureOptions {
 // need: area / (0.2 s^2) (an equilateral sub-triangle of edge s has 0.43 s^2; real
 // triangles are thinner and n = ceil(edge / s) rounds up), and at least one per
 // triangle. The construction holds kCellBytesPerSubPoint bytes per sub-point at its peak.
+double estimateCellSubPoints(double totalAreaMm2, size_t triangles, double narrowestKernelWidthMm,
+                             const CellQuadratureOptions& options = {});
 double estimateCellSubPoints(double totalAreaMm2, size_t triangles, const Material& material,
                              const CellQuadratureOptions& options = {});
 inline constexpr double kCellBytesPerSubPoint = 36.0;
@@ -75,6 +81,10 @@ public:
     // > 0) of the sample set. Throws prt::Error for an empty sample set, mismatched
     // arrays, a non-positive spacing, or more sub-points than options.maxSubPoints
     // (naming the count and the memory it needs).
+    CellQuadrature(const TriangleMesh& mesh, std::span<const glm::vec3> samplePositions,
+                   std::span<const glm::vec3> sampleNormals, double sampleSpacing, const RadialKernels& kernels,
+                   const CellQuadratureOptions& options = {});
+    // The material's dipole (RadialKernels(material)): one kernel per colour channel.
     CellQuadrature(const TriangleMesh& mesh, std::span<const glm::vec3> samplePositions,
                    std::span<const glm::vec3> sampleNormals, double sampleSpacing, const Material& material,
                    const CellQuadratureOptions& options = {});
@@ -95,12 +105,14 @@ public:
         return {subPosition_.data() + subOffset_[i], subPosition_.data() + subOffset_[i + 1]};
     }
 
-    // The far kernel R_d (1 - chi)(r) / pi, three channels.
-    void farKernelOverPi(double r, double w[3]) const;
-    // w_i(x_o) / pi, three channels (see the top of this file).
-    void sampleWeightOverPi(size_t i, const glm::vec3& xo, double w[3]) const;
+    // The kernels integrated (R_d in the text above stands for each of them).
+    const RadialKernels& kernels() const { return kernels_; }
+    // The far kernel R_d (1 - chi)(r) / pi, kernels().count() values.
+    void farKernelOverPi(double r, double* w) const;
+    // w_i(x_o) / pi, kernels().count() values (see the top of this file).
+    void sampleWeightOverPi(size_t i, const glm::vec3& xo, double* w) const;
     // Only the near part sum_{y in cell_i} a_y R_d chi(|y - x_o|) / pi (0 beyond r2).
-    void nearWeightOverPi(size_t i, const glm::vec3& xo, double w[3]) const;
+    void nearWeightOverPi(size_t i, const glm::vec3& xo, double* w) const;
     // Whether sample i's cell reaches within r2 of x_o (else its near part is 0).
     bool cellIsNear(size_t i, const glm::vec3& xo) const {
         const glm::vec3 d = samplePosition_[i] - xo;
@@ -111,13 +123,14 @@ public:
     size_t bytes() const;
 
 private:
-    DipoleChannel channel_[3];
+    RadialKernels kernels_;
+    int k_ = 3;  // kernels_.count(): the tables' interleave
     double subSpacing_ = 0.0, r1_ = 0.0, r2_ = 0.0;
     float r2f_ = 0.0f;
     float maxCellRadius_ = 0.0f;
     double inverseStep_ = 0.0;
     size_t lastInterval_ = 0;  // entries - 2: the last interval a lookup may start in
-    std::vector<double> nearTable_, farTable_;  // / pi, interleaved RGB on [0, r2]
+    std::vector<double> nearTable_, farTable_;  // / pi, k_ kernels interleaved, on [0, r2]
     std::vector<glm::vec3> samplePosition_;
     std::vector<float> cellArea_, cellRadius_;
     std::vector<uint32_t> subOffset_;  // sampleCount + 1

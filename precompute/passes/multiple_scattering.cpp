@@ -361,26 +361,28 @@ size_t SampleTree::sampleBytes() const {
 
 namespace {
 
-struct Dipoles {
-    DipoleChannel channel[3];
-    explicit Dipoles(const Material& m) {
-        validateMaterial(m);
-        for (int c = 0; c < 3; ++c) channel[c] = makeDipoleChannel(m, c);
-    }
-    // R_d^c(r) / pi for the three channels.
-    void weights(double r, double w[3]) const {
-        for (int c = 0; c < 3; ++c) w[c] = dipoleRd(channel[c], r) / kPi;
-    }
-};
+// k_c(r) / pi for every kernel.
+inline void kernelWeights(const RadialKernels& kernels, double r, double* w) {
+    kernels.evaluate(r, w);
+    for (int c = 0; c < kernels.count(); ++c) w[c] /= kPi;
+}
 
-inline void accumulate(std::span<const Entry> entries, const double w[3], double* acc) {
-    const double w0 = w[0], w1 = w[1], w2 = w[2];
+inline void accumulate(std::span<const Entry> entries, const double* w, int count, double* acc) {
+    if (count == 3) {
+        const double w0 = w[0], w1 = w[1], w2 = w[2];
+        for (const Entry& e : entries) {
+            double* d = acc + size_t(e.index) * 3;
+            const double v = e.value;
+            d[0] += w0 * v;
+            d[1] += w1 * v;
+            d[2] += w2 * v;
+        }
+        return;
+    }
     for (const Entry& e : entries) {
-        double* d = acc + size_t(e.index) * 3;
+        double* d = acc + size_t(e.index) * size_t(count);
         const double v = e.value;
-        d[0] += w0 * v;
-        d[1] += w1 * v;
-        d[2] += w2 * v;
+        for (int c = 0; c < count; ++c) d[c] += w[c] * v;
     }
 }
 
@@ -435,9 +437,26 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                                                       MultipleScatteringStats* stats,
                                                       Progress* progress,
                                                       const CellQuadrature* cells) {
+    return multipleScatteringTransport(tree, vertices, RadialKernels(material), options, texelCount, stats, progress,
+                                       cells);
+}
+
+std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
+                                                      std::span<const glm::vec3> vertices,
+                                                      const RadialKernels& kernels,
+                                                      const HierarchyOptions& options,
+                                                      size_t texelCount,
+                                                      MultipleScatteringStats* stats,
+                                                      Progress* progress,
+                                                      const CellQuadrature* cells) {
     const Stopwatch start;
-    const Dipoles dipoles(material);
-    if (cells) checkCells(tree, *cells);
+    const int K = kernels.count();
+    if (cells) {
+        checkCells(tree, *cells);
+        if (cells->kernels().count() != K)
+            throw Error("hierarchy", "the cell quadrature integrates " + std::to_string(cells->kernels().count()) +
+                                         " kernels, pass 2 " + std::to_string(K));
+    }
     // With cells, a node is used whole only when no sample's cell reaches into the near
     // field (cell_quadrature.h), where the far kernel is not R_d.
     const float nearReach = cells ? float(cells->outerRadius()) + cells->maxCellRadius() : 0.0f;
@@ -472,7 +491,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
     std::vector<SparseVector> result(vertices.size());
     std::vector<VertexCounters> counters(vertices.size());
 
-    // A dense RGB accumulator of doubles per thread, (6 N^2 + shTerms) x 3: as fast as
+    // A dense accumulator of doubles per thread, (6 N^2 + shTerms) x K: as fast as
     // floats (the scattered additions are bound by reading the node sums) and closer to
     // the brute force (docs/performance.md, "Pass 2 design measurements"). It is cleared
     // with one fill: tracking the touched entries would test every scattered addition,
@@ -486,9 +505,9 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
 
     tbb::parallel_for(tbb::blocked_range<size_t>(0, vertices.size(), 8), [&](const tbb::blocked_range<size_t>& r) {
         Scratch& s = scratch.local();
-        if (s.acc.size() != spaceCount * 3) {
-            s.acc.assign(spaceCount * 3, 0.0);
-            s.rounded.assign(spaceCount * 3, 0.0f);
+        if (s.acc.size() != spaceCount * size_t(K)) {
+            s.acc.assign(spaceCount * size_t(K), 0.0);
+            s.rounded.assign(spaceCount * size_t(K), 0.0f);
         }
         double* acc = s.acc.data();
         for (size_t o = r.begin(); o < r.end(); ++o) {
@@ -497,7 +516,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
             VertexCounters& count = counters[v];
             s.stack.clear();
             s.stack.push_back(0);
-            double w[3];
+            double w[kMaxRadialKernels];
             while (!s.stack.empty()) {
                 const uint32_t ni = s.stack.back();
                 s.stack.pop_back();
@@ -506,8 +525,8 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                 const double d = distance(x, node.centroid);
                 if (!insideWithMargin(node, x) && double(node.area) < epsilon * d * d &&
                     (!cells || boxDistanceSquared(node, x) >= nearReach2)) {
-                    dipoles.weights(d, w);
-                    accumulate(tree.nodeSum(ni), w, acc);
+                    kernelWeights(kernels, d, w);
+                    accumulate(tree.nodeSum(ni), w, K, acc);
                     ++count.used;
                 } else if (node.isLeaf()) {
                     for (uint32_t k = node.first; k < node.first + node.count; ++k) {
@@ -516,11 +535,11 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                             const double area = sampleAreas[k];
                             if (area <= 0.0) continue;
                             cells->sampleWeightOverPi(originalIndex[k], x, w);
-                            for (double& wc : w) wc /= area;
+                            for (int c = 0; c < K; ++c) w[c] /= area;
                         } else {
-                            dipoles.weights(distance(x, positions[k]), w);
+                            kernelWeights(kernels, distance(x, positions[k]), w);
                         }
-                        accumulate(tree.sampleEntries(k), w, acc);
+                        accumulate(tree.sampleEntries(k), w, K, acc);
                     }
                     count.samples += node.count;
                 } else {
@@ -530,7 +549,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
             }
             std::copy(s.acc.begin(), s.acc.end(), s.rounded.begin());
             std::fill(s.acc.begin(), s.acc.end(), 0.0);
-            result[v] = truncateWithShPart(s.rounded.data(), texelCount, 3, options.shTerms,
+            result[v] = truncateWithShPart(s.rounded.data(), texelCount, K, options.shTerms,
                                            options.vertexCoefficients, &count.retained);
         }
         if (progress) progress->advance(r.size());
@@ -561,7 +580,18 @@ std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
                                                        size_t texelCount,
                                                        size_t vertexCoefficients,
                                                        const CellQuadrature* cells, int shTerms) {
-    const Dipoles dipoles(material);
+    return multipleScatteringBruteForce(cloud, vertices, RadialKernels(material), texelCount, vertexCoefficients, cells,
+                                        shTerms);
+}
+
+std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
+                                                       std::span<const glm::vec3> vertices,
+                                                       const RadialKernels& kernels,
+                                                       size_t texelCount,
+                                                       size_t vertexCoefficients,
+                                                       const CellQuadrature* cells, int shTerms) {
+    const int K = kernels.count();
+    if (cells && cells->kernels().count() != K) throw Error("hierarchy", "the cell quadrature's kernels are not pass 2's");
     if (cells && cells->sampleCount() != cloud.positions.size()) {
         throw Error("hierarchy", "the cell quadrature's samples are not the cloud's");
     }
@@ -583,21 +613,25 @@ std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
     }
     std::vector<SparseVector> result(vertices.size());
     tbb::parallel_for(size_t(0), vertices.size(), [&](size_t v) {
-        std::vector<double> acc((texelCount + size_t(shTerms)) * 3, 0.0);
+        std::vector<double> acc((texelCount + size_t(shTerms)) * size_t(K), 0.0);
         for (size_t i = 0; i < n; ++i) {
             const double r = distance(vertices[v], cloud.positions[i]);
             const SparseVector& e = cloud.irradianceTransport[i];
-            double cellWeight[3] = {0.0, 0.0, 0.0};
-            if (cells) cells->sampleWeightOverPi(i, vertices[v], cellWeight);
-            for (int c = 0; c < 3; ++c) {
-                const double w = cells ? cellWeight[c] : double(cloud.areas[i]) * dipoleRd(dipoles.channel[c], r) / kPi;
+            double weight[kMaxRadialKernels];
+            if (cells) {
+                cells->sampleWeightOverPi(i, vertices[v], weight);
+            } else {
+                kernels.evaluate(r, weight);
+                for (int c = 0; c < K; ++c) weight[c] = double(cloud.areas[i]) * weight[c] / kPi;
+            }
+            for (int c = 0; c < K; ++c) {
                 for (size_t k = 0; k < e.index.size(); ++k) {
-                    acc[size_t(e.index[k]) * 3 + size_t(c)] += w * double(e.value[k]);
+                    acc[size_t(e.index[k]) * size_t(K) + size_t(c)] += weight[c] * double(e.value[k]);
                 }
             }
         }
         std::vector<float> dense(acc.begin(), acc.end());
-        result[v] = truncateWithShPart(dense.data(), texelCount, 3, shTerms, vertexCoefficients);
+        result[v] = truncateWithShPart(dense.data(), texelCount, K, shTerms, vertexCoefficients);
     });
     return result;
 }

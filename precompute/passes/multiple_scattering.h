@@ -35,6 +35,7 @@
 #include "common/bssrdf.h"
 #include "common/haar.h"
 #include "common/progress.h"
+#include "precompute/passes/radial_kernels.h"
 
 #include <glm/glm.hpp>
 
@@ -198,6 +199,18 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                                                       MultipleScatteringStats* stats = nullptr,
                                                       Progress* progress = nullptr,
                                                       const CellQuadrature* cells = nullptr);
+// The same against any kernel set (radial_kernels.h): K = kernels.count() channels per
+// vertex vector, V_o^c = sum_i w_i^c(x_o) E_i / pi with kernel c in place of R_d^c
+// (the material overload is RadialKernels(material)). With cells, they must integrate
+// the same number of kernels (prt::Error otherwise).
+std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
+                                                      std::span<const glm::vec3> vertices,
+                                                      const RadialKernels& kernels,
+                                                      const HierarchyOptions& options,
+                                                      size_t texelCount,
+                                                      MultipleScatteringStats* stats = nullptr,
+                                                      Progress* progress = nullptr,
+                                                      const CellQuadrature* cells = nullptr);
 
 // The slow, obvious reference: for each vertex, sum over ALL samples of
 // A_i R_d^c(|x_i - x_o|) / pi E_i (with cells: w_i^c(x_o) / pi E_i, the cell rule)
@@ -206,6 +219,13 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
 std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
                                                        std::span<const glm::vec3> vertices,
                                                        const Material& material,
+                                                       size_t texelCount,
+                                                       size_t vertexCoefficients,
+                                                       const CellQuadrature* cells = nullptr,
+                                                       int shTerms = 0);
+std::vector<SparseVector> multipleScatteringBruteForce(const SampleCloud& cloud,
+                                                       std::span<const glm::vec3> vertices,
+                                                       const RadialKernels& kernels,
                                                        size_t texelCount,
                                                        size_t vertexCoefficients,
                                                        const CellQuadrature* cells = nullptr,

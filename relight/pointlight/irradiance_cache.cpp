@@ -132,11 +132,6 @@ private:
     std::vector<int> occupied_;
 };
 
-Material validated(const Material& m) {
-    validateMaterial(m);
-    return m;
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------
@@ -145,8 +140,22 @@ Material validated(const Material& m) {
 
 IrradianceCache::IrradianceCache(const Material& material, IrradianceOctree tree,
                                  const IrradianceCacheOptions& options)
-    : material_(validated(material)), tree_(std::move(tree)), options_(options) {
+    : tree_(std::move(tree)), options_(options) {
+    validateMaterial(material);
     validateCacheOptions(options_);
+    for (const IrradianceOctree::Sample& s : tree_.samples()) maxE_ = glm::max(maxE_, glm::dvec3(s.irradiance));
+    applyMaterial(material);
+}
+
+void IrradianceCache::setMaterial(const Material& material) {
+    validateMaterial(material);
+    requireIrradianceEta(material_.eta, material.eta);
+    applyMaterial(material);
+}
+
+void IrradianceCache::applyMaterial(const Material& material) {
+    material_ = material;
+    caches_.clear();  // S, grad S and the validity radii were the old material's
     radius_ = options_.radius > 0.0 ? options_.radius : defaultSplitDiskRadius(material_);
 
     // The lanes exactly as DipoleRGB builds them (same float values: S is then summed
@@ -156,9 +165,8 @@ IrradianceCache::IrradianceCache(const Material& material, IrradianceOctree tree
         sigma_[lane] = 0.0f;
         k_[lane] = 0.0f;
     }
-    glm::dvec3 maxE(0.0);
-    for (const IrradianceOctree::Sample& s : tree_.samples()) maxE = glm::max(maxE, glm::dvec3(s.irradiance));
     double gMax = 0.0;
+    sRef_ = 0.0;
     for (int c = 0; c < 3; ++c) {
         const DipoleChannel d = makeDipoleChannel(material_, c);
         for (int s = 0; s < 2; ++s) {
@@ -169,7 +177,7 @@ IrradianceCache::IrradianceCache(const Material& material, IrradianceOctree tree
         }
         gFactor_[c] = splitDiskGradientFactor(d, radius_, options_.splitDisk);
         gMax = std::max(gMax, gFactor_[c]);
-        sRef_ = std::max(sRef_, maxE[c] * dipoleTotalDiffuseReflectance(d));
+        sRef_ = std::max(sRef_, maxE_[c] * dipoleTotalDiffuseReflectance(d));
     }
     if (!(sRef_ > 0.0)) sRef_ = 1.0;  // no light at all: every S is 0, any scale will do
     gFloor_ = 1e-3 * sRef_ * gMax;

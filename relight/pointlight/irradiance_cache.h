@@ -71,6 +71,16 @@
 // order, so the image, the caches and the statistics do not depend on the number of
 // threads (tested bit for bit).
 //
+// MATERIAL. The octree (pass 1) depends on the lights and eta only and is kept by
+// setMaterial; everything else of the cache depends on the material and is rebuilt by
+// it: the dipole lanes, the default split-disk radius R (an explicit options.radius
+// stays), G^c(R), S_ref (from the brightest sample irradiance, kept, and the new
+// Rtot), the floor of g and a S_ref. The caches of the last render are dropped (S,
+// grad S, V's radius and the validity radii all depend on the material): the next
+// render() makes new ones, so a cache after setMaterial(B) renders exactly as one
+// constructed with B. eta is fixed at construction (requireIrradianceEta,
+// point_lights.h). A size change is a material change (common/material_edit.h).
+//
 // THE CACHE LOOK-UP. Caches live in a multi-level hash grid (CacheGrid): level l has
 // cubic cells of size h_l = 2R / 2^l; a cache of validity radius r is stored at the
 // deepest level with h_l >= 2r, in each of the (at most 8) cells its ball overlaps,
@@ -158,6 +168,13 @@ public:
     // material and the options (validateCacheOptions).
     IrradianceCache(const Material& material, IrradianceOctree tree, const IrradianceCacheOptions& options = {});
 
+    // Replaces the material, keeping the tree (see MATERIAL above); costs the split-disk
+    // factors (the exact model integrates numerically: about a millisecond). Throws
+    // prt::Error for an invalid material or another eta than the constructor's (the
+    // cache is then unchanged).
+    void setMaterial(const Material& material);
+    const Material& material() const { return material_; }
+
     // S, grad S (per channel) and V at x by one walk; *terms receives the term count.
     // s is bit-identical to JensenBuhler(material, tree, {epsilon}).exitance(x).
     void evaluate(const glm::dvec3& x, glm::dvec3& s, glm::dvec3 gradient[3], glm::dvec3& v,
@@ -175,8 +192,11 @@ public:
     const glm::dvec3& gradientFactor() const { return gFactor_; }  // G^c(R)
 
 private:
+    void applyMaterial(const Material& material);
+
     Material material_;
     IrradianceOctree tree_;
+    glm::dvec3 maxE_{0.0};  // the brightest sample irradiance per channel (S_ref's)
     IrradianceCacheOptions options_;
     double radius_ = 0.0, sRef_ = 0.0, gFloor_ = 0.0, validScale_ = 0.0;  // validScale = a S_ref
     glm::dvec3 gFactor_{0.0};

@@ -222,6 +222,13 @@ JensenBuhler::JensenBuhler(const Material& material, IrradianceOctree tree, cons
     validateEpsilon(options.epsilon);
 }
 
+void JensenBuhler::setMaterial(const Material& material) {
+    validateMaterial(material);
+    requireIrradianceEta(material_.eta, material.eta);
+    material_ = material;
+    dipole_ = DipoleRGB(material_);
+}
+
 glm::dvec3 JensenBuhler::exitance(const glm::dvec3& x, size_t* terms) const {
     glm::dvec3 m(0.0);
     const size_t n = tree_.traverse(x, options_.epsilon, [&](const glm::dvec3& p, double area, const glm::dvec3& e) {

@@ -39,8 +39,16 @@
 // Larger epsilon means fewer, coarser terms; 0.05 is the default (as the
 // precompute's kd-tree, precompute/passes/multiple_scattering.h).
 //
+// MATERIAL. The octree (positions, areas, irradiance) depends on the lights and on eta
+// only; the material enters through R_d alone. setMaterial replaces the dipole
+// constants (DipoleRGB) and keeps the tree, so it costs microseconds, and a renderer
+// after setMaterial(B) renders exactly as one constructed with B. eta is fixed at
+// construction (the tree's transmitted irradiance was computed with it): another eta is
+// refused (requireIrradianceEta, point_lights.h). A size change is a material change
+// (common/material_edit.h, scaledMaterial).
+//
 // Threads: the octree is immutable after construction; every query is const and may
-// run concurrently. Construction is serial and deterministic; render() is parallel over
+// run concurrently (setMaterial is not: call it between renders). Construction is serial and deterministic; render() is parallel over
 // rows and deterministic (every pixel is summed serially in a fixed order).
 
 #include <glm/glm.hpp>
@@ -154,6 +162,11 @@ class JensenBuhler {
 public:
     // The tree is taken by value (std::move it in). Validates the material and epsilon.
     JensenBuhler(const Material& material, IrradianceOctree tree, const JensenBuhlerOptions& options = {});
+
+    // Replaces the material, keeping the tree (see MATERIAL above). Throws prt::Error
+    // for an invalid material or another eta than the constructor's (the renderer is
+    // then unchanged).
+    void setMaterial(const Material& material);
 
     // M(x), W/m^2 per channel; *terms (optional) receives the number of terms summed.
     glm::dvec3 exitance(const glm::dvec3& x, size_t* terms = nullptr) const;

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "common/error.h"
+#include "common/material_edit.h"
 #include "common/util.h"
 
 namespace prt {
@@ -46,27 +47,44 @@ LitSamples lightSamples(const IrradianceSamples& placed, const RayScene& scene, 
     return lit;
 }
 
-PointFrame renderPointFrame(const IrradianceOctree& tree, const GBuffer& g, const PointRenderSettings& s,
-                            bool wantVisuals) {
-    PointFrame f;
+PointFrameRenderer::PointFrameRenderer(IrradianceOctree tree, const PointRenderSettings& s) : settings_(s) {
     if (s.method == PointMethod::TextureSpace)
-        throw Error("--method", "tsis renders single frames only (its animations run in prt-relight view)");
-    if (s.method == PointMethod::Cache) {
-        IrradianceCache cache(s.material, tree,
-                              {.a = s.a, .radius = s.radius, .epsilon = s.epsilon, .fresnel = s.fresnel,
-                               .splitDisk = s.splitDisk});
-        const Stopwatch t;
-        f.image = cache.render(g, &f.cacheStats, wantVisuals ? &f.visuals : nullptr);
+        throw Error("--method", "tsis renders through TextureSpaceRenderer (it needs a surface atlas)");
+    if (s.method == PointMethod::Cache)
+        cache_.emplace(s.material, std::move(tree),
+                       IrradianceCacheOptions{.a = s.a, .radius = s.radius, .epsilon = s.epsilon, .fresnel = s.fresnel,
+                                              .splitDisk = s.splitDisk});
+    else
+        jb_.emplace(s.material, std::move(tree),
+                    JensenBuhlerOptions{.epsilon = s.method == PointMethod::Brute ? 0.0 : s.epsilon,
+                                        .fresnel = s.fresnel});
+}
+
+void PointFrameRenderer::setMaterial(const Material& material) {
+    if (cache_) cache_->setMaterial(material);
+    else jb_->setMaterial(material);
+    settings_.material = material;
+}
+
+PointFrame PointFrameRenderer::render(const GBuffer& g, bool wantVisuals) {
+    PointFrame f;
+    const Stopwatch t;
+    if (cache_) {
+        f.image = cache_->render(g, &f.cacheStats, wantVisuals ? &f.visuals : nullptr);
         f.renderSeconds = t.seconds();
-        f.caches = cache.caches();
+        f.caches = cache_->caches();
     } else {
-        const JensenBuhler jb(s.material, tree,
-                              {.epsilon = s.method == PointMethod::Brute ? 0.0 : s.epsilon, .fresnel = s.fresnel});
-        const Stopwatch t;
-        f.image = jb.render(g, &f.jbStats);
+        f.image = jb_->render(g, &f.jbStats);
         f.renderSeconds = t.seconds();
     }
     return f;
+}
+
+PointFrame renderPointFrame(const IrradianceOctree& tree, const GBuffer& g, const PointRenderSettings& s,
+                            bool wantVisuals) {
+    if (s.method == PointMethod::TextureSpace)
+        throw Error("--method", "tsis renders single frames only (its animations run in prt-relight view)");
+    return PointFrameRenderer(tree, s).render(g, wantVisuals);
 }
 
 // ---------------------------------------------------------------------------
@@ -74,6 +92,11 @@ PointFrame renderPointFrame(const IrradianceOctree& tree, const GBuffer& g, cons
 // ---------------------------------------------------------------------------
 
 namespace {
+
+// t = k / (N - 1) of the light and material paths (0 for a single frame).
+double pathT(const PointAnimation& a, int frame) {
+    return a.frames > 1 ? double(frame) / double(a.frames - 1) : 0.0;
+}
 
 glm::dvec3 parsePoint(const std::string& text, const std::string& full) {
     glm::dvec3 p(0.0);
@@ -106,9 +129,46 @@ void parseLightPath(const std::string& text, glm::dvec3& from, glm::dvec3& to) {
     to = parsePoint(text.substr(colon + 1), text);
 }
 
+void parseSizePath(const std::string& text, double& s0, double& s1) {
+    const std::vector<std::string> parts = splitText(text, ':');
+    if (parts.size() != 2)
+        throw Error("--size-path", "expected S0:S1 (two sizes in mm separated by ':'), got '" + text + "'");
+    double s[2];
+    for (int i = 0; i < 2; ++i) {
+        const std::vector<double> v = parseNumberList(parts[size_t(i)], "--size-path", "size S0:S1");
+        if (v.size() != 1)
+            throw Error("--size-path", "expected S0:S1 (one number per size, mm), got '" + text + "'");
+        if (!std::isfinite(v[0]) || !(v[0] > 0.0))
+            throw Error("--size-path", "sizes must be finite and > 0 mm, got '" + text + "'");
+        s[i] = v[0];
+    }
+    s0 = s[0];
+    s1 = s[1];
+}
+
 void validateAnimation(const PointAnimation& a, const std::vector<Light>& lights) {
     if (a.kind == AnimationKind::None) return;
     const char* option = a.kind == AnimationKind::Turntable ? "--turntable" : "--frames";
+    if (a.kind == AnimationKind::MaterialPath) {
+        if (a.frames < 2)
+            throw Error("--frames", "a material or size path needs N >= 2 frames (t = k / (N - 1)), got " +
+                                        std::to_string(a.frames));
+        if (!a.materials && !a.sizesMm)
+            throw Error("--material-path", "a material animation needs --material-path A:B and/or --size-path S0:S1");
+        if (a.materials) {
+            validateMaterial(a.materials->first);
+            validateMaterial(a.materials->second);
+            if (a.materials->first.eta != a.materials->second.eta)
+                throw Error("--material-path", "both ends need the same eta (the irradiance is computed once)");
+        }
+        if (a.sizesMm) {
+            for (const double s : {a.sizesMm->first, a.sizesMm->second})
+                if (!std::isfinite(s) || !(s > 0.0)) throw Error("--size-path", "sizes must be finite and > 0 mm");
+            if (!std::isfinite(a.geometrySizeMm) || !(a.geometrySizeMm > 0.0))
+                throw Error("--size-path", "the mesh's own size must be finite and > 0 mm");
+        }
+        return;
+    }
     if (a.frames < 1) throw Error(option, "the frame count must be at least 1, got " + std::to_string(a.frames));
     if (a.kind == AnimationKind::LightPath) {
         for (int i = 0; i < 3; ++i)
@@ -131,11 +191,32 @@ Camera animationCamera(const PointAnimation& a, const Camera& base, const glm::d
 std::vector<Light> animationLights(const PointAnimation& a, const std::vector<Light>& lights, int frame) {
     if (a.kind != AnimationKind::LightPath || lights.empty()) return lights;
     std::vector<Light> out = lights;
-    const double t = a.frames > 1 ? double(frame) / double(a.frames - 1) : 0.0;
+    const double t = pathT(a, frame);
     // (1 - t) P0 + t P1: exactly P0 at t = 0 and exactly P1 at t = 1.
     out.front().position = (1.0 - t) * a.from + t * a.to;
     out.front().source = "--light-path (frame " + std::to_string(frame) + ", light 1)";
     return out;
+}
+
+Material animationMaterial(const PointAnimation& a, const Material& base, int frame) {
+    if (a.kind != AnimationKind::MaterialPath) return base;
+    const double t = pathT(a, frame);
+    // (1 - t) A + t B: exactly A at t = 0 and exactly B at t = 1.
+    Material m = base;
+    if (a.materials) {
+        m = lerpMaterial(a.materials->first, a.materials->second, t);
+        // (1 - t) eta + t eta is not eta in floating point for every t: the ends share
+        // eta (validateAnimation), and the irradiance was computed with exactly it.
+        m.eta = a.materials->first.eta;
+    }
+    if (a.sizesMm) m = scaledMaterial(m, animationSizeMm(a, frame) / a.geometrySizeMm);
+    return m;
+}
+
+double animationSizeMm(const PointAnimation& a, int frame) {
+    if (a.kind != AnimationKind::MaterialPath || !a.sizesMm) return a.geometrySizeMm;
+    const double t = pathT(a, frame);
+    return (1.0 - t) * a.sizesMm->first + t * a.sizesMm->second;
 }
 
 std::string animationFrameName(const std::string& prefix, int frame) {
@@ -151,6 +232,37 @@ void renderAnimation(const PointAnimation& a, const TriangleMesh& mesh, const Ra
     const int count = a.kind == AnimationKind::None ? 1 : a.frames;
     // A light path may pass through the object: refuse before rendering anything.
     for (int k = 0; k < count; ++k) checkLightsOutside(scene, animationLights(a, lights, k));
+
+    if (a.kind == AnimationKind::MaterialPath) {
+        // Pass 1 and the G-buffer once, one renderer whose material changes per frame.
+        PointRenderSettings first = settings;
+        first.material = animationMaterial(a, settings.material, 0);
+        LitSamples lit = lightSamples(placed, scene, lights, first);
+        const Stopwatch t;
+        const GBuffer g = traceGBuffer(scene, mesh, baseCamera);
+        const double gbufferSeconds = t.seconds();
+        PointFrameRenderer renderer(std::move(*lit.tree), first);
+        for (int k = 0; k < count; ++k) {
+            AnimationFrameInfo info;
+            info.frame = k;
+            info.camera = baseCamera;
+            info.lights = lights;
+            info.material = animationMaterial(a, settings.material, k);
+            info.sizeMm = animationSizeMm(a, k);
+            if (k == 0) {
+                info.irradianceSeconds = lit.irradianceSeconds;
+                info.octreeSeconds = lit.octreeSeconds;
+                info.gbufferSeconds = gbufferSeconds;
+            }
+            const Stopwatch m;
+            renderer.setMaterial(info.material);
+            info.materialSeconds = m.seconds();
+            info.hitPixels = g.objectPixels();
+            PointFrame frame = renderer.render(g);
+            sink(info, frame);
+        }
+        return;
+    }
 
     // Turntable: pass 1 once (lights fixed in the object's frame). Light path: the
     // camera is fixed, so one G-buffer.
@@ -197,6 +309,29 @@ void renderAnimation(const PointAnimation& a, const TriangleMesh& mesh, const Ra
         info.hitPixels = g->objectPixels();
 
         PointFrame frame = renderPointFrame(*lit->tree, *g, settings);
+        sink(info, frame);
+    }
+}
+
+void renderTextureSpaceAnimation(const PointAnimation& a, TextureSpaceRenderer& renderer, const GBuffer& g,
+                                 bool perVertex, const Material& base, const AnimationSink& sink) {
+    if (a.kind != AnimationKind::MaterialPath)
+        throw Error("--method", "tsis animates the material and size only (--material-path / --size-path); move "
+                                "its lights interactively in prt-relight view");
+    validateAnimation(a, {});
+    for (int k = 0; k < a.frames; ++k) {
+        AnimationFrameInfo info;
+        info.frame = k;
+        info.material = animationMaterial(a, base, k);
+        info.sizeMm = animationSizeMm(a, k);
+        const Stopwatch m;
+        renderer.setMaterial(info.material);
+        info.materialSeconds = m.seconds();
+        info.hitPixels = g.objectPixels();
+        PointFrame frame;
+        const Stopwatch t;
+        frame.image = perVertex ? renderer.renderPerVertex(g) : renderer.render(g);
+        frame.renderSeconds = t.seconds();
         sink(info, frame);
     }
 }

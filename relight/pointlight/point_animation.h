@@ -7,7 +7,7 @@
 // prt-pointlight's single render is exactly these calls, so an animation frame and a
 // single render with the same camera and lights are the same image.
 //
-// TWO ANIMATIONS (renderAnimation), frames <prefix>_0000, _0001, ...:
+// THREE ANIMATIONS (renderAnimation), frames <prefix>_0000, _0001, ...:
 //
 //   turntable N   the object turns 360 degrees about the vertical (+Y) axis through
 //                 its bounding-box centre, lights FIXED IN THE OBJECT'S FRAME; as in
@@ -32,6 +32,23 @@
 //                 camera and the mesh only). NOT reused: the irradiance (it depends on
 //                 the light), hence the octree (its nodes store mean irradiance), and
 //                 the caches (S, grad S and V are all sums of irradiance).
+//   material path (Chang et al. 2008, Fig. 11 and "dynamic light and material
+//                 properties"): the material and/or the object's size move linearly,
+//                 t = k / (N - 1), N >= 2: the coefficients by lerpMaterial(A, B, t)
+//                 and the size S_k = (1 - t) S_0 + t S_1 (mm) as a material,
+//                 scaledMaterial(m_k, S_k / S_geometry) (common/material_edit.h, SIZE
+//                 AS MATERIAL): the mesh stays at its placed size S_geometry, and the
+//                 lights, the camera and the irradiance stay attached to the object.
+//                 Frame 0 is exactly A at S_0, frame N-1 exactly B at S_1. Lights and
+//                 camera are fixed.
+//                 REUSED: everything that does not depend on sigma_a / sigma_s': the
+//                 irradiance samples with their irradiance (eta is the same at every
+//                 frame: the two ends must share it) and their octree, the G-buffer,
+//                 and the renderer itself (PointFrameRenderer::setMaterial, or for
+//                 tsis TextureSpaceRenderer::setMaterial, which keeps the atlas, the
+//                 irradiance map, the draws and the shadow maps). NOT reused: the
+//                 caches (S, grad S and the validity radii depend on the material), the
+//                 R_d tables, R_p and the local filter (tsis).
 //
 // Every frame is computed from scratch apart from the reused items above, with the
 // same code as a single render, so reuse changes times, never pixels (tested).
@@ -41,6 +58,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/bssrdf.h"
@@ -51,13 +69,15 @@
 #include "relight/pointlight/irradiance_cache.h"
 #include "relight/pointlight/jensen_buhler.h"
 #include "relight/pointlight/point_lights.h"
+#include "relight/pointlight/texture_space_sampling.h"
 #include "relight/render/gbuffer.h"
 
 namespace prt {
 
 // TextureSpace (Chang et al. 2008) renders through TextureSpaceRenderer
 // (texture_space_sampling.h), which needs a surface atlas: prt-pointlight calls it
-// directly; renderPointFrame and the animations refuse it.
+// directly; renderPointFrame and renderAnimation refuse it, and its material path is
+// renderTextureSpaceAnimation.
 enum class PointMethod { Cache, JensenBuhler, Brute, TextureSpace };
 const char* toString(PointMethod method);  // "cache", "jb", "brute", "tsis"
 // "cache", "jb", "brute" or "tsis" (case-insensitive); prt::Error("--method", ...) otherwise.
@@ -92,25 +112,54 @@ struct PointFrame {
     CacheVisuals visuals;                // method cache with wantVisuals
     JensenBuhlerStats jbStats;           // methods jb and brute
 };
+// Passes 2-3 (or the JB / brute sum) for one lit tree, kept between frames whose
+// material changes: the renderer (IrradianceCache or JensenBuhler) owns the tree, and
+// setMaterial rebuilds only what depends on the material (irradiance_cache.h,
+// jensen_buhler.h). Throws prt::Error("--method", ...) for tsis.
+class PointFrameRenderer {
+public:
+    PointFrameRenderer(IrradianceOctree tree, const PointRenderSettings& settings);
+    // Throws prt::Error for an invalid material or another eta than settings.material's.
+    void setMaterial(const Material& material);
+    const Material& material() const { return settings_.material; }
+    PointFrame render(const GBuffer& g, bool wantVisuals = false);
+
+private:
+    PointRenderSettings settings_;
+    std::optional<IrradianceCache> cache_;
+    std::optional<JensenBuhler> jb_;
+};
+
 // Passes 2-3 (or the JB / brute sum) over g, with a copy of `tree` (the renderers own
-// theirs, and the caller's tree stays reusable).
+// theirs, and the caller's tree stays reusable): PointFrameRenderer(tree, settings).render.
 PointFrame renderPointFrame(const IrradianceOctree& tree, const GBuffer& g, const PointRenderSettings& settings,
                             bool wantVisuals = false);
 
 // --- animation -----------------------------------------------------------------------
 
-enum class AnimationKind { None, Turntable, LightPath };
+enum class AnimationKind { None, Turntable, LightPath, MaterialPath };
 
 struct PointAnimation {
     AnimationKind kind = AnimationKind::None;
     int frames = 0;
     glm::dvec3 from{0.0}, to{0.0};  // LightPath: the first light at frame 0 and frame N-1, mm
+    // MaterialPath: the materials at frame 0 and N-1 (none: the settings' material at
+    // every frame) and the sizes S_0, S_1 in mm (none: the geometry's size at every
+    // frame); at least one of the two. geometrySizeMm: the size the mesh is placed at
+    // (prt-pointlight's --size-mm, or its bounding-box diagonal with --mm-per-unit).
+    std::optional<std::pair<Material, Material>> materials{};
+    std::optional<std::pair<double, double>> sizesMm{};
+    double geometrySizeMm = 0.0;
 };
 
 // "X0,Y0,Z0:X1,Y1,Z1" (mm) -> from, to; prt::Error("--light-path", ...) otherwise.
 void parseLightPath(const std::string& text, glm::dvec3& from, glm::dvec3& to);
-// frames >= 1; a light path needs a point light first in `lights`. One-line errors
-// naming --turntable / --frames / --light-path.
+// "S0:S1" (mm, finite and > 0) -> s0, s1; prt::Error("--size-path", ...) otherwise.
+void parseSizePath(const std::string& text, double& s0, double& s1);
+// frames >= 1 (>= 2 for a material path); a light path needs a point light first in
+// `lights`; a material path needs a material or a size path, sizes and the geometry's
+// size finite and > 0, and the same eta at both ends. One-line errors naming
+// --turntable / --frames / --light-path / --material-path / --size-path.
 void validateAnimation(const PointAnimation& animation, const std::vector<Light>& lights);
 
 // The frame's camera: turntableCamera(base, pivot, 360 k / N) for a turntable, base
@@ -119,6 +168,11 @@ Camera animationCamera(const PointAnimation& animation, const Camera& base, cons
 double turntableDegrees(const PointAnimation& animation, int frame);
 // The frame's lights: the first light moved along the path, the others unchanged.
 std::vector<Light> animationLights(const PointAnimation& animation, const std::vector<Light>& lights, int frame);
+// The frame's material: for a material path lerpMaterial(A, B, t) (or `base`), then
+// with a size path scaledMaterial(., S_k / geometrySizeMm); `base` otherwise.
+Material animationMaterial(const PointAnimation& animation, const Material& base, int frame);
+// The frame's object size in mm: S_k with a size path, geometrySizeMm otherwise.
+double animationSizeMm(const PointAnimation& animation, int frame);
 // <prefix>_0000 ... (as prt-relight render's sequences).
 std::string animationFrameName(const std::string& prefix, int frame);
 
@@ -127,8 +181,11 @@ struct AnimationFrameInfo {
     Camera camera;
     std::vector<Light> lights;
     double irradianceSeconds = 0.0, octreeSeconds = 0.0;  // 0 when reused (turntable after frame 0)
-    double gbufferSeconds = 0.0;                          // 0 when reused (light path after frame 0)
+    double gbufferSeconds = 0.0;                          // 0 when reused (light and material paths after frame 0)
     size_t hitPixels = 0;
+    Material material;           // the frame's (animationMaterial)
+    double sizeMm = 0.0;         // the frame's object size (animationSizeMm)
+    double materialSeconds = 0.0;  // the renderer's setMaterial (material path)
 };
 using AnimationSink = std::function<void(const AnimationFrameInfo&, PointFrame&)>;
 
@@ -138,5 +195,13 @@ using AnimationSink = std::function<void(const AnimationFrameInfo&, PointFrame&)
 void renderAnimation(const PointAnimation& animation, const TriangleMesh& mesh, const RayScene& scene,
                      const IrradianceSamples& placed, const std::vector<Light>& lights, const Camera& baseCamera,
                      const glm::dvec3& pivot, const PointRenderSettings& settings, const AnimationSink& sink);
+
+// --method tsis with a material path: `renderer` already lit (setLights: its irradiance
+// map, draws and shadow maps are reused by every frame) and the G-buffer g of the fixed
+// camera. Per frame: renderer.setMaterial(animationMaterial(animation, base, k)), then
+// render (per pixel) or renderPerVertex; info.camera and info.lights are left empty
+// (they are the caller's). Throws prt::Error("--method", ...) for any other kind.
+void renderTextureSpaceAnimation(const PointAnimation& animation, TextureSpaceRenderer& renderer, const GBuffer& g,
+                                 bool perVertex, const Material& base, const AnimationSink& sink);
 
 }  // namespace prt

@@ -22,48 +22,6 @@ namespace prt {
 namespace {
 
 
-std::string trim(const std::string& s) {
-    size_t a = 0, b = s.size();
-    while (a < b && std::isspace(static_cast<unsigned char>(s[a]))) ++a;
-    while (b > a && std::isspace(static_cast<unsigned char>(s[b - 1]))) --b;
-    return s.substr(a, b - a);
-}
-
-std::vector<std::string> split(const std::string& s, char sep) {
-    std::vector<std::string> parts;
-    size_t start = 0;
-    for (;;) {
-        const size_t end = s.find(sep, start);
-        parts.push_back(s.substr(start, end == std::string::npos ? std::string::npos : end - start));
-        if (end == std::string::npos) return parts;
-        start = end + 1;
-    }
-}
-
-std::string fmt3(const glm::dvec3& v) {
-    char buf[96];
-    std::snprintf(buf, sizeof buf, "%g, %g, %g", v.x, v.y, v.z);
-    return buf;
-}
-
-// A comma-separated list of numbers; `what` names the field in messages.
-std::vector<double> parseNumbers(const std::string& field, const std::string& subject, const char* what) {
-    std::vector<double> values;
-    for (const std::string& raw : split(field, ',')) {
-        const std::string t = trim(raw);
-        if (t.empty()) throw Error(subject, std::string("empty number in the ") + what);
-        double v = 0.0;
-        const char* first = t.data();
-        // from_chars takes no leading '+'; accept it as people write it.
-        if (*first == '+') ++first;
-        const auto [end, ec] = std::from_chars(first, t.data() + t.size(), v);
-        if (ec != std::errc() || end != t.data() + t.size())
-            throw Error(subject, std::string("'") + t + "' in the " + what + " is not a number");
-        values.push_back(v);
-    }
-    return values;
-}
-
 glm::dvec3 colourFrom(const std::vector<double>& v, const std::string& subject, const char* what) {
     if (v.size() == 1) return glm::dvec3(v[0]);
     if (v.size() == 3) return glm::dvec3(v[0], v[1], v[2]);
@@ -80,7 +38,7 @@ glm::dvec3 vectorFrom(const std::vector<double>& v, const std::string& subject, 
 void checkColour(const glm::dvec3& c, const std::string& subject, const char* what) {
     for (int i = 0; i < 3; ++i)
         if (!std::isfinite(c[i]) || c[i] < 0.0)
-            throw Error(subject, std::string("the ") + what + " must be finite and >= 0, got " + fmt3(c));
+            throw Error(subject, std::string("the ") + what + " must be finite and >= 0, got " + formatRgb(c, 6));
 }
 
 // A direction for the parity rays that is parallel to no axis, no face diagonal and
@@ -118,7 +76,7 @@ Light pointLight(const glm::dvec3& positionMm, const glm::dvec3& intensity, std:
     const std::string subject = source.empty() ? "light" : source;
     for (int i = 0; i < 3; ++i)
         if (!std::isfinite(positionMm[i]))
-            throw Error(subject, "the position must be finite, got " + fmt3(positionMm));
+            throw Error(subject, "the position must be finite, got " + formatRgb(positionMm, 6));
     checkColour(intensity, subject, "intensity (W/sr)");
     Light l;
     l.type = LightType::Point;
@@ -132,7 +90,7 @@ Light directionalLight(const glm::dvec3& towardLight, const glm::dvec3& irradian
     const std::string subject = source.empty() ? "light" : source;
     for (int i = 0; i < 3; ++i)
         if (!std::isfinite(towardLight[i]))
-            throw Error(subject, "the direction must be finite, got " + fmt3(towardLight));
+            throw Error(subject, "the direction must be finite, got " + formatRgb(towardLight, 6));
     const double len = glm::length(towardLight);
     if (!(len > 0.0) || !std::isfinite(len)) throw Error(subject, "the direction must not be zero");
     checkColour(irradiance, subject, "irradiance (W/m^2)");
@@ -146,19 +104,19 @@ Light directionalLight(const glm::dvec3& towardLight, const glm::dvec3& irradian
 
 Light parseLight(const std::string& text) {
     const std::string subject = "--light " + text;
-    const std::vector<std::string> fields = split(text, ':');
+    const std::vector<std::string> fields = splitText(text, ':');
     if (fields.size() != 3)
         throw Error(subject, "expected TYPE:X,Y,Z:R,G,B (TYPE point or dir), got " + std::to_string(fields.size()) +
                                  " ':'-separated fields");
     const std::string type = toLower(trim(fields[0]));
     if (type == "point") {
-        const glm::dvec3 p = vectorFrom(parseNumbers(fields[1], subject, "position"), subject, "position");
-        const glm::dvec3 c = colourFrom(parseNumbers(fields[2], subject, "intensity"), subject, "intensity");
+        const glm::dvec3 p = vectorFrom(parseNumberList(fields[1], subject, "position"), subject, "position");
+        const glm::dvec3 c = colourFrom(parseNumberList(fields[2], subject, "intensity"), subject, "intensity");
         return pointLight(p, c, subject);
     }
     if (type == "dir" || type == "directional") {
-        const glm::dvec3 d = vectorFrom(parseNumbers(fields[1], subject, "direction"), subject, "direction");
-        const glm::dvec3 c = colourFrom(parseNumbers(fields[2], subject, "irradiance"), subject, "irradiance");
+        const glm::dvec3 d = vectorFrom(parseNumberList(fields[1], subject, "direction"), subject, "direction");
+        const glm::dvec3 c = colourFrom(parseNumberList(fields[2], subject, "irradiance"), subject, "irradiance");
         return directionalLight(d, c, subject);
     }
     throw Error(subject, "unknown light type '" + trim(fields[0]) + "' (valid: point, dir)");
@@ -259,7 +217,7 @@ void checkLightsOutside(const RayScene& scene, const std::vector<Light>& lights)
         if (l.type != LightType::Point) continue;
         if (insideClosedSurface(scene, l.position))
             throw Error(l.source.empty() ? "light " + std::to_string(i + 1) : l.source,
-                        "the point light at (" + fmt3(l.position) +
+                        "the point light at (" + formatRgb(l.position, 6) +
                             ") mm is inside the object; light sources must be outside it");
     }
 }
@@ -479,6 +437,16 @@ void computeIrradiance(const IrradianceSamples& samples, const RayScene& scene, 
         for (size_t b = 0; b < blocks; ++b)
             for (size_t li = 0; li < lights.size(); ++li) (*lightPower)[li] += blockPower[b * lights.size() + li];
     }
+}
+
+void requireIrradianceEta(double irradianceEta, double materialEta) {
+    if (materialEta == irradianceEta) return;
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  "eta %.6g differs from the %.6g the irradiance was computed with; a new eta needs new irradiance "
+                  "(a new renderer)",
+                  materialEta, irradianceEta);
+    throw Error("material", buf);
 }
 
 }  // namespace prt

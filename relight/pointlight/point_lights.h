@@ -177,4 +177,10 @@ void computeIrradiance(const IrradianceSamples& samples, const RayScene& scene, 
                        double eta, FresnelModel model, std::vector<glm::vec3>& irradiance,
                        std::vector<glm::dvec3>* lightPower = nullptr);
 
+// The check of every renderer's setMaterial (texture_space_sampling.h, jensen_buhler.h,
+// irradiance_cache.h): the transmitted irradiance was computed with `irradianceEta`, so a
+// material with another eta would pair new Fresnel factors on the way out with old ones
+// on the way in. Throws prt::Error("material", ...) (one line) when the etas differ.
+void requireIrradianceEta(double irradianceEta, double materialEta);
+
 }  // namespace prt

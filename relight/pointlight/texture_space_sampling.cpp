@@ -47,27 +47,43 @@ void validateTextureSpaceOptions(const TextureSpaceOptions& o) {
 
 TextureSpaceRenderer::TextureSpaceRenderer(const TriangleMesh& mesh, const RayScene& scene, const SurfaceAtlas& atlas,
                                            const Material& material, const TextureSpaceOptions& options)
-    : mesh_(&mesh), scene_(&scene), atlas_(&atlas), material_(material), options_(options) {
-    validateMaterial(material_);
+    : mesh_(&mesh), scene_(&scene), atlas_(&atlas), options_(options) {
+    validateMaterial(material);
     validateTextureSpaceOptions(options_);
     if (atlas.samples.size() == 0) throw Error("atlas", "the atlas holds no surface");
     sphere_ = boundingSphere(mesh);
+    buildMaterialState(material);
+
+    vertexOrder_ = mortonOrder(mesh.positions, "mesh");
+    orderedPositions_.resize(vertexOrder_.size());
+    for (size_t k = 0; k < vertexOrder_.size(); ++k) orderedPositions_[k] = mesh.positions[vertexOrder_[k]];
+}
+
+void TextureSpaceRenderer::buildMaterialState(const Material& material) {
+    material_ = material;
     const double rMax = std::max(2.0 * sphere_.radius, 1e-6) * 1.001;
+    split_ = DiffusionSplit{};
     split_.rp = importanceRadius(material_, options_.importanceBound);
     split_.sharpness = options_.sharpness;
     split_.weights = options_.weights;
+    sampleKernel_ = RadialTable();
     switch (options_.mode) {
         case TextureSpaceMode::Sampling: sampleKernel_ = diffusionTable(material_, rMax); break;
         case TextureSpaceMode::Hybrid:
         case TextureSpaceMode::Global: sampleKernel_ = globalDiffusionTable(material_, split_, rMax); break;
         case TextureSpaceMode::Local: break;
     }
+    filter_ = LocalFilter();
     if (usesFilter())
         filter_ = makeLocalFilter(localDiffusionTable(material_, split_, rMax), options_.rings, options_.ringSamples);
+}
 
-    vertexOrder_ = mortonOrder(mesh.positions, "mesh");
-    orderedPositions_.resize(vertexOrder_.size());
-    for (size_t k = 0; k < vertexOrder_.size(); ++k) orderedPositions_[k] = mesh.positions[vertexOrder_[k]];
+void TextureSpaceRenderer::setMaterial(const Material& material) {
+    validateMaterial(material);
+    requireIrradianceEta(material_.eta, material.eta);
+    const Stopwatch t;
+    buildMaterialState(material);
+    materialSeconds_ = t.seconds();
 }
 
 void TextureSpaceRenderer::setLights(const std::vector<Light>& lights) {

@@ -24,6 +24,20 @@
 // coloured lights with one sample set. Radiance: L = F_out(n . w_o) M / pi as
 // jensen_buhler.h (exact Fresnel or Keng's).
 //
+// PER MATERIAL (the constructor and setMaterial): R_p (importanceRadius), the sample
+// kernel's R_d table (R_d or R_d W_g) and the local filter (its R_d W_l table, ring
+// radii and tap weights). Nothing else depends on sigma_a or sigma_s': the atlas, the
+// irradiance map, the pyramid and the draws (p_t is the irradiance's), and the shadow
+// maps (they store transmitted flux, which depends on eta alone; their power
+// normalisation is the atlas's power) are all REUSED by setMaterial, so a material
+// change followed by a render equals a renderer built with that material and lit with
+// the same lights, N and seed, bit for bit. eta is fixed at construction: the
+// transmitted irradiance depends on it, so setMaterial refuses another eta
+// (requireIrradianceEta, point_lights.h) rather than recomputing the irradiance; build
+// a new renderer for a new eta. A size change is a material change
+// (common/material_edit.h, scaledMaterial): the lights and the irradiance stay attached
+// to the object.
+//
 // EVALUATION. Per pixel of a G-buffer (render), or per mesh vertex then interpolated
 // barycentrically at every pixel (renderPerVertex: fewer sums when the mesh has fewer
 // vertices than the frame has object pixels; exact at vertices, linear between).
@@ -98,6 +112,12 @@ public:
     // Everything that depends on the lights (see above). Throws prt::Error for an empty
     // light list or a light the shadow map cannot frame.
     void setLights(const std::vector<Light>& lights);
+    // Rebuilds what depends on the material (see PER MATERIAL above) and keeps the
+    // irradiance map, the draws and the shadow maps; may be called before or after
+    // setLights. Throws prt::Error for an invalid material (validateMaterial) and
+    // prt::Error("material", ...) for an eta other than the constructor's; the renderer
+    // is unchanged when it throws.
+    void setMaterial(const Material& material);
     // Changes only N / the seed and redraws from the current irradiance map (no new
     // shadow rays). drawNow = false only records them for the next setLights.
     void redraw(int samples, uint64_t seed, bool drawNow = true);
@@ -109,6 +129,9 @@ public:
     std::vector<glm::vec3> vertexExitance() const;
     Image renderPerVertex(const GBuffer& g) const;
 
+    const Material& material() const { return material_; }
+    // Wall time of the last setMaterial (s): the tables, R_p and the filter.
+    double materialSeconds() const { return materialSeconds_; }
     const TextureSpaceOptions& options() const { return options_; }
     const DiffusionSplit& split() const { return split_; }
     const LocalFilter& localFilter() const { return filter_; }
@@ -126,6 +149,8 @@ private:
         return options_.mode == TextureSpaceMode::Hybrid || options_.mode == TextureSpaceMode::Local;
     }
     void draw();
+    // The material-dependent state (see PER MATERIAL above).
+    void buildMaterialState(const Material& material);
     // The global (sample) sums at `count` points into out[0 .. count).
     void sampleSums(const glm::vec3* points, size_t count, glm::dvec3* out) const;
 
@@ -146,6 +171,7 @@ private:
     std::vector<glm::vec4> w_;         // ... and weights (R, G, B, 0)
     std::vector<TranslucentShadowMap> maps_;
     TextureSpaceTimings timings_;
+    double materialSeconds_ = 0.0;
     // The mesh's vertices in Morton order of their positions (and those positions):
     // vertexExitance walks them so, so that consecutive vertices' filter taps read the
     // same shadow-map cache lines.

@@ -26,6 +26,14 @@ FrameOptions addFrameOptions(CLI::App& app, FrameSettings& s) {
                                     "Pre-filter of the specular layer: box-filter the lat-long map down by this "
                                     "factor (must divide its size; default: the largest of 8, 4, 2, 1 that does)")
                          ->group("Lighting");
+    app.add_option("--material", s.material,
+                   "Editable files only: the object's material, a measured one (Marble), sigma:SA_R,SA_G,SA_B:"
+                   "SS_R,SS_G,SS_B (mm^-1) or colour:R,G,B:MFP (diffuse colour + mean free path in mm); "
+                   "default: the file's")
+        ->group("Material");
+    app.add_option("--size-mm", s.sizeMm,
+                   "Editable files only: the object's size (bounding-box diagonal, mm); default: the file's")
+        ->group("Material");
     app.add_option("--exposure", s.exposure, "Exposure in stops for the PNG (the EXR stays linear)")
         ->capture_default_str()->group("Output");
     return o;
@@ -35,6 +43,7 @@ void checkFrameSettings(const FrameSettings& s) {
     if (!std::isfinite(s.envRotation)) throw Error("--env-rotation", "must be finite");
     if (!std::isfinite(s.exposure)) throw Error("--exposure", "must be finite");
     if (s.specularBlur < 0) throw Error("--specular-blur", "must be >= 1");
+    if (!(s.sizeMm >= 0.0) || !std::isfinite(s.sizeMm)) throw Error("--size-mm", "must be a size in mm > 0");
 }
 
 std::string renderArguments(const FrameSettings& s) {
@@ -46,6 +55,11 @@ std::string renderArguments(const FrameSettings& s) {
     if (s.specular) {
         args += " --specular";
         if (s.specularBlur > 0) args += " --specular-blur " + std::to_string(s.specularBlur);
+    }
+    if (!s.material.empty()) args += " --material '" + s.material + "'";
+    if (s.sizeMm > 0.0) {
+        std::snprintf(buf, sizeof buf, " --size-mm=%.9g", s.sizeMm);
+        args += buf;
     }
     return args;
 }

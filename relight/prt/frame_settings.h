@@ -23,6 +23,12 @@ struct FrameSettings {
     bool specular = false;            // --specular: the Fresnel-weighted pre-filtered reflection
     int specularBlur = 0;             // --specular-blur: pre-filter factor; 0 = automatic (specularBlurFactor)
     double exposure = 0.0;            // --exposure: stops, applied to the displayed / PNG image only
+    // The object's material and size, for files made with prt-precompute --editable
+    // (relight/prt/editable_transport.h): --material as parseMaterial reads it
+    // (common/material_edit.h), --size-mm the object's size in mm; empty / 0 = the
+    // file's own.
+    std::string material;
+    double sizeMm = 0.0;
 };
 
 // The options addFrameOptions declared that a subcommand may tie together
@@ -33,19 +39,20 @@ struct FrameOptions {
 };
 
 // Declares --env-rotation, --components, -L/--light-terms, --specular, --specular-blur
-// (group "Lighting") and --exposure (group "Output"), bound to `s`; the defaults are
-// FrameSettings'.
+// (group "Lighting"), --material and --size-mm (group "Material") and --exposure (group
+// "Output"), bound to `s`; the defaults are FrameSettings'.
 FrameOptions addFrameOptions(CLI::App& app, FrameSettings& s);
 
 // Throws prt::Error naming the option: a non-finite --env-rotation or --exposure, a
-// negative --specular-blur. --components is checked against the transport file by
+// negative --specular-blur, a --size-mm that is not finite and >= 0. --components is checked against the transport file by
 // selectComponents (common/transport_params.h).
 void checkFrameSettings(const FrameSettings& s);
 
 // The options that give `s` back through addFrameOptions:
 // " --env-rotation=R --exposure=E" (%.9g; '=' so negative values parse), then " -L N"
-// when N > 0, " --components C" unless C is "all", and " --specular" followed by
-// " --specular-blur F" (F > 0) when the layer is on.
+// when N > 0, " --components C" unless C is "all", " --specular" followed by
+// " --specular-blur F" (F > 0) when the layer is on, and " --material 'M'" /
+// " --size-mm=S" when set.
 std::string renderArguments(const FrameSettings& s);
 
 }  // namespace prt

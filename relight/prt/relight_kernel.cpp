@@ -91,6 +91,10 @@ Plan makePlan(const TransportFile& file, const ScatteringComponents& set) {
             case ComponentKind::SingleScatteringTerm:
                 if (set.singleScattering) plan.terms.push_back({&c, 0});
                 break;
+            case ComponentKind::MultipleScatteringProfiles:
+                throw Error("transport file", componentName(c.kind, c.term) +
+                                                  ": an editable file's profiles relight through their recombination "
+                                                  "(loadRelightObject, relight/prt/editable_transport.h)");
             default:
                 throw Error("transport file", componentName(c.kind, c.term));
         }

@@ -2,6 +2,8 @@
 
 #include <optional>
 
+#include "common/error.h"
+#include "common/material_edit.h"
 #include "common/mesh_io.h"
 #include "common/transport_params.h"
 
@@ -18,7 +20,48 @@ RelightObject loadRelightObject(const std::string& meshPath, const std::string& 
     const BoundingSphere sphere = boundingSphere(o.mesh);
     o.sphereCentre = sphere.centre;
     o.sphereRadius = sphere.radius;
+    if (o.transport.radialBasis) {
+        o.editable.emplace(o.transport, objectSizeMm(o), transportPath);
+        o.transport.components.insert(o.transport.components.begin(), o.editable->recombine());
+    }
     return o;
+}
+
+double objectSizeMm(const RelightObject& object) { return double(object.box.diagonal()); }
+
+bool setObjectMaterial(RelightObject& object, const Material& material, double sizeMm,
+                       const std::string& transportPath) {
+    if (!object.editable)
+        throw Error(transportPath, "is not editable (made without prt-precompute --editable): its material and "
+                                   "size are the precompute's");
+    const bool etaChanged = object.editable->setMaterial(material, sizeMm);
+    for (TransportComponent& c : object.transport.components)
+        if (c.kind == ComponentKind::MultipleScattering) c = object.editable->recombine();
+    return etaChanged;
+}
+
+std::string applyMaterialEdit(RelightObject& object, const std::string& materialText, double sizeMm,
+                              const std::string& transportPath) {
+    if (materialText.empty() && sizeMm == 0.0) {
+        if (!object.editable) return "";
+        return "material: the file's, " + describeMaterial(object.editable->material()) + " at " +
+               formatParameter(object.editable->sizeMm()) + " mm (editable: --material, --size-mm)";
+    }
+    if (!object.editable) setObjectMaterial(object, Material{}, 1.0, transportPath);  // the one-line refusal
+    const EditableTransport& e = *object.editable;
+    const Material material =
+        materialText.empty() ? e.fileMaterial() : parseMaterial(materialText, e.fileMaterial().eta, e.fileMaterial().g);
+    const bool etaChanged = setObjectMaterial(object, material, sizeMm > 0.0 ? sizeMm : e.objectSizeMm(), transportPath);
+    std::string line = "material: " + describeMaterial(e.material()) + " at " + formatParameter(e.sizeMm()) +
+                       " mm (edited; the file's: " + e.fileMaterial().name + " at " + formatParameter(e.objectSizeMm()) +
+                       " mm)";
+    if (etaChanged) line += "; eta stays the file's " + formatParameter(e.fileMaterial().eta);
+    bool singleScattering = false;
+    for (const TransportComponent& c : object.transport.components)
+        singleScattering |= c.kind != ComponentKind::MultipleScattering;
+    if (singleScattering && !e.isFileMaterial())
+        line += "; single scattering is NOT edited: it stays the file's material and size";
+    return line;
 }
 
 }  // namespace prt

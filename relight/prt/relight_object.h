@@ -5,10 +5,12 @@
 
 #include <glm/glm.hpp>
 
+#include <optional>
 #include <string>
 
 #include "common/mesh.h"
 #include "common/transport_file.h"
+#include "relight/prt/editable_transport.h"
 
 namespace prt {
 
@@ -16,6 +18,11 @@ namespace prt {
 // the transport file's fingerprint (a mismatch is a prt::Error naming the transport
 // file) and scaled by the file's mmPerUnit about the origin (as prt-precompute did),
 // so positions are in mm and vertex v is the transport file's vertex v.
+//
+// An editable file (prt-precompute --editable, editable_transport.h) keeps its profile
+// vectors in `editable`, and `transport` holds in their place the multiple-scattering
+// component of the current material (first, as a precompute writes it), so that every
+// renderer relights it like any other file; setObjectMaterial changes it.
 struct RelightObject {
     TriangleMesh mesh;        // mm
     TransportFile transport;
@@ -23,7 +30,27 @@ struct RelightObject {
     Bounds box;               // of the scaled mesh
     glm::dvec3 sphereCentre{0.0};  // bounding sphere: the box centre and the largest
     double sphereRadius = 0.0;     // distance of a vertex from it
+    std::optional<EditableTransport> editable;  // the file has a radial basis
 };
 RelightObject loadRelightObject(const std::string& meshPath, const std::string& transportPath);
+
+// The object's size as --size-mm measures it: the scaled mesh's bounding-box diagonal, mm.
+double objectSizeMm(const RelightObject& object);
+
+// Makes `material` at `sizeMm` the object's (editable files only: prt::Error naming
+// transportPath otherwise; a material or size outside the basis's range is refused in
+// one line and the object keeps its material). The file's eta is kept (returns whether
+// the material asked for another).
+bool setObjectMaterial(RelightObject& object, const Material& material, double sizeMm,
+                       const std::string& transportPath = "transport file");
+
+// --material / --size-mm (frame_settings.h) applied to the object: nothing when both are
+// unset; else the material text parsed with the file's eta (parseMaterial; the file's
+// material when empty) at sizeMm (the file's size when 0), by setObjectMaterial.
+// Returns the line the tools print: what is shown, and that single scattering keeps the
+// file's material when the object has single scattering and the material differs.
+// Errors as setObjectMaterial, plus parseMaterial's naming --material.
+std::string applyMaterialEdit(RelightObject& object, const std::string& materialText, double sizeMm,
+                              const std::string& transportPath);
 
 }  // namespace prt

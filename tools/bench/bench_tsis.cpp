@@ -5,6 +5,12 @@
 // draws, the sums), Table 3 (the sums alone: the light is still, the view changes) and
 // Fig. 7 (RMSE against N).
 //
+// With --material-change B: the cost of a live material change (docs/point-lights.md,
+// "Live material and size"), setMaterial alternating between the material and B, for
+// the texture-space renderer (the --split mode; R_p, the R_d tables, the local filter),
+// Jensen-Buhler and the irradiance cache (both split-disk models), each with the
+// per-vertex sums that follow it for TSIS.
+//
 // Every figure is the median of --repeat runs in this process. "per vertex" frames add
 // the CPU's per-pixel interpolation and shading (what the viewer does on the GPU) only
 // when --evaluate pixel; the per-vertex frame time is the lighting + the vertex sums.
@@ -22,9 +28,11 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/image_compare.h"
+#include "common/material_edit.h"
 #include "common/mesh_io.h"
 #include "common/options.h"
 #include "common/util.h"
+#include "relight/pointlight/irradiance_cache.h"
 #include "relight/pointlight/jensen_buhler.h"
 #include "relight/render/gbuffer.h"
 #include "relight/pointlight/surface_atlas.h"
@@ -44,10 +52,83 @@ struct Options {
     int atlasSize = 1024, repeat = 5, seeds = 1;
     double epsilon = 0.0, exposure = 0.0;
     bool reference = false;
+    std::string materialChange;
     CameraOptions camera;
     int threads = 0;
     TextureSpaceOptions tsis;
 };
+
+// "median (min .. max) ms" of a list of seconds.
+std::string spread(const std::vector<double>& seconds) {
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "%.3f ms (%.3f .. %.3f)", 1e3 * median(seconds),
+                  1e3 * *std::min_element(seconds.begin(), seconds.end()),
+                  1e3 * *std::max_element(seconds.begin(), seconds.end()));
+    return buf;
+}
+
+// setMaterial alternating between `material` and --material-change, --repeat times each
+// way, for every renderer: the live material edit's cost (the lighting is kept).
+nlohmann::json materialChangeCost(const Options& o, const TriangleMesh& mesh, const RayScene& scene,
+                                  const SurfaceAtlas& atlas, const Material& material, const std::vector<Light>& lights,
+                                  const TextureSpaceOptions& to) {
+    const Material other = parseMaterial(o.materialChange, material.eta, material.g, "--material-change");
+    const int runs = 2 * o.repeat;
+    std::printf("material change %s <-> %s, %d changes each:\n", material.name.c_str(), other.name.c_str(), runs);
+    nlohmann::json out = nlohmann::json::object();
+    auto report = [&](const std::string& what, const std::vector<double>& seconds) {
+        std::printf("  %-44s %s\n", what.c_str(), spread(seconds).c_str());
+        out[what] = {{"median_ms", 1e3 * median(seconds)},
+                     {"min_ms", 1e3 * *std::min_element(seconds.begin(), seconds.end())},
+                     {"max_ms", 1e3 * *std::max_element(seconds.begin(), seconds.end())},
+                     {"runs", seconds.size()}};
+    };
+    std::vector<TextureSpaceMode> modes{to.mode};
+    if (to.mode != TextureSpaceMode::Sampling) modes.push_back(TextureSpaceMode::Sampling);
+    for (const TextureSpaceMode mode : modes) {
+        TextureSpaceOptions om = to;
+        om.mode = mode;
+        om.samples = o.samples.empty() ? 900 : o.samples.front();
+        TextureSpaceRenderer r(mesh, scene, atlas, material, om);
+        r.setLights(lights);
+        std::vector<double> change, sums;
+        for (int k = 0; k < runs; ++k) {
+            const Stopwatch t;
+            r.setMaterial(k % 2 == 0 ? other : material);
+            change.push_back(t.seconds());
+            const Stopwatch s;
+            if (r.vertexExitance().empty()) throw Error("bench", "no vertices");
+            sums.push_back(s.seconds());
+        }
+        report(std::string("tsis ") + toString(mode) + " setMaterial", change);
+        report(std::string("tsis ") + toString(mode) + " per-vertex sums after it (N = " +
+                   std::to_string(om.samples) + ")",
+               sums);
+    }
+    IrradianceSamples faces = faceCentroidSamples(mesh);
+    computeIrradiance(faces, scene, lights, material.eta, to.fresnel);
+    {
+        JensenBuhler jb(material, IrradianceOctree(faces), {.fresnel = to.fresnel});
+        std::vector<double> change;
+        for (int k = 0; k < runs; ++k) {
+            const Stopwatch t;
+            jb.setMaterial(k % 2 == 0 ? other : material);
+            change.push_back(t.seconds());
+        }
+        report("jb setMaterial", change);
+    }
+    for (const SplitDiskModel model : {SplitDiskModel::Paper, SplitDiskModel::Exact}) {
+        IrradianceCache cache(material, IrradianceOctree(faces), {.fresnel = to.fresnel, .splitDisk = model});
+        std::vector<double> change;
+        for (int k = 0; k < runs; ++k) {
+            const Stopwatch t;
+            cache.setMaterial(k % 2 == 0 ? other : material);
+            change.push_back(t.seconds());
+        }
+        report(std::string("cache (split disk ") + toString(model) + ") setMaterial", change);
+    }
+    return out;
+}
 
 int run(const Options& o) {
     const ThreadLimit limit(o.threads);
@@ -138,6 +219,8 @@ int run(const Options& o) {
         std::fflush(stdout);
         rows.push_back(row);
     }
+    nlohmann::json change;
+    if (!o.materialChange.empty()) change = materialChangeCost(o, mesh, scene, atlas, material, lights, to);
     if (!o.json.empty()) {
         nlohmann::json j = {{"mesh", o.mesh},
                             {"triangles", mesh.triangleCount()},
@@ -150,6 +233,7 @@ int run(const Options& o) {
                             {"height", g.height},
                             {"exposure", o.exposure},
                             {"rows", rows}};
+        if (!change.is_null()) j["material_change"] = change;
         writeAtomically(o.json, [&](const std::string& tmp) {
             std::ofstream out(tmp);
             out << j.dump(2) << "\n";
@@ -184,6 +268,9 @@ int main(int argc, char** argv) {
         app.add_option("--seeds", o.seeds, "Seeds the error is averaged over (RMS)")->capture_default_str();
         app.add_option("--exposure", o.exposure, "Exposure of the displayed-image RMSE")->capture_default_str();
         app.add_option("--json", o.json, "Also write the rows as JSON");
+        app.add_option("--material-change", o.materialChange,
+                       "Also time setMaterial between -m and this material (a name, sigma:... or colour:...; the "
+                       "same eta) for every renderer, 2 x --repeat changes");
         addCameraOptions(app, o.camera);
         addThreadsOption(app, o.threads);
         if (const auto code = parseCommandLine(app, argc, argv, "prt-bench-tsis")) return *code;

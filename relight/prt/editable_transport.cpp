@@ -1,0 +1,182 @@
+#include "relight/prt/editable_transport.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "common/error.h"
+#include "common/material_edit.h"
+#include "common/transport_params.h"
+#include "relight/prt/relight_kernel.h"
+
+namespace prt {
+
+namespace {
+
+constexpr double kQuantMax = 32767.0;
+
+RadialBasis storedBasis(const TransportFile& file, const std::string& path) {
+    if (!file.radialBasis)
+        throw Error(path, "has no radial basis: it was not made with prt-precompute --editable, so its material "
+                          "and size are fixed");
+    return RadialBasis(file.radialBasis->range, file.radialBasis->tables);
+}
+
+// One RGB component holding component p's vectors as kind MultipleScattering: what the
+// relight kernel takes.
+TransportFile singleComponentFile(const TransportComponent& profiles, uint32_t cubemapSize, uint32_t shTerms) {
+    TransportFile f;
+    f.cubemapSize = cubemapSize;
+    f.shTerms = shTerms;
+    TransportComponent c = profiles;
+    c.kind = ComponentKind::MultipleScattering;
+    c.term = 0;
+    f.components.push_back(std::move(c));
+    return f;
+}
+
+}  // namespace
+
+EditableTransport::EditableTransport(TransportFile& file, double objectSizeMm, const std::string& path)
+    : cubemapSize_(file.cubemapSize), shTerms_(file.shTerms), basis_(storedBasis(file, path)),
+      objectSizeMm_(objectSizeMm) {
+    if (!(objectSizeMm > 0.0) || !std::isfinite(objectSizeMm))
+        throw Error(path, "the object size must be > 0 mm to edit its material");
+    std::vector<TransportComponent> others;
+    for (TransportComponent& c : file.components)
+        (c.kind == ComponentKind::MultipleScatteringProfiles ? profiles_ : others).push_back(std::move(c));
+    file.components = std::move(others);
+    file.radialBasis.reset();
+    std::sort(profiles_.begin(), profiles_.end(),
+              [](const TransportComponent& a, const TransportComponent& b) { return a.term < b.term; });
+    if (profiles_.empty() || 3 * profiles_.size() != size_t(basis_.size()))
+        throw Error(path, "has " + std::to_string(profiles_.size()) + " profile components for a basis of " +
+                              std::to_string(basis_.size()) + " profiles");
+    const TransportParameters parameters = readTransportParameters(file.parameters, path);
+    if (!parameters.material) throw Error(path, "names no material: the starting point of an edit is unknown");
+    fileMaterial_ = *parameters.material;
+    material_ = fileMaterial_;
+    sizeMm_ = objectSizeMm_;
+    try {
+        setMaterial(fileMaterial_, objectSizeMm_);
+    } catch (const Error& e) {
+        throw Error(path, "its own material is outside its basis: " + std::string(e.what()));
+    }
+}
+
+size_t EditableTransport::vertexCount() const { return profiles_.front().vectors.vertexCount(); }
+
+bool EditableTransport::setMaterial(const Material& material, double sizeMm) {
+    if (!(sizeMm > 0.0) || !std::isfinite(sizeMm))
+        throw Error("size", "must be finite and > 0 mm, got " + formatParameter(sizeMm));
+    Material m = material;
+    const bool etaChanged = m.eta != fileMaterial_.eta;
+    m.eta = fileMaterial_.eta;
+    validateMaterial(m);
+    const double factor = sizeMm / objectSizeMm_;
+    weights_ = basis_.materialWeights(m, factor);  // throws outside the range
+    material_ = m;
+    sizeMm_ = sizeMm;
+    return etaChanged;
+}
+
+bool EditableTransport::isFileMaterial() const {
+    return material_.sigmaA == fileMaterial_.sigmaA && material_.sigmaSPrime == fileMaterial_.sigmaSPrime &&
+           sizeMm_ == objectSizeMm_;
+}
+
+TransportComponent EditableTransport::recombine() const {
+    const size_t P = profiles_.size(), V = vertexCount();
+    const SparseRgbVectors& shared = profiles_.front().vectors;
+    TransportComponent out;
+    out.kind = ComponentKind::MultipleScattering;
+    SparseRgbVectors& v = out.vectors;
+    v.offsets = shared.offsets;
+    v.indices = shared.indices;
+    v.values.assign(shared.values.size(), 0);
+    v.scales.assign(3 * V, 0.0f);
+    // w[c][j] as floats, the order of the sums fixed: deterministic on any thread count.
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 64), [&](const tbb::blocked_range<size_t>& r) {
+        std::vector<float> rgb;
+        for (size_t vi = r.begin(); vi < r.end(); ++vi) {
+            const uint32_t begin = shared.offsets[vi], end = shared.offsets[vi + 1];
+            rgb.assign(3 * size_t(end - begin), 0.0f);
+            for (size_t p = 0; p < P; ++p) {
+                const SparseRgbVectors& u = profiles_[p].vectors;
+                float scaled[3][3];  // [profile channel][colour] = scale * w
+                for (int ch = 0; ch < 3; ++ch)
+                    for (int c = 0; c < 3; ++c)
+                        scaled[ch][c] = float(double(u.scales[3 * vi + size_t(ch)]) * weights_[size_t(c)][3 * p + size_t(ch)]);
+                for (uint32_t n = begin; n < end; ++n) {
+                    float* dst = &rgb[3 * size_t(n - begin)];
+                    const int16_t* q = &u.values[3 * size_t(n)];
+                    for (int ch = 0; ch < 3; ++ch)
+                        for (int c = 0; c < 3; ++c) dst[c] += float(q[ch]) * scaled[ch][c];
+                }
+            }
+            // Quantized as SparseRgbVectors::appendVertex does.
+            for (int c = 0; c < 3; ++c) {
+                float maxAbs = 0.0f;
+                for (uint32_t n = begin; n < end; ++n) maxAbs = std::max(maxAbs, std::fabs(rgb[3 * size_t(n - begin) + size_t(c)]));
+                const float scale = double(maxAbs) < kQuantMax * double(std::numeric_limits<float>::min())
+                                        ? 0.0f
+                                        : float(double(maxAbs) / kQuantMax);
+                v.scales[3 * vi + size_t(c)] = scale;
+                for (uint32_t n = begin; n < end; ++n) {
+                    int q = 0;
+                    if (scale > 0.0f) {
+                        const double x = std::nearbyint(double(rgb[3 * size_t(n - begin) + size_t(c)]) / double(scale));
+                        q = int(std::clamp(x, -kQuantMax, kQuantMax));
+                    }
+                    v.values[3 * size_t(n) + size_t(c)] = int16_t(q);
+                }
+            }
+        }
+    });
+    return out;
+}
+
+void EditableTransport::projectLight(const LightVector& light) {
+    const size_t V = vertexCount(), J = size_t(basis_.size());
+    projected_.assign(V * J * 3, 0.0f);
+    // Per light channel c a grey light (L_c in all three channels): the relight kernel
+    // then gives U_{3p+ch} . L_c in channel ch of component p.
+    LightVector grey = light;
+    VertexRadiance out;
+    const ScatteringComponents ms{.multipleScattering = true, .singleScattering = false};
+    for (size_t p = 0; p < profiles_.size(); ++p) {
+        const TransportFile file = singleComponentFile(profiles_[p], cubemapSize_, shTerms_);
+        for (int c = 0; c < 3; ++c) {
+            for (size_t k = 0; k < light.rgb.size() / 3; ++k)
+                grey.rgb[3 * k] = grey.rgb[3 * k + 1] = grey.rgb[3 * k + 2] = light.rgb[3 * k + size_t(c)];
+            for (size_t k = 0; k < light.sh.size() / 3; ++k)
+                grey.sh[3 * k] = grey.sh[3 * k + 1] = grey.sh[3 * k + 2] = light.sh[3 * k + size_t(c)];
+            relightVertices(file, grey, ms, out);
+            for (size_t v = 0; v < V; ++v)
+                for (int ch = 0; ch < 3; ++ch) projected_[(v * J + 3 * p + size_t(ch)) * 3 + size_t(c)] = out.diffuse[v][ch];
+        }
+    }
+}
+
+void EditableTransport::relightProjected(std::vector<glm::vec3>& diffuse) const {
+    if (projected_.empty()) throw Error("editable transport", "no light projected (projectLight first)");
+    const size_t V = vertexCount(), J = size_t(basis_.size());
+    diffuse.resize(V);
+    float w[3][64];
+    for (int c = 0; c < 3; ++c)
+        for (size_t j = 0; j < J; ++j) w[c][j] = float(weights_[size_t(c)][j]);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 1024), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t v = r.begin(); v < r.end(); ++v) {
+            const float* d = &projected_[v * J * 3];
+            float s[3] = {0.0f, 0.0f, 0.0f};
+            for (size_t j = 0; j < J; ++j)
+                for (int c = 0; c < 3; ++c) s[c] += w[c][j] * d[3 * j + size_t(c)];
+            diffuse[v] = glm::vec3(s[0], s[1], s[2]);
+        }
+    });
+}
+
+}  // namespace prt

@@ -1,0 +1,201 @@
+// Editable transport at relight time (relight/prt/editable_transport.h), on a synthetic
+// file: the recombination is the weighted sum of the profile vectors, the projected-light
+// path equals relighting the recombination, a size is a scaled material, and what the
+// basis cannot cover is refused in one line with the material kept. The end-to-end check
+// against a full precompute is tests/test_pipeline.cpp (EditableMatchesFullPrecomputes).
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "common/error.h"
+#include "common/material_edit.h"
+#include "common/transport_params.h"
+#include "relight/prt/editable_transport.h"
+#include "relight/prt/relight_kernel.h"
+
+using namespace prt;
+
+namespace {
+
+constexpr int kN = 4;                    // cubemap face size
+constexpr size_t kTexels = 6 * kN * kN;  // Haar coefficients
+constexpr size_t kVertices = 60;
+constexpr double kObjectMm = 20.0;
+
+const RadialBasis& testBasis() {
+    static const RadialBasis basis =
+        makeRadialBasis(rangeCovering({materialByName("Marble"), materialByName("Skin1")}, 0.5, 2.0, kObjectMm),
+                        RadialBasisOptions{.size = 6});
+    return basis;
+}
+
+// Two profile components (J = 6) sharing each vertex's random index list, the basis, and
+// Marble as the file's material.
+TransportFile syntheticFile(uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<float> value(-1.0f, 1.0f);
+    const RadialBasis& basis = testBasis();
+    TransportFile file;
+    file.cubemapSize = kN;
+    file.mesh.vertexCount = kVertices;
+    file.parameters = materialParameters(materialByName("Marble"));
+    file.radialBasis = StoredRadialBasis{basis.range(), basis.tables()};
+    TransportComponent profiles[2];
+    for (uint32_t p = 0; p < 2; ++p) {
+        profiles[p].kind = ComponentKind::MultipleScatteringProfiles;
+        profiles[p].term = p;
+    }
+    for (size_t v = 0; v < kVertices; ++v) {
+        std::vector<uint32_t> idx{0};
+        for (uint32_t k = 1; k < kTexels; ++k)
+            if (rng() % 4 == 0) idx.push_back(k);
+        for (auto& c : profiles) {
+            std::vector<float> rgb(3 * idx.size());
+            for (float& x : rgb) x = value(rng);
+            rgb[0] = rgb[1] = rgb[2] = 2.0f;  // a dominant scaling coefficient, as real transport has
+            c.vectors.appendVertex(idx, rgb);
+        }
+    }
+    for (auto& c : profiles) file.components.push_back(std::move(c));
+    return file;
+}
+
+LightVector randomLight(uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<float> value(-0.5f, 1.0f);
+    LightVector light;
+    light.size = kN;
+    light.rgb.resize(3 * kTexels);
+    for (float& x : light.rgb) x = value(rng);
+    return light;
+}
+
+}  // namespace
+
+TEST(EditableTransport, TakesTheProfilesAndStartsFromTheFilesMaterial) {
+    TransportFile file = syntheticFile(1);
+    const TransportFile original = file;
+    const EditableTransport e(file, kObjectMm);
+    EXPECT_TRUE(file.components.empty());
+    EXPECT_FALSE(file.radialBasis);
+    EXPECT_EQ(e.profileCount(), 6);
+    EXPECT_EQ(e.vertexCount(), kVertices);
+    EXPECT_EQ(e.material().name, "Marble");
+    EXPECT_TRUE(e.isFileMaterial());
+    const auto expected = testBasis().materialWeights(materialByName("Marble"), 1.0);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(e.weights()[size_t(c)], expected[size_t(c)]);
+    // A file without a basis, or without a material, is refused.
+    TransportFile plain = original;
+    plain.radialBasis.reset();
+    EXPECT_THROW(EditableTransport(plain, kObjectMm, "plain.prt"), Error);
+    TransportFile nameless = original;
+    nameless.parameters.clear();
+    EXPECT_THROW(EditableTransport(nameless, kObjectMm), Error);
+}
+
+// V_c = sum_j w_cj U_j per vertex, against the sum of the dequantized profiles: within
+// the output's 16-bit quantization (kQuantizationMaxRelativeError of the vertex's channel
+// maximum) and float rounding of the products (1e-6 of sum_j |w_cj| max |U_j|).
+TEST(EditableTransport, RecombinationIsTheWeightedSumOfTheProfiles) {
+    TransportFile file = syntheticFile(2);
+    std::vector<TransportComponent> profiles = file.components;
+    EditableTransport e(file, kObjectMm);
+    e.setMaterial(materialByName("Skin1"), 31.0);
+    const TransportComponent ms = e.recombine();
+    EXPECT_EQ(ms.kind, ComponentKind::MultipleScattering);
+    std::vector<uint32_t> idx, idxU;
+    std::vector<float> rgb, u;
+    double absWeights[3] = {0.0, 0.0, 0.0};
+    for (int c = 0; c < 3; ++c)
+        for (double w : e.weights()[size_t(c)]) absWeights[c] += std::abs(w);
+    for (size_t v = 0; v < kVertices; ++v) {
+        ms.dequantizeVertex(v, idx, rgb);
+        std::vector<double> expected(rgb.size(), 0.0);
+        for (size_t p = 0; p < 2; ++p) {
+            profiles[p].dequantizeVertex(v, idxU, u);
+            ASSERT_EQ(idxU, idx);
+            for (size_t n = 0; n < idx.size(); ++n)
+                for (int ch = 0; ch < 3; ++ch)
+                    for (int c = 0; c < 3; ++c)
+                        expected[3 * n + size_t(c)] += e.weights()[size_t(c)][3 * p + size_t(ch)] * u[3 * n + size_t(ch)];
+        }
+        for (int c = 0; c < 3; ++c) {
+            double maxAbs = 0.0;
+            for (size_t n = 0; n < idx.size(); ++n) maxAbs = std::max(maxAbs, std::abs(expected[3 * n + size_t(c)]));
+            const double tolerance = kQuantizationMaxRelativeError * maxAbs + 1e-6 * absWeights[c] * 2.0;
+            for (size_t n = 0; n < idx.size(); ++n)
+                ASSERT_NEAR(rgb[3 * n + size_t(c)], expected[3 * n + size_t(c)], tolerance) << v << " " << n;
+        }
+    }
+}
+
+// Relighting the recombined component and the projected-light path agree.
+TEST(EditableTransport, ProjectedLightEqualsRelightingTheRecombination) {
+    TransportFile file = syntheticFile(3);
+    EditableTransport e(file, kObjectMm);
+    const LightVector light = randomLight(4);
+    e.projectLight(light);
+    for (const char* name : {"Marble", "Skin1"}) {
+        e.setMaterial(materialByName(name), 17.0);
+        TransportFile recombined = file;
+        recombined.components.push_back(e.recombine());
+        VertexRadiance viaFile;
+        relightVertices(recombined, light, ScatteringComponents{}, viaFile);
+        std::vector<glm::vec3> viaProjection;
+        e.relightProjected(viaProjection);
+        ASSERT_EQ(viaProjection.size(), kVertices);
+        double diff = 0.0, norm = 0.0;
+        for (size_t v = 0; v < kVertices; ++v)
+            for (int c = 0; c < 3; ++c) {
+                diff += std::pow(double(viaProjection[v][c] - viaFile.diffuse[v][c]), 2);
+                norm += std::pow(double(viaFile.diffuse[v][c]), 2);
+            }
+        EXPECT_GT(norm, 0.0);
+        // The recombination's own 16-bit quantization: ~1e-5 of each vertex's maximum.
+        EXPECT_LT(std::sqrt(diff / norm), 1e-4) << name;
+    }
+}
+
+// A size S is the material scaled by S / S_file at the file's geometry, bit for bit.
+TEST(EditableTransport, SizeIsAScaledMaterial) {
+    TransportFile a = syntheticFile(5), b = a;
+    EditableTransport ea(a, kObjectMm), eb(b, kObjectMm);
+    const Material skin = materialByName("Skin1");
+    ea.setMaterial(skin, 2.0 * kObjectMm);
+    eb.setMaterial(scaledMaterial(skin, 2.0), kObjectMm);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(ea.weights()[size_t(c)], eb.weights()[size_t(c)]);
+    EXPECT_FALSE(ea.isFileMaterial());
+    EXPECT_DOUBLE_EQ(ea.sizeMm(), 2.0 * kObjectMm);
+}
+
+// Outside the basis: one line, and the object keeps its material. Another eta is
+// replaced by the file's and reported.
+TEST(EditableTransport, RefusesWhatTheBasisCannotCover) {
+    TransportFile file = syntheticFile(6);
+    EditableTransport e(file, kObjectMm);
+    e.setMaterial(materialByName("Skin1"), kObjectMm);
+    const auto before = e.weights();
+    for (const auto& [material, size] : std::vector<std::pair<Material, double>>{
+             {materialByName("Spectralon"), kObjectMm},  // sigma_a = 0
+             {materialByName("Ketchup"), kObjectMm},     // not in the range
+             {materialByName("Marble"), 10.0 * kObjectMm},
+             {materialByName("Marble"), 0.0},
+             {materialByName("Marble"), std::nan("")}}) {
+        try {
+            e.setMaterial(material, size);
+            ADD_FAILURE() << material.name << " at " << size << " mm accepted";
+        } catch (const Error& err) {
+            EXPECT_EQ(std::string(err.what()).find('\n'), std::string::npos);
+        }
+        EXPECT_EQ(e.material().name, "Skin1");
+        EXPECT_EQ(e.weights()[0], before[0]);
+    }
+    Material otherEta = materialByName("Marble");
+    otherEta.eta = 1.5;
+    EXPECT_TRUE(e.setMaterial(otherEta, kObjectMm));
+    EXPECT_DOUBLE_EQ(e.material().eta, 1.3);
+    EXPECT_FALSE(e.setMaterial(materialByName("Marble"), kObjectMm));
+    EXPECT_TRUE(e.isFileMaterial());
+}
