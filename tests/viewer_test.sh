@@ -21,6 +21,10 @@
 # Point lights (texture-space importance sampling) in the viewer must match
 # `prt-pointlight --method tsis --evaluate vertex` of the same lights, N and seed in the
 # same way (the same estimator at the vertices, the same shading per pixel).
+# An editable file (prt-precompute --editable) shown with --material and --size-mm must
+# match the render of the command the viewer prints for its final state (which must
+# carry the edit), in the same way; its point lights must match prt-pointlight of the
+# material scaled for the size.
 # Bad inputs (missing transport, mismatched mesh, no display, no OpenGL 3.3, a
 # screenshot without --frames) must exit with code 1 and a one-line message.
 # Exit 77 (CTest: skipped) when xvfb-run is not installed.
@@ -173,7 +177,65 @@ else
     fail "both: the viewer failed"
 fi
 
-# 7. Bad inputs: exit code 1 and a message naming the problem.
+# 7. Material and size of an editable file (multiple + single scattering, ms,ss): Ketchup
+#    at 30 mm on a file made of Marble at 20 mm. The viewer prints the render command of
+#    its final state; that command, run as printed, must reproduce the screenshot.
+echo "--- material"
+if "$PRECOMPUTE" "$S/torus.ply" --size-mm 20 --cubemap-size 8 --samples 2000 --components ms,ss --editable -q \
+    -o "$S/editable.prt" > "$O/editable.log" 2>&1; then
+    E="$S/torus.ply -t $S/editable.prt -W 256 -H 192 --azimuth 20 --elevation 15 --material Ketchup --size-mm 30"
+    # shellcheck disable=SC2086
+    if view $E -e "$S/sky.exr" --frames 5 --screenshot "$O/material.view.exr" --screenshot "$O/material.view.png" \
+        > "$O/material.view.log" 2>&1; then
+        grep -E "^(material|viewer|relights|render command):" "$O/material.view.log"
+        cmd=$(sed -n 's/^render command: prt-relight //p' "$O/material.view.log")
+        if [[ $cmd == *"--material 'Ketchup'"* && $cmd == *"--size-mm=30 "* && $cmd == *" -o OUT" ]]; then
+            pass "material: the render command carries the edit"
+        else
+            fail "material: the render command lacks --material 'Ketchup' --size-mm=30: $cmd"
+        fi
+        if eval "\"\$RELIGHT\" ${cmd% -o OUT} -o \"\$O/material.render\"" > "$O/material.render.log" 2>&1; then
+            agree material "$O/material.view" "$O/material.render"
+            compare "material: EXR, common object pixels" "$O/material.view.exr" "$O/material.render.masked.exr" 1e-4
+        else
+            cat "$O/material.render.log"
+            fail "material: the printed render command failed"
+        fi
+        # The file's own material, same view, must look different (the edit is not a no-op).
+        # shellcheck disable=SC2086
+        "$RELIGHT" render ${E% --material*} -e "$S/sky.exr" -o "$O/material-file" > /dev/null 2>&1 \
+            || fail "material: the renderer failed"
+        if "$COMPARE" "$O/material.view.exr" "$O/material-file.exr" --max-rel-rmse 0.05 > /dev/null 2>&1; then
+            fail "material: Ketchup at 30 mm looks like the file's Marble at 20 mm"
+        else
+            pass "material: the edit changes the image"
+        fi
+    else
+        cat "$O/material.view.log"
+        fail "material: the viewer failed"
+    fi
+    # The point lights with the edit: Ketchup's coefficients times 30 / 20 at 20 mm.
+    # shellcheck disable=SC2086
+    if view "$S/torus.ply" -t "$S/editable.prt" -e "$S/sky.exr" --material Ketchup --size-mm 30 $P \
+        --no-environment-light --frames 3 --screenshot "$O/material-points.view.exr" \
+        --screenshot "$O/material-points.view.png" > "$O/material-points.view.log" 2>&1; then
+        # shellcheck disable=SC2086
+        "$POINTLIGHT" "$S/torus.ply" --size-mm 20 --sigma-a 0.0915 1.455 2.175 --sigma-s-prime 0.27 0.105 0.045 $P \
+            --method tsis --evaluate vertex -o "$O/material-points.render" > "$O/material-points.render.log" 2>&1 \
+            || { cat "$O/material-points.render.log"; fail "material points: prt-pointlight failed"; }
+        agree "material points" "$O/material-points.view" "$O/material-points.render"
+        compare "material points: EXR, common object pixels" "$O/material-points.view.exr" \
+            "$O/material-points.render.masked.exr" 1e-4
+    else
+        cat "$O/material-points.view.log"
+        fail "material points: the viewer failed"
+    fi
+else
+    cat "$O/editable.log"
+    fail "material: prt-precompute --editable"
+fi
+
+# 8. Bad inputs: exit code 1 and a message naming the problem.
 # expect_error NAME PATTERN COMMAND...
 expect_error() {
     local name=$1 pattern=$2
@@ -202,6 +264,10 @@ expect_error "point light inside the object" "inside the object" \
     inx "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --light point:5,0,0:1 --frames 1
 expect_error "bad split" "--split" \
     inx "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --light point:30,40,0:1 --split both --frames 1
+expect_error "material on a file that is not editable" "not editable" \
+    inx "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --material Ketchup --frames 1
+expect_error "material outside the basis" "basis range" \
+    inx "$RELIGHT" view "$S/torus.ply" -t "$S/editable.prt" -e "$S/sky.exr" --material Ketchup --size-mm 2000 --frames 1
 expect_error "screenshot without --frames" "needs --frames" \
     "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --screenshot "$O/x.png"
 

@@ -9,7 +9,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <iterator>
+#include <limits>
 
+#include "common/error.h"
+#include "common/material_edit.h"
+#include "common/materials.h"
 #include "common/util.h"
 #include "relight/viewer/window.h"
 
@@ -18,6 +22,136 @@ namespace prt {
 namespace fs = std::filesystem;
 
 namespace {
+
+// The viewer edits sigma_a and sigma_s' only (eta and g stay the file's).
+bool sameCoefficients(const Material& a, const Material& b) {
+    return a.sigmaA == b.sigmaA && a.sigmaSPrime == b.sigmaSPrime;
+}
+
+const ImVec4 kErrorColour(1.0f, 0.35f, 0.3f, 1.0f);
+
+// Log-scale slider of three channels; writes back only the channels that moved, so the
+// others keep their double values.
+bool sliderChannels(const char* label, glm::dvec3& v, float lo, float hi, const char* format) {
+    float f[3] = {float(v.x), float(v.y), float(v.z)};
+    if (!ImGui::SliderFloat3(label, f, lo, hi, format, ImGuiSliderFlags_Logarithmic | ImGuiSliderFlags_AlwaysClamp))
+        return false;
+    for (int c = 0; c < 3; ++c)
+        if (f[c] != float(v[c])) v[c] = double(f[c]);
+    return true;
+}
+
+// The "material" section: editable files change the material and the size live; the
+// edit goes to `state` only when the basis covers it (else the reason is shown and the
+// previous material stays).
+void drawMaterialPanel(const PanelInputs& in, ViewState& state) {
+    if (!ImGui::CollapsingHeader("material", ImGuiTreeNodeFlags_DefaultOpen)) return;
+    const RelightObject& object = in.setup.object;
+    if (!object.editable) {
+        ImGui::TextDisabled("not editable: the file's material and size are the precompute's");
+        ImGui::TextDisabled("(make an editable file with prt-precompute --editable)");
+        return;
+    }
+    const EditableTransport& e = *object.editable;
+    Material m = state.material;
+    double size = state.sizeMm;
+    bool changed = false;
+
+    // Presets: the measured materials at the file's eta.
+    const std::vector<std::string> names = materialNames();
+    std::string current = "custom";
+    for (const std::string& n : names)
+        if (sameCoefficients(m, materialByName(n))) current = n;
+    if (ImGui::BeginCombo("preset", current.c_str())) {
+        for (const std::string& n : names)
+            if (ImGui::Selectable(n.c_str(), n == current)) {
+                m = parseMaterial(n, e.fileMaterial().eta, e.fileMaterial().g);
+                changed = true;
+            }
+        ImGui::Selectable("custom", current == "custom");
+        ImGui::EndCombo();
+    }
+    int view = state.materialByAppearance ? 1 : 0;
+    ImGui::RadioButton("sigma_a, sigma_s'", &view, 0);
+    ImGui::SameLine();
+    ImGui::RadioButton("colour, mean free path", &view, 1);
+    state.materialByAppearance = view == 1;
+    if (!state.materialByAppearance) {
+        changed |= sliderChannels("sigma_a (1/mm)", m.sigmaA, 1e-5f, 10.0f, "%.4g");
+        changed |= sliderChannels("sigma_s' (1/mm)", m.sigmaSPrime, 1e-3f, 1e3f, "%.4g");
+        if (changed && current != "custom" && m.name == current) m.name = "custom";
+    } else {
+        const MaterialAppearance a = appearanceOf(m);
+        float colour[3] = {float(a.diffuseColour.x), float(a.diffuseColour.y), float(a.diffuseColour.z)};
+        glm::dvec3 mfp = a.meanFreePathMm;
+        bool moved = ImGui::ColorEdit3("diffuse colour", colour, ImGuiColorEditFlags_Float);
+        moved |= sliderChannels("mean free path (mm)", mfp, 1e-3f, 1e3f, "%.4g");
+        if (moved) {
+            glm::dvec3 c = a.diffuseColour;
+            for (int k = 0; k < 3; ++k)
+                if (colour[k] != float(a.diffuseColour[k])) c[k] = std::clamp(double(colour[k]), 1e-4, 0.9999);
+            try {
+                m = materialFromAppearance(c, mfp, e.fileMaterial().eta, e.fileMaterial().g);
+                m.name = "custom";
+                changed = true;
+            } catch (const Error& err) {
+                state.materialError = err.what();
+            }
+        }
+    }
+    const auto [lo, hi] = coveredSizesMm(e, m);
+    if (lo <= hi) {
+        float f = float(size);
+        if (ImGui::SliderFloat("size (mm)", &f, float(lo), float(hi), "%.4g",
+                               ImGuiSliderFlags_Logarithmic | ImGuiSliderFlags_AlwaysClamp) &&
+            f != float(size)) {
+            size = double(f);
+            changed = true;
+        }
+        ImGui::TextDisabled("sizes the basis covers for it: %.4g .. %.4g mm (file: %.4g mm)", lo, hi,
+                            e.objectSizeMm());
+    } else {
+        ImGui::TextDisabled("no size is covered for this material (file: %.4g mm)", e.objectSizeMm());
+    }
+    if (ImGui::Button("file's material and size")) {
+        m = e.fileMaterial();
+        size = e.objectSizeMm();
+        changed = true;
+    }
+    if (changed) {
+        const std::string problem = materialProblem(e, m, size);
+        if (problem.empty()) {
+            state.material = m;
+            state.material.eta = e.fileMaterial().eta;
+            state.sizeMm = size;
+            state.materialError.clear();
+        } else {
+            state.materialError = problem;
+        }
+    }
+    if (!state.materialError.empty()) ImGui::TextColored(kErrorColour, "%s", state.materialError.c_str());
+    if (in.light && !in.light->materialError.empty())
+        ImGui::TextColored(kErrorColour, "%s", in.light->materialError.c_str());
+    ImGui::PushTextWrapPos(ImGui::GetCursorPosX() + 420.0f);
+    ImGui::TextWrapped("%s at %.4g mm", describeMaterial(state.material).c_str(), state.sizeMm);
+    ImGui::PopTextWrapPos();
+    const bool fileMaterial = sameCoefficients(state.material, e.fileMaterial()) && state.sizeMm == e.objectSizeMm();
+    if (in.available.singleScattering && !fileMaterial)
+        ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "single scattering: not edited (file's material)");
+    const MaterialEditStats& s = in.edits;
+    if (s.edits.count) {
+        if (s.lastPath == LightResult::EditPath::Projected)
+            ImGui::Text("last edit %.1f ms: projected%s", s.lastMs,
+                        s.lastProjectMs > 0.0
+                            ? (" (light projected, once per light: " + formatParameter(std::round(s.lastProjectMs)) +
+                               " ms)").c_str()
+                            : " (light already projected)");
+        else
+            ImGui::Text("last edit %.1f ms: recombined %.1f ms + relight", s.lastMs, s.lastRecombineMs);
+        ImGui::Text("%zu edits, mean %.1f ms, min %.1f, max %.1f", s.edits.count, s.edits.mean(), s.edits.min,
+                    s.edits.max);
+    }
+}
 
 void drawPointLightPanel(const PanelInputs& in, ViewState& state, PointLightWorker* pointWorker,
                          PointLightComparison& comparison) {
@@ -97,6 +231,45 @@ void drawPointLightPanel(const PanelInputs& in, ViewState& state, PointLightWork
 
 }  // namespace
 
+std::string materialProblem(const EditableTransport& editable, const Material& material, double sizeMm) {
+    try {
+        if (!(sizeMm > 0.0) || !std::isfinite(sizeMm))
+            throw Error("size", "must be finite and > 0 mm, got " + formatParameter(sizeMm));
+        Material m = material;
+        m.eta = editable.fileMaterial().eta;
+        validateMaterial(m);
+        editable.basis().requireCovered(m, sizeMm / editable.objectSizeMm());
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "";
+}
+
+std::pair<double, double> coveredSizesMm(const EditableTransport& editable, const Material& material) {
+    // z_r = 1 / (s sigma_t') at size factor s must lie in [zrMin, zrMax] in every channel
+    // (requireCovered allows 1e-9 relative; stay inside it).
+    const RadialRange& range = editable.basis().range();
+    double lo = 0.0, hi = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < 3; ++c) {
+        const double sigmaT = material.sigmaA[c] + material.sigmaSPrime[c];
+        if (!(sigmaT > 0.0)) return {1.0, 0.0};
+        lo = std::max(lo, 1.0 / (sigmaT * range.zrMax));
+        hi = std::min(hi, 1.0 / (sigmaT * range.zrMin));
+    }
+    const double s = editable.objectSizeMm();
+    return {s * lo * (1.0 + 1e-9), s * hi * (1.0 - 1e-9)};
+}
+
+std::string materialArgument(const EditableTransport& editable, const Material& material) {
+    if (sameCoefficients(material, editable.fileMaterial())) return "";
+    for (const std::string& n : materialNames())
+        if (sameCoefficients(material, materialByName(n))) return n;
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "sigma:%.9g,%.9g,%.9g:%.9g,%.9g,%.9g", material.sigmaA.x, material.sigmaA.y,
+                  material.sigmaA.z, material.sigmaSPrime.x, material.sigmaSPrime.y, material.sigmaSPrime.z);
+    return buf;
+}
+
 void drawLightMarkers(const ViewState& state, bool shown) {
     if (!shown) return;
     const Camera& c = state.camera;
@@ -168,11 +341,14 @@ void drawPanel(const PanelInputs& in, ViewState& state, PointLightWorker* pointW
         ImGui::Text("relight %.0f ms = light %.0f + kernel %.1f + upload %.1f",
                     in.light->lightMs + in.light->relightMs + in.uploadMs, in.light->lightMs, in.light->relightMs,
                     in.uploadMs);
+    if (in.light && in.light->editPath == LightResult::EditPath::None && in.light->recombineMs > 0.0)
+        ImGui::TextDisabled("(kernel includes recombining the edited material: %.0f ms)", in.light->recombineMs);
     ImGui::Text("%zu relights (%.0f per second completed), mean %.0f ms%s", in.relights.count,
                 in.relightRate, in.relights.mean(), in.relighting ? ", relighting..." : "");
     ImGui::TextDisabled("%zu vertices, %zu triangles, %s", mesh.vertexCount(), mesh.triangleCount(),
                         in.renderer.substr(0, in.renderer.find(' ')).c_str());
 
+    drawMaterialPanel(in, state);
     drawPointLightPanel(in, state, pointWorker, comparison);
     if (ImGui::CollapsingHeader("camera")) {
         ImGui::Text("eye (%.4g, %.4g, %.4g) mm", state.camera.eye.x, state.camera.eye.y, state.camera.eye.z);

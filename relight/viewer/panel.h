@@ -1,9 +1,9 @@
 #pragma once
 // The viewer's Dear ImGui panel (prt-relight view; docs/viewer.md, "Controls"): the
 // settings of the ViewState as widgets (environment, rotation, components, specular,
-// exposure, light terms, the point lights and their sampling), what the relights cost,
-// the camera with its prt-relight render command, and the point lights as markers over
-// the image.
+// exposure, light terms, the material and size of an editable file, the point lights
+// and their sampling), what the relights and edits cost, the camera with its
+// prt-relight render command, and the point lights as markers over the image.
 //
 // Contract: call between ViewerWindow::beginImGuiFrame and renderImGui, on the window's
 // thread. The panel edits `state` only through its widgets and buttons; everything
@@ -11,6 +11,7 @@
 
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/transport_params.h"
@@ -20,6 +21,13 @@
 #include "relight/viewer/view_state.h"
 
 namespace prt {
+
+// The material edits that landed (relight_worker.h): count and times, the last one's path.
+struct MaterialEditStats {
+    RunningStats edits;  // LightResult::editMs
+    LightResult::EditPath lastPath = LightResult::EditPath::None;
+    double lastMs = 0.0, lastRecombineMs = 0.0, lastProjectMs = 0.0;
+};
 
 // What the panel shows besides the ViewState it edits.
 struct PanelInputs {
@@ -37,6 +45,7 @@ struct PanelInputs {
     const std::string& renderer;                  // GL_RENDERER
     const PointLightResult* pointLight = nullptr;  // the point-light update on screen; null before the first
     const RunningStats& pointUpdates;             // point-light updates with lights (ms)
+    const MaterialEditStats& edits;               // editable files
     const std::string& status;                    // the last screenshot's outcome
     std::function<std::string()> renderCommand;   // the prt-relight render command of the view
 };
@@ -52,6 +61,21 @@ struct PointLightComparison {
 // comparison button queues a comparison on it and marks `comparison` running.
 void drawPanel(const PanelInputs& in, ViewState& state, PointLightWorker* pointWorker,
                PointLightComparison& comparison);
+
+// Why `material` at `sizeMm` cannot be the object's (what EditableTransport::setMaterial
+// would throw: a size that is not finite and > 0, an invalid material, a channel
+// outside the basis's range), in one line; empty when it can. Reads only the basis, so
+// it may run while the relight worker edits the object. eta is taken as the file's.
+std::string materialProblem(const EditableTransport& editable, const Material& material, double sizeMm);
+
+// The sizes (mm) at which the basis covers every channel of `material` (its z_r scales
+// as 1 / size; alpha' does not change with the size): {lo, hi}, lo > hi when none.
+std::pair<double, double> coveredSizesMm(const EditableTransport& editable, const Material& material);
+
+// `material` as --material text for prt-relight render: empty for the file's own
+// material, the name of a measured material whose coefficients it has, else the
+// sigma:SA_R,SA_G,SA_B:SS_R,SS_G,SS_B form (%.9g).
+std::string materialArgument(const EditableTransport& editable, const Material& material);
 
 // The point lights as numbered dots in their colour where the camera sees their
 // positions (ImGui's background draw list), when `shown`.

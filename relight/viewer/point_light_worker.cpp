@@ -22,6 +22,18 @@ bool PointLightRequest::sameLighting(const PointLightRequest& o) const {
     return true;
 }
 
+namespace {
+// What renders the same: the name does not.
+bool sameCoefficients(const Material& a, const Material& b) {
+    return a.sigmaA == b.sigmaA && a.sigmaSPrime == b.sigmaSPrime && a.eta == b.eta && a.g == b.g;
+}
+}  // namespace
+
+bool PointLightRequest::sameMaterial(const PointLightRequest& o) const {
+    if (material.has_value() != o.material.has_value()) return false;
+    return !material || sameCoefficients(*material, *o.material);
+}
+
 PointLightWorker::PointLightWorker(const TriangleMesh& meshMm, const Material& material,
                                    const TextureSpaceOptions& base, int atlasSize)
     : mesh_(meshMm), material_(material), base_(base), atlasSize_(atlasSize) {
@@ -69,7 +81,11 @@ void PointLightWorker::compute(const PointLightRequest& r, PointLightResult& out
     const Stopwatch total;
     out.request = r;
     out.lightsRecomputed = false;
+    out.materialChanged = false;
+    out.materialMs = 0.0;
     out.message.clear();
+    const Material material = r.material.value_or(material_);
+    out.material = material;
     // No light, or lights that give nothing: black, and the next request starts afresh.
     auto nothing = [&] {
         out.radiance.assign(mesh_.vertexCount(), glm::vec3(0.0f));
@@ -82,32 +98,49 @@ void PointLightWorker::compute(const PointLightRequest& r, PointLightResult& out
     };
     if (r.lights.empty()) return nothing();
     ensureAtlas();  // on the first light: a viewer without point lights never pays for it
+    bool redrawn = true;  // the draws were redone (a new renderer, new lights, N or seed)
     try {
+        validateMaterial(material);
         checkLightsOutside(*scene_, r.lights);
-        if (!renderer_ || !current_ || current_->mode != r.mode) {
+        // A new eta changes the transmitted irradiance: a new renderer, as a new mode.
+        if (!renderer_ || !current_ || current_->mode != r.mode || renderer_->material().eta != material.eta) {
+            out.materialChanged = renderer_ && !sameCoefficients(renderer_->material(), material);
             TextureSpaceOptions o = base_;
             o.mode = r.mode;
             o.samples = r.samples;
             o.seed = r.seed;
-            renderer_ = std::make_unique<TextureSpaceRenderer>(mesh_, *scene_, *atlas_, material_, o);
-            renderer_->setLights(r.lights);
-            out.lightsRecomputed = true;
-        } else if (!current_->sameLighting(r)) {
-            renderer_->redraw(r.samples, r.seed, /*drawNow=*/false);
+            renderer_.reset();  // the old one's memory first
+            current_.reset();
+            renderer_ = std::make_unique<TextureSpaceRenderer>(mesh_, *scene_, *atlas_, material, o);
             renderer_->setLights(r.lights);
             out.lightsRecomputed = true;
         } else {
-            renderer_->redraw(r.samples, r.seed);
+            if (!sameCoefficients(renderer_->material(), material)) {
+                renderer_->setMaterial(material);
+                out.materialChanged = true;
+                out.materialMs = 1e3 * renderer_->materialSeconds();
+            }
+            if (!current_->sameLighting(r)) {
+                renderer_->redraw(r.samples, r.seed, /*drawNow=*/false);
+                renderer_->setLights(r.lights);
+                out.lightsRecomputed = true;
+            } else if (r.samples != current_->samples || r.seed != current_->seed) {
+                renderer_->redraw(r.samples, r.seed);
+            } else {
+                redrawn = false;  // a material change alone (or nothing): the draws stand
+            }
         }
     } catch (const Error& e) {
-        // A light the user dragged into the object (or too close for the shadow map):
-        // nothing from the point lights until it moves; the viewer shows why.
+        // A light the user dragged into the object (or too close for the shadow map),
+        // or a material out of range: nothing from the point lights until it changes;
+        // the viewer shows why.
         out.message = e.what();
         return nothing();
     }
     current_ = r;
     out.timings = renderer_->timings();
     if (!out.lightsRecomputed) out.timings.irradianceSeconds = out.timings.shadowMapSeconds = 0.0;
+    if (!redrawn) out.timings.samplingSeconds = 0.0;
     const Stopwatch eval;
     std::vector<glm::vec3> m = renderer_->vertexExitance();
     const float invPi = float(1.0 / kPi);
@@ -125,15 +158,17 @@ std::string PointLightWorker::runComparison(const Camera& camera, double exposur
     const GBuffer g = traceGBuffer(*scene_, mesh_, camera);
     const Image image = renderer_->renderPerVertex(g);
     IrradianceSamples faces = faceCentroidSamples(mesh_);
-    computeIrradiance(faces, *scene_, current_->lights, material_.eta, base_.fresnel);
-    const JensenBuhler jb(material_, IrradianceOctree(faces), {.epsilon = 0.05, .fresnel = base_.fresnel});
+    // The current material: the renderer's (the last request's, size edits included).
+    const Material& material = renderer_->material();
+    computeIrradiance(faces, *scene_, current_->lights, material.eta, base_.fresnel);
+    const JensenBuhler jb(material, IrradianceOctree(faces), {.epsilon = 0.05, .fresnel = base_.fresnel});
     const Image ref = jb.render(g);
     const CompareResult c = compareImages(image, ref);
-    char buf[256];
+    char buf[512];
     std::snprintf(buf, sizeof buf,
-                  "point lights vs Jensen-Buhler (eps 0.05, %zu faces): RMSE %.4f (displayed, exposure %.2g), "
+                  "point lights (%s) vs Jensen-Buhler (eps 0.05, %zu faces): RMSE %.4f (displayed, exposure %.2g), "
                   "relative RMSE %.3f; %.1f s",
-                  faces.size(), displayRmse(image, ref, exposure), exposure, c.overall.relativeRmse, t.seconds());
+                  material.name.c_str(), faces.size(), displayRmse(image, ref, exposure), exposure, c.overall.relativeRmse, t.seconds());
     std::printf("%s\n", buf);
     std::fflush(stdout);
     return buf;

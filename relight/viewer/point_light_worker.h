@@ -12,10 +12,16 @@
 //
 // Reuse: a request that changes only N or the seed redraws from the current irradiance
 // map (no shadow rays); a new split mode rebuilds the renderer; new lights recompute
-// the irradiance map, the draws and the shadow maps.
+// the irradiance map, the draws and the shadow maps. A new material (sigma_a, sigma_s';
+// a size edit is a material edit, common/material_edit.h scaledMaterial: the lights and
+// the irradiance stay attached to the object) calls TextureSpaceRenderer::setMaterial
+// on the existing renderer: R_p, the R_d tables and the local filter are rebuilt, the
+// irradiance map, the draws and the shadow maps are kept, then the per-vertex sums run
+// again. A material with another eta rebuilds the renderer (the transmitted irradiance
+// depends on eta), as a new split mode does.
 //
 // On demand (compare()): the error of the point-light part of the frame a camera sees,
-// against Jensen-Buhler (face-centroid samples, epsilon 0.05; docs/viewer.md, "Controls"):
+// with the current material (the last request's), against Jensen-Buhler (face-centroid samples, epsilon 0.05; docs/viewer.md, "Controls"):
 // the per-vertex TSIS frame and the reference are rendered on this thread, after any
 // pending request, and the RMSE of the displayed images (exposure as given) and the
 // linear relative RMSE come back as one line of text.
@@ -50,11 +56,17 @@ struct PointLightRequest {
     TextureSpaceMode mode = TextureSpaceMode::Hybrid;
     int samples = 900;
     uint64_t seed = 1;
+    // The object's material at its current size (scaledMaterial(m, S / S_mesh) for a
+    // size edit); nullopt: the material the worker was constructed with. An invalid
+    // material makes the result carry the message, with no point-light radiance.
+    std::optional<Material> material;
     uint64_t id = 0;
 
     bool sameLighting(const PointLightRequest& o) const;  // lights equal (type, position, direction, colour)
+    // Coefficients, eta and g equal (the name is ignored); both nullopt is the same.
+    bool sameMaterial(const PointLightRequest& o) const;
     bool sameAs(const PointLightRequest& o) const {
-        return sameLighting(o) && mode == o.mode && samples == o.samples && seed == o.seed;
+        return sameLighting(o) && sameMaterial(o) && mode == o.mode && samples == o.samples && seed == o.seed;
     }
 };
 
@@ -65,6 +77,10 @@ struct PointLightResult {
     double evaluationMs = 0.0;        // the per-vertex sums
     double totalMs = 0.0;             // everything this request needed
     bool lightsRecomputed = false;    // false: only the draws were redone
+    bool materialChanged = false;     // setMaterial ran (or the renderer was rebuilt for a new eta)
+    double materialMs = 0.0;          // setMaterial's time (tables, R_p, filter); 0 when none ran (a
+                                      // rebuild for a new eta is in totalMs)
+    Material material;                // the material of this result
     size_t uniqueSamples = 0;
     double rp = 0.0;                  // R_p, mm
     std::string message;              // why the lights gave nothing (a light inside the object, ...)
@@ -73,7 +89,8 @@ struct PointLightResult {
 class PointLightWorker {
 public:
     // base: the options every request starts from (its mode, samples and seed are
-    // replaced by the request's). atlasSize: the irradiance map's resolution.
+    // replaced by the request's). material: the one of requests without their own.
+    // atlasSize: the irradiance map's resolution.
     PointLightWorker(const TriangleMesh& meshMm, const Material& material, const TextureSpaceOptions& base,
                      int atlasSize);
     PointLightWorker(const PointLightWorker&) = delete;
@@ -99,7 +116,7 @@ private:
     std::string runComparison(const Camera& camera, double exposure);
 
     const TriangleMesh& mesh_;
-    Material material_;
+    Material material_;  // the constructor's: requests without a material use it
     TextureSpaceOptions base_;
     int atlasSize_;
     std::unique_ptr<RayScene> scene_;

@@ -3,20 +3,45 @@
 // (relight/prt/light_vector.h) + relight kernel (relight/prt/relight_kernel.h) on a
 // thread of its own (latest_request_worker.h: the latest request wins, results are
 // triple-buffered, take() rethrows a failure as prt::Error("relight", ...)).
-// The transport file and the environments must outlive the worker and not change
-// while it exists.
+//
+// Material edits (files made with prt-precompute --editable; relight/prt/
+// editable_transport.h; docs/viewer.md, "Material"). A request may carry the object's
+// material and size; when they differ from the ones the worker holds, the worker makes
+// them the object's, by the cheapest correct path:
+//   - the light changed too (or the object has no multiple scattering selected): the
+//     multiple-scattering component is recombined for the new material, then the
+//     frame is relit as for any file;
+//   - the light stands still: the light is projected onto the profiles once per light
+//     (EditableTransport::projectLight, about the cost of one recombination) and each
+//     edit is relightProjected (J multiply-adds per vertex and channel), added to the
+//     cached single-scattering part (which no edit changes). The recombination is
+//     deferred to the next change of light, so a slider drag pays for one projection
+//     and then only for the weights.
+// Both paths give the same radiance up to the 16-bit quantization of the recombined
+// component (editable_transport.h). A material the basis does not cover (or an invalid
+// one) is not applied: the result carries the one-line message and the previous
+// material's radiance.
+//
+// Ownership: while the worker exists it owns `object.transport.components` and
+// `object.editable` (it changes them on its thread); other threads may read only what no
+// edit changes: the mesh, the bounds, eta, transport.cubemapSize and viewMaps, and
+// editable->basis(), fileMaterial() and objectSizeMm(). The object and the environments
+// must outlive the worker.
 
 #include <glm/glm.hpp>
 
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "common/image.h"
-#include "common/transport_file.h"
+#include "common/materials.h"
 #include "relight/prt/light_vector.h"
 #include "relight/prt/relight_kernel.h"
+#include "relight/prt/relight_object.h"
 #include "relight/viewer/latest_request_worker.h"
 
 namespace prt {
@@ -26,12 +51,18 @@ struct LightRequest {
     double rotation = 0.0;  // degrees about +Y
     size_t lightTerms = 0;
     bool multipleScattering = true, singleScattering = true;
+    // Editable files: the object's material (eta is the file's whatever this says) and
+    // size in mm; nullopt keeps the worker's current one.
+    std::optional<Material> material;
+    double sizeMm = 0.0;
     uint64_t id = 0;
 
     bool sameLight(const LightRequest& o) const {
         return environment == o.environment && rotation == o.rotation && lightTerms == o.lightTerms &&
                multipleScattering == o.multipleScattering && singleScattering == o.singleScattering;
     }
+    // Coefficients (sigma_a, sigma_s', g) and size equal; the name and eta are ignored.
+    bool sameMaterial(const LightRequest& o) const;
 };
 
 struct LightResult {
@@ -43,11 +74,24 @@ struct LightResult {
     size_t keptTerms = 0, coefficients = 0;
     double relativeL2Error = 0.0;
     double lightMs = 0.0, relightMs = 0.0;
+
+    // The material edit this request made (all 0 / false when none).
+    enum class EditPath { None, Recombined, Projected };
+    EditPath editPath = EditPath::None;
+    double recombineMs = 0.0;  // EditableTransport::recombine (included in relightMs)
+    double projectMs = 0.0;    // projectLight, once per light (included in relightMs)
+    double editMs = 0.0;       // the edit from request to radiance (weights, recombine or
+                               // projection, relight), before packing
+    // Editable files: the material and size the radiance shows (the previous ones when
+    // the request's were refused, with the reason in materialError).
+    std::optional<Material> material;
+    double sizeMm = 0.0;
+    std::string materialError;
 };
 
 class RelightWorker {
 public:
-    RelightWorker(const TransportFile& file, const std::vector<Image>& environments);
+    RelightWorker(RelightObject& object, const std::vector<Image>& environments);
 
     void submit(const LightRequest& r) { worker_.submit(r); }
     // A request queued or running.
@@ -57,7 +101,10 @@ public:
 
 private:
     void compute(const LightRequest& r, LightResult& out);  // on the worker's thread
+    // Sets out.radiance from ssOnly_ and msDiffuse_ (editable files).
+    void combine(LightResult& out) const;
 
+    RelightObject& object_;
     const TransportFile& file_;
     const std::vector<Image>& environments_;
     // The environment of the latest request, prepared for turning (EnvironmentLight;
@@ -65,6 +112,17 @@ private:
     // environment prepares that one.
     std::unique_ptr<EnvironmentLight> prepared_;
     int preparedEnvironment_ = -1;
+
+    // Editable files: the last light and its radiance split into the part no edit
+    // changes (single scattering, view terms included) and the multiple scattering.
+    bool haveLight_ = false;
+    LightRequest lastLight_;
+    LightVector light_;
+    VertexRadiance ssOnly_;
+    std::vector<glm::vec3> msDiffuse_;
+    bool recombined_ = true;   // the transport's MS component is the editable's material
+    bool projected_ = false;   // editable->projectLight(light_) is current
+
     LatestRequestWorker<LightRequest, LightResult> worker_;  // last: its thread uses the members above
 };
 

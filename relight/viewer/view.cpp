@@ -24,6 +24,7 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/image.h"
+#include "common/material_edit.h"
 #include "common/util.h"
 #include "relight/viewer/gl_util.h"
 #include "relight/viewer/panel.h"
@@ -122,6 +123,8 @@ private:
     int displayedTerms_ = 0;
     double lastUploadMs_ = 0.0;
     RunningStats relightStats_, lightStats_, kernelStats_, uploadStats_;
+    MaterialEditStats editStats_;
+    size_t recombinedEdits_ = 0, projectedEdits_ = 0;
 
     // The point lights (texture-space importance sampling).
     std::unique_ptr<PointLightWorker> pointWorker_;
@@ -194,7 +197,13 @@ void Viewer::start() {
                                              s_.vsync);
     scene_ = std::make_unique<SceneGl>(s_.object, environments_, s_.frame.specularBlur, s_.camera.width,
                                        s_.camera.height);
-    worker_ = std::make_unique<RelightWorker>(file, environments_);
+    if (s_.object.editable) {
+        state_.material = s_.object.editable->material();
+        state_.sizeMm = s_.object.editable->sizeMm();
+    }
+    // From here on the worker owns the object's transport components and its editable
+    // transport (relight_worker.h): this thread reads only what no edit changes.
+    worker_ = std::make_unique<RelightWorker>(s_.object, environments_);
     state_.environmentLight = s_.environmentLight;
     state_.lights = s_.pointLights;
     state_.splitMode = int(s_.tsis.mode);
@@ -229,6 +238,10 @@ LightRequest Viewer::currentRequest() const {
     r.lightTerms = size_t(std::max(state_.lightTerms, 0));
     r.multipleScattering = state_.multipleScattering && available_.multipleScattering;
     r.singleScattering = state_.singleScattering && available_.singleScattering;
+    if (s_.object.editable) {
+        r.material = state_.material;
+        r.sizeMm = state_.sizeMm;
+    }
     return r;
 }
 
@@ -238,12 +251,16 @@ PointLightRequest Viewer::currentPointRequest() const {
     r.mode = TextureSpaceMode(state_.splitMode);
     r.samples = state_.pointSamples;
     r.seed = s_.tsis.seed;
+    // A size edit is a material edit at the file's geometry (material_edit.h), as the
+    // relight worker applies it.
+    if (s_.object.editable)
+        r.material = scaledMaterial(state_.material, state_.sizeMm / s_.object.editable->objectSizeMm());
     return r;
 }
 
 void Viewer::exchangeLight() {
     const LightRequest wanted = currentRequest();
-    if (nextId_ == 1 || !wanted.sameLight(submitted_)) {
+    if (nextId_ == 1 || !wanted.sameLight(submitted_) || !wanted.sameMaterial(submitted_)) {
         submitted_ = wanted;
         submitted_.id = nextId_++;
         worker_->submit(submitted_);
@@ -285,6 +302,14 @@ void Viewer::exchangeLight() {
         lightStats_.add(front_.lightMs);
         kernelStats_.add(front_.relightMs);
         uploadStats_.add(lastUploadMs_);
+        if (front_.editPath != LightResult::EditPath::None) {
+            editStats_.edits.add(front_.editMs);
+            editStats_.lastPath = front_.editPath;
+            editStats_.lastMs = front_.editMs;
+            editStats_.lastRecombineMs = front_.recombineMs;
+            editStats_.lastProjectMs = front_.projectMs;
+            ++(front_.editPath == LightResult::EditPath::Projected ? projectedEdits_ : recombinedEdits_);
+        }
     }
 }
 
@@ -350,6 +375,7 @@ void Viewer::drawFrame(int fbWidth, int fbHeight, bool lastFrame) {
                              .renderer = window_->glRenderer(),
                              .pointLight = havePoint_ ? &pointFront_ : nullptr,
                              .pointUpdates = pointStats_,
+                             .edits = editStats_,
                              .status = status_,
                              .renderCommand = [this] { return renderCommand(); }};
         drawPanel(in, state_, pointWorker_.get(), comparison_);
@@ -362,6 +388,8 @@ void Viewer::drawFrame(int fbWidth, int fbHeight, bool lastFrame) {
                 scene_->writeWindowScreenshot(path, fbWidth, fbHeight);
                 std::printf("screenshot: %s (with the panel)\n", path.c_str());
             }
+        // What reproduces the screenshots offline (the state the script ended in).
+        std::printf("render command: %s\n", renderCommand().c_str());
         std::fflush(stdout);
     }
 }
@@ -390,6 +418,11 @@ std::string Viewer::renderCommand() const {
                                                                        : "ss";
     frame.specular = state_.specular;
     frame.specularBlur = s_.frame.specularBlur;
+    if (s_.object.editable) {
+        const EditableTransport& e = *s_.object.editable;  // only what no edit changes
+        frame.material = materialArgument(e, state_.material);
+        if (state_.sizeMm != e.objectSizeMm()) frame.sizeMm = state_.sizeMm;
+    }
     return cmd + renderArguments(frame) + " -o OUT";
 }
 
@@ -428,6 +461,10 @@ void Viewer::printSummary(double seconds) const {
                     relightStats_.count, seconds > 0.0 ? double(relightStats_.count) / seconds : 0.0,
                     relightStats_.mean(), lightStats_.mean(), kernelStats_.mean(), uploadStats_.mean(),
                     relightStats_.min, relightStats_.max);
+    if (editStats_.edits.count)
+        std::printf("material edits: %zu (%zu recombined, %zu projected), mean %.1f ms, min %.1f, max %.1f ms\n",
+                    editStats_.edits.count, recombinedEdits_, projectedEdits_, editStats_.edits.mean(),
+                    editStats_.edits.min, editStats_.edits.max);
     if (pointStats_.count)
         std::printf("point-light updates: %zu, mean %.1f ms (irradiance map, shadow maps, draws and per-vertex sums; "
                     "last: %.1f ms, N = %d, %s), min %.1f, max %.1f ms\n",

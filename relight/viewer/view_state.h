@@ -6,9 +6,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <string>
 #include <vector>
 
 #include "common/camera.h"
+#include "common/materials.h"
 #include "relight/pointlight/point_lights.h"
 #include "relight/pointlight/texture_space_sampling.h"
 
@@ -29,6 +31,13 @@ struct ViewState {
     std::vector<Light> lights;          // point lights, mm in the object's frame
     int splitMode = int(TextureSpaceMode::Hybrid);  // TextureSpaceMode
     int pointSamples = 900;             // N of texture-space importance sampling
+    // The object's material and size (files made with prt-precompute --editable; the
+    // panel's "material" section). Only edits the basis covers get here: eta is the
+    // file's, sizeMm > 0. Both the environment's relight and the point lights use them.
+    Material material;
+    double sizeMm = 0.0;
+    std::string materialError;          // the last refused edit (shown until one is applied)
+    bool materialByAppearance = false;  // the panel edits diffuse colour + mean free path
     bool showPanel = true;
     bool screenshotRequested = false;   // F12, P or the panel's button; taken by the next frame
 };
