@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "common/material_edit.h"
 
 namespace prt {
 
@@ -77,6 +78,12 @@ void addMaterialOptions(CLI::App& app, MaterialOptions& o, bool withG, const std
         ->expected(3)->delimiter(',')->allow_extra_args(false)->group(group);
     app.add_option("--sigma-s-prime", o.sigmaSPrime, "Custom reduced scattering R,G,B in mm^-1")
         ->expected(3)->delimiter(',')->allow_extra_args(false)->group(group);
+    app.add_option("--diffuse-colour", o.diffuseColour,
+                   "Artist's material: diffuse colour R,G,B in (0, 1), linear (with --mfp-mm)")
+        ->expected(3)->delimiter(',')->allow_extra_args(false)->group(group);
+    app.add_option("--mfp-mm", o.meanFreePathMm,
+                   "Artist's material: diffuse mean free path 1/sigma_tr in mm, one value or R,G,B")
+        ->expected(1, 3)->delimiter(',')->allow_extra_args(false)->group(group);
     app.add_option("--eta", o.eta, "Relative index of refraction (default 1.3)")->group(group);
     if (withG) app.add_option("--g", o.g, "Henyey-Greenstein asymmetry (> 0 forward; default 0)")->group(group);
 }
@@ -84,6 +91,18 @@ void addMaterialOptions(CLI::App& app, MaterialOptions& o, bool withG, const std
 Material makeMaterial(const MaterialOptions& o) {
     if (o.sigmaA.empty() != o.sigmaSPrime.empty())
         throw Error("--sigma-a", "a custom material needs both --sigma-a and --sigma-s-prime");
+    if (o.diffuseColour.empty() != o.meanFreePathMm.empty())
+        throw Error("--diffuse-colour", "an artist's material needs both --diffuse-colour and --mfp-mm");
+    if (!o.diffuseColour.empty() && !o.sigmaA.empty())
+        throw Error("--diffuse-colour", "give either --sigma-a/--sigma-s-prime or --diffuse-colour/--mfp-mm");
+    if (!o.diffuseColour.empty()) {
+        if (o.meanFreePathMm.size() == 2) throw Error("--mfp-mm", "needs one value or three (R, G, B)");
+        const glm::dvec3 mfp = o.meanFreePathMm.size() == 1
+                                   ? glm::dvec3(o.meanFreePathMm[0])
+                                   : glm::dvec3(o.meanFreePathMm[0], o.meanFreePathMm[1], o.meanFreePathMm[2]);
+        return materialFromAppearance({o.diffuseColour[0], o.diffuseColour[1], o.diffuseColour[2]}, mfp,
+                                      o.eta.value_or(1.3), o.g.value_or(0.0));
+    }
     if (!o.sigmaA.empty())
         return customMaterial({o.sigmaSPrime[0], o.sigmaSPrime[1], o.sigmaSPrime[2]},
                               {o.sigmaA[0], o.sigmaA[1], o.sigmaA[2]}, o.eta.value_or(1.3), o.g.value_or(0.0));

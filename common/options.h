@@ -38,11 +38,13 @@ void addCameraOptions(CLI::App& app, CameraOptions& o);
 // prt::Error naming the option for non-finite or out-of-range values.
 Camera makeCamera(const CameraOptions& o, const glm::dvec3& sphereCentre, double sphereRadius);
 
-// The material: -m/--material (a measured one, default Marble) or --sigma-a with
-// --sigma-s-prime (custom, mm^-1), --eta and, with `withG`, --g.
+// The material: -m/--material (a measured one, default Marble), --sigma-a with
+// --sigma-s-prime (custom, mm^-1) or --diffuse-colour with --mfp-mm (the artist's pair,
+// common/material_edit.h), --eta and, with `withG`, --g.
 struct MaterialOptions {
     std::string material = "Marble";
     std::vector<double> sigmaA, sigmaSPrime;
+    std::vector<double> diffuseColour, meanFreePathMm;
     std::optional<double> eta, g;
 };
 void addMaterialOptions(CLI::App& app, MaterialOptions& o, bool withG, const std::string& group = "Object");

@@ -140,3 +140,37 @@ TEST(CommandLine, UsageErrorsAreOneLineErrorsAndHelpIsNot) {
     expectOneLine({"render", "m.obj", "--bogus"}, "prt-x render");
     expectOneLine({"render"}, "prt-x render");
 }
+
+namespace {
+
+Material parseMaterialOptions(std::vector<std::string> args) {
+    CLI::App app;
+    MaterialOptions o;
+    addMaterialOptions(app, o, true);
+    args.insert(args.begin(), "test");
+    std::vector<const char*> argv;
+    for (const std::string& a : args) argv.push_back(a.c_str());
+    app.parse(int(argv.size()), argv.data());
+    return makeMaterial(o);
+}
+
+}  // namespace
+
+// The three ways to give a material, and their contradictions.
+TEST(MaterialOptions, NamedCustomAndArtistsPair) {
+    EXPECT_EQ(parseMaterialOptions({"-m", "skin2"}).name, "Skin2");
+    const Material custom = parseMaterialOptions({"--sigma-a", "0.1,0.2,0.3", "--sigma-s-prime", "1,2,3", "--eta", "1.4"});
+    EXPECT_EQ(custom.sigmaA, glm::dvec3(0.1, 0.2, 0.3));
+    EXPECT_DOUBLE_EQ(custom.eta, 1.4);
+    const Material artist = parseMaterialOptions({"--diffuse-colour", "0.8,0.6,0.4", "--mfp-mm", "2"});
+    EXPECT_NEAR(artist.totalDiffuseReflectance().y, 0.6, 1e-12);
+    EXPECT_NEAR(1.0 / artist.sigmaTr().z, 2.0, 1e-12);
+    const Material perChannel = parseMaterialOptions({"--diffuse-colour", "0.8,0.6,0.4", "--mfp-mm", "3,2,1"});
+    EXPECT_NEAR(1.0 / perChannel.sigmaTr().x, 3.0, 1e-12);
+    EXPECT_THROW(parseMaterialOptions({"--diffuse-colour", "0.8,0.6,0.4"}), Error);
+    EXPECT_THROW(parseMaterialOptions({"--diffuse-colour", "0.8,0.6,0.4", "--mfp-mm", "1,2"}), Error);
+    EXPECT_THROW(parseMaterialOptions({"--diffuse-colour", "0.8,0.6,1.4", "--mfp-mm", "1"}), Error);
+    EXPECT_THROW(parseMaterialOptions({"--diffuse-colour", "0.8,0.6,0.4", "--mfp-mm", "1", "--sigma-a", "1,1,1",
+                                       "--sigma-s-prime", "1,1,1"}),
+                 Error);
+}

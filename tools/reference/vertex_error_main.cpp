@@ -31,6 +31,7 @@
 #include "common/transport_file.h"
 #include "common/transport_params.h"
 #include "common/util.h"
+#include "relight/prt/editable_transport.h"
 #include "relight/prt/light_vector.h"
 #include "relight/prt/relight_kernel.h"
 #include "tools/reference/reference.h"
@@ -64,8 +65,13 @@ int run(const Options& o) {
     if (o.samples && *o.samples < 1) throw Error("--samples", "must be at least 1");
 
     TriangleMesh mesh = loadMesh(o.mesh);
-    const TransportFile file = loadTransportFile(o.transport, {mesh.vertexCount(), meshFingerprint(mesh)});
+    TransportFile file = loadTransportFile(o.transport, {mesh.vertexCount(), meshFingerprint(mesh)});
     scaleToPhysical(mesh, MeshScale{.sizeMm = std::nullopt, .mmPerUnit = file.mmPerUnit});
+    // An editable file is checked at its own material: its profiles recombined.
+    if (file.radialBasis) {
+        const EditableTransport editable(file, double(bounds(mesh).diagonal()), o.transport);
+        file.components.insert(file.components.begin(), editable.recombine());
+    }
     const TransportParameters params = readTransportParameters(file.parameters, o.transport);
     if (!params.material) throw Error(o.transport, "has no material parameters (sigma_s_prime, sigma_a, eta)");
     const Material& material = *params.material;
