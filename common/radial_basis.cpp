@@ -608,4 +608,32 @@ RadialBasis makeRadialBasis(const RadialRange& range, const RadialBasisOptions& 
     return RadialBasis(range, std::move(tables));
 }
 
+RadialBasis balancedForDipoles(const RadialBasis& basis, const std::vector<DipoleChannel>& dipoles) {
+    if (dipoles.empty()) throw Error("radial basis", "no dipoles to balance the basis for");
+    const int J = basis.size();
+    Eigen::MatrixXd G = Eigen::MatrixXd::Zero(J, J);
+    for (const DipoleChannel& d : dipoles) {
+        const std::vector<double> w = basis.weights(d);
+        const Eigen::Map<const Eigen::VectorXd> v(w.data(), J);
+        G += v * v.transpose();
+    }
+    G /= double(dipoles.size());
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(G);
+    if (eigen.info() != Eigen::Success) throw Error("radial basis", "the weights' second moments have no eigenbasis");
+    const double largest = std::max(eigen.eigenvalues().maxCoeff(), 0.0);
+    if (!(largest > 0.0)) throw Error("radial basis", "the dipoles' weights are all zero");
+    Eigen::VectorXd root(J);
+    for (int j = 0; j < J; ++j) root[j] = std::sqrt(std::max(eigen.eigenvalues()[j], 1e-9 * largest));
+    const Eigen::MatrixXd A = eigen.eigenvectors() * root.asDiagonal();
+    RadialBasisTables tables = basis.tables();
+    const int N = tables.nodeCount;
+    for (int k = 0; k < N; ++k) {
+        Eigen::VectorXd row(J);
+        for (int j = 0; j < J; ++j) row[j] = tables.values[size_t(k) * size_t(J) + size_t(j)];
+        const Eigen::VectorXd balanced = A.transpose() * row;
+        for (int j = 0; j < J; ++j) tables.values[size_t(k) * size_t(J) + size_t(j)] = float(balanced[j]);
+    }
+    return RadialBasis(basis.range(), std::move(tables));
+}
+
 }  // namespace prt

@@ -224,4 +224,16 @@ inline constexpr RadialFitTolerance kRadialToleranceMarbleJ12{1.0e-4, 1.0e-5, 1.
 // ~10-100 ms (the snapshots and their SVD).
 RadialBasis makeRadialBasis(const RadialRange& range, const RadialBasisOptions& options = {});
 
+// The same fits in balanced coordinates: profiles B' = B A with A = Q Lambda^(1/2),
+// Q Lambda Q^T = G = mean over `dipoles` of w w^T (their weights in `basis`), so that
+// the weights in B' have identity second moments over those dipoles. A vector of
+// per-profile values u (one entry of every profile's transport vector) then has
+// Euclidean norm ||A^T u||^2 = u^T G u in B', the mean over the dipoles of the squared
+// recombined value (sum_j w_j u_j)^2: truncating per-profile vectors jointly by their
+// Euclidean norm in B' keeps what the covered materials need, where in B it would keep
+// what the profiles' arbitrary scales favour. Eigenvalues below 1e-9 of the largest are
+// raised to it (B' stays independent). The range and options are kept; the tables are
+// B's times A. Throws prt::Error("radial basis", ...) for an empty list.
+RadialBasis balancedForDipoles(const RadialBasis& basis, const std::vector<DipoleChannel>& dipoles);
+
 }  // namespace prt

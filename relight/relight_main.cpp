@@ -228,6 +228,10 @@ struct ViewOptions {
     std::vector<std::string> screenshots;
     bool screenshotWithPanel = false, noVsync = false, hidePanel = false;
     double spin = 0.0, orbit = 0.0;
+    // The scripted mid-run edit (makeScriptedEdit, view.h); absent = not given.
+    std::optional<int> editAfter;
+    std::optional<std::string> editMaterial;
+    std::optional<double> editSizeMm;
     int threads = 0;
     // Point lights (texture-space importance sampling).
     std::vector<std::string> lights;
@@ -263,6 +267,16 @@ void addViewOptions(CLI::App& app, ViewOptions& o) {
                    "Turn the camera by this many degrees every frame about its up axis through the target "
                    "(the environment stays)")
         ->capture_default_str()->group("Scripting");
+    app.add_option("--edit-after", o.editAfter,
+                   "Scripted edit (editable files): after K frames with light (1 <= K < --frames), edit the "
+                   "material and/or size live, as the panel does")
+        ->group("Scripting");
+    app.add_option("--edit-material", o.editMaterial,
+                   "The scripted edit's material, as --material takes it (default: keep the current one)")
+        ->group("Scripting");
+    app.add_option("--edit-size-mm", o.editSizeMm,
+                   "The scripted edit's object size in mm (default: keep the current one)")
+        ->group("Scripting");
     app.add_flag("--no-vsync", o.noVsync, "Do not wait for vertical sync (measure frame rates)")
         ->group("Scripting");
     app.add_flag("--hide-panel", o.hidePanel, "Start with the panel hidden (H toggles it)")->group("Scripting");
@@ -327,6 +341,7 @@ int runView(const ViewOptions& o) {
     std::fflush(stdout);
     setup.tsis = o.tsis;
     setup.frames = o.frames;
+    setup.edit = makeScriptedEdit(setup.object, o.frames, o.editAfter, o.editMaterial, o.editSizeMm, o.transport);
     setup.screenshots = o.screenshots;
     setup.screenshotWithPanel = o.screenshotWithPanel;
     setup.spinDegreesPerFrame = o.spin;

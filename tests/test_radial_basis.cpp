@@ -390,3 +390,36 @@ TEST(RadialBasisMeasure, DISABLED_PrintTable) {
 }
 
 }  // namespace
+
+// Balancing changes the coordinates, not the fits: the balanced basis fits every covered
+// dipole as well as the original (the same span; float tables), and its weights have
+// identity second moments over the dipoles it was balanced for.
+TEST(RadialBasisBalance, SameFitsIdentityMoments) {
+    std::vector<prt::Material> materials;
+    for (const char* name : {"Marble", "Skin1", "Ketchup", "Wholemilk"}) materials.push_back(prt::materialByName(name));
+    const prt::RadialBasis basis = prt::makeRadialBasis(prt::rangeCovering(materials, 0.5, 2.0, 30.0), {});
+    std::vector<prt::DipoleChannel> dipoles;
+    for (const prt::Material& m : materials)
+        for (double s : {0.5, 1.0, 2.0})
+            for (int c = 0; c < 3; ++c) {
+                prt::Material scaled = m;
+                scaled.sigmaA *= s;
+                scaled.sigmaSPrime *= s;
+                dipoles.push_back(prt::makeDipoleChannel(scaled, c));
+            }
+    const prt::RadialBasis balanced = prt::balancedForDipoles(basis, dipoles);
+    ASSERT_EQ(balanced.size(), basis.size());
+    const int J = basis.size();
+    std::vector<double> moments(size_t(J * J), 0.0);
+    for (const prt::DipoleChannel& d : dipoles) {
+        const prt::RadialFitError a = basis.fitError(d), b = balanced.fitError(d);
+        EXPECT_NEAR(b.l1, a.l1, 0.02 * a.l1 + 1e-5);
+        EXPECT_LT(b.integral, 1e-9);
+        const std::vector<double> w = balanced.weights(d);
+        for (int i = 0; i < J; ++i)
+            for (int j = 0; j < J; ++j) moments[size_t(i * J + j)] += w[size_t(i)] * w[size_t(j)] / double(dipoles.size());
+    }
+    for (int i = 0; i < J; ++i)
+        for (int j = 0; j < J; ++j) EXPECT_NEAR(moments[size_t(i * J + j)], i == j ? 1.0 : 0.0, 1e-3) << i << " " << j;
+    EXPECT_THROW(prt::balancedForDipoles(basis, {}), prt::Error);
+}

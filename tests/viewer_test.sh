@@ -24,9 +24,12 @@
 # An editable file (prt-precompute --editable) shown with --material and --size-mm must
 # match the render of the command the viewer prints for its final state (which must
 # carry the edit), in the same way; its point lights must match prt-pointlight of the
-# material scaled for the size.
+# material scaled for the size. A live edit in the middle of a scripted run (--edit-after
+# K --edit-material --edit-size-mm, the light standing still) must take the projected
+# path and match the render of the edited material in the same way.
 # Bad inputs (missing transport, mismatched mesh, no display, no OpenGL 3.3, a
-# screenshot without --frames) must exit with code 1 and a one-line message.
+# screenshot without --frames, a scripted edit on a file that is not editable or after
+# the last frame) must exit with code 1 and a one-line message.
 # Exit 77 (CTest: skipped) when xvfb-run is not installed.
 set -u
 
@@ -230,6 +233,40 @@ if "$PRECOMPUTE" "$S/torus.ply" --size-mm 20 --cubemap-size 8 --samples 2000 --c
         cat "$O/material-points.view.log"
         fail "material points: the viewer failed"
     fi
+    # The live edit: the file's Marble at 20 mm for 3 frames, then Ketchup at 30 mm edited
+    # while the light stands still (projected light + relightProjected on the worker).
+    # The screenshot, taken once the edit's relight has landed, must match the render of
+    # the edited material.
+    echo "--- live material edit"
+    M="$S/torus.ply -t $S/editable.prt -W 256 -H 192 --azimuth 20 --elevation 15"
+    # shellcheck disable=SC2086
+    if view $M -e "$S/sky.exr" --frames 6 --edit-after 3 --edit-material Ketchup --edit-size-mm 30 \
+        --screenshot "$O/live-edit.view.exr" --screenshot "$O/live-edit.view.png" > "$O/live-edit.view.log" 2>&1; then
+        grep -E "^(scripted edit|viewer|relights|material edits|render command):" "$O/live-edit.view.log"
+        if grep -q "^material edits: 1 (0 recombined, 1 projected)" "$O/live-edit.view.log"; then
+            pass "live edit: applied once, by the projected path"
+        else
+            fail "live edit: not one projected edit"
+        fi
+        cmd=$(sed -n 's/^render command: prt-relight //p' "$O/live-edit.view.log")
+        if [[ $cmd == *"--material 'Ketchup'"* && $cmd == *"--size-mm=30 "* ]]; then
+            pass "live edit: the render command carries the edit"
+        else
+            fail "live edit: the render command lacks --material 'Ketchup' --size-mm=30: $cmd"
+        fi
+        # shellcheck disable=SC2086
+        if "$RELIGHT" render $M -e "$S/sky.exr" --material Ketchup --size-mm 30 -o "$O/live-edit.render" \
+            > "$O/live-edit.render.log" 2>&1; then
+            agree "live edit" "$O/live-edit.view" "$O/live-edit.render"
+            compare "live edit: EXR, common object pixels" "$O/live-edit.view.exr" "$O/live-edit.render.masked.exr" 1e-4
+        else
+            cat "$O/live-edit.render.log"
+            fail "live edit: the renderer failed"
+        fi
+    else
+        cat "$O/live-edit.view.log"
+        fail "live edit: the viewer failed"
+    fi
 else
     cat "$O/editable.log"
     fail "material: prt-precompute --editable"
@@ -268,6 +305,10 @@ expect_error "material on a file that is not editable" "not editable" \
     inx "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --material Ketchup --frames 1
 expect_error "material outside the basis" "basis range" \
     inx "$RELIGHT" view "$S/torus.ply" -t "$S/editable.prt" -e "$S/sky.exr" --material Ketchup --size-mm 2000 --frames 1
+expect_error "scripted edit on a file that is not editable" "--edit-after: .*not editable" \
+    inx "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --frames 5 --edit-after 2 --edit-material Ketchup
+expect_error "scripted edit after the last frame" "--edit-after: must be" \
+    inx "$RELIGHT" view "$S/torus.ply" -t "$S/editable.prt" -e "$S/sky.exr" --frames 5 --edit-after 5 --edit-material Ketchup
 expect_error "screenshot without --frames" "needs --frames" \
     "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --screenshot "$O/x.png"
 

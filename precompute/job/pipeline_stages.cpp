@@ -177,10 +177,16 @@ namespace {
 RadialBasis editableBasis(const PrecomputeSettings& s, const TriangleMesh& mesh, ParameterList& derived) {
     const double objectSizeMm = bounds(mesh).diagonal();
     const RadialRange range = editableRange(s, objectSizeMm);
-    RadialBasis basis = makeRadialBasis(range, s.editable.basis);
     const bool sized = s.editable.sizeMinMm > 0.0;
     const double sizes[3] = {sized ? s.editable.sizeMinMm / objectSizeMm : 0.5, 1.0,
                              sized ? s.editable.sizeMaxMm / objectSizeMm : 2.0};
+    // In coordinates balanced for the covered materials, so that the joint truncation of
+    // the profile vectors keeps what those materials' recombinations need.
+    std::vector<DipoleChannel> covered;
+    for (const Material& m : editableMaterials(s))
+        for (double f : sizes)
+            for (int c = 0; c < 3; ++c) covered.push_back(makeDipoleChannel(scaledMaterial(m, f), c));
+    RadialBasis basis = balancedForDipoles(makeRadialBasis(range, s.editable.basis), covered);
     double worstL1 = 0.0, worstDisk = 0.0;
     std::string worstCase;
     for (const Material& m : editableMaterials(s))
@@ -202,6 +208,7 @@ RadialBasis editableBasis(const PrecomputeSettings& s, const TriangleMesh& mesh,
                                            " mm, alpha' " + formatParameter(range.alphaMin) + " .. " +
                                            formatParameter(range.alphaMax) + ", r <= " + formatParameter(range.rMax) +
                                            " mm"});
+    derived.push_back({"radial_coordinates", "balanced for the covered materials (radial_basis.h)"});
     derived.push_back({"radial_fit_worst_l1", formatParameter(worstL1) + " (" + worstCase + ")"});
     derived.push_back({"radial_fit_worst_disk", formatParameter(worstDisk)});
     derived.push_back({"radial_fit_l1_own_material", formatParameter(ownL1)});

@@ -118,17 +118,7 @@ void drawMaterialPanel(const PanelInputs& in, ViewState& state) {
         size = e.objectSizeMm();
         changed = true;
     }
-    if (changed) {
-        const std::string problem = materialProblem(e, m, size);
-        if (problem.empty()) {
-            state.material = m;
-            state.material.eta = e.fileMaterial().eta;
-            state.sizeMm = size;
-            state.materialError.clear();
-        } else {
-            state.materialError = problem;
-        }
-    }
+    if (changed) editMaterial(e, state, m, size);
     if (!state.materialError.empty()) ImGui::TextColored(kErrorColour, "%s", state.materialError.c_str());
     if (in.light && !in.light->materialError.empty())
         ImGui::TextColored(kErrorColour, "%s", in.light->materialError.c_str());
@@ -243,6 +233,19 @@ std::string materialProblem(const EditableTransport& editable, const Material& m
         return e.what();
     }
     return "";
+}
+
+bool editMaterial(const EditableTransport& editable, ViewState& state, const Material& material, double sizeMm) {
+    const std::string problem = materialProblem(editable, material, sizeMm);
+    if (!problem.empty()) {
+        state.materialError = problem;
+        return false;
+    }
+    state.material = material;
+    state.material.eta = editable.fileMaterial().eta;
+    state.sizeMm = sizeMm;
+    state.materialError.clear();
+    return true;
 }
 
 std::pair<double, double> coveredSizesMm(const EditableTransport& editable, const Material& material) {

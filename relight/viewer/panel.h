@@ -68,6 +68,13 @@ void drawPanel(const PanelInputs& in, ViewState& state, PointLightWorker* pointW
 // it may run while the relight worker edits the object. eta is taken as the file's.
 std::string materialProblem(const EditableTransport& editable, const Material& material, double sizeMm);
 
+// The one way an edit reaches the ViewState (the panel's widgets and the scripted edit,
+// view.h ScriptedEdit): `material` (eta taken as the file's) at `sizeMm` becomes the
+// state's and materialError is cleared when materialProblem finds nothing; otherwise
+// materialError says why and the state keeps its material. Returns whether it was
+// applied. The relight worker picks the change up with the next request.
+bool editMaterial(const EditableTransport& editable, ViewState& state, const Material& material, double sizeMm);
+
 // The sizes (mm) at which the basis covers every channel of `material` (its z_r scales
 // as 1 / size; alpha' does not change with the size): {lo, hi}, lo > hi when none.
 std::pair<double, double> coveredSizesMm(const EditableTransport& editable, const Material& material);

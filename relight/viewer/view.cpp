@@ -1,9 +1,9 @@
 // prt-relight view: see view.h and docs/viewer.md.
 //
 // One frame: events and input change the ViewState (window.h); the scripted motion
-// takes its step; a light the state asks for and the workers do not have yet is
-// submitted, and finished results are taken and uploaded (environment + point lights,
-// summed per vertex); the scene is drawn (scene_gl.h) with the light of the result on
+// takes its step and, at its frame, the scripted edit is made; a light the state asks
+// for and the workers do not have yet is submitted, and finished results are taken and
+// uploaded (environment + point lights, summed per vertex); the scene is drawn (scene_gl.h) with the light of the result on
 // screen, so the background, the specular layer and the object never mix two lights;
 // then screenshots, the panel (panel.h) and the swap.
 
@@ -12,10 +12,12 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -104,6 +106,9 @@ private:
     LightRequest currentRequest() const;
     PointLightRequest currentPointRequest() const;
     void printSummary(double seconds) const;
+    // The scripted edit, once its frame has come: through the panel's edit (editMaterial),
+    // so the next exchangeLight submits it as it would a panel edit.
+    void applyScriptedEdit();
 
     ViewerSetup s_;
     ViewLimits limits_;
@@ -125,6 +130,7 @@ private:
     RunningStats relightStats_, lightStats_, kernelStats_, uploadStats_;
     MaterialEditStats editStats_;
     size_t recombinedEdits_ = 0, projectedEdits_ = 0;
+    bool scriptedEditDone_ = false;
 
     // The point lights (texture-space importance sampling).
     std::unique_ptr<PointLightWorker> pointWorker_;
@@ -473,6 +479,17 @@ void Viewer::printSummary(double seconds) const {
     std::fflush(stdout);
 }
 
+void Viewer::applyScriptedEdit() {
+    if (!s_.edit || scriptedEditDone_ || script_.framesWithLight() < s_.edit->afterFrames) return;
+    scriptedEditDone_ = true;
+    // makeScriptedEdit checked it against the basis, so a refusal here is a bug, not input.
+    if (!editMaterial(*s_.object.editable, state_, s_.edit->material, s_.edit->sizeMm))
+        throw Error("--edit-material", state_.materialError);
+    std::printf("scripted edit: after frame %d, %s at %s mm\n", s_.edit->afterFrames,
+                describeMaterial(state_.material).c_str(), formatParameter(state_.sizeMm).c_str());
+    std::fflush(stdout);
+}
+
 int Viewer::run() {
     start();
     clock_ = FrameClock();
@@ -481,12 +498,17 @@ int Viewer::run() {
         int fbWidth = 0, fbHeight = 0;
         if (!beginFrame(fbWidth, fbHeight)) continue;
         script_.step(state_, haveLight_);
+        applyScriptedEdit();
         exchangeLight();
         const bool pointBusy = pointWorker_ && !comparison_.running && pointWorker_->busy();
         const bool busy = worker_->busy() || pointBusy;
         // The scripted end: the frames are done and the light on screen is the last asked for.
+        // The scripted edit goes out before the frames are done (K < frames), so waiting
+        // for the last request's result waits for the edit's.
         const bool lastFrame = script_.finishing() && !busy && displayed_.id == submitted_.id &&
                                (!pointWorker_ || (havePoint_ && pointDisplayed_.id == pointSubmitted_.id));
+        if (lastFrame && s_.edit && !front_.materialError.empty())
+            throw Error("--edit-material", "the relight refused the edit: " + front_.materialError);
         drawFrame(fbWidth, fbHeight, lastFrame);
         if (lastFrame) {
             screenshotsDone = true;
@@ -544,6 +566,36 @@ std::vector<std::string> findEnvironments(const std::vector<std::string>& args) 
         }
     }
     return paths;
+}
+
+std::optional<ScriptedEdit> makeScriptedEdit(const RelightObject& object, int frames,
+                                             const std::optional<int>& afterFrames,
+                                             const std::optional<std::string>& materialText,
+                                             const std::optional<double>& sizeMm,
+                                             const std::string& transportPath) {
+    if (!afterFrames && !materialText && !sizeMm) return std::nullopt;
+    const std::string first = afterFrames ? "--edit-after" : materialText ? "--edit-material" : "--edit-size-mm";
+    if (!object.editable)
+        throw Error(first, transportPath + " is not editable (made without prt-precompute --editable)");
+    if (!afterFrames) throw Error(first, "needs --edit-after K (the frame of the edit)");
+    if (!materialText && !sizeMm) throw Error("--edit-after", "needs --edit-material and/or --edit-size-mm");
+    if (frames <= 0) throw Error("--edit-after", "needs a scripted run, --frames N with N > K");
+    if (*afterFrames < 1 || *afterFrames >= frames)
+        throw Error("--edit-after", "must be >= 1 and < --frames (" + std::to_string(frames) + "), got " +
+                                        std::to_string(*afterFrames));
+    const EditableTransport& e = *object.editable;
+    ScriptedEdit edit;
+    edit.afterFrames = *afterFrames;
+    edit.material = materialText ? parseMaterial(*materialText, e.fileMaterial().eta, e.fileMaterial().g,
+                                                 "--edit-material")
+                                 : e.material();
+    edit.material.eta = e.fileMaterial().eta;
+    edit.sizeMm = sizeMm ? *sizeMm : e.sizeMm();
+    if (sizeMm && (!std::isfinite(*sizeMm) || !(*sizeMm > 0.0)))
+        throw Error("--edit-size-mm", "must be finite and > 0 mm, got " + formatParameter(*sizeMm));
+    const std::string problem = materialProblem(e, edit.material, edit.sizeMm);
+    if (!problem.empty()) throw Error(materialText ? "--edit-material" : "--edit-size-mm", problem);
+    return edit;
 }
 
 void checkViewerDisplay() { initDisplay(); }

@@ -25,6 +25,18 @@
 
 namespace prt {
 
+// A material edit made in the middle of a scripted run (--edit-after, --edit-material,
+// --edit-size-mm; docs/viewer.md, "Scripting"), so a scripted run exercises the live
+// edit path: once `afterFrames` frames have been shown with light, the ViewState takes
+// the material and size through the panel's own edit (editMaterial, panel.h) and the
+// relight worker applies it like any panel edit (projected while the light stands
+// still, recombined when the light changes in the same frame; relight_worker.h).
+struct ScriptedEdit {
+    int afterFrames = 0;  // K, 1 <= K < frames: the first K frames show the material before the edit
+    Material material;    // eta and g are the file's
+    double sizeMm = 0.0;  // > 0, covered by the basis together with `material`
+};
+
 struct ViewerSetup {
     RelightObject object;              // loaded and checked (loadRelightObject)
     std::string meshPath, transportPath;
@@ -53,9 +65,25 @@ struct ViewerSetup {
     double spinDegreesPerFrame = 0.0;      // rotate the environment every frame
     double orbitDegreesPerFrame = 0.0;     // turn the camera about its up axis through the
                                            // target every frame (+ = toward +X from +Z)
+    std::optional<ScriptedEdit> edit;      // editable files with frames > 0 (makeScriptedEdit)
     bool vsync = true;
     bool showPanel = true;
 };
+
+// The scripted edit of --edit-after K, --edit-material TEXT, --edit-size-mm S for
+// `object` (the startup edit, --material / --size-mm, already applied) in a run of
+// `frames` frames. TEXT is read by parseMaterial with the file's eta and g; an absent
+// TEXT keeps the object's current material, an absent S its current size. Throws
+// prt::Error naming the option: --edit-* on a file that is not editable, --edit-after
+// missing or without --edit-material / --edit-size-mm, K outside [1, frames), bad
+// material text, S not finite and > 0, a material and size the basis does not cover
+// (materialProblem, panel.h). Nothing given: nullopt. Call before runViewer: it reads
+// the object's current material and size, which the relight worker owns from then on.
+std::optional<ScriptedEdit> makeScriptedEdit(const RelightObject& object, int frames,
+                                             const std::optional<int>& afterFrames,
+                                             const std::optional<std::string>& materialText,
+                                             const std::optional<double>& sizeMm,
+                                             const std::string& transportPath);
 
 // The lat-long maps named by `args`: files as given, directories expanded to their
 // .exr and .hdr files in name order. With no args: data/envmaps/ under the current

@@ -107,6 +107,8 @@ public:
     void frameShown(bool lightShown) {
         if (lightShown) ++framesWithLight_;
     }
+    // Frames shown with light so far (the clock of the scripted edit, view.h).
+    int framesWithLight() const { return framesWithLight_; }
     // A scripted run's frames are done: it ends once the light on screen is the last
     // asked for.
     bool finishing() const { return scripted() && framesWithLight_ >= frames_; }
