@@ -220,8 +220,8 @@ inline constexpr RadialFitTolerance kRadialToleranceMeasuredJ16{7.0e-4, 1.0e-4, 
 inline constexpr RadialFitTolerance kRadialToleranceMarbleJ12{1.0e-4, 1.0e-5, 1.5e-4};
 
 // Builds a basis of options.size profiles for the range (validated first). Throws
-// prt::Error("radial basis options", ...) for options out of their bounds. Takes
-// ~10-100 ms (the snapshots and their SVD).
+// prt::Error("radial basis options", ...) for options out of their bounds. Its cost
+// (the snapshots and their SVD) is in docs/radial-basis.md, "Cost".
 RadialBasis makeRadialBasis(const RadialRange& range, const RadialBasisOptions& options = {});
 
 // The same fits in balanced coordinates: profiles B' = B A with A = Q Lambda^(1/2),

@@ -85,6 +85,18 @@ struct Options {
     int atlasSize = 1024;
 };
 
+// Writes an animation frame as <base>.exr and <base>.png, remembers the first and the
+// last frame written (for the summary) and returns the seconds the writing took.
+double writeAnimationFrame(const std::string& base, const Image& image, double exposure, std::string& first,
+                           std::string& last) {
+    const Stopwatch t;
+    writeExr(base + ".exr", image);
+    writePng(base + ".png", image, exposure);
+    if (first.empty()) first = base;
+    last = base;
+    return t.seconds();
+}
+
 // <output>_error.png: the relative error of `image` against `reference` as a heat map
 // scaled to its 99th percentile (rounded up); returns that scale.
 double writeErrorHeatmap(const std::string& output, const Image& image, const Image& reference,
@@ -171,12 +183,7 @@ int runAnimation(const Options& o, const PointAnimation& animation, const Triang
     renderAnimation(animation, mesh, scene, placed, lights, camera, pivot, settings,
                     [&](const AnimationFrameInfo& info, PointFrame& frame) {
         const std::string base = animationFrameName(output, info.frame);
-        const Stopwatch t;
-        writeExr(base + ".exr", frame.image);
-        writePng(base + ".png", frame.image, o.exposure);
-        const double tWrite = t.seconds();
-        if (first.empty()) first = base;
-        last = base;
+        const double tWrite = writeAnimationFrame(base, frame.image, o.exposure, first, last);
         sumIrr += info.irradianceSeconds;
         sumTree += info.octreeSeconds;
         sumG += info.gbufferSeconds;
@@ -259,12 +266,7 @@ int runTextureSpaceAnimation(const Options& o, const PointAnimation& animation, 
     renderTextureSpaceAnimation(animation, renderer, g, perVertex, base,
                                 [&](const AnimationFrameInfo& info, PointFrame& frame) {
         const std::string name = animationFrameName(output, info.frame);
-        const Stopwatch t;
-        writeExr(name + ".exr", frame.image);
-        writePng(name + ".png", frame.image, o.exposure);
-        const double tWrite = t.seconds();
-        if (first.empty()) first = name;
-        last = name;
+        const double tWrite = writeAnimationFrame(name, frame.image, o.exposure, first, last);
         sumMat += info.materialSeconds;
         sumEval += frame.renderSeconds;
         sumWrite += tWrite;
