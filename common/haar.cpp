@@ -211,6 +211,28 @@ struct Candidate {
 
 }  // namespace
 
+namespace {
+
+// An entry's squared norm over its channels, the truncation's key: in channel order up
+// to four channels; beyond, in four interleaved partial sums (channel c in sum c mod 4,
+// added as (s0 + s1) + (s2 + s3)), so that a long chain of dependent additions does not
+// set the pace. truncateLargest and its reference share it.
+inline double squaredNorm(const float* v, int channels) {
+    if (channels <= 4) {
+        double e = 0.0;
+        for (int c = 0; c < channels; ++c) e += double(v[c]) * double(v[c]);
+        return e;
+    }
+    double s[4] = {0.0, 0.0, 0.0, 0.0};
+    int c = 0;
+    for (; c + 4 <= channels; c += 4)
+        for (int q = 0; q < 4; ++q) s[q] += double(v[c + q]) * double(v[c + q]);
+    for (int q = 0; c < channels; ++c, ++q) s[q] += double(v[c]) * double(v[c]);
+    return (s[0] + s[1]) + (s[2] + s[3]);
+}
+
+}  // namespace
+
 SparseVector truncateLargest(const float* dense, size_t count, int channels, size_t keep,
                              const float* weights) {
     checkChannels(channels, "truncateLargest");
@@ -223,16 +245,17 @@ SparseVector truncateLargest(const float* dense, size_t count, int channels, siz
     thread_local std::vector<double> keys, positive;
     keys.resize(count);
     positive.clear();
+    // The keys first, then the positive ones: a loop free of calls lets consecutive
+    // entries' sums overlap (one entry's channels are a chain of dependent additions).
     for (size_t idx = 0; idx < count; ++idx) {
         const float* v = dense + idx * channels;
-        double e = 0.0;
-        for (int c = 0; c < channels; ++c) e += double(v[c]) * double(v[c]);
+        double e = squaredNorm(v, channels);
         // ||v|| * w orders the same as ||v||^2 * w^2 for w >= 0; no square root needed.
         if (weights) e *= double(weights[idx]) * double(weights[idx]);
-        if (!(e > 0.0)) e = 0.0;  // also drops NaN keys
-        keys[idx] = e;
-        if (e > 0.0) positive.push_back(e);
+        keys[idx] = e > 0.0 ? e : 0.0;  // also drops NaN keys
     }
+    for (size_t idx = 0; idx < count; ++idx)
+        if (keys[idx] > 0.0) positive.push_back(keys[idx]);
     // The keep-th largest key is the threshold: every larger key is kept, and as many
     // keys equal to it as there is room for, lowest index first (the reference's
     // tie-break); one scan in index order then gives the sorted result.
@@ -274,8 +297,7 @@ SparseVector truncateLargestReference(const float* dense, size_t count, int chan
     candidates.reserve(count);
     for (size_t idx = 0; idx < count; ++idx) {
         const float* v = dense + idx * channels;
-        double e = 0.0;
-        for (int c = 0; c < channels; ++c) e += double(v[c]) * double(v[c]);
+        double e = squaredNorm(v, channels);
         // ||v|| * w orders the same as ||v||^2 * w^2 for w >= 0; no square root needed.
         if (weights) e *= double(weights[idx]) * double(weights[idx]);
         if (e > 0.0) candidates.push_back({e, uint32_t(idx)});  // also drops NaN keys

@@ -608,16 +608,25 @@ RadialBasis makeRadialBasis(const RadialRange& range, const RadialBasisOptions& 
     return RadialBasis(range, std::move(tables));
 }
 
-RadialBasis balancedForDipoles(const RadialBasis& basis, const std::vector<DipoleChannel>& dipoles) {
+RadialBasis balancedForDipoles(const RadialBasis& basis, const std::vector<DipoleChannel>& dipoles,
+                               const std::vector<double>& importance) {
     if (dipoles.empty()) throw Error("radial basis", "no dipoles to balance the basis for");
+    if (!importance.empty() && importance.size() != dipoles.size())
+        throw Error("radial basis", "one importance weight per dipole needed");
     const int J = basis.size();
     Eigen::MatrixXd G = Eigen::MatrixXd::Zero(J, J);
-    for (const DipoleChannel& d : dipoles) {
-        const std::vector<double> w = basis.weights(d);
+    double total = 0.0;
+    for (size_t i = 0; i < dipoles.size(); ++i) {
+        const double weight = importance.empty() ? 1.0 : importance[i];
+        if (!(weight >= 0.0) || !std::isfinite(weight))
+            throw Error("radial basis", "importance weights must be finite and >= 0");
+        const std::vector<double> w = basis.weights(dipoles[i]);
         const Eigen::Map<const Eigen::VectorXd> v(w.data(), J);
-        G += v * v.transpose();
+        G += weight * v * v.transpose();
+        total += weight;
     }
-    G /= double(dipoles.size());
+    if (!(total > 0.0)) throw Error("radial basis", "importance weights are all 0");
+    G /= total;
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(G);
     if (eigen.info() != Eigen::Success) throw Error("radial basis", "the weights' second moments have no eigenbasis");
     const double largest = std::max(eigen.eigenvalues().maxCoeff(), 0.0);

@@ -233,7 +233,10 @@ RadialBasis makeRadialBasis(const RadialRange& range, const RadialBasisOptions& 
 // Euclidean norm in B' keeps what the covered materials need, where in B it would keep
 // what the profiles' arbitrary scales favour. Eigenvalues below 1e-9 of the largest are
 // raised to it (B' stays independent). The range and options are kept; the tables are
-// B's times A. Throws prt::Error("radial basis", ...) for an empty list.
-RadialBasis balancedForDipoles(const RadialBasis& basis, const std::vector<DipoleChannel>& dipoles);
+// B's times A. `importance` (empty: all 1, else one weight >= 0 per dipole, not all 0)
+// weights the mean: G = sum_i importance_i w_i w_i^T / sum_i importance_i. Throws
+// prt::Error("radial basis", ...) for an empty list or bad importance weights.
+RadialBasis balancedForDipoles(const RadialBasis& basis, const std::vector<DipoleChannel>& dipoles,
+                               const std::vector<double>& importance = {});
 
 }  // namespace prt

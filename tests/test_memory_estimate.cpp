@@ -1,15 +1,18 @@
 // The precomputation's memory estimate and its refusal (precompute/job/memory_estimate.h).
 // Asserted: the estimate grows linearly with the sample count and the coefficients as
-// the data structures do; a job whose estimate exceeds --max-memory is refused before
+// the data structures do; it lands within a stated factor of the peak resident memory
+// that real jobs measure (so it neither misses a structure nor counts one twice); a job whose estimate exceeds --max-memory is refused before
 // any pass, and the old output is left untouched; the message names the estimate, the
 // limit and what to change; bad limits are errors.
 
 #include "precompute/job/memory_estimate.h"
 
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 
 #include <filesystem>
 #include <fstream>
+#include <malloc.h>
 #include <sstream>
 #include <string>
 #include <unistd.h>
@@ -33,6 +36,53 @@ PrecomputeSettings settings() {
     return s;
 }
 
+// A "Vm...:  N kB" line of /proc/self/status, in bytes (0 when absent).
+uint64_t procStatusBytes(const std::string& key) {
+    std::ifstream in("/proc/self/status");
+    std::string line;
+    while (std::getline(in, line))
+        if (line.rfind(key + ":", 0) == 0) return std::stoull(line.substr(key.size() + 1)) * 1024;
+    return 0;
+}
+
+struct MeasuredJob {
+    uint64_t estimate = 0, peak = 0;
+    std::string largest;
+};
+
+// Runs the job and measures what it added to the process's peak resident set: the
+// heap's free memory is returned to the system first (so the job cannot hide in it),
+// the peak is reset to the current resident set (/proc/self/clear_refs, "5": Linux
+// 4.0 and later), and the peak after the job less the resident set before it is the
+// job's own (the libraries' code and the test's data stay out of both).
+MeasuredJob measureJob(PrecomputeSettings s, const TriangleMesh& mesh) {
+    Progress::setEnabled(false);
+    const fs::path dir = fs::temp_directory_path() / ("prt-memory-peak-" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    s.meshPath = (dir / "mesh.obj").string();
+    s.outputPath = (dir / "out.prt").string();
+    saveMesh(mesh, s.meshPath);
+    MeasuredJob m;
+    ::malloc_trim(0);
+    const uint64_t before = procStatusBytes("VmRSS");
+    {
+        std::ofstream reset("/proc/self/clear_refs");
+        reset << "5";
+        reset.flush();
+        EXPECT_TRUE(reset.good()) << "cannot reset the peak resident set through /proc/self/clear_refs";
+    }
+    EXPECT_LE(procStatusBytes("VmHWM"), before + (16u << 20)) << "the peak was not reset";
+    const PrecomputeSummary summary = precomputeTransport(s, /*force=*/true);
+    m.peak = procStatusBytes("VmHWM") - before;
+    m.estimate = summary.setup.estimatedMemoryBytes;
+    m.largest = estimatePrecomputeMemory(withSharedValues(s), summary.setup.vertices, summary.setup.triangles,
+                                         summary.samples.count, tbb::this_task_arena::max_concurrency(),
+                                         summary.setup.totalAreaMm2)
+                    .largest;
+    fs::remove_all(dir);
+    return m;
+}
+
 }  // namespace
 
 TEST(MemoryEstimate, GrowsWithSamplesAndCoefficients) {
@@ -42,8 +92,6 @@ TEST(MemoryEstimate, GrowsWithSamplesAndCoefficients) {
     const uint64_t c = estimatePrecomputeMemory(s, 10000, 20000, 300000, 2).bytes;
     EXPECT_GT(b, a);
     EXPECT_NEAR(double(c - b), double(b - a), 1e-6 * double(c));  // linear in samples
-    // Per sample: 1.5 x (200 + 128 x 8 + 64 + (256 x 8 + 64) / 4) bytes = 2.7 kB.
-    EXPECT_NEAR(double(b - a) / 100000.0, 1.5 * (200.0 + 128 * 8 + 64 + (256 * 8 + 64) / 4.0), 1.0);
     PrecomputeSettings more = s;
     more.pass1.sampleCoefficients = 1024;
     EXPECT_GT(estimatePrecomputeMemory(more, 10000, 20000, 100000, 2).bytes, a);
@@ -61,6 +109,35 @@ TEST(MemoryEstimate, GrowsWithSamplesAndCoefficients) {
     EXPECT_NE(huge.largest.find("cell sub-points"), std::string::npos) << huge.largest;
     EXPECT_EQ(formatBytes(41'200'000'000ull), "41.2 GB");
     EXPECT_EQ(formatBytes(830'000'000ull), "830 MB");
+}
+
+// Two real jobs, each dominated by a different structure: pass 1's vectors (60,000
+// samples x 128 coefficients) and the per-vertex results of single scattering with a
+// 4-term phase (2,562 vertices x 4 vectors x 384 terms). The estimate is meant to refuse
+// what cannot fit, so it must not fall far below a real peak (the documented -25%), and
+// to let through what can, so it must not lie far above it: estimate / measured peak in
+// [0.75, 2]. Measured: 1.03 for the pass-1 job, 1.32 for the single-scattering one
+// (its vectors counted as the K terms x 8 bytes per entry it stores).
+TEST(MemoryEstimate, LandsNearTheMeasuredPeakOfRealJobs) {
+    PrecomputeSettings samples = settings();
+    samples.cubemapSize = 8;
+    samples.samples.count = 60000;
+    PrecomputeSettings single = settings();
+    single.components = {false, true};
+    single.material.g = 0.25;
+    single.cubemapSize = 8;
+    single.vertexCoefficients = 384;  // every texel
+    const std::pair<const char*, MeasuredJob> jobs[] = {
+        {"pass-1 job", measureJob(samples, makeIcosphere(4, 1.0f))},
+        {"single-scattering job", measureJob(single, makeIcosphere(4, 1.0f))},
+    };
+    for (const auto& [name, m] : jobs) {
+        const double ratio = double(m.estimate) / double(m.peak);
+        std::printf("%s: estimate %s (largest: %s), measured peak %s above the start, ratio %.2f\n", name,
+                    formatBytes(m.estimate).c_str(), m.largest.c_str(), formatBytes(m.peak).c_str(), ratio);
+        EXPECT_GE(ratio, 0.75) << name;
+        EXPECT_LE(ratio, 2.0) << name;
+    }
 }
 
 TEST(MemoryEstimate, CheckNamesTheNeedAndTheLimit) {

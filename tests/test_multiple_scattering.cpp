@@ -5,8 +5,6 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <chrono>
-#include <ctime>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -19,7 +17,6 @@
 #include "common/error.h"
 #include "common/haar.h"
 #include "common/sh_part.h"
-#include "common/progress.h"
 
 namespace {
 
@@ -817,39 +814,6 @@ TEST(Hierarchy, RejectsInvalidInput) {
     HierarchyOptions negative;
     negative.epsilon = -1.0;
     EXPECT_THROW(prt::multipleScatteringTransport(tree, std::span(&x, 1), m, negative, count), prt::Error);
-}
-
-TEST(Hierarchy, TimingReport) {
-    // Printed, never asserted (SPEC section 8: benchmarks, not timed tests).
-    const size_t count = 6 * 32 * 32;
-    Rng lobeRng(91);
-    const Lobes lobes(lobeRng, count, 400);
-    const float radius = 30.0f;
-    auto t0 = std::chrono::steady_clock::now();
-    SampleCloud cloud = sphereCloud(100000, radius, 92, count, 128, &lobes);
-    const double genSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const std::vector<glm::vec3> vertices = sphereVertices(20000, radius, 93);
-    const Material m = prt::materialByName("Marble");
-    const HierarchyOptions o;
-    const std::clock_t c0 = std::clock();
-    const SampleTree tree(std::move(cloud), o);
-    const std::clock_t c1 = std::clock();
-    prt::MultipleScatteringStats stats;
-    prt::Progress progress("multiple scattering", vertices.size(), "vertices");
-    const auto r = prt::multipleScatteringTransport(tree, vertices, m, o, count, &stats, &progress);
-    progress.finish();
-    const std::clock_t c2 = std::clock();
-    ASSERT_EQ(r.size(), vertices.size());
-    std::printf("timing: 100000 samples x 128 coefficients (generated in %.2f s), sphere radius %.0f mm, "
-                "Marble, epsilon %.2f\n", genSeconds, double(radius), o.epsilon);
-    std::printf("  tree build %.2f s (%.2f s CPU): %zu nodes, depth %d, %.1f MB (nodes + node sums %.1f MB, samples %.1f MB)\n",
-                tree.buildSeconds(), double(c1 - c0) / CLOCKS_PER_SEC, tree.nodes().size(), tree.maxDepthReached(), double(tree.bytes()) / 1e6,
-                double(tree.nodeBytes()) / 1e6, double(tree.sampleBytes()) / 1e6);
-    std::printf("  20000 vertices in %.2f s (%.2f s CPU, %.1f us CPU/vertex): visited %.1f nodes, used %.1f nodes + %.1f "
-                "samples per vertex, retained energy %.5f\n",
-                stats.seconds, double(c2 - c1) / CLOCKS_PER_SEC, 1e6 * double(c2 - c1) / CLOCKS_PER_SEC / 20000.0,
-                stats.meanNodesVisited, stats.meanNodesUsed,
-                stats.meanSamplesUsed, stats.retainedEnergyFraction);
 }
 
 }  // namespace

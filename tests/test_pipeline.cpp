@@ -56,15 +56,15 @@ TEST(Precompute, LargeSphereUnderConstantLightMatchesTheDipoleClosedForm) {
     // same irradiance transport total E_eff = int F_t cos dOmega. The relit radiance
     // F_t(w_o) * dot(T_d / pi, L) at every vertex is then
     //     F_t(w_o) / pi * E_eff * alpha'/2 (e^(-sigma_tr z_r) + e^(-sigma_tr z_v)).
-    // Tolerances. The mean over vertices within 3%: curvature (R sigma_tr = 30) and
-    // the hierarchy's bias (epsilon = 0.05 darkens by ~0.4%) stay under 1%, Haar
-    // truncation and 16-bit quantization under 0.1%. Per vertex: the sum
-    // of A_i R_d(r_i) over an irregular sample set is a cubature of a kernel whose
-    // main lobe is only ~z_r wide when sigma_tr z_r ~ 1 (strong absorption, as here);
-    // measured with this material: samples spaced z_r apart swing the sum over
-    // 0.68-1.23 from vertex to vertex, spaced z_r/2 over 0.91-1.09 (rms ~4%, worst ~15% over all vertices). Hence the
-    // explicit spacing of z_r/2, rms < 6% and worst < 20% per vertex (the default spacing l_u = z_r suits materials with
-    // sigma_tr z_r << 1, like Marble, whose R_d integral comes from far away).
+    // The material absorbs strongly (sigma_tr z_r ~ 1), so R_d's main lobe is only ~z_r
+    // wide, as wide as the default sample spacing l_u = z_r: the sum over the samples
+    // must integrate the kernel across each sample's cell (the cell rule), which the
+    // point rule A_i R_d(r_i) cannot (over the same samples and cell areas: rms 3%,
+    // worst 18%). At the default spacing the cell rule reaches a mean
+    // 0.3% low (the hierarchy's epsilon = 0.05 darkens by ~0.4%), rms 0.75% and worst
+    // 2.7% per vertex, alike for sample seeds 1-5.
+    // Bounds: mean within 1%, rms < 1.2%, worst < 4%: about 1.5x what is reached, room
+    // for another seed or platform's rounding, and well below the point rule's error.
     Progress::setEnabled(false);
     const Material m = customMaterial({1.0, 1.5, 2.0}, {1.0, 0.6, 0.3});
     const double sigmaTr = std::min({m.sigmaTr().x, m.sigmaTr().y, m.sigmaTr().z});
@@ -79,7 +79,6 @@ TEST(Precompute, LargeSphereUnderConstantLightMatchesTheDipoleClosedForm) {
     s.scale.mmPerUnit = 1.0;
     s.material = m;
     s.cubemapSize = 8;
-    s.samples.spacingMm = 0.5 * m.minMeanFreePath();
     s.pass1.sampleCoefficients = 64;
     s.pass2.nodeCoefficients = 64;
     s.vertexCoefficients = 64;
@@ -110,12 +109,12 @@ TEST(Precompute, LargeSphereUnderConstantLightMatchesTheDipoleClosedForm) {
             worst = std::max(worst, std::abs(radiance / expected - 1));
         }
         mean /= double(ms->vectors.vertexCount());
-        EXPECT_NEAR(mean / expected, 1.0, 0.03) << "channel " << c;
+        EXPECT_NEAR(mean / expected, 1.0, 0.01) << "channel " << c;
         const double rms = std::sqrt(squares / double(ms->vectors.vertexCount()));
-        std::printf("channel %d: mean/expected %.4f, rms deviation %.4f, worst %.4f\n", c,
-                    mean / expected, rms, worst);
-        EXPECT_LT(rms, 0.06) << "channel " << c;
-        EXPECT_LT(worst, 0.2) << "channel " << c;
+        std::printf("channel %d: mean/expected %.4f, rms deviation %.4f, worst %.4f (%zu samples)\n", c,
+                    mean / expected, rms, worst, summary.samples.count);
+        EXPECT_LT(rms, 0.012) << "channel " << c;
+        EXPECT_LT(worst, 0.04) << "channel " << c;
     }
     fs::remove_all(dir);
 }

@@ -7,6 +7,7 @@
 
 #include "common/bssrdf.h"
 #include "common/error.h"
+#include "common/material_edit.h"
 #include "common/materials.h"
 #include "tests/test_support.h"
 
@@ -422,4 +423,47 @@ TEST(RadialBasisBalance, SameFitsIdentityMoments) {
     for (int i = 0; i < J; ++i)
         for (int j = 0; j < J; ++j) EXPECT_NEAR(moments[size_t(i * J + j)], i == j ? 1.0 : 0.0, 1e-3) << i << " " << j;
     EXPECT_THROW(prt::balancedForDipoles(basis, {}), prt::Error);
+}
+
+// Importance weights: the weighted second moments become the identity, so a dipole
+// weighted 10x counts 10x in the joint truncation's norm; bad weights are refused.
+TEST(RadialBasisBalance, ImportanceWeightsTheMoments) {
+    std::vector<prt::Material> materials;
+    for (const char* name : {"Marble", "Ketchup"}) materials.push_back(prt::materialByName(name));
+    const prt::RadialBasis basis = prt::makeRadialBasis(prt::rangeCovering(materials, 0.5, 2.0, 30.0), {});
+    std::vector<prt::DipoleChannel> dipoles;
+    std::vector<double> importance;
+    for (const prt::Material& m : materials)
+        for (double s : {0.5, 1.0, 2.0})
+            for (int c = 0; c < 3; ++c) {
+                dipoles.push_back(prt::makeDipoleChannel(prt::scaledMaterial(m, s), c));
+                importance.push_back(m.name == "Ketchup" ? 10.0 : 1.0);
+            }
+    const prt::RadialBasis balanced = prt::balancedForDipoles(basis, dipoles, importance);
+    const prt::RadialBasis plain = prt::balancedForDipoles(basis, dipoles);
+    const int J = basis.size();
+    std::vector<double> moments(size_t(J * J), 0.0), plainMoments(size_t(J * J), 0.0);
+    double total = 0.0;
+    for (size_t k = 0; k < dipoles.size(); ++k) total += importance[k];
+    for (size_t k = 0; k < dipoles.size(); ++k) {
+        const std::vector<double> w = balanced.weights(dipoles[k]);
+        const std::vector<double> u = plain.weights(dipoles[k]);
+        for (int i = 0; i < J; ++i)
+            for (int j = 0; j < J; ++j) {
+                moments[size_t(i * J + j)] += importance[k] * w[size_t(i)] * w[size_t(j)] / total;
+                plainMoments[size_t(i * J + j)] += importance[k] * u[size_t(i)] * u[size_t(j)] / total;
+            }
+    }
+    double plainOff = 0.0;
+    for (int i = 0; i < J; ++i)
+        for (int j = 0; j < J; ++j) {
+            EXPECT_NEAR(moments[size_t(i * J + j)], i == j ? 1.0 : 0.0, 1e-3) << i << " " << j;
+            plainOff = std::max(plainOff, std::abs(plainMoments[size_t(i * J + j)] - (i == j ? 1.0 : 0.0)));
+        }
+    EXPECT_GT(plainOff, 0.1);  // the unweighted balance is not the weighted one
+    EXPECT_THROW(prt::balancedForDipoles(basis, dipoles, {1.0}), prt::Error);
+    std::vector<double> negative = importance;
+    negative[0] = -1.0;
+    EXPECT_THROW(prt::balancedForDipoles(basis, dipoles, negative), prt::Error);
+    EXPECT_THROW(prt::balancedForDipoles(basis, dipoles, std::vector<double>(dipoles.size(), 0.0)), prt::Error);
 }

@@ -4,7 +4,6 @@
 #include <tbb/task_arena.h>
 
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -431,20 +430,3 @@ TEST(Sampling, DefaultSampleCount) {
     EXPECT_THROW(defaultSampleCount(100.0, 1.0, 0), Error);
 }
 
-TEST(Sampling, TimingThreeHundredThousand) {
-    // Not an assertion on time: prints the cost of the default cap.
-    const TriangleMesh sphere = icosphere(6, 50.0f);  // 81,920 triangles
-    const size_t n = 300000;
-    const auto t0 = std::chrono::steady_clock::now();
-    const SampleSet s = poissonDiskSamples(sphere, n, 1);
-    const auto t1 = std::chrono::steady_clock::now();
-    const SampleSet u = uniformRandomSamples(sphere, n, 1);
-    const auto t2 = std::chrono::steady_clock::now();
-    const double hex = 2.0 * hexagonalPackingRadius(s.totalArea, n);
-    std::printf("poissonDiskSamples: %zu samples from %zu candidates on %zu triangles: %.2f s "
-                "(min spacing %.3f x 2 r_max); uniformRandomSamples: %.3f s\n",
-                n, 5 * n, sphere.triangles.size(), std::chrono::duration<double>(t1 - t0).count(),
-                s.minSpacing / hex, std::chrono::duration<double>(t2 - t1).count());
-    EXPECT_EQ(s.samples.size(), n);
-    EXPECT_EQ(u.samples.size(), n);
-}

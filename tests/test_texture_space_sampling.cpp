@@ -5,8 +5,8 @@
 //     is then the distance between that sum and one over face centroids, reported);
 //   - a wide slab under a normal directional light reaches the closed form
 //     E F_t int R_d dA at its centre;
-//   - the translucent shadow map holds the lit surface's transmitted power (= the
-//     atlas's), and its L x C + 1 filter approximates the map's full cubature;
+//   - the atlas and the translucent shadow map hold the power a sphere transmits (its
+//     closed form), and the map's L x C + 1 filter approximates its full cubature;
 //   - the hybrid with all weight global IS sampling alone, with all weight local IS
 //     the local filter alone, and hybrid = local part + global part;
 //   - determinism per seed and across thread counts;
@@ -27,6 +27,7 @@
 #include "common/camera.h"
 #include "common/image_compare.h"
 #include "common/shapes.h"
+#include "common/util.h"
 #include "relight/pointlight/jensen_buhler.h"
 #include "tests/test_support.h"
 
@@ -117,6 +118,33 @@ TEST(TextureSpaceSampling, SlabCentreMatchesTheClosedForm) {
     }
 }
 
+namespace {
+
+// The power a sphere of radius R transmits (W/m^2 mm^2, what totalFlux() holds), from
+// the geometry alone: a directional light of irradiance E gives E R^2 2 pi int_0^1
+// F_t(mu) mu dmu; a point light of intensity I at distance D from the centre gives
+// 1e6 I 2 pi int_0^asin(R/D) F_t(cos theta_i(a)) sin a da, where the ray at angle a from
+// the centre's direction arrives at sin theta_i = D sin a / R.
+double sphereTransmittedPower(const Light& light, double radius, double eta, int c) {
+    const int steps = 200000;
+    double sum = 0.0;
+    if (light.type == LightType::Directional) {
+        for (int k = 0; k < steps; ++k) {
+            const double mu = (k + 0.5) / steps;
+            sum += fresnelTransmittance(eta, mu) * mu / steps;
+        }
+        return light.rgb[c] * radius * radius * 2.0 * kPi * sum;
+    }
+    const double distance = glm::length(light.position), top = std::asin(radius / distance);
+    for (int k = 0; k < steps; ++k) {
+        const double a = (k + 0.5) / steps * top, sinI = std::min(1.0, distance * std::sin(a) / radius);
+        sum += fresnelTransmittance(eta, std::sqrt(1.0 - sinI * sinI)) * std::sin(a) * top / steps;
+    }
+    return kSquareMmPerSquareMetre * light.rgb[c] * 2.0 * kPi * sum;
+}
+
+}  // namespace
+
 TEST(TextureSpaceSampling, ShadowMapHoldsTheLitPowerAndItsFilterTheLocalPart) {
     const Scene s(makeIcosphere(4, 8.0f), 512);
     const Material m = materialByName("Skin1");
@@ -126,14 +154,23 @@ TEST(TextureSpaceSampling, ShadowMapHoldsTheLitPowerAndItsFilterTheLocalPart) {
         r.setLights(lights);
         ASSERT_EQ(r.shadowMaps().size(), 1u);
         const TranslucentShadowMap& map = r.shadowMaps().front();
-        // Both the map (as rendered, before the renderer normalises it) and the atlas
-        // texels carry the lit surface's transmitted power; the renderer's map then holds
-        // exactly the atlas's.
+        // The atlas texels, the map as rendered (before the renderer normalises it) and
+        // the renderer's map each carry the sphere's transmitted power. The icosphere's
+        // flat faces lie inside the sphere (0.13% less projected area): measured 0.9987 of
+        // the closed form for all three and both lights. 0.5% allows for that and fails a
+        // wrong transmittance (normal-incidence F_t for every direction: +5%), the
+        // inverse-square law's units or a lost part of the lit cap.
         const TranslucentShadowMap raw(s.scene, s.mesh, light, boundingSphere(s.mesh), m.eta, FresnelModel::Exact, 256);
         const glm::dvec3 rawPower = raw.totalFlux(), atlasPower = r.totalFlux(), mapPower = map.totalFlux();
         for (int c = 0; c < 3; ++c) {
-            EXPECT_NEAR(rawPower[c], atlasPower[c], 0.01 * atlasPower[c]) << describe(light);
-            EXPECT_NEAR(mapPower[c], atlasPower[c], 1e-5 * atlasPower[c]) << describe(light);
+            const double expected = sphereTransmittedPower(light, 8.0, m.eta, c);
+            if (c == 0)
+                std::printf("%s: transmitted power / closed form: atlas %.5f, raw map %.5f, map %.5f\n",
+                            describe(light).c_str(), atlasPower[c] / expected, rawPower[c] / expected,
+                            mapPower[c] / expected);
+            EXPECT_NEAR(atlasPower[c], expected, 0.005 * expected) << describe(light);
+            EXPECT_NEAR(rawPower[c], expected, 0.005 * expected) << describe(light);
+            EXPECT_NEAR(mapPower[c], expected, 0.005 * expected) << describe(light);
         }
         // The filter against the map's full cubature with the same kernel, at lit points,
         // at shadowed points (both ~0 far from the light) and near the terminator.

@@ -128,6 +128,10 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     app.add_option("--editable-profiles", s.editable.basis.size,
                    "J, the number of radial profiles (a multiple of 3; more: a closer fit, a larger file)")
         ->capture_default_str()->group("Editable transport");
+    app.add_option("--editable-grading", s.editable.cellGrading,
+                   "g: pass 2 integrates the profiles over pieces no wider than 1/g of their distance from "
+                   "the vertex (fine only at the narrowest profile's peak); 0: fine everywhere (slower)")
+        ->capture_default_str()->group("Editable transport");
     app.add_option("--shard", raw.shard,
                    "i/n: compute only shard i (0-based) of n of the vertices into a shard file; "
                    "prt-merge joins the n shard files (docs/cluster.md)");

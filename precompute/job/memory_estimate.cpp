@@ -20,24 +20,35 @@ MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vert
                                         size_t samples, int threads, double totalAreaMm2, double objectSizeMm) {
     const double texels = 6.0 * double(s.cubemapSize) * double(s.cubemapSize);
     const bool ms = s.components.multipleScattering;
-    const double terms = s.components.singleScattering ? 1.0 + (s.material.g != 0.0 ? s.phase.terms : 0) : 0.0;
+    // Single scattering keeps K vectors (one when isotropic) of one float per entry.
+    const double terms =
+        s.components.singleScattering ? (s.material.g != 0.0 ? double(s.phase.terms) : 1.0) : 0.0;
     const double n = ms ? double(samples) : 0.0;
     // An editable job: J profiles per vertex instead of three channels, a narrower kernel.
     const bool editable = ms && s.editable.enabled && objectSizeMm > 0.0;
     const double channels = editable ? double(s.editable.basis.size) : 3.0;
-    const double narrowest = editable ? narrowestDipoleWidth(editableRange(s, objectSizeMm))
-                                      : RadialKernels(s.material).narrowestWidth();
+    const RadialRange range = editable ? editableRange(s, objectSizeMm) : RadialRange{};
+    const RadialKernels dipole(s.material);
+    const double narrowest = editable ? narrowestDipoleWidth(range) : dipole.narrowestWidth();
+    const double widest = editable ? widestDipoleWidth(range) : dipole.widestWidth();
+    CellQuadratureOptions cellOptions;
+    if (editable) cellOptions.gradedPiecesPerDistance = s.editable.cellGrading;
+    // The sample spacing of n samples over the area (sampling.h: a triangular lattice).
+    const double spacing = n > 0.0 ? std::sqrt(2.0 * totalAreaMm2 / n / std::sqrt(3.0)) : 0.0;
+    const double subPoints =
+        ms && totalAreaMm2 > 0.0 && spacing > 0.0
+            ? estimateCellSubPoints(totalAreaMm2, triangles, narrowest, widest, spacing, cellOptions)
+            : 0.0;
+    const bool graded = editable && cellOptions.gradedPiecesPerDistance > 0.0;
     const std::vector<std::pair<const char*, double>> parts = {
         // + 36 bytes per triangle of single scattering's corner normals
         {"mesh and ray scene", (s.components.singleScattering ? 286.0 : 250.0) * double(triangles)},
         {"samples", 200.0 * n},
         {"pass 1 vectors", n * (double(s.pass1.sampleCoefficients) * 8.0 + 64.0)},
         {"pass 2 kd-tree sums", n / 4.0 * (double(s.pass2.nodeCoefficients) * 8.0 + 64.0)},
-        {"pass 2 cell sub-points",
-         ms && totalAreaMm2 > 0.0 ? estimateCellSubPoints(totalAreaMm2, triangles, narrowest) * kCellBytesPerSubPoint
-                                  : 0.0},
+        {"pass 2 cell sub-points", subPoints * (graded ? kCellBytesPerGradedSubPoint : kCellBytesPerSubPoint)},
         {"per-vertex results",
-         double(vertices) * double(s.vertexCoefficients) * 16.0 * ((ms ? channels / 3.0 : 0.0) + terms)},
+         double(vertices) * double(s.vertexCoefficients) * (16.0 * (ms ? channels / 3.0 : 0.0) + 8.0 * terms)},
         {"per-thread workspaces", double(std::max(threads, 1)) * texels * 64.0 * std::max(1.0, channels / 3.0)},
     };
     MemoryEstimate e;

@@ -9,10 +9,13 @@
 //   samples (Poisson disk)     ~ 200 bytes per sample (candidates included)
 //   pass 1 vectors             samples x (sample coefficients x 8 + 64) bytes
 //   pass 2 kd-tree sums        samples / 4 nodes x (node coefficients x 8 + 64) bytes
-//   pass 2 cell sub-points     estimateCellSubPoints(area, triangles, material) x 36 bytes
-//                              (cell_quadrature.h; 0 when the area is not given)
+//   pass 2 cell sub-points     estimateCellSubPoints(...) x 36 bytes (68 when graded,
+//                              as editable jobs are; cell_quadrature.h; 0 when the
+//                              area is not given)
 //   per-vertex results         vertices x vertex coefficients x 16 bytes (RGB float +
-//                              index) per component (MS, and 1 + K for single scattering)
+//                              index; J/3 times for editable multiple scattering), and
+//                              x 8 bytes per single-scattering vector (K, or 1 when
+//                              isotropic)
 //   per-thread workspaces      threads x 6 N^2 x 64 bytes
 // times kSafety = 1.5 (allocator slack, vector growth). A refusal only has to tell 40 GB
 // from 24 GB (how close it lands to measured peaks: docs/reliability.md).

@@ -8,6 +8,7 @@
 
 #include "common/atomic_file.h"
 #include "common/blocked_vectors.h"
+#include "common/bssrdf.h"
 #include "common/error.h"
 #include "common/material_edit.h"
 #include "common/radial_basis.h"
@@ -182,11 +183,21 @@ RadialBasis editableBasis(const PrecomputeSettings& s, const TriangleMesh& mesh,
                              sized ? s.editable.sizeMaxMm / objectSizeMm : 2.0};
     // In coordinates balanced for the covered materials, so that the joint truncation of
     // the profile vectors keeps what those materials' recombinations need.
+    // Each material and size counts by its relative error: its channels weighted by
+    // 1 / (R_R^2 + R_G^2 + R_B^2), R_c the channel's total diffuse reflectance (the scale
+    // of its transport), so a dark absorbing material weighs as much as a bright one.
     std::vector<DipoleChannel> covered;
+    std::vector<double> importance;
     for (const Material& m : editableMaterials(s))
-        for (double f : sizes)
-            for (int c = 0; c < 3; ++c) covered.push_back(makeDipoleChannel(scaledMaterial(m, f), c));
-    RadialBasis basis = balancedForDipoles(makeRadialBasis(range, s.editable.basis), covered);
+        for (double f : sizes) {
+            double scale = 0.0;
+            for (int c = 0; c < 3; ++c) {
+                covered.push_back(makeDipoleChannel(scaledMaterial(m, f), c));
+                scale += std::pow(dipoleTotalDiffuseReflectance(covered.back()), 2.0);
+            }
+            for (int c = 0; c < 3; ++c) importance.push_back(1.0 / scale);
+        }
+    RadialBasis basis = balancedForDipoles(makeRadialBasis(range, s.editable.basis), covered, importance);
     double worstL1 = 0.0, worstDisk = 0.0;
     std::string worstCase;
     for (const Material& m : editableMaterials(s))
@@ -243,7 +254,10 @@ Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const P
         // sample's Voronoi cell, R_d (or each radial profile) integrated over the cells
         // near each vertex.
         const Stopwatch cellsStart;
-        const CellQuadrature cells(prepared.mesh, cloud.positions, normals, placed.summary.spacingMm, kernels);
+        CellQuadratureOptions cellOptions;
+        if (basis) cellOptions.gradedPiecesPerDistance = s.editable.cellGrading;
+        const CellQuadrature cells(prepared.mesh, cloud.positions, normals, placed.summary.spacingMm, kernels,
+                                   cellOptions);
         out.summary.cellSeconds = cellsStart.seconds();
         out.summary.cellSubPoints = cells.subPointCount();
         cloud.areas.assign(cells.cellAreas().begin(), cells.cellAreas().end());

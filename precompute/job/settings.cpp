@@ -119,6 +119,9 @@ void validateSettings(const PrecomputeSettings& s) {
         if (J < 3 || J > 30 || J % 3 != 0)
             throw Error("--editable-profiles", "must be a multiple of 3 between 3 and 30 (three profiles per stored "
                                                "component), got " + std::to_string(J));
+        const double g = s.editable.cellGrading;
+        if (!(g == 0.0 || (g >= 2.0 && g <= 64.0)))
+            throw Error("--editable-grading", "must be 0 (off) or between 2 and 64, got " + fmt(g));
         if (s.blockCoefficients > 0)
             throw Error("--editable", "blocked components (--block-coefficients) are not editable yet");
         if (s.shard) throw Error("--editable", "shard files are not editable yet (prt-merge does not join them)");
@@ -199,6 +202,7 @@ ParameterList settingsParameters(const PrecomputeSettings& settings, const MeshF
                                                 : "0.5x:2x"});
         p.push_back({"radial_profiles", std::to_string(s.editable.basis.size)});
         p.push_back({"radial_construction", radialConstructionName(s.editable.basis.construction)});
+        p.push_back({"cell_grading", fmt(s.editable.cellGrading)});
     }
     if (s.components.singleScattering) {
         const SingleScatteringOptions& o = s.singleScattering;

@@ -46,6 +46,10 @@ struct EditableSettings {
     // J (a multiple of 3: the file packs three profiles per component) and the
     // construction (radial_basis.h).
     RadialBasisOptions basis;
+    // g of the cell quadrature's graded sub-points (cell_quadrature.h): the profiles
+    // reach down to the narrowest material of the range, whose peak alone needs the
+    // fine spacing. 0: one level of sub-points at the fine spacing.
+    double cellGrading = 8.0;
 };
 
 struct PrecomputeSettings {

@@ -27,7 +27,19 @@
 //     w_i(x_o) = sum_{y in cell_i} a_y R_d chi(|y - x_o|) + A_i R_d (1 - chi)(|x_i - x_o|),
 //
 // the first sum skipped when the cell lies beyond r2 (|x_i - x_o| - cellRadius_i >= r2)
-// and, within it, every chunk that does. The far kernel is what the hierarchy's nodes
+// and, within it, every chunk that does.
+//
+// Graded sub-points (options.gradedPiecesPerDistance g > 0). A kernel set far narrower
+// than the sample spacing (the profiles of a radial basis, whose narrowest member is the
+// most opaque material of the range at its largest size) needs the fine spacing s only
+// at its peak: beyond it the kernels vary on the scale of the distance itself. The cells
+// are then built from coarse sub-triangles (spacing s_c = min(r2 / g, h / 4), never below
+// s), and a vertex splits each sub-triangle it integrates into m^2 congruent pieces no
+// wider than max(s, d / g), d the least distance from the vertex to the sub-triangle; the
+// midpoint rule on each piece (the near sum above, over pieces instead of sub-points).
+// The cells (their areas and the far part) are the coarse sub-triangles'. A vertex then
+// visits about pi g^2 / 0.43 (2 + 2 ln(s_c / s)) pieces instead of pi r2^2 / (0.43 s^2)
+// sub-points. The far kernel is what the hierarchy's nodes
 // use (never within r2 of x_o: multiple_scattering.h). Both kernels are tabulated
 // (linear interpolation, relative error < 1e-4 on [0, r2]; R_d itself beyond).
 //
@@ -59,6 +71,9 @@ struct CellQuadratureOptions {
     // set would otherwise put most of the object's sub-points in every vertex's near
     // field (docs/precompute.md, "Pipeline").
     double maxOuterRadiusWidths = 6.0;
+    // Graded sub-points (see the top of this file): pieces no wider than d / g at
+    // distance d from the vertex. 0 turns grading off (one level of sub-points at s).
+    double gradedPiecesPerDistance = 0.0;
     // Refuse to build more sub-points than this (16 bytes each once built, 36 while
     // being built; the default is 2^26, about 2.4 GB at the peak).
     size_t maxSubPoints = size_t(1) << 26;
@@ -70,9 +85,15 @@ struct CellQuadratureOptions {
 // triangle. The construction holds kCellBytesPerSubPoint bytes per sub-point at its peak.
 double estimateCellSubPoints(double totalAreaMm2, size_t triangles, double narrowestKernelWidthMm,
                              const CellQuadratureOptions& options = {});
+// The same for kernels of these widths (radial_kernels.h) and sample spacing h: graded
+// sub-points are spaced s_c.
+double estimateCellSubPoints(double totalAreaMm2, size_t triangles, double narrowestWidthMm, double widestWidthMm,
+                             double sampleSpacingMm, const CellQuadratureOptions& options);
 double estimateCellSubPoints(double totalAreaMm2, size_t triangles, const Material& material,
                              const CellQuadratureOptions& options = {});
 inline constexpr double kCellBytesPerSubPoint = 36.0;
+// Graded sub-points also keep their sub-triangle's shape.
+inline constexpr double kCellBytesPerGradedSubPoint = 68.0;
 
 class CellQuadrature {
 public:
@@ -91,13 +112,19 @@ public:
 
     size_t sampleCount() const { return cellArea_.size(); }
     size_t subPointCount() const { return subPosition_.size(); }
+    // s: the finest spacing integrated (the sub-points' spacing unless graded).
     double subSpacing() const { return subSpacing_; }
+    // The sub-triangles' spacing: s, or s_c when graded.
+    double coarseSpacing() const { return coarseSpacing_; }
+    bool graded() const { return !subShape_.empty(); }
     double innerRadius() const { return r1_; }
     double outerRadius() const { return r2_; }
     // A_i (mm^2): the area of sample i's cell.
     float cellArea(size_t i) const { return cellArea_[i]; }
     std::span<const float> cellAreas() const { return cellArea_; }
-    // Largest distance from sample i to one of its sub-points (0 for an empty cell).
+    // Largest distance from sample i to a point its near part is evaluated at: its
+    // sub-points, or with graded sub-points every point of their sub-triangles (0 for an
+    // empty cell).
     float cellRadius(size_t i) const { return cellRadius_[i]; }
     float maxCellRadius() const { return maxCellRadius_; }
     // The sub-points of sample i's cell.
@@ -122,10 +149,18 @@ public:
 
     size_t bytes() const;
 
+    // A graded sub-point's sub-triangle: two edges from the corner centroid - (e1 + e2)
+    // / 3, its longest edge and the largest distance from the centroid to a corner.
+    struct SubTriangle {
+        glm::vec3 e1, e2;
+        float longestEdge, reach;
+    };
+
 private:
     RadialKernels kernels_;
     int k_ = 3;  // kernels_.count(): the tables' interleave
-    double subSpacing_ = 0.0, r1_ = 0.0, r2_ = 0.0;
+    double subSpacing_ = 0.0, coarseSpacing_ = 0.0, r1_ = 0.0, r2_ = 0.0;
+    double gradedRatio_ = 0.0;  // g
     float r2f_ = 0.0f;
     float maxCellRadius_ = 0.0f;
     double inverseStep_ = 0.0;
@@ -136,6 +171,7 @@ private:
     std::vector<uint32_t> subOffset_;  // sampleCount + 1
     std::vector<glm::vec3> subPosition_;  // per cell along a Morton curve
     std::vector<float> subArea_;
+    std::vector<SubTriangle> subShape_;  // graded only, per sub-point
     // Chunks of kChunk consecutive sub-points of a cell with a bounding sphere.
     static constexpr uint32_t kChunk = 16;
     std::vector<uint32_t> chunkOffset_;  // sampleCount + 1

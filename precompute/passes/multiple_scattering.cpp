@@ -367,17 +367,68 @@ inline void kernelWeights(const RadialKernels& kernels, double r, double* w) {
     for (int c = 0; c < kernels.count(); ++c) w[c] /= kPi;
 }
 
-inline void accumulate(std::span<const Entry> entries, const double* w, int count, double* acc) {
-    if (count == 3) {
-        const double w0 = w[0], w1 = w[1], w2 = w[2];
-        for (const Entry& e : entries) {
-            double* d = acc + size_t(e.index) * 3;
-            const double v = e.value;
-            d[0] += w0 * v;
-            d[1] += w1 * v;
-            d[2] += w2 * v;
+// acc[index][c] += w[c] value over the entries, K a compile-time constant for the
+// kernel counts pass 2 runs with (the channel loop then unrolls and vectorises).
+template <int K>
+inline void accumulateFixed(std::span<const Entry> entries, const double* w, double* acc) {
+    double wk[K];
+    for (int c = 0; c < K; ++c) wk[c] = w[c];
+    for (const Entry& e : entries) {
+        double* d = acc + size_t(e.index) * K;
+        const double v = e.value;
+        for (int c = 0; c < K; ++c) d[c] += wk[c] * v;
+    }
+}
+
+// An even K in pairs of doubles (the compilers' portable vector type; GCC does not
+// vectorise the loop above by itself): the same products and sums, per channel.
+template <int K>
+inline void accumulatePairs(std::span<const Entry> entries, const double* w, double* acc) {
+    static_assert(K % 2 == 0);
+    using Pair = double __attribute__((vector_size(16)));
+    Pair wk[K / 2];
+    std::memcpy(wk, w, sizeof(wk));
+    for (const Entry& e : entries) {
+        double* d = acc + size_t(e.index) * K;
+        const double v = e.value;
+        for (int c = 0; c < K / 2; ++c) {
+            Pair x;
+            std::memcpy(&x, d + 2 * c, sizeof(x));
+            x += wk[c] * v;
+            std::memcpy(d + 2 * c, &x, sizeof(x));
         }
-        return;
+    }
+}
+
+// K a multiple of four, into a float accumulator, four channels at a time: half the
+// bytes of the double rows, which for the 12 profiles of editable transport is what the
+// scattered additions wait on (docs/performance.md, "Editable pass 2").
+template <int K>
+inline void accumulateQuads(std::span<const Entry> entries, const double* w, float* acc) {
+    static_assert(K % 4 == 0);
+    using Quad = float __attribute__((vector_size(16)));
+    Quad wk[K / 4];
+    for (int c = 0; c < K / 4; ++c) wk[c] = Quad{float(w[4 * c]), float(w[4 * c + 1]), float(w[4 * c + 2]), float(w[4 * c + 3])};
+    for (const Entry& e : entries) {
+        float* d = acc + size_t(e.index) * K;
+        const float v = e.value;
+        for (int c = 0; c < K / 4; ++c) {
+            Quad x;
+            std::memcpy(&x, d + 4 * c, sizeof(x));
+            x += wk[c] * v;
+            std::memcpy(d + 4 * c, &x, sizeof(x));
+        }
+    }
+}
+
+inline void accumulate(std::span<const Entry> entries, const double* w, int count, double* acc) {
+    switch (count) {
+        case 3: return accumulateFixed<3>(entries, w, acc);
+        case 6: return accumulatePairs<6>(entries, w, acc);
+        case 9: return accumulateFixed<9>(entries, w, acc);
+        case 12: return accumulatePairs<12>(entries, w, acc);
+        case 15: return accumulateFixed<15>(entries, w, acc);
+        default: break;
     }
     for (const Entry& e : entries) {
         double* d = acc + size_t(e.index) * size_t(count);
@@ -503,13 +554,25 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
     };
     tbb::enumerable_thread_specific<Scratch> scratch;
 
+    // Twelve kernels (editable transport's profiles) accumulate in float (see
+    // accumulateQuads); the sums are then ~1e-6 relative, below the files' 16-bit
+    // quantization.
+    const bool floatSums = K == 12;
+    const auto add = [&](std::span<const Entry> entries, const double* w, double* acc, float* accFloat) {
+        if (floatSums)
+            accumulateQuads<12>(entries, w, accFloat);
+        else
+            accumulate(entries, w, K, acc);
+    };
+
     tbb::parallel_for(tbb::blocked_range<size_t>(0, vertices.size(), 8), [&](const tbb::blocked_range<size_t>& r) {
         Scratch& s = scratch.local();
-        if (s.acc.size() != spaceCount * size_t(K)) {
-            s.acc.assign(spaceCount * size_t(K), 0.0);
+        if (s.rounded.size() != spaceCount * size_t(K)) {
+            if (!floatSums) s.acc.assign(spaceCount * size_t(K), 0.0);
             s.rounded.assign(spaceCount * size_t(K), 0.0f);
         }
         double* acc = s.acc.data();
+        float* accFloat = s.rounded.data();
         for (size_t o = r.begin(); o < r.end(); ++o) {
             const uint32_t v = order[o];
             const glm::vec3 x = vertices[v];
@@ -526,7 +589,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                 if (!insideWithMargin(node, x) && double(node.area) < epsilon * d * d &&
                     (!cells || boxDistanceSquared(node, x) >= nearReach2)) {
                     kernelWeights(kernels, d, w);
-                    accumulate(tree.nodeSum(ni), w, K, acc);
+                    add(tree.nodeSum(ni), w, acc, accFloat);
                     ++count.used;
                 } else if (node.isLeaf()) {
                     for (uint32_t k = node.first; k < node.first + node.count; ++k) {
@@ -539,7 +602,7 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                         } else {
                             kernelWeights(kernels, distance(x, positions[k]), w);
                         }
-                        accumulate(tree.sampleEntries(k), w, K, acc);
+                        add(tree.sampleEntries(k), w, acc, accFloat);
                     }
                     count.samples += node.count;
                 } else {
@@ -547,10 +610,13 @@ std::vector<SparseVector> multipleScatteringTransport(const SampleTree& tree,
                     s.stack.push_back(ni + 1);  // left child first
                 }
             }
-            std::copy(s.acc.begin(), s.acc.end(), s.rounded.begin());
-            std::fill(s.acc.begin(), s.acc.end(), 0.0);
+            if (!floatSums) {
+                std::copy(s.acc.begin(), s.acc.end(), s.rounded.begin());
+                std::fill(s.acc.begin(), s.acc.end(), 0.0);
+            }
             result[v] = truncateWithShPart(s.rounded.data(), texelCount, K, options.shTerms,
                                            options.vertexCoefficients, &count.retained);
+            if (floatSums) std::fill(s.rounded.begin(), s.rounded.end(), 0.0f);
         }
         if (progress) progress->advance(r.size());
     });
