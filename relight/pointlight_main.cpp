@@ -43,6 +43,7 @@
 #include "common/raytrace.h"
 #include "relight/render/gbuffer.h"
 #include "common/sampling.h"
+#include "common/transport_params.h"
 #include "common/util.h"
 #include "relight/pointlight/irradiance_cache.h"
 #include "relight/pointlight/jensen_buhler.h"
@@ -498,7 +499,13 @@ int run(const Options& o) {
     if (source == SampleSource::FaceCentroids) {
         placed = faceCentroidSamples(mesh);
     } else {
-        const size_t n = o.sampleCount.value_or(defaultSampleCount(totalArea(mesh), firstMaterial.minMeanFreePath()));
+        const size_t rule = defaultSampleCount(totalArea(mesh), firstMaterial.minMeanFreePath());
+        const size_t n = o.sampleCount.value_or(rule);
+        // As prt-precompute: beyond twice the spacing rule the sum was not found to converge.
+        if (4 * n < rule)
+            warn("--sample-count " + std::to_string(n) + " is far below the convergence rule's " +
+                 std::to_string(rule) + " (spacing l_u = " + formatParameter(firstMaterial.minMeanFreePath()) +
+                 " mm): the irradiance samples will under-resolve the dipole");
         placed = samplesFromSampleSet(poissonDiskSamples(mesh, n, o.seed));
     }
     const double tPlace = t.seconds();

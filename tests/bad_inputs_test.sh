@@ -159,6 +159,21 @@ expect "render: zero fov" "--fov" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e 
 expect "render: component the file lacks" "torus\.prt: has no single-scattering component" $F.exr \
     $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --components ss -o $F
 
+# --- a sample count far below the convergence rule: a warning with the rule's count ------
+# (runs, exit 0, one warning line naming the rule's count; the good job above, at half
+# the rule's count, has none)
+cases=$((cases + 1))
+if "$PRECOMPUTE" "$S/torus.ply" --size-mm 20 --cubemap-size 8 --samples 64 -q -o few.prt > /dev/null 2> few.txt \
+    && [ -f few.prt ] && [ "$(wc -l < few.txt)" -eq 1 ] \
+    && grep -q "^prt-precompute: warning: 64 samples (--samples) are far below the convergence rule's [0-9]" few.txt \
+    && "$PRECOMPUTE" "$S/torus.ply" --size-mm 20 --cubemap-size 8 --samples 2000 -q -o enough.prt > /dev/null \
+        2> enough.txt && [ ! -s enough.txt ]; then
+    echo "PASS: precompute: too few samples: $(cat few.txt)"
+else
+    cat few.txt enough.txt 2> /dev/null | head -5
+    fail "precompute: too few samples are not warned about (or the right count is)"
+fi
+
 # --- prt-relight info -------------------------------------------------------------------
 I="$RELIGHT info"
 expect "info: missing transport" "missing\.prt: no such file" - $I missing.prt
@@ -235,7 +250,7 @@ expect "disk full: render EXR" "outdir/frame\.exr: .*$FULL" $F.exr \
 expect "disk full: pointlight EXR" "outdir/frame\.exr: .*$FULL" $F.exr \
     limited 16 $L "$S/torus.ply" --size-mm 20 --light point:0,50,0:1 -W 256 -H 256 -o $F
 expect "disk full: reference EXR" "outdir/frame\.exr: .*$FULL" $F.exr \
-    limited 16 $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 128 -H 128 --samples 2000 -o $F
+    limited 16 $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 128 -H 128 --same-samples -o $F
 expect "disk full: envcheck cubemap" "outdir/cube.*: .*$FULL" outdir/cube.exr \
     limited 1 $ENVCHECK "$S/sky.exr" --size 32 -o outdir/cube
 oiiotool --pattern noise:type=uniform:min=0.1:max=1 128x64 3 -d float -o noisy.exr > /dev/null 2>&1

@@ -85,6 +85,17 @@ PreparedJob setUp(const JobContext& job, JobInputs inputs, const Stopwatch& jobS
             p.sampleCount = s.samples.count > 0
                                 ? s.samples.count
                                 : defaultSampleCount(p.summary.totalAreaMm2, spacing, s.samples.maxCount);
+            // The convergence rule is a spacing of about l_u; beyond twice it (a quarter of
+            // the rule's count) the cell rule was not found to converge (docs/precompute.md,
+            // "Samples"), so a request that coarse is said aloud.
+            const size_t rule =
+                defaultSampleCount(p.summary.totalAreaMm2, s.material.minMeanFreePath(), s.samples.maxCount);
+            if (4 * p.sampleCount < rule && dist.writes())
+                warn(std::to_string(p.sampleCount) + " samples (" +
+                     (s.samples.count > 0 ? "--samples" : "--sample-spacing " + fmt(s.samples.spacingMm) + " mm") +
+                     ") are far below the convergence rule's " + std::to_string(rule) + " (spacing l_u = " +
+                     fmt(s.material.minMeanFreePath()) +
+                     " mm of " + s.material.name + "): multiple scattering will be under-resolved");
         }
         const MemoryEstimate need =
             estimatePrecomputeMemory(s, p.mesh.vertexCount(), p.mesh.triangleCount(), p.sampleCount,

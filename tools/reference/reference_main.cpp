@@ -216,6 +216,10 @@ int run(const Options& o) {
                               "convergence rule), own seed",
                               plan.spacingMm, o.spacingFraction);
             sampleRule = buf;
+            if (o.samples && 4 * *o.samples < plan.count)
+                warn("--samples " + std::to_string(*o.samples) + " is far below the convergence rule's " +
+                     std::to_string(plan.count) + " (spacing " + formatParameter(plan.spacingMm) +
+                     " mm): the reference's sample sum will not be converged");
             if (plan.capped && !o.samples)
                 warn("the convergence rule asks for " +
                      std::to_string(defaultSampleCount(totalArea, plan.spacingMm, size_t(-1))) +
