@@ -224,6 +224,8 @@ expect "vertex-error: zero stride" "--stride" - \
     $VERTEX_ERROR "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --stride 0
 expect "vertex-error: corrupted transport" "corrupted\.prt" - \
     $VERTEX_ERROR "$S/torus.ply" -t corrupted.prt -e "$S/sky.exr"
+expect "vertex-error: --material on a plain file" "torus\.prt: is not editable" - \
+    $VERTEX_ERROR "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --material Ketchup
 expect "compare: missing image" "nowhere\.exr" - $COMPARE nowhere.exr "$S/sky.exr"
 expect "compare: different sizes" "(size|dimension)" - $COMPARE small.exr "$S/sky.exr"
 expect "envcheck: Inf pixels" "inf\.exr" - $ENVCHECK inf.exr --size 8 -o outdir/cube

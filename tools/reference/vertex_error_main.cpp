@@ -31,6 +31,7 @@
 #include "common/transport_file.h"
 #include "common/transport_params.h"
 #include "common/util.h"
+#include "common/material_edit.h"
 #include "relight/prt/editable_transport.h"
 #include "relight/prt/light_vector.h"
 #include "relight/prt/relight_kernel.h"
@@ -49,6 +50,8 @@ struct Options {
     size_t envSamples = 0;  // 0: referenceIrradianceDirections(samples)
     uint64_t mcSeed = 1;
     int threads = 0;
+    std::string material;          // editable files: relight with this material ...
+    std::optional<double> sizeMm;  // ... at this object size (default: the file's)
 };
 
 void printGroup(const char* name, const VertexComparison::Group& g) {
@@ -67,14 +70,25 @@ int run(const Options& o) {
     TriangleMesh mesh = loadMesh(o.mesh);
     TransportFile file = loadTransportFile(o.transport, {mesh.vertexCount(), meshFingerprint(mesh)});
     scaleToPhysical(mesh, MeshScale{.sizeMm = std::nullopt, .mmPerUnit = file.mmPerUnit});
-    // An editable file is checked at its own material: its profiles recombined.
-    if (file.radialBasis) {
-        const EditableTransport editable(file, double(bounds(mesh).diagonal()), o.transport);
-        file.components.insert(file.components.begin(), editable.recombine());
-    }
     const TransportParameters params = readTransportParameters(file.parameters, o.transport);
     if (!params.material) throw Error(o.transport, "has no material parameters (sigma_s_prime, sigma_a, eta)");
-    const Material& material = *params.material;
+    // The material the reference sums: the file's, or an editable file's edit, whose size
+    // is a material scale (R_d(r; s sigma) = s^2 R_d(s r; sigma), material_edit.h) on the
+    // file's mesh.
+    Material material = *params.material;
+    if (!file.radialBasis && (!o.material.empty() || o.sizeMm))
+        throw Error(o.transport, "is not editable (prt-precompute --editable): --material and --size-mm need one");
+    if (file.radialBasis) {
+        const double fileSizeMm = double(bounds(mesh).diagonal());
+        EditableTransport editable(file, fileSizeMm, o.transport);
+        const Material edit =
+            o.material.empty() ? editable.fileMaterial() : parseMaterial(o.material, editable.fileMaterial().eta);
+        const double sizeMm = o.sizeMm.value_or(fileSizeMm);
+        if (editable.setMaterial(edit, sizeMm))
+            warn("--material: " + edit.name + " applied with the file's eta " + formatParameter(material.eta));
+        file.components.insert(file.components.begin(), editable.recombine());
+        material = scaledMaterial(editable.material(), sizeMm / fileSizeMm);
+    }
     bool hasMultipleScattering = false;
     for (const TransportComponent& c : file.components)
         hasMultipleScattering |= c.kind == ComponentKind::MultipleScattering;
@@ -141,6 +155,7 @@ int run(const Options& o) {
 
     std::printf("file: %s, %zu vertices, N = %u; environment %s (rotated %.4g degrees about +Y)\n",
                 o.transport.c_str(), mesh.vertexCount(), file.cubemapSize, o.environment.c_str(), o.envRotation);
+    if (file.radialBasis) std::printf("material (editable file): %s\n", describeMaterial(material).c_str());
     std::printf("reference: %zu samples (own seed %llu), %zu directions per sample\n", samples.samples.size(),
                 (unsigned long long)plan.seed, irradianceOptions.directions);
     std::printf("multiple scattering at %zu vertices (every %zu%s):\n", c.all.vertices, o.stride,
@@ -180,6 +195,10 @@ int main(int argc, char** argv) {
         app.add_option("--env-samples", o.envSamples,
                        "Monte Carlo directions per reference sample (default: 16.8 M rays / samples, in [64, 2048])");
         app.add_option("--mc-seed", o.mcSeed, "Seed of the Monte Carlo directions")->capture_default_str();
+        app.add_option("--material", o.material,
+                       "Editable files: relight and check with this material (a name, sigma:SA:SS or colour:C:L; "
+                       "docs/editable-transport.md)");
+        app.add_option("--size-mm", o.sizeMm, "Editable files: at this object size (mm, bounding-box diagonal)");
         addThreadsOption(app, o.threads);
         if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-vertex-error")) return *exitCode;
         return run(o);
