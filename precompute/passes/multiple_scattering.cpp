@@ -423,7 +423,19 @@ inline void accumulateQuads(std::span<const Entry> entries, const double* w, flo
 
 inline void accumulate(std::span<const Entry> entries, const double* w, int count, double* acc) {
     switch (count) {
-        case 3: return accumulateFixed<3>(entries, w, acc);
+        case 3: {
+            // Written out: GCC compiles the template at K = 3 into slower code
+            // (docs/performance.md, "Pass 2 design measurements").
+            const double w0 = w[0], w1 = w[1], w2 = w[2];
+            for (const Entry& e : entries) {
+                double* d = acc + size_t(e.index) * 3;
+                const double v = e.value;
+                d[0] += w0 * v;
+                d[1] += w1 * v;
+                d[2] += w2 * v;
+            }
+            return;
+        }
         case 6: return accumulatePairs<6>(entries, w, acc);
         case 9: return accumulateFixed<9>(entries, w, acc);
         case 12: return accumulatePairs<12>(entries, w, acc);
