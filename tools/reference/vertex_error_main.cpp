@@ -76,9 +76,10 @@ int run(const Options& o) {
     // is a material scale (R_d(r; s sigma) = s^2 R_d(s r; sigma), material_edit.h) on the
     // file's mesh.
     Material material = *params.material;
-    if (!file.radialBasis && (!o.material.empty() || o.sizeMm))
+    const bool editableFile = bool(file.radialBasis);  // EditableTransport moves the basis out
+    if (!editableFile && (!o.material.empty() || o.sizeMm))
         throw Error(o.transport, "is not editable (prt-precompute --editable): --material and --size-mm need one");
-    if (file.radialBasis) {
+    if (editableFile) {
         const double fileSizeMm = double(bounds(mesh).diagonal());
         EditableTransport editable(file, fileSizeMm, o.transport);
         const Material edit =
@@ -155,7 +156,7 @@ int run(const Options& o) {
 
     std::printf("file: %s, %zu vertices, N = %u; environment %s (rotated %.4g degrees about +Y)\n",
                 o.transport.c_str(), mesh.vertexCount(), file.cubemapSize, o.environment.c_str(), o.envRotation);
-    if (file.radialBasis) std::printf("material (editable file): %s\n", describeMaterial(material).c_str());
+    if (editableFile) std::printf("material (editable file): %s\n", describeMaterial(material).c_str());
     std::printf("reference: %zu samples (own seed %llu), %zu directions per sample\n", samples.samples.size(),
                 (unsigned long long)plan.seed, irradianceOptions.directions);
     std::printf("multiple scattering at %zu vertices (every %zu%s):\n", c.all.vertices, o.stride,
