@@ -193,10 +193,9 @@ RadialBasis editableBasis(const PrecomputeSettings& s, const TriangleMesh& mesh,
     const double sizes[3] = {sized ? s.editable.sizeMinMm / objectSizeMm : 0.5, 1.0,
                              sized ? s.editable.sizeMaxMm / objectSizeMm : 2.0};
     // In coordinates balanced for the covered materials, so that the joint truncation of
-    // the profile vectors keeps what those materials' recombinations need.
-    // Each material and size counts by its relative error: its channels weighted by
-    // 1 / (R_R^2 + R_G^2 + R_B^2), R_c the channel's total diffuse reflectance (the scale
-    // of its transport), so a dark absorbing material weighs as much as a bright one.
+    // the profile vectors keeps what those materials' recombinations need; each material
+    // and size counts by its relative error (its channels weighted by 1 / (R_R^2 + R_G^2 +
+    // R_B^2), R_c the channel's total diffuse reflectance, the scale of its transport).
     std::vector<DipoleChannel> covered;
     std::vector<double> importance;
     for (const Material& m : editableMaterials(s))

@@ -360,8 +360,8 @@ void gradedNearSum(int count, const double* table, double inverseStep, size_t la
                    const CellQuadrature::SubTriangle* shape, const glm::vec3& xo, double* s) {
     const int K = Fixed > 0 ? Fixed : count;
     const double limit = r2 * r2;
-    const auto add = [&](double d2, double a) {
-        const double x = std::sqrt(d2) * inverseStep;
+    const auto add = [&](double r, double a) {
+        const double x = r * inverseStep;
         const size_t e = std::min(size_t(x), lastInterval);
         const double f = x - double(e);
         const double* p = table + size_t(K) * e;
@@ -378,7 +378,7 @@ void gradedNearSum(int count, const double* table, double inverseStep, size_t la
         const double piece = std::max(fine, (dist - reach) / g);
         const int m = std::min(64, std::max(1, int(std::ceil(double(t.longestEdge) / piece))));
         if (m == 1) {
-            if (d2 < limit) add(d2, area[k]);
+            if (d2 < limit) add(dist, area[k]);
             continue;
         }
         // Piece centroids on the barycentric grid of the sub-triangle, relative to x_o.
@@ -390,11 +390,11 @@ void gradedNearSum(int count, const double* table, double inverseStep, size_t la
                 const glm::dvec3 base = corner + double(i) * u + double(j) * v;
                 const glm::dvec3 up = base + (u + v) / 3.0;
                 const double u2 = glm::dot(up, up);
-                if (u2 < limit) add(u2, a);
+                if (u2 < limit) add(std::sqrt(u2), a);
                 if (i + j <= m - 2) {
                     const glm::dvec3 down = base + 2.0 * (u + v) / 3.0;
                     const double w2 = glm::dot(down, down);
-                    if (w2 < limit) add(w2, a);
+                    if (w2 < limit) add(std::sqrt(w2), a);
                 }
             }
         }

@@ -380,29 +380,9 @@ inline void accumulateFixed(std::span<const Entry> entries, const double* w, dou
     }
 }
 
-// An even K in pairs of doubles (the compilers' portable vector type; GCC does not
-// vectorise the loop above by itself): the same products and sums, per channel.
-template <int K>
-inline void accumulatePairs(std::span<const Entry> entries, const double* w, double* acc) {
-    static_assert(K % 2 == 0);
-    using Pair = double __attribute__((vector_size(16)));
-    Pair wk[K / 2];
-    std::memcpy(wk, w, sizeof(wk));
-    for (const Entry& e : entries) {
-        double* d = acc + size_t(e.index) * K;
-        const double v = e.value;
-        for (int c = 0; c < K / 2; ++c) {
-            Pair x;
-            std::memcpy(&x, d + 2 * c, sizeof(x));
-            x += wk[c] * v;
-            std::memcpy(d + 2 * c, &x, sizeof(x));
-        }
-    }
-}
-
 // K a multiple of four, into a float accumulator, four channels at a time: half the
 // bytes of the double rows, which for the 12 profiles of editable transport is what the
-// scattered additions wait on (docs/performance.md, "Editable pass 2").
+// scattered additions wait on (docs/performance.md, "Pass 2 design measurements").
 template <int K>
 inline void accumulateQuads(std::span<const Entry> entries, const double* w, float* acc) {
     static_assert(K % 4 == 0);
@@ -436,9 +416,8 @@ inline void accumulate(std::span<const Entry> entries, const double* w, int coun
             }
             return;
         }
-        case 6: return accumulatePairs<6>(entries, w, acc);
+        case 6: return accumulateFixed<6>(entries, w, acc);
         case 9: return accumulateFixed<9>(entries, w, acc);
-        case 12: return accumulatePairs<12>(entries, w, acc);
         case 15: return accumulateFixed<15>(entries, w, acc);
         default: break;
     }
