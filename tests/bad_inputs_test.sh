@@ -218,6 +218,22 @@ expect "reference: missing environment" "nowhere\.exr" $F.exr \
     $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e nowhere.exr -W 16 -H 16 -o $F
 expect "reference: the file's seed" "--seed" $F.exr \
     $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 16 -H 16 --seed 1 -o $F
+expect "reference: both an environment and lights" "--environment: .*not both" $F.exr \
+    $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --light point:0,50,0:1 -W 16 -H 16 -o $F
+expect "reference: no light at all" "--environment: no light" $F.exr \
+    $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -W 16 -H 16 -o $F
+expect "reference: environment without a transport file" "--transport" $F.exr \
+    $REFERENCE "$S/torus.ply" -e "$S/sky.exr" -W 16 -H 16 -o $F
+expect "reference: single scattering under lights" "--components: .*environments only" $F.exr \
+    $REFERENCE "$S/torus.ply" --light point:0,50,0:1 --components ms,ss -W 16 -H 16 -o $F
+expect "reference: a size with the transport file" "--size-mm: .*fixes the size" $F.exr \
+    $REFERENCE "$S/torus.ply" -t "$S/torus.prt" --light point:0,50,0:1 --size-mm 20 -W 16 -H 16 -o $F
+expect "reference: a light inside the object" "inside the object" $F.exr \
+    $REFERENCE "$S/torus.ply" --size-mm 20 --light point:5,0,0:1 -W 16 -H 16 -o $F
+expect "reference: misspelt light scene key" "typo-lights\.json" $F.exr \
+    $REFERENCE "$S/torus.ply" --lights typo-lights.json -W 16 -H 16 -o $F
+expect "reference: zero pixel stride" "--pixel-stride" $F.exr \
+    $REFERENCE "$S/torus.ply" --light point:0,50,0:1 --pixel-stride 0 -W 16 -H 16 -o $F
 expect "vertex-error: another mesh" "torus\.prt: .*mesh" - \
     $VERTEX_ERROR "$S/sphere.ply" -t "$S/torus.prt" -e "$S/sky.exr"
 expect "vertex-error: zero stride" "--stride" - \

@@ -1,5 +1,6 @@
 #include "tools/reference/reference.h"
 
+#include <Eigen/Core>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -281,31 +282,140 @@ SampleIrradiance computeSampleIrradiance(const EnvironmentSampler& env, const Ra
 }
 
 // ---------------------------------------------------------------------------
+// Irradiance from point and directional lights
+// ---------------------------------------------------------------------------
+
+glm::dvec3 lightIrradiance(const std::vector<Light>& lights, const RayScene* scene, const glm::vec3& position,
+                           const glm::vec3& normal, const glm::vec3& geometricNormal, double eta, bool visibility,
+                           uint64_t* rays) {
+    if (visibility && !scene) throw Error("reference", "visibility requested without a ray scene");
+    const glm::dvec3 x(position), n = glm::normalize(glm::dvec3(normal));
+    const glm::vec3 origin = visibility ? scene->offsetRayOrigin(position, geometricNormal, normal) : position;
+    glm::dvec3 e(0.0);
+    for (const Light& light : lights) {
+        glm::dvec3 w;
+        double reach, unoccluded;  // tfar of the shadow ray, and E_light
+        if (light.type == LightType::Point) {
+            const glm::dvec3 toLight = light.position - x;
+            const double r2 = glm::dot(toLight, toLight);
+            if (!(r2 > 0.0)) continue;
+            const double r = std::sqrt(r2);
+            w = toLight / r;
+            reach = r * (1.0 - 1e-6);
+            unoccluded = kSquareMmPerSquareMetre / r2;
+        } else {
+            w = glm::normalize(light.direction);
+            reach = std::numeric_limits<double>::infinity();
+            unoccluded = 1.0;
+        }
+        const double mu = glm::dot(n, w);
+        if (!(mu > 0.0)) continue;
+        if (visibility) {
+            if (rays) ++*rays;
+            if (scene->occluded(origin, glm::vec3(w), 0.0f, float(reach))) continue;
+        }
+        e += fresnelTransmittance(eta, mu) * mu * unoccluded * light.rgb;
+    }
+    return e;
+}
+
+SampleIrradiance computeLightIrradiance(const std::vector<Light>& lights, const RayScene& scene,
+                                        const SampleSet& samples, double eta, Progress* progress) {
+    if (lights.empty()) throw Error("reference", "no light");
+    const Stopwatch start;
+    const size_t n = samples.samples.size();
+    SampleIrradiance out;
+    out.value.assign(n, glm::dvec3(0.0));
+    out.variance.assign(n, glm::dvec3(0.0));
+    std::vector<uint64_t> rays(n, 0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+            const SurfaceSample& s = samples.samples[i];
+            out.value[i] = lightIrradiance(lights, &scene, s.position, s.normal, s.geometricNormal, eta, true, &rays[i]);
+        }
+        if (progress) progress->advance(range.size());
+    });
+    for (uint64_t r : rays) out.rays += r;
+    out.seconds = start.seconds();
+    return out;
+}
+
+// ---------------------------------------------------------------------------
 // Multiple scattering
 // ---------------------------------------------------------------------------
+
+namespace {
+// Samples per block of the vectorised dipole sum; the arrays are padded to a multiple
+// with samples of zero irradiance and variance, which add exactly nothing.
+constexpr size_t kSumBlock = 64;
+}  // namespace
 
 MultipleScatteringReference::MultipleScatteringReference(const Material& material,
                                                          std::vector<glm::vec3> positions,
                                                          double areaPerSample, SampleIrradiance irradiance)
-    : material_(material), positions_(std::move(positions)), area_(areaPerSample),
-      irradiance_(std::move(irradiance)) {
+    : material_(material), sampleCount_(positions.size()), area_(areaPerSample) {
     validateMaterial(material_);
-    if (irradiance_.value.size() != positions_.size() || irradiance_.variance.size() != positions_.size())
+    if (irradiance.value.size() != positions.size() || irradiance.variance.size() != positions.size())
         throw Error("reference", "one irradiance value per sample is needed");
     if (!(area_ > 0.0) || !std::isfinite(area_)) throw Error("reference", "sample area must be positive");
     for (int c = 0; c < 3; ++c) dipole_[c] = makeDipoleChannel(material_, c);
+    for (size_t i = 0; i < positions.size(); ++i) {
+        const glm::dvec3 &e = irradiance.value[i], &v = irradiance.variance[i];
+        if (e == glm::dvec3(0.0) && v == glm::dvec3(0.0)) continue;
+        x_.push_back(positions[i].x);
+        y_.push_back(positions[i].y);
+        z_.push_back(positions[i].z);
+        for (int c = 0; c < 3; ++c) {
+            value_[c].push_back(e[c]);
+            variance_[c].push_back(v[c]);
+        }
+    }
+    contributing_ = x_.size();
+    const size_t padded = (x_.size() + kSumBlock - 1) / kSumBlock * kSumBlock;
+    for (std::vector<double>* a : {&x_, &y_, &z_, &value_[0], &value_[1], &value_[2], &variance_[0],
+                                   &variance_[1], &variance_[2]})
+        a->resize(padded, 0.0);
 }
 
 RadianceEstimate MultipleScatteringReference::diffuse(const glm::vec3& x) const {
+    using Block = Eigen::Array<double, kSumBlock, 1>;
+    using Column = Eigen::Map<const Block>;
+    const double xo = x.x, yo = x.y, zo = x.z;
+    double coefficient[3];
+    for (int c = 0; c < 3; ++c) coefficient[c] = area_ / kPi * dipole_[c].alphaPrime / (4.0 * kPi);
+    double value[3] = {0, 0, 0}, variance[3] = {0, 0, 0};
+    for (size_t b = 0; b < x_.size(); b += kSumBlock) {
+        const Block dx = Column(&x_[b]) - xo, dy = Column(&y_[b]) - yo, dz = Column(&z_[b]) - zo;
+        const Block r2 = dx * dx + dy * dy + dz * dz;
+        for (int c = 0; c < 3; ++c) {
+            const DipoleChannel& d = dipole_[c];
+            // dipoleRd's two terms, z (1 + sigma_tr d) e^(-sigma_tr d) / d^3, per source.
+            const Block dr = (r2 + d.zr * d.zr).sqrt(), dv = (r2 + d.zv * d.zv).sqrt();
+            const Block real = d.zr * (1.0 + d.sigmaTr * dr) * (-d.sigmaTr * dr).exp() / (dr * dr * dr);
+            const Block virt = d.zv * (1.0 + d.sigmaTr * dv) * (-d.sigmaTr * dv).exp() / (dv * dv * dv);
+            const Block w = coefficient[c] * (real + virt);
+            value[c] += (w * Column(&value_[c][b])).sum();
+            variance[c] += (w * w * Column(&variance_[c][b])).sum();
+        }
+    }
+    RadianceEstimate out;
+    for (int c = 0; c < 3; ++c) {
+        out.value[c] = value[c];
+        out.variance[c] = variance[c];
+    }
+    return out;
+}
+
+RadianceEstimate MultipleScatteringReference::diffuseScalar(const glm::vec3& x) const {
     const glm::dvec3 xo(x);
     const double scale = area_ / kPi;
     RadianceEstimate out;
-    for (size_t i = 0; i < positions_.size(); ++i) {
-        const double r = glm::length(glm::dvec3(positions_[i]) - xo);
+    for (size_t i = 0; i < x_.size(); ++i) {
+        const double r = glm::length(glm::dvec3(x_[i], y_[i], z_[i]) - xo);
         for (int c = 0; c < 3; ++c) {
             const double w = scale * dipoleRd(dipole_[c], r);
-            out.value[c] += w * irradiance_.value[i][c];
-            out.variance[c] += w * w * irradiance_.variance[i][c];
+            out.value[c] += w * value_[c][i];
+            out.variance[c] += w * w * variance_[c][i];
         }
     }
     return out;

@@ -71,9 +71,14 @@ void printNoise(const char* what, const ReferenceFrame& f) {
 
 struct Options {
     std::string mesh, transport, environment, output;
+    std::vector<std::string> lights;
+    std::string lightsFile;
     CameraOptions camera;
     double envRotation = 0.0, exposure = 0.0;
-    std::string material;
+    MaterialOptions material;
+    bool materialGiven = false;  // any of the material options was given
+    ScaleOptions scale;
+    size_t pixelStride = 1;
     std::optional<size_t> samples;
     std::optional<uint64_t> seed;
     bool sameSamples = false;
@@ -104,43 +109,75 @@ int run(const Options& o) {
     if (o.maxSamples < 1) throw Error("--max-samples", "must be at least 1");
     if (!(o.irradiance.environmentFraction >= 0 && o.irradiance.environmentFraction <= 1))
         throw Error("--env-fraction", "must be in [0, 1]");
+    if (o.pixelStride < 1) throw Error("--pixel-stride", "must be at least 1");
 
-    // Mesh and transport file header: the same placement as prt-relight render.
-    const TransportFileInfo info = readTransportFileInfo(o.transport);
+    // The light: an environment map, or point and directional lights (docs/reference.md).
+    std::vector<Light> lights;
+    if (!o.lightsFile.empty()) lights = loadLightScene(o.lightsFile);
+    for (const std::string& text : o.lights) lights.push_back(parseLight(text));
+    const bool lightMode = !o.lights.empty() || !o.lightsFile.empty();
+    if (lightMode && !o.environment.empty())
+        throw Error("--environment", "give either an environment or --light/--lights, not both");
+    if (!lightMode && o.environment.empty())
+        throw Error("--environment", "no light: give -e ENVIRONMENT or --light/--lights");
+    if (lightMode && lights.empty()) throw Error(o.lightsFile, "the scene has no light");
+    if (!lightMode && o.transport.empty())
+        throw Error("--transport", "an environment reference needs the transport file it is compared with");
+    if (!o.transport.empty() && (o.scale.sizeMm || o.scale.mmPerUnit))
+        throw Error(o.scale.sizeMm ? "--size-mm" : "--mm-per-unit",
+                    "the transport file fixes the size; give it only without -t");
+
+    // Mesh and (when given) the transport file's header: the same placement as
+    // prt-relight render, or, for lights without a file, as prt-pointlight.
     TriangleMesh mesh = loadMesh(o.mesh);
-    const MeshFingerprint fingerprint{mesh.vertexCount(), meshFingerprint(mesh)};
-    if (!(fingerprint == info.mesh)) {
-        char buf[256];
-        std::snprintf(buf, sizeof buf,
-                      "was computed for another mesh (%llu vertices, hash %016llx), not %s (%llu vertices, hash %016llx)",
-                      (unsigned long long)info.mesh.vertexCount, (unsigned long long)info.mesh.positionHash,
-                      o.mesh.c_str(), (unsigned long long)fingerprint.vertexCount,
-                      (unsigned long long)fingerprint.positionHash);
-        throw Error(o.transport, buf);
+    std::optional<TransportFileInfo> info;
+    TransportParameters params;
+    double mmPerUnit = 0.0;
+    if (!o.transport.empty()) {
+        info = readTransportFileInfo(o.transport);
+        const MeshFingerprint fingerprint{mesh.vertexCount(), meshFingerprint(mesh)};
+        if (!(fingerprint == info->mesh)) {
+            char buf[256];
+            std::snprintf(
+                buf, sizeof buf,
+                "was computed for another mesh (%llu vertices, hash %016llx), not %s (%llu vertices, hash %016llx)",
+                (unsigned long long)info->mesh.vertexCount, (unsigned long long)info->mesh.positionHash,
+                o.mesh.c_str(), (unsigned long long)fingerprint.vertexCount,
+                (unsigned long long)fingerprint.positionHash);
+            throw Error(o.transport, buf);
+        }
+        mmPerUnit = scaleToPhysical(mesh, MeshScale{.sizeMm = std::nullopt, .mmPerUnit = info->mmPerUnit});
+        params = readTransportParameters(info->parameters, o.transport);
+    } else {
+        mmPerUnit = scaleToPhysical(mesh, makeScale(o.scale));
     }
-    scaleToPhysical(mesh, MeshScale{.sizeMm = std::nullopt, .mmPerUnit = info.mmPerUnit});
 
-    const TransportParameters params = readTransportParameters(info.parameters, o.transport);
     Material material;
-    if (o.material.empty()) {
+    if (info && !o.materialGiven) {
         material = require(params.material, o.transport, "sigma_s_prime, sigma_a or eta", "--material");
     } else {
-        material = materialByName(o.material);
-        warn("--material " + material.name + " overrides the transport file's material (" +
-             (params.material ? params.material->name : std::string("none")) +
-             "): the reference no longer matches the file");
+        material = makeMaterial(o.material);
+        if (info)
+            warn("--material " + material.name + " overrides the transport file's material (" +
+                 (params.material ? params.material->name : std::string("none")) +
+                 "): the reference no longer matches the file");
     }
     if (o.g) {
         material.g = *o.g;
         validateMaterial(material);
         warn("--g overrides the phase asymmetry (sigma_s' kept): single scattering no longer matches the file");
     }
-    // Default: multiple scattering, plus single scattering when the file has it.
+    // Default: multiple scattering, plus single scattering when the file has it (and the
+    // light is an environment: no point-light renderer has single scattering).
     const ScatteringComponents components =
-        o.components.empty()
-            ? ScatteringComponents{true, componentsOf(info).singleScattering ||
-                                             params.components.value_or(ScatteringComponents::none()).singleScattering}
-            : parseScatteringComponents(o.components);
+        !o.components.empty() ? parseScatteringComponents(o.components)
+        : lightMode           ? ScatteringComponents{true, false}
+                              : ScatteringComponents{true, componentsOf(*info).singleScattering ||
+                                                               params.components.value_or(ScatteringComponents::none())
+                                                                   .singleScattering};
+    if (lightMode && components.singleScattering)
+        throw Error("--components", "single scattering is referenced under environments only (the point-light "
+                                    "renderers have none)");
     if (o.perVertex && !components.multipleScattering) warn("--per-vertex applies to multiple scattering only; ignored");
     SingleScatteringReferenceOptions ssOptions = o.ss;
     ssOptions.path = parsePath(o.ssPath);
@@ -151,17 +188,19 @@ int run(const Options& o) {
         if (!(ssOptions.environmentFraction >= 0 && ssOptions.environmentFraction <= 1))
             throw Error("--ss-env-fraction", "must be in [0, 1]");
     }
-    const BoundingSphere sphere = boundingSphere(mesh);  // as prt-relight places it
+    const BoundingSphere sphere = boundingSphere(mesh);  // as prt-relight and prt-pointlight frame it
     const Camera camera = makeCamera(o.camera, sphere.centre, sphere.radius);
-    const Image environment = loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
+    const Image environment =
+        lightMode ? Image() : loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
     const glm::dmat3 rotation = rotationY(o.envRotation);
-    const EnvironmentSampler sampler(environment, rotation);
+    std::optional<EnvironmentSampler> sampler;
+    if (!lightMode) sampler.emplace(environment, rotation);
 
     const std::filesystem::path parent = std::filesystem::path(output).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);
 
     std::printf("mesh: %s, %zu vertices, %zu triangles, %.4g mm per unit, %.4g mm across\n", o.mesh.c_str(),
-                mesh.vertexCount(), mesh.triangleCount(), info.mmPerUnit, double(bounds(mesh).diagonal()));
+                mesh.vertexCount(), mesh.triangleCount(), mmPerUnit, double(bounds(mesh).diagonal()));
     std::printf("material: %s, sigma_s' %s /mm, sigma_a %s /mm, eta %.4g, g %.4g (sigma_s %s /mm)\n",
                 material.name.c_str(), formatRgb(material.sigmaSPrime).c_str(), formatRgb(material.sigmaA).c_str(),
                 material.eta, material.g, formatRgb(material.sigmaS()).c_str());
@@ -172,12 +211,19 @@ int run(const Options& o) {
     std::printf("camera: eye (%.4g, %.4g, %.4g) target (%.4g, %.4g, %.4g) fov %.4g, %dx%d\n", camera.eye.x,
                 camera.eye.y, camera.eye.z, camera.target.x, camera.target.y, camera.target.z, camera.fovY,
                 camera.width, camera.height);
+    for (const Light& l : lights) std::printf("light: %s (exact Fresnel)\n", describe(l).c_str());
     std::fflush(stdout);
 
     const RayScene scene(mesh);
+    checkLightsOutside(scene, lights);
     const Stopwatch raysStart;
-    const GBuffer gbuffer = traceGBuffer(scene, mesh, camera);
+    const GBuffer fullGBuffer = traceGBuffer(scene, mesh, camera);
     const double raysSeconds = raysStart.seconds();
+    // --pixel-stride: every k-th object pixel only (the others come out as background).
+    const GBuffer gbuffer = o.pixelStride > 1 ? subsampleObjectPixels(fullGBuffer, o.pixelStride) : fullGBuffer;
+    if (o.pixelStride > 1)
+        std::printf("pixels: every %zu-th object pixel, %zu of %zu (--pixel-stride)\n", o.pixelStride,
+                    gbuffer.objectPixels(), fullGBuffer.objectPixels());
 
     std::vector<ReferenceFrame> parts;
     std::vector<std::string> partNames;
@@ -188,6 +234,8 @@ int run(const Options& o) {
         // --same-samples reproduces the precomputation's set to isolate the transport error.
         const std::optional<uint64_t> fileSeed = params.seed;
         const std::optional<uint64_t> fileSamples = params.samples;
+        if (o.sameSamples && !info)
+            throw Error("--same-samples", "needs the transport file (-t) whose samples it reuses");
         if (o.seed && fileSeed && *o.seed == *fileSeed && !o.sameSamples)
             throw Error("--seed", "is the transport file's placement seed (" + std::to_string(*fileSeed) +
                                       "): the reference would share the precomputation's sample set; give "
@@ -236,6 +284,8 @@ int run(const Options& o) {
         else
             irradianceOptions.directions = o.envSamples;
         if (irradianceOptions.directions < 1) throw Error("--env-samples", "must be at least 1");
+        if (lightMode && o.envSamples != 0)
+            warn("--env-samples applies to environments; the lights' irradiance is exact");
         std::printf("samples: %s\n", sampleRule.c_str());
         std::printf("  planned: %zu samples x %zu object pixels = %.3g point-sample pairs%s\n", sampleCount,
                     gbuffer.objectPixels(), double(sampleCount) * double(gbuffer.objectPixels()),
@@ -247,6 +297,7 @@ int run(const Options& o) {
             ReferenceFrame frame;
             SampleSet samples;
             uint64_t rays = 0;
+            size_t litSamples = 0;  // samples that enter the sum (E or its variance non-zero)
             double irradianceSeconds = 0, sampleRelativeError = 0, vertexSeconds = 0;
         };
         auto renderMs = [&](size_t count, uint64_t placementSeed, const GBuffer& pixels, bool perVertex,
@@ -258,11 +309,16 @@ int run(const Options& o) {
                 p.advance(count);
             }
             SampleIrradiance irradiance;
-            {
+            if (lightMode) {
+                Progress p(label + "irradiance (exact, " + std::to_string(lights.size()) + " light" +
+                               (lights.size() == 1 ? "" : "s") + ")",
+                           run.samples.samples.size(), "samples");
+                irradiance = computeLightIrradiance(lights, scene, run.samples, material.eta, &p);
+            } else {
                 Progress p(label + "irradiance (" + std::to_string(irradianceOptions.directions) +
                                " directions per sample)",
                            run.samples.samples.size(), "samples");
-                irradiance = computeSampleIrradiance(sampler, &scene, run.samples, material.eta, irradianceOptions, &p);
+                irradiance = computeSampleIrradiance(*sampler, &scene, run.samples, material.eta, irradianceOptions, &p);
             }
             run.rays = irradiance.rays;
             run.irradianceSeconds = irradiance.seconds;
@@ -272,6 +328,7 @@ int run(const Options& o) {
             for (const SurfaceSample& s : run.samples.samples) positions.push_back(s.position);
             MultipleScatteringReference ms(material, std::move(positions), run.samples.areaPerSample,
                                            std::move(irradiance));
+            run.litSamples = ms.contributingSamples();
             if (perVertex) {
                 const Stopwatch t0;
                 Progress p(label + "multiple scattering at vertices", mesh.vertexCount(), "vertices");
@@ -306,15 +363,22 @@ int run(const Options& o) {
                     samples.samples.size(), (unsigned long long)seed,
                     o.sameSamples ? ", the precomputation's" : ", the reference's own", samples.areaPerSample,
                     samples.totalArea, std::sqrt(2.0 * samples.areaPerSample / std::sqrt(3.0)), samples.minSpacing);
-        std::printf("irradiance: %zu directions per sample (%zu environment + %zu cosine, MIS balance heuristic, "
-                    "Monte Carlo seed %llu), %llu occlusion rays in %.1f s (%.3g rays/s)\n",
-                    irradianceOptions.directions, nEnv, irradianceOptions.directions - nEnv,
-                    (unsigned long long)irradianceOptions.seed, (unsigned long long)main.rays,
-                    main.irradianceSeconds, main.irradianceSeconds > 0 ? main.rays / main.irradianceSeconds : 0.0);
-        std::printf("  median relative standard error of one sample's irradiance: %.3g%%\n",
-                    100 * main.sampleRelativeError);
+        if (lightMode) {
+            std::printf("irradiance: exact per sample (one shadow ray per light), %llu occlusion rays in %.1f s; %zu "
+                        "of %zu samples lit\n",
+                        (unsigned long long)main.rays, main.irradianceSeconds, main.litSamples,
+                        samples.samples.size());
+        } else {
+            std::printf("irradiance: %zu directions per sample (%zu environment + %zu cosine, MIS balance heuristic, "
+                        "Monte Carlo seed %llu), %llu occlusion rays in %.1f s (%.3g rays/s)\n",
+                        irradianceOptions.directions, nEnv, irradianceOptions.directions - nEnv,
+                        (unsigned long long)irradianceOptions.seed, (unsigned long long)main.rays,
+                        main.irradianceSeconds, main.irradianceSeconds > 0 ? main.rays / main.irradianceSeconds : 0.0);
+            std::printf("  median relative standard error of one sample's irradiance: %.3g%%\n",
+                        100 * main.sampleRelativeError);
+        }
         const double pairs =
-            double(o.perVertex ? mesh.vertexCount() : frame.objectPixels) * double(samples.samples.size());
+            double(o.perVertex ? mesh.vertexCount() : frame.objectPixels) * double(main.litSamples);
         std::printf("multiple scattering: %s, %.3g point-sample pairs in %.1f s\n",
                     o.perVertex ? "per vertex, interpolated" : "per pixel", pairs,
                     o.perVertex ? main.vertexSeconds + frame.seconds : frame.seconds);
@@ -341,7 +405,7 @@ int run(const Options& o) {
     }
 
     if (components.singleScattering) {
-        SingleScatteringReference ss(material, mesh, scene, sampler, ssOptions);
+        SingleScatteringReference ss(material, mesh, scene, *sampler, ssOptions);
         {
             Progress p(std::string("single scattering (") + toString(ssOptions.path) + " path)",
                        gbuffer.objectPixels(), "pixels");
@@ -392,19 +456,28 @@ int main(int argc, char** argv) {
             "(--same-samples: the precomputation's, which isolates the transport error). Single\n"
             "scattering (--components ss): Monte Carlo along the refracted view ray with the exact\n"
             "Henyey-Greenstein phase (Wang Eq. 4 + Eq. 5).\n"
-            "Same placement, camera and outputs as prt-relight render; compare with prt-compare.\n"
-            "Example:\n"
+            "Point and directional lights (--light, --lights) instead of an environment: the exact\n"
+            "transmitted irradiance at the same independent samples, multiple scattering only.\n"
+            "Same placement, camera and outputs as prt-relight render (environment, -t) or\n"
+            "prt-pointlight (lights, -m and --size-mm); compare with prt-compare.\n"
+            "Examples:\n"
             "  prt-reference bunny.off -t bunny.prt -e sunset.exr -o out/bunny_ref\n"
+            "  prt-reference bunny.off -m Marble --size-mm 40 --light point:30,40,30:0.01 -o out/bunny_pl_ref\n"
             "Vector options take comma-separated values; write negative ones as --eye=-10,0,50."};
         Options o;
         app.add_option("mesh", o.mesh, "Mesh file the transport file was computed for (.obj .ply .off .stl, .gz)")
             ->required();
         app.add_option("-t,--transport", o.transport,
                        "Transport file (only its header and parameters are read: fingerprint, scale, material, "
-                       "sample count and seed)")
-            ->required();
+                       "sample count and seed); required with -e, optional with lights");
         app.add_option("-e,--environment", o.environment, "Lat-long HDR environment (EXR, HDR, ...; width = 2 height)")
-            ->required();
+            ->group("Lighting");
+        app.add_option("--light", o.lights,
+                       "Instead of -e: a light, repeatable: point:X,Y,Z:R,G,B (mm, W/sr) or dir:X,Y,Z:R,G,B "
+                       "(toward the light, W/m^2), as prt-pointlight")
+            ->group("Lighting");
+        app.add_option("--lights", o.lightsFile, "Instead of -e: a JSON scene file with a \"lights\" list")
+            ->group("Lighting");
         app.add_option("-o,--output", o.output,
                        "Output prefix (a trailing .exr/.png is dropped): writes <prefix>.exr (linear RGBA float, A = 1 on the object) and "
                        "<prefix>.png (sRGB)")
@@ -417,9 +490,11 @@ int main(int argc, char** argv) {
         app.add_option("--noise-image", o.noiseImage,
                        "Also write the estimated standard error of every pixel (RGB EXR) to this file")
             ->group("Output");
-        app.add_option("--material", o.material,
-                       "Use this measured material instead of the transport file's (experiments only)")
-            ->group("Reference");
+        // Without -t they place the object as prt-pointlight does; with -t the file's size
+        // holds and a material overrides the file's (experiments only, with a warning).
+        const std::string objectGroup = "Object (without -t; with -t a material overrides the file's)";
+        addMaterialOptions(app, o.material, false, objectGroup);
+        addScaleOptions(app, o.scale, objectGroup);
         app.add_flag("--same-samples", o.sameSamples,
                      "Use the precomputation's sample set (the file's count and seed): isolates the transport "
                      "error (cubemap, wavelets, hierarchy, truncation) and hides the sample-sum error")
@@ -477,8 +552,14 @@ int main(int argc, char** argv) {
                      "Sum at the mesh vertices and interpolate barycentrically (as the precomputed renderer "
                      "does) instead of summing at every pixel's hit point")
             ->group("Reference");
+        app.add_option("--pixel-stride", o.pixelStride,
+                       "Render every k-th object pixel only (the others are background, A = 0): an unbiased "
+                       "sample of a large frame's error at 1/k of the cost")
+            ->capture_default_str()->group("Reference");
         addThreadsOption(app, o.threads);
         if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-reference")) return *exitCode;
+        for (const char* name : {"--material", "--sigma-a", "--sigma-s-prime", "--diffuse-colour", "--mfp-mm", "--eta"})
+            if (app.count(name) > 0) o.materialGiven = true;
         return run(o);
     });
 }
