@@ -206,10 +206,12 @@ TEST(ReferenceMultipleScattering, VectorisedSumEqualsThePlainLoopAndSkipsUnlitSa
         for (size_t i = 0; i < samples.samples.size(); ++i)
             all += samples.areaPerSample / kPi * e.value[i] *
                    dipoleRd(material, glm::length(glm::dvec3(samples.samples[i].position) - glm::dvec3(x)));
+        // The fast sum is single precision within blocks of 64 (measured within 3e-7).
         for (int c = 0; c < 3; ++c) {
-            EXPECT_NEAR(fast.value[c], slow.value[c], 1e-12 * slow.value[c] + 1e-300);
-            EXPECT_NEAR(fast.value[c], all[c], 1e-12 * all[c] + 1e-300);
-            EXPECT_NEAR(fast.variance[c], slow.variance[c], 1e-12 * slow.variance[c]);
+            EXPECT_NEAR(fast.value[c], slow.value[c], 2e-6 * slow.value[c]);
+            EXPECT_NEAR(slow.value[c], all[c], 1e-6 * all[c]);  // E_i held in float
+            EXPECT_NEAR(fast.variance[c], slow.variance[c], 1e-5 * slow.variance[c]);  // one far term: 2e-6
+            EXPECT_GT(slow.value[c], 0.0);
         }
     }
 }

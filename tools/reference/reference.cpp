@@ -366,36 +366,42 @@ MultipleScatteringReference::MultipleScatteringReference(const Material& materia
         y_.push_back(positions[i].y);
         z_.push_back(positions[i].z);
         for (int c = 0; c < 3; ++c) {
-            value_[c].push_back(e[c]);
-            variance_[c].push_back(v[c]);
+            value_[c].push_back(float(e[c]));
+            variance_[c].push_back(float(v[c]));
         }
     }
     contributing_ = x_.size();
     const size_t padded = (x_.size() + kSumBlock - 1) / kSumBlock * kSumBlock;
-    for (std::vector<double>* a : {&x_, &y_, &z_, &value_[0], &value_[1], &value_[2], &variance_[0],
+    for (std::vector<float>* a : {&x_, &y_, &z_, &value_[0], &value_[1], &value_[2], &variance_[0],
                                    &variance_[1], &variance_[2]})
-        a->resize(padded, 0.0);
+        a->resize(padded, 0.0f);
 }
 
 RadianceEstimate MultipleScatteringReference::diffuse(const glm::vec3& x) const {
-    using Block = Eigen::Array<double, kSumBlock, 1>;
+    // Single precision within a block (Eigen's float sqrt and exp run twice as many
+    // lanes as double's), double across blocks: each term is within ~1e-6 of dipoleRd's.
+    using Block = Eigen::Array<float, kSumBlock, 1>;
     using Column = Eigen::Map<const Block>;
-    const double xo = x.x, yo = x.y, zo = x.z;
+    float zr2[3], zv2[3], zr[3], zv[3], sigma[3];
     double coefficient[3];
-    for (int c = 0; c < 3; ++c) coefficient[c] = area_ / kPi * dipole_[c].alphaPrime / (4.0 * kPi);
+    for (int c = 0; c < 3; ++c) {
+        const DipoleChannel& d = dipole_[c];
+        zr[c] = float(d.zr), zv[c] = float(d.zv), sigma[c] = float(d.sigmaTr);
+        zr2[c] = float(d.zr * d.zr), zv2[c] = float(d.zv * d.zv);
+        coefficient[c] = area_ / kPi * d.alphaPrime / (4.0 * kPi);
+    }
     double value[3] = {0, 0, 0}, variance[3] = {0, 0, 0};
     for (size_t b = 0; b < x_.size(); b += kSumBlock) {
-        const Block dx = Column(&x_[b]) - xo, dy = Column(&y_[b]) - yo, dz = Column(&z_[b]) - zo;
+        const Block dx = Column(&x_[b]) - x.x, dy = Column(&y_[b]) - x.y, dz = Column(&z_[b]) - x.z;
         const Block r2 = dx * dx + dy * dy + dz * dz;
         for (int c = 0; c < 3; ++c) {
-            const DipoleChannel& d = dipole_[c];
             // dipoleRd's two terms, z (1 + sigma_tr d) e^(-sigma_tr d) / d^3, per source.
-            const Block dr = (r2 + d.zr * d.zr).sqrt(), dv = (r2 + d.zv * d.zv).sqrt();
-            const Block real = d.zr * (1.0 + d.sigmaTr * dr) * (-d.sigmaTr * dr).exp() / (dr * dr * dr);
-            const Block virt = d.zv * (1.0 + d.sigmaTr * dv) * (-d.sigmaTr * dv).exp() / (dv * dv * dv);
-            const Block w = coefficient[c] * (real + virt);
-            value[c] += (w * Column(&value_[c][b])).sum();
-            variance[c] += (w * w * Column(&variance_[c][b])).sum();
+            const Block dr = (r2 + zr2[c]).sqrt(), dv = (r2 + zv2[c]).sqrt();
+            const Block real = zr[c] * (1.0f + sigma[c] * dr) * (-sigma[c] * dr).exp() / (dr * dr * dr);
+            const Block virt = zv[c] * (1.0f + sigma[c] * dv) * (-sigma[c] * dv).exp() / (dv * dv * dv);
+            const Block w = real + virt;
+            value[c] += coefficient[c] * double((w * Column(&value_[c][b])).sum());
+            variance[c] += coefficient[c] * coefficient[c] * double((w * w * Column(&variance_[c][b])).sum());
         }
     }
     RadianceEstimate out;
@@ -414,8 +420,8 @@ RadianceEstimate MultipleScatteringReference::diffuseScalar(const glm::vec3& x) 
         const double r = glm::length(glm::dvec3(x_[i], y_[i], z_[i]) - xo);
         for (int c = 0; c < 3; ++c) {
             const double w = scale * dipoleRd(dipole_[c], r);
-            out.value[c] += w * value_[c][i];
-            out.variance[c] += w * w * variance_[c][i];
+            out.value[c] += w * double(value_[c][i]);
+            out.variance[c] += w * w * double(variance_[c][i]);
         }
     }
     return out;

@@ -82,8 +82,8 @@ struct Options {
     std::optional<size_t> samples;
     std::optional<uint64_t> seed;
     bool sameSamples = false;
-    double spacingFraction = kReferenceSpacingFraction;
-    size_t maxSamples = kDefaultSampleCap;
+    std::optional<double> spacingFraction;  // default: kReferenceSpacingFraction, or ...Light... under lights
+    std::optional<size_t> maxSamples;
     size_t envSamples = 0;  // 0: from the ray budget (or 2048 with --same-samples)
     size_t convergenceStride = 4;
     IrradianceEstimatorOptions irradiance;
@@ -104,9 +104,9 @@ int run(const Options& o) {
     if (!std::isfinite(o.exposure)) throw Error("--exposure", "must be finite");
     const std::string output = outputPrefix(o.output);
     if (output.empty()) throw Error("--output", "empty prefix");
-    if (!(o.spacingFraction > 0 && o.spacingFraction <= 10))
+    if (o.spacingFraction && !(*o.spacingFraction > 0 && *o.spacingFraction <= 10))
         throw Error("--spacing-fraction", "must be in (0, 10]");
-    if (o.maxSamples < 1) throw Error("--max-samples", "must be at least 1");
+    if (o.maxSamples && *o.maxSamples < 1) throw Error("--max-samples", "must be at least 1");
     if (!(o.irradiance.environmentFraction >= 0 && o.irradiance.environmentFraction <= 1))
         throw Error("--env-fraction", "must be in [0, 1]");
     if (o.pixelStride < 1) throw Error("--pixel-stride", "must be at least 1");
@@ -116,6 +116,11 @@ int run(const Options& o) {
     if (!o.lightsFile.empty()) lights = loadLightScene(o.lightsFile);
     for (const std::string& text : o.lights) lights.push_back(parseLight(text));
     const bool lightMode = !o.lights.empty() || !o.lightsFile.empty();
+    // Under lights the irradiance costs one shadow ray per sample, so the rule can be
+    // denser (reference.h, kReferenceLightSpacingFraction).
+    const double spacingFraction =
+        o.spacingFraction.value_or(lightMode ? kReferenceLightSpacingFraction : kReferenceSpacingFraction);
+    const size_t maxSamples = o.maxSamples.value_or(lightMode ? kReferenceLightMaxSamples : kDefaultSampleCap);
     if (lightMode && !o.environment.empty())
         throw Error("--environment", "give either an environment or --light/--lights, not both");
     if (!lightMode && o.environment.empty())
@@ -252,7 +257,7 @@ int run(const Options& o) {
                          "sample sum";
         } else {
             const ReferenceSamplePlan plan = planReferenceSamples(material, totalArea, fileSeed.value_or(1),
-                                                                  o.maxSamples, o.spacingFraction, o.seed);
+                                                                  maxSamples, spacingFraction, o.seed);
             sampleCount = o.samples ? *o.samples : plan.count;
             seed = plan.seed;
             char buf[512];
@@ -262,7 +267,7 @@ int run(const Options& o) {
                 std::snprintf(buf, sizeof buf,
                               "independent samples: spacing %.4g mm = %.3g x 1/max_c(sigma_t' + sigma_tr) (the "
                               "convergence rule), own seed",
-                              plan.spacingMm, o.spacingFraction);
+                              plan.spacingMm, spacingFraction);
             sampleRule = buf;
             if (o.samples && 4 * *o.samples < plan.count)
                 warn("--samples " + std::to_string(*o.samples) + " is far below the convergence rule's " +
@@ -272,7 +277,7 @@ int run(const Options& o) {
                 warn("the convergence rule asks for " +
                      std::to_string(defaultSampleCount(totalArea, plan.spacingMm, size_t(-1))) +
                      " samples (spacing " + formatParameter(plan.spacingMm) + " mm); capped at --max-samples " +
-                     std::to_string(o.maxSamples) + " (spacing " + formatParameter(plan.cappedSpacingMm) +
+                     std::to_string(maxSamples) + " (spacing " + formatParameter(plan.cappedSpacingMm) +
                      " mm): the sample sum is less converged, see the discretisation estimate below");
             if (fileSamples && fileSeed && sampleCount == *fileSamples && seed == *fileSeed)
                 throw Error("reference", "internal: the default sample set equals the precomputation's");
@@ -507,10 +512,15 @@ int main(int argc, char** argv) {
                        "without --same-samples)")
             ->group("Reference");
         app.add_option("--spacing-fraction", o.spacingFraction,
-                       "Convergence rule: sample spacing = this x 1/max_c(sigma_t' + sigma_tr)")
-            ->capture_default_str()->group("Reference");
-        app.add_option("--max-samples", o.maxSamples, "Budget: at most this many samples (a warning says so)")
-            ->capture_default_str()->group("Reference");
+                       "Convergence rule: sample spacing = this x 1/max_c(sigma_t' + sigma_tr) (default " +
+                           formatParameter(kReferenceSpacingFraction) + " under an environment, " +
+                           formatParameter(kReferenceLightSpacingFraction) + " under lights)")
+            ->group("Reference");
+        app.add_option("--max-samples", o.maxSamples,
+                       "Budget: at most this many samples, a warning says so (default " +
+                           std::to_string(kDefaultSampleCap) + " under an environment, " +
+                           std::to_string(kReferenceLightMaxSamples) + " under lights)")
+            ->group("Reference");
         app.add_option("--convergence-stride", o.convergenceStride,
                        "Convergence estimate: render every k-th object pixel again from half as many samples "
                        "(0: off)")
