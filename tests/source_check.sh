@@ -205,7 +205,10 @@ fi
 # --- d. includes run down the floors -----------------------------------------------------------
 # A room's code includes only its own room and the rooms below it, the order its libraries
 # link in (docs/building.md, "Layout"); the executables at a folder's top (*_main.cpp) may
-# include any room of their folder. tools/reference's library stands on relight/render only.
+# include any room of their folder. tools/reference's library stands on relight/render, and
+# on relight/pointlight for the light description alone (point_lights.h: Light, its parser,
+# the inside test), so that it takes lights as prt-pointlight does; its irradiance code is
+# its own (docs/reference.md, "Point and directional lights").
 allowedIncludes() {  # room -> the folders it may include
     case "$1" in
         common) echo "common" ;;
@@ -215,7 +218,7 @@ allowedIncludes() {  # room -> the folders it may include
         relight/prt) echo "common relight/render relight/prt" ;;
         relight/pointlight) echo "common relight/render relight/pointlight" ;;
         relight/viewer) echo "common relight/render relight/prt relight/pointlight relight/viewer" ;;
-        tools/reference) echo "common relight/render tools/reference" ;;
+        tools/reference) echo "common relight/render relight/pointlight tools/reference" ;;
     esac
 }
 for room in "${moduleDirs[@]}"; do

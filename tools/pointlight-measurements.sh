@@ -4,7 +4,8 @@
 # the accuracy figures of docs/point-lights.md. For each scene it renders the reference
 # on every k-th object pixel (--pixel-stride; the comparison is over those pixels), then
 # every method at the same camera and compares it with prt-compare (linear relative
-# RMSE and mean ratio). Scenes (issue 34's goal settings, the lights of the Keng table):
+# RMSE and mean ratio). Scenes (the goal settings of docs/point-lights.md, the lights of the
+# Keng table):
 #   dragon   dragon_vrip_res2 (202,520 faces), 40 mm, Skimmilk, 1024 x 1024
 #   bunny    bunny (75,408 faces), 40 mm, Marble, 1024 x 1024
 #   armadillo (52,000 faces), 40 mm, Skin1, from behind, 1024 x 1024
