@@ -248,20 +248,22 @@ IrradianceEstimate estimateIrradiance(const EnvironmentSampler& env, const RaySc
     return out;
 }
 
-SampleIrradiance computeSampleIrradiance(const EnvironmentSampler& env, const RayScene* scene,
-                                         const SampleSet& samples, double eta,
-                                         const IrradianceEstimatorOptions& options, Progress* progress) {
+namespace {
+
+// `estimate(i, sample)` -> IrradianceEstimate for every sample, in parallel (blocks of
+// `grain` samples), with the totals and the median relative standard error.
+template <typename Estimate>
+SampleIrradiance irradianceAtSamples(const SampleSet& samples, size_t grain, Progress* progress,
+                                     const Estimate& estimate) {
     const Stopwatch start;
     const size_t n = samples.samples.size();
     SampleIrradiance out;
     out.value.assign(n, glm::dvec3(0.0));
     out.variance.assign(n, glm::dvec3(0.0));
     std::vector<uint64_t> rays(n, 0);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16), [&](const tbb::blocked_range<size_t>& range) {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, grain), [&](const tbb::blocked_range<size_t>& range) {
         for (size_t i = range.begin(); i != range.end(); ++i) {
-            const SurfaceSample& s = samples.samples[i];
-            const IrradianceEstimate e =
-                estimateIrradiance(env, scene, s.position, s.normal, s.geometricNormal, eta, options, i);
+            const IrradianceEstimate e = estimate(i, samples.samples[i]);
             out.value[i] = e.value;
             out.variance[i] = e.variance;
             rays[i] = e.rays;
@@ -279,6 +281,16 @@ SampleIrradiance computeSampleIrradiance(const EnvironmentSampler& env, const Ra
     out.medianRelativeStandardError = upperMedian(std::move(relative));
     out.seconds = start.seconds();
     return out;
+}
+
+}  // namespace
+
+SampleIrradiance computeSampleIrradiance(const EnvironmentSampler& env, const RayScene* scene,
+                                         const SampleSet& samples, double eta,
+                                         const IrradianceEstimatorOptions& options, Progress* progress) {
+    return irradianceAtSamples(samples, 16, progress, [&](size_t i, const SurfaceSample& s) {
+        return estimateIrradiance(env, scene, s.position, s.normal, s.geometricNormal, eta, options, i);
+    });
 }
 
 // ---------------------------------------------------------------------------
@@ -322,22 +334,11 @@ glm::dvec3 lightIrradiance(const std::vector<Light>& lights, const RayScene* sce
 SampleIrradiance computeLightIrradiance(const std::vector<Light>& lights, const RayScene& scene,
                                         const SampleSet& samples, double eta, Progress* progress) {
     if (lights.empty()) throw Error("reference", "no light");
-    const Stopwatch start;
-    const size_t n = samples.samples.size();
-    SampleIrradiance out;
-    out.value.assign(n, glm::dvec3(0.0));
-    out.variance.assign(n, glm::dvec3(0.0));
-    std::vector<uint64_t> rays(n, 0);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& range) {
-        for (size_t i = range.begin(); i != range.end(); ++i) {
-            const SurfaceSample& s = samples.samples[i];
-            out.value[i] = lightIrradiance(lights, &scene, s.position, s.normal, s.geometricNormal, eta, true, &rays[i]);
-        }
-        if (progress) progress->advance(range.size());
+    return irradianceAtSamples(samples, 256, progress, [&](size_t, const SurfaceSample& s) {
+        IrradianceEstimate e;
+        e.value = lightIrradiance(lights, &scene, s.position, s.normal, s.geometricNormal, eta, true, &e.rays);
+        return e;
     });
-    for (uint64_t r : rays) out.rays += r;
-    out.seconds = start.seconds();
-    return out;
 }
 
 // ---------------------------------------------------------------------------

@@ -227,7 +227,7 @@ public:
     // shadow, or facing away from every light) add exactly nothing and are left out at
     // construction. The sum runs over blocks of samples with R_d evaluated by Eigen's
     // vectorised single-precision sqrt and exp (the same formula as dipoleRd, bssrdf.h;
-    // each term within ~1e-6 of it, 1000x below the quadrature error the reference
+    // each term within ~1e-6 of it, far below any quadrature error the reference
     // reports), the blocks added in double; diffuseScalar is the plain double loop over
     // dipoleRd that tests hold it to.
     RadianceEstimate diffuse(const glm::vec3& x) const;
@@ -445,9 +445,8 @@ inline constexpr double kReferenceSpacingFraction = 0.2;
 // seed) nor any small number a user is likely to pick.
 inline constexpr uint64_t kReferenceSampleSeed = 0x7e5f3a9d2c41b6e1ull;
 // Under point and directional lights the irradiance is exact and costs one shadow ray
-// per sample and light, so the rule is denser by default: h = 0.1 w, up to 4 M samples.
-// The sum's error then falls from about 0.7% to 0.3% (N^-0.6; docs/reference.md, "Point
-// and directional lights") for 6x the pairs.
+// per sample and light, so the rule is denser by default: h = 0.1 w, up to 4 M samples
+// (what that buys: docs/reference.md, "Point and directional lights").
 inline constexpr double kReferenceLightSpacingFraction = 0.1;
 inline constexpr size_t kReferenceLightMaxSamples = 4000000;
 // Default ray budget of the irradiance estimates (directions per sample x samples).
