@@ -1,4 +1,4 @@
-// The cell quadrature of pass 2 (precompute/passes/cell_quadrature.h): cells tile the mesh,
+// The cell quadrature of pass 2 (common/cell_quadrature.h): cells tile the mesh,
 // the near/far split is a partition of R_d, thin plates keep their sides apart, the
 // hierarchy with cells equals the brute-force cell sum at epsilon 0, bad input is
 // refused. Convergence against the exact plane integral: tests/test_sample_sum.cpp.
@@ -15,9 +15,9 @@
 #include "common/mesh.h"
 #include "common/sampling.h"
 #include "common/shapes.h"
-#include "precompute/passes/cell_quadrature.h"
+#include "common/cell_quadrature.h"
 #include "precompute/passes/multiple_scattering.h"
-#include "precompute/passes/radial_kernels.h"
+#include "common/radial_kernels.h"
 #include "common/radial_basis.h"
 
 using namespace prt;

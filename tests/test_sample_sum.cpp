@@ -3,7 +3,7 @@
 // per channel, for every measured material:
 //   - the reference's point rule (1/pi) sum_i A R_d(|x_i - x_o|) at the spacing the
 //     reference chooses (tools/reference/reference.h, referenceSampleSpacing);
-//   - the precomputation's cell rule (precompute/passes/cell_quadrature.h: R_d integrated over
+//   - the precomputation's cell rule (common/cell_quadrature.h: R_d integrated over
 //     each sample's Voronoi cell near x_o) at the spacing the precomputation chooses by
 //     default (l_u = min z_r), and at half and twice that;
 //   - and, so that the cell rule's test is seen to discriminate, the point rule at the
@@ -37,8 +37,8 @@
 #include "common/radial_basis.h"
 #include "common/sampling.h"
 #include "common/shapes.h"
-#include "precompute/passes/cell_quadrature.h"
-#include "precompute/passes/radial_kernels.h"
+#include "common/cell_quadrature.h"
+#include "common/radial_kernels.h"
 #include <optional>
 #include "tools/reference/reference.h"
 
@@ -66,7 +66,7 @@ const UnitSet& unitSet() {
 // The two quadratures under test: the reference's point rule (1/pi) sum_i A R_d(|x_i -
 // x_o|) (MultipleScatteringReference::diffuse with E_i = 1, exact, no Monte Carlo), and
 // the precomputation's cell-averaged rule (1/pi) sum_i A Rbar(|x_i - x_o|)
-// (precompute/passes/cell_quadrature.h).
+// (common/cell_quadrature.h).
 enum class Rule { Point, Cells };
 
 // Per channel: the sum at 32 vertices of the sphere (on the surface, spread over it)

@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "common/error.h"
-#include "precompute/passes/cell_quadrature.h"
-#include "precompute/passes/radial_kernels.h"
+#include "common/cell_quadrature.h"
+#include "common/radial_kernels.h"
 
 namespace prt {
 

@@ -17,11 +17,11 @@
 #include "precompute/job/memory_estimate.h"
 #include "precompute/job/pass1_file.h"
 #include "precompute/job/pipeline.h"
-#include "precompute/passes/cell_quadrature.h"
+#include "common/cell_quadrature.h"
 #include "precompute/passes/irradiance_transport.h"
 #include "precompute/passes/multiple_scattering.h"
 #include "precompute/passes/phase_factoring.h"
-#include "precompute/passes/radial_kernels.h"
+#include "common/radial_kernels.h"
 #include "precompute/passes/single_scattering.h"
 
 namespace prt {

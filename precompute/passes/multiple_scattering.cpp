@@ -1,6 +1,6 @@
 #include "precompute/passes/multiple_scattering.h"
 
-#include "precompute/passes/cell_quadrature.h"
+#include "common/cell_quadrature.h"
 
 #include "common/error.h"
 #include "common/mesh.h"

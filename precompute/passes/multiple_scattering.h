@@ -35,7 +35,7 @@
 #include "common/bssrdf.h"
 #include "common/haar.h"
 #include "common/progress.h"
-#include "precompute/passes/radial_kernels.h"
+#include "common/radial_kernels.h"
 
 #include <glm/glm.hpp>
 

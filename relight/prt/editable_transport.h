@@ -6,7 +6,7 @@
 // WHAT THE FILE HOLDS. Instead of the multiple-scattering vector V_c = T_d,c / pi per
 // vertex and colour channel, one vector U_j per radial profile B_j of its radial basis
 // (common/radial_basis.h), computed by the same pass 2 with B_j in place of R_d,c
-// (precompute/passes/radial_kernels.h). Pass 2 is linear in its kernel, so with the
+// (common/radial_kernels.h). Pass 2 is linear in its kernel, so with the
 // basis fit R_d,c(r) ~ sum_j w_cj B_j(r) of a material,
 //     V_c = sum_j w_cj U_j                                              (recombine)
 // is that material's multiple-scattering vector, up to the fit error of the basis

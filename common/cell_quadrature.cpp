@@ -1,4 +1,4 @@
-#include "precompute/passes/cell_quadrature.h"
+#include "common/cell_quadrature.h"
 
 #include "common/error.h"
 #include "common/mesh.h"

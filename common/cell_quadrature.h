@@ -50,7 +50,7 @@
 
 #include "common/bssrdf.h"
 #include "common/mesh.h"
-#include "precompute/passes/radial_kernels.h"
+#include "common/radial_kernels.h"
 
 #include <glm/glm.hpp>
 

@@ -1,4 +1,4 @@
-#include "precompute/passes/radial_kernels.h"
+#include "common/radial_kernels.h"
 
 #include <algorithm>
 #include <cmath>
