@@ -153,6 +153,16 @@ CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::ve
         throw Error("cell quadrature",
                     "invalid options (need fraction > 0, 0 <= inner < outer, max widths > 0, graded ratio >= 0)");
 
+    if (!options.triangleOwner.empty()) {
+        if (options.triangleOwner.size() != mesh.triangles.size())
+            throw Error("cell quadrature", "triangleOwner has " + std::to_string(options.triangleOwner.size()) +
+                                               " entries for " + std::to_string(mesh.triangles.size()) + " triangles");
+        for (uint32_t o : options.triangleOwner)
+            if (o != kNoTriangleOwner && o >= n)
+                throw Error("cell quadrature", "triangleOwner names sample " + std::to_string(o) + " of " +
+                                                   std::to_string(n));
+    }
+
     const double widest = 1.0 / kernels_.narrowestWidth();
     subSpacing_ = options.subSpacingFraction / widest;
     r2_ = outerRadiusOf(kernels_.widestWidth(), sampleSpacing, options);
@@ -215,6 +225,7 @@ CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::ve
             const glm::dvec3 a = mesh.positions[tri.x], b = mesh.positions[tri.y], c = mesh.positions[tri.z];
             const glm::dvec3 cr = glm::cross(b - a, c - a);
             const glm::vec3 normal = glm::vec3(glm::normalize(cr));
+            const uint32_t given = options.triangleOwner.empty() ? kNoTriangleOwner : options.triangleOwner[t];
             const float subArea = float(0.5 * glm::length(cr) / double(count));
             // The sub-triangles' edges: (b - a) / div and (c - a) / div, negated for the
             // "downward" ones (their corner is the far one).
@@ -228,7 +239,7 @@ CellQuadrature::CellQuadrature(const TriangleMesh& mesh, std::span<const glm::ve
             const auto emit = [&](double u, double v, double sign) {
                 position[k] = glm::vec3(a + u * (b - a) + v * (c - a));
                 area[k] = subArea;
-                owner[k] = grid.nearest(position[k], normal, sampleNormals);
+                owner[k] = given != kNoTriangleOwner ? given : grid.nearest(position[k], normal, sampleNormals);
                 if (graded) shape[k] = {glm::vec3(sign * e1), glm::vec3(sign * e2), longest, reach};
                 ++k;
             };

@@ -12,7 +12,8 @@
 // ceil(longest edge / s)); each sub-triangle's centroid is a sub-point with the
 // sub-triangle's area, assigned to the nearest sample whose triangle faces the same
 // way (geometric normals less than 120 degrees apart, as poissonDiskSamples treats thin
-// plates; the plain nearest sample when none does). A sample's cell area A_i is the sum
+// plates; the plain nearest sample when none does), or to its triangle's given owner
+// (options.triangleOwner). A sample's cell area A_i is the sum
 // of its sub-points' areas (all cells add up to the mesh area). The sub-spacing s =
 // subSpacingFraction x the narrowest kernel's width (radial_kernels.h; for the dipole
 // 1 / max_c(sigma_t' + sigma_tr)). Within a cell the sub-points lie along a Morton
@@ -60,6 +61,8 @@
 
 namespace prt {
 
+inline constexpr uint32_t kNoTriangleOwner = 0xffffffffu;
+
 struct CellQuadratureOptions {
     // Sub-spacing s = fraction x the narrowest kernel width.
     double subSpacingFraction = 0.25;
@@ -74,6 +77,12 @@ struct CellQuadratureOptions {
     // Graded sub-points (see the top of this file): pieces no wider than d / g at
     // distance d from the vertex. 0 turns grading off (one level of sub-points at s).
     double gradedPiecesPerDistance = 0.0;
+    // Cells that are whole triangles: when not empty (one entry per mesh triangle), the
+    // sub-points of triangle t belong to sample triangleOwner[t] instead of the nearest
+    // sample (a triangle marked kNoTriangleOwner still goes to the nearest). For one
+    // sample per face (the point-light renderers' face centroids) the cells are then the
+    // faces and A_i the face areas, whatever the sub-spacing.
+    std::span<const uint32_t> triangleOwner{};
     // Refuse to build more sub-points than this (16 bytes each once built, 36 while
     // being built; the default is 2^26, about 2.4 GB at the peak).
     size_t maxSubPoints = size_t(1) << 26;
@@ -100,7 +109,8 @@ public:
     // mesh: positions in mm (validated by the caller). samplePositions / sampleNormals:
     // the samples (geometric normals of their triangles, unit). sampleSpacing: h (mm,
     // > 0) of the sample set. Throws prt::Error for an empty sample set, mismatched
-    // arrays, a non-positive spacing, or more sub-points than options.maxSubPoints
+    // arrays, a non-positive spacing, a triangleOwner of another length than the
+    // triangles or naming no sample, or more sub-points than options.maxSubPoints
     // (naming the count and the memory it needs).
     CellQuadrature(const TriangleMesh& mesh, std::span<const glm::vec3> samplePositions,
                    std::span<const glm::vec3> sampleNormals, double sampleSpacing, const RadialKernels& kernels,

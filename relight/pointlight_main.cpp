@@ -64,6 +64,7 @@ struct Options {
     ScaleOptions scale;
     MaterialOptions material;
     std::string samples = "faces";
+    std::string nearField = "auto";
     std::optional<size_t> sampleCount;
     uint64_t seed = 1;
     double epsilon = 0.05;
@@ -152,6 +153,19 @@ void writeCacheImages(const std::string& output, const Image& frame, const GBuff
     writePng(output + "_variance.png", spread);
 }
 
+// One line on the near field's cells (sample_cells.h), or on the point rule.
+void printCells(const std::optional<SampleCells>& cells) {
+    if (!cells) {
+        std::printf("near field: point rule (A_i R_d(|x - x_i|) at every sample)\n");
+        return;
+    }
+    const CellQuadrature& q = cells->quadrature();
+    std::printf("near field: R_d integrated over each sample's %s within %.4g mm (%zu sub-points at %.4g mm, split "
+                "%.4g..%.4g mm); built in %.3f s\n",
+                cells->faceCells() ? "face" : "nearest-surface cell", cells->nearRadius(), q.subPointCount(),
+                q.subSpacing(), q.innerRadius(), q.outerRadius(), cells->buildSeconds());
+}
+
 // --turntable N / --light-path P0:P1 --frames N / --material-path A:B and/or --size-path
 // S0:S1 with --frames N: renderAnimation (point_animation.h, which states what is reused
 // between frames and why it is valid), one summary line per frame, then the mean time
@@ -192,6 +206,8 @@ int runAnimation(const Options& o, const PointAnimation& animation, const Triang
         sumWrite += tWrite;
         sumHit += info.hitPixels;
         sumMat += info.materialSeconds;
+        if (info.frame == 0 && info.cellsSeconds > 0.0)
+            std::printf("near field: cells built in %.3f s (once for every frame)\n", info.cellsSeconds);
         std::printf("frame %d/%d", info.frame + 1, count);
         if (turntable) std::printf(" (object %.1f deg)", turntableDegrees(animation, info.frame));
         else if (materialPath)
@@ -359,7 +375,9 @@ int runTextureSpace(const Options& o, const TriangleMesh& mesh, const RayScene& 
         PointRenderSettings reference = settings;
         reference.method = o.compareBrute ? PointMethod::Brute : PointMethod::JensenBuhler;
         const double epsilon = o.compareBrute ? 0.0 : o.epsilon;
-        const PointFrame frame = renderPointFrame(*lit.tree, g, reference);
+        const std::optional<SampleCells> cells = nearFieldCells(mesh, placed, reference);
+        printCells(cells);
+        const PointFrame frame = renderPointFrame(*lit.tree, g, reference, false, cells);
         const Image& ref = frame.image;
         const double tRef = frame.renderSeconds;
         const std::string suffix = o.compareBrute ? "_brute" : "_jb";
@@ -393,6 +411,7 @@ int run(const Options& o) {
     if (o.compareJb && o.compareBrute && method == PointMethod::TextureSpace)
         throw Error("--compare-brute", "with --method tsis give --compare-jb or --compare-brute, not both");
     const SampleSource source = parseSampleSource(o.samples);
+    const NearFieldRule nearField = parseNearFieldRule(o.nearField);
     if (o.sampleCount && source != SampleSource::PoissonDisk)
         throw Error("--sample-count", "applies to --samples poisson only (faces: one sample per face)");
     if (o.sampleCount && *o.sampleCount == 0) throw Error("--sample-count", "must be at least 1");
@@ -512,7 +531,7 @@ int run(const Options& o) {
 
     const PointRenderSettings settings{.material = material, .method = method, .fresnel = fresnel,
                                        .leafSize = o.leafSize, .epsilon = o.epsilon, .a = o.a,
-                                       .radius = o.radius, .splitDisk = splitDisk};
+                                       .radius = o.radius, .splitDisk = splitDisk, .nearField = nearField};
     glm::dvec3 centre(box.centre());
     double radius = 0.0;
     for (const glm::vec3& p : mesh.positions) radius = std::max(radius, glm::length(glm::dvec3(p) - centre));
@@ -530,7 +549,12 @@ int run(const Options& o) {
         return runAnimation(o, animation, mesh, scene, placed, lights, camera, centre, settings, output, start);
     }
 
-    // Pass 1: irradiance samples and their octree.
+    // The near field's cells (the surface and the material: no light), then pass 1:
+    // irradiance samples and their octree.
+    t.restart();
+    const std::optional<SampleCells> cells = nearFieldCells(mesh, placed, settings);
+    const double tCells = t.seconds();
+    printCells(cells);
     const LitSamples lit = lightSamples(placed, scene, lights, settings);
     const double tIrradiance = lit.irradianceSeconds, tTree = lit.octreeSeconds;
     const IrradianceOctree& tree = *lit.tree;
@@ -542,7 +566,7 @@ int run(const Options& o) {
     const GBuffer g = traceGBuffer(scene, mesh, camera);
     const double tGBuffer = t.seconds();
 
-    PointFrame frame = renderPointFrame(tree, g, settings, o.cacheImage);
+    PointFrame frame = renderPointFrame(tree, g, settings, o.cacheImage, cells);
     const Image& image = frame.image;
     const double tRender = frame.renderSeconds;
     if (method == PointMethod::Cache) {
@@ -569,16 +593,16 @@ int run(const Options& o) {
     const double tWrite = t.seconds();
 
     std::printf("frame: %d x %d, %zu hit pixels, %zu samples\n", g.width, g.height, g.objectPixels(), placed.size());
-    std::printf("times: load %.3f s, Embree scene %.3f s, sample placement %.3f s, irradiance sampling %.3f s, "
-                "octree %.3f s, G-buffer %.3f s, %s %.3f s, write %.3f s\n",
-                tLoad, tScene, tPlace, tIrradiance, tTree, tGBuffer, toString(method), tRender, tWrite);
+    std::printf("times: load %.3f s, Embree scene %.3f s, sample placement %.3f s, near-field cells %.3f s, "
+                "irradiance sampling %.3f s, octree %.3f s, G-buffer %.3f s, %s %.3f s, write %.3f s\n",
+                tLoad, tScene, tPlace, tCells, tIrradiance, tTree, tGBuffer, toString(method), tRender, tWrite);
 
     // The Jensen-Buhler / brute-force references; their times exclude irradiance
     // sampling and the octree, as Keng's T_1.
     auto reference = [&](PointMethod m) {
         PointRenderSettings s = settings;
         s.method = m;
-        return renderPointFrame(tree, g, s);
+        return renderPointFrame(tree, g, s, false, cells);
     };
     if (o.compareJb && method != PointMethod::JensenBuhler) {
         const PointFrame jb = reference(PointMethod::JensenBuhler);
@@ -648,6 +672,11 @@ int main(int argc, char** argv) {
             ->group("Jensen-Buhler");
         app.add_option("--seed", o.seed, "Seed of the Poisson-disk samples")->capture_default_str()->group("Jensen-Buhler");
         app.add_option("--epsilon", o.epsilon, "Solid-angle threshold A_node / d^2 (0 = brute-force sum)")
+            ->capture_default_str()->group("Jensen-Buhler");
+        app.add_option("--near-field", o.nearField,
+                       "Near-field rule of jb, brute and the cache's S: cells (R_d integrated over each sample's "
+                       "face or cell), points (the papers' A_i R_d(|x - x_i|)) or auto (cells where the samples lie "
+                       "farther apart than a quarter of the narrowest kernel width, where the two differ)")
             ->capture_default_str()->group("Jensen-Buhler");
         app.add_option("--leaf-size", o.leafSize, "Samples per octree leaf")->capture_default_str()->group("Jensen-Buhler");
         app.add_option("--fresnel", o.fresnel,

@@ -212,6 +212,8 @@ expect "pointlight: unknown split" "--split" $F.exr $L "$S/torus.ply" --light po
 expect "pointlight: zero samples" "--tsis-samples" $F.exr \
     $L "$S/torus.ply" --light point:0,50,0:1 --method tsis --tsis-samples 0 -o $F
 expect "pointlight: cache bound a = 0" "--a" $F.exr $L "$S/torus.ply" --light point:0,50,0:1 --a 0 -o $F
+expect "pointlight: unknown near-field rule" "--near-field" $F.exr \
+    $L "$S/torus.ply" --light point:0,50,0:1 --near-field exact -o $F
 
 # --- prt-reference, prt-compare, prt-envcheck ----------------------------------------------
 expect "reference: missing environment" "nowhere\.exr" $F.exr \

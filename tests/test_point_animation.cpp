@@ -50,8 +50,11 @@ struct Scene {
     }
     // What prt-pointlight does for one frame.
     Image single(const Camera& camera, const std::vector<Light>& lights, const PointRenderSettings& s) const {
+        // As prt-pointlight's single frame: the near-field cells, pass 1, the frame.
         const LitSamples lit = lightSamples(placed, scene, lights, s);
-        return renderPointFrame(*lit.tree, traceGBuffer(scene, mesh, camera), s).image;
+        return renderPointFrame(*lit.tree, traceGBuffer(scene, mesh, camera), s, false,
+                                nearFieldCells(mesh, placed, s))
+            .image;
     }
     std::vector<Image> animate(const PointAnimation& a, const std::vector<Light>& lights, const Camera& base,
                                const PointRenderSettings& s, std::vector<AnimationFrameInfo>* infos = nullptr) const {

@@ -139,10 +139,11 @@ private:
 // ---------------------------------------------------------------------------
 
 IrradianceCache::IrradianceCache(const Material& material, IrradianceOctree tree,
-                                 const IrradianceCacheOptions& options)
-    : tree_(std::move(tree)), options_(options) {
+                                 const IrradianceCacheOptions& options, std::optional<SampleCells> cells)
+    : tree_(std::move(tree)), options_(options), cells_(std::move(cells)) {
     validateMaterial(material);
     validateCacheOptions(options_);
+    adoptCells(cells_, tree_, material);
     for (const IrradianceOctree::Sample& s : tree_.samples()) maxE_ = glm::max(maxE_, glm::dvec3(s.irradiance));
     applyMaterial(material);
 }
@@ -150,6 +151,7 @@ IrradianceCache::IrradianceCache(const Material& material, IrradianceOctree tree
 void IrradianceCache::setMaterial(const Material& material) {
     validateMaterial(material);
     requireIrradianceEta(material_.eta, material.eta);
+    if (cells_) cells_->setMaterial(material);
     applyMaterial(material);
 }
 
@@ -194,7 +196,9 @@ void IrradianceCache::evaluate(const glm::dvec3& x, glm::dvec3& s, glm::dvec3 gr
     glm::dvec3 m(0.0), g[3] = {glm::dvec3(0.0), glm::dvec3(0.0), glm::dvec3(0.0)};
     double wA = 0.0;
     glm::dvec3 wE(0.0), wEE(0.0);
-    const size_t n = tree_.traverse(x, options_.epsilon, [&](const glm::dvec3& p, double area, const glm::dvec3& e) {
+    const glm::vec3 xf(x);
+    const SampleCells* cells = this->cells();
+    const auto term = [&](const glm::dvec3& p, double area, const glm::dvec3& e, uint32_t index) {
         const glm::dvec3 d = x - p;
         const double r2 = glm::dot(d, d);
         // R_d as DipoleRGB::rd (same expression per lane), and D = (1/r) dR_d/dr from
@@ -207,7 +211,9 @@ void IrradianceCache::evaluate(const glm::dvec3& x, glm::dvec3& s, glm::dvec3 gr
         const Lanes dLanes = -k * ex * (sigma * sd + 3.0f * sigma + 3.0f / dist) / (d2 * d2);
         const glm::dvec3 rd{double(rdLanes[0]) + double(rdLanes[4]), double(rdLanes[1]) + double(rdLanes[5]),
                             double(rdLanes[2]) + double(rdLanes[6])};
-        m += area * rd * e;  // Eq. 4, the expression of JensenBuhler::exitance
+        m += exitanceTerm(cells, tree_, index, xf, area, rd, e);  // Eq. 4, as JensenBuhler::exitance
+        // The gradient keeps the point rule in the near field too (it only steers the
+        // interpolation; docs/point-lights.md, "The near field").
         for (int c = 0; c < 3; ++c)
             g[c] += (area * e[c] * (double(dLanes[c]) + double(dLanes[c + 4]))) * d;  // Eqs. 8-9
         if (r2 < r2max) {  // the split disk (a ball of radius R)
@@ -215,7 +221,8 @@ void IrradianceCache::evaluate(const glm::dvec3& x, glm::dvec3& s, glm::dvec3 gr
             wE += area * e;
             wEE += area * e * e;
         }
-    });
+    };
+    const size_t n = tree_.traverse(x, options_.epsilon, term, cells ? cells->nearRadius() : 0.0);
     s = m;
     for (int c = 0; c < 3; ++c) gradient[c] = g[c];
     v = glm::dvec3(0.0);
@@ -230,14 +237,17 @@ glm::dvec3 IrradianceCache::spread(const glm::dvec3& x) const {
     const double r2max = radius_ * radius_;
     double wA = 0.0;
     glm::dvec3 wE(0.0), wEE(0.0);
-    tree_.traverse(x, options_.epsilon, [&](const glm::dvec3& p, double area, const glm::dvec3& e) {
-        const glm::dvec3 d = x - p;
-        if (glm::dot(d, d) < r2max) {
-            wA += area;
-            wE += area * e;
-            wEE += area * e * e;
-        }
-    });
+    tree_.traverse(
+        x, options_.epsilon,
+        [&](const glm::dvec3& p, double area, const glm::dvec3& e) {
+            const glm::dvec3 d = x - p;
+            if (glm::dot(d, d) < r2max) {
+                wA += area;
+                wE += area * e;
+                wEE += area * e * e;
+            }
+        },
+        cells_ ? cells_->nearRadius() : 0.0);
     if (!(wA > 0.0)) return glm::dvec3(0.0);
     const glm::dvec3 mean = wE / wA;
     return glm::sqrt(glm::max(glm::dvec3(0.0), wEE / wA - mean * mean));

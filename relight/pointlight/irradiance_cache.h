@@ -21,8 +21,9 @@
 //
 // THE HIERARCHICAL WALK. S, grad S and V of a cache at x use the terms of
 // IrradianceOctree::traverse(x, epsilon) -- the Jensen-Buhler terms, same epsilon,
-// same order -- each term (position p, area A, irradiance E) adding
+// same order, same near field -- each term (position p, area A, irradiance E) adding
 //   S      += A R_d(|x - p|) E                                  (Eq. 4, cubature)
+//             (the cell weight w E for a sample in the cells' near field, jensen_buhler.h)
 //   grad S += A E (x - p) D(|x - p|),   D(r) = (1/r) dR_d/dr     (Eqs. 8-9)
 // with, per source z in {z_r, z_v}, s = sqrt(r^2 + z^2):
 //   D = alpha'/(4 pi) sum_z z (-e^(-sigma_tr s) / s^4) (sigma_tr^2 s + 3 sigma_tr + 3/s)
@@ -91,6 +92,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "common/bssrdf.h"
@@ -166,7 +168,10 @@ class IrradianceCache {
 public:
     // The tree is taken by value (std::move it in); `samples` give S_ref. Validates the
     // material and the options (validateCacheOptions).
-    IrradianceCache(const Material& material, IrradianceOctree tree, const IrradianceCacheOptions& options = {});
+    // cells: the near field of S (as JensenBuhler's; none = the point rule).
+    IrradianceCache(const Material& material, IrradianceOctree tree, const IrradianceCacheOptions& options = {},
+                    std::optional<SampleCells> cells = std::nullopt);
+    const SampleCells* cells() const { return cells_ ? &*cells_ : nullptr; }
 
     // Replaces the material, keeping the tree (see MATERIAL above); costs the split-disk
     // factors (the exact model integrates numerically: about a millisecond). Throws
@@ -203,6 +208,7 @@ private:
     // SIMD lanes as DipoleRGB (jensen_buhler.h): 0-2 real source R G B, 4-6 virtual.
     alignas(32) float z2_[8], sigma_[8], k_[8];
     std::vector<CacheRecord> caches_;
+    std::optional<SampleCells> cells_;
 };
 
 }  // namespace prt

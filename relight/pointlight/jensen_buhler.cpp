@@ -217,24 +217,43 @@ Material validated(const Material& m) {
 }
 }  // namespace
 
-JensenBuhler::JensenBuhler(const Material& material, IrradianceOctree tree, const JensenBuhlerOptions& options)
-    : material_(validated(material)), dipole_(material_), tree_(std::move(tree)), options_(options) {
+void adoptCells(std::optional<SampleCells>& cells, const IrradianceOctree& tree, const Material& material) {
+    if (!cells) return;
+    if (cells->sampleCount() != tree.samples().size())
+        throw Error("sample cells", "cells over " + std::to_string(cells->sampleCount()) + " samples, octree over " +
+                                        std::to_string(tree.samples().size()));
+    const Material& held = cells->material();
+    if (held.sigmaA != material.sigmaA || held.sigmaSPrime != material.sigmaSPrime || held.eta != material.eta)
+        cells->setMaterial(material);
+}
+
+JensenBuhler::JensenBuhler(const Material& material, IrradianceOctree tree, const JensenBuhlerOptions& options,
+                           std::optional<SampleCells> cells)
+    : material_(validated(material)), dipole_(material_), tree_(std::move(tree)), options_(options),
+      cells_(std::move(cells)) {
     validateEpsilon(options.epsilon);
+    adoptCells(cells_, tree_, material_);
 }
 
 void JensenBuhler::setMaterial(const Material& material) {
     validateMaterial(material);
     requireIrradianceEta(material_.eta, material.eta);
+    if (cells_) cells_->setMaterial(material);
     material_ = material;
     dipole_ = DipoleRGB(material_);
 }
 
 glm::dvec3 JensenBuhler::exitance(const glm::dvec3& x, size_t* terms) const {
     glm::dvec3 m(0.0);
-    const size_t n = tree_.traverse(x, options_.epsilon, [&](const glm::dvec3& p, double area, const glm::dvec3& e) {
-        const glm::dvec3 d = x - p;
-        m += area * dipole_.rd(glm::dot(d, d)) * e;  // Keng Eq. 4 by cubature
-    });
+    const glm::vec3 xf(x);
+    const SampleCells* cells = this->cells();
+    const size_t n = tree_.traverse(
+        x, options_.epsilon,
+        [&](const glm::dvec3& p, double area, const glm::dvec3& e, uint32_t k) {
+            const glm::dvec3 d = x - p;
+            m += exitanceTerm(cells, tree_, k, xf, area, dipole_.rd(glm::dot(d, d)), e);  // Keng Eq. 4
+        },
+        cells ? cells->nearRadius() : 0.0);
     if (terms) *terms = n;
     return m;
 }

@@ -10,6 +10,11 @@
 //
 //     M^c(x) = sum_i A_i R_d^c(|x - x_i|) E^_i^c                       [W/m^2]
 //
+// With SampleCells (sample_cells.h, the product's default) the term of a sample whose
+// cell reaches the near field of x is R_d integrated over that cell instead,
+// w_i(x) E^_i, and no node within the cells' near radius of x is used whole: the point
+// rule above does not converge where the samples lie about a kernel width apart.
+//
 // and the radiance toward the viewer w_o at x with shading normal n is
 //
 //     L(x, w_o) = F_out(n . w_o) M(x) / pi                             [W/(m^2 sr)]
@@ -41,7 +46,8 @@
 //
 // MATERIAL. The octree (positions, areas, irradiance) depends on the lights and on eta
 // only; the material enters through R_d alone. setMaterial replaces the dipole
-// constants (DipoleRGB) and keeps the tree, so it costs microseconds, and a renderer
+// constants (DipoleRGB) and keeps the tree, so it costs microseconds (plus the
+// rebuild of the cells' quadrature when there are cells), and a renderer
 // after setMaterial(B) renders exactly as one constructed with B. eta is fixed at
 // construction (the tree's transmitted irradiance was computed with it): another eta is
 // refused (requireIrradianceEta, point_lights.h). A size change is a material change
@@ -55,12 +61,15 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
+#include <type_traits>
 #include <vector>
 
 #include "common/bssrdf.h"
 #include "common/image.h"
 #include "relight/render/gbuffer.h"
 #include "relight/pointlight/point_lights.h"
+#include "relight/pointlight/sample_cells.h"
 
 namespace prt {
 
@@ -84,6 +93,9 @@ private:
     alignas(32) float z2_[8], sigma_[8], k_[8];
 };
 
+// The index traverse() passes for a node used whole.
+inline constexpr uint32_t kNodeTerm = 0xffffffffu;
+
 struct OctreeOptions {
     int leafSize = 8;   // >= 1
     int maxDepth = 24;  // >= 0 (root is depth 0)
@@ -105,6 +117,11 @@ public:
 
         bool leaf() const { return childCount == 0; }
         bool cellContains(const glm::dvec3& x) const;
+        // Squared distance from x to the cell (0 inside), mm^2.
+        double cellDistance2(const glm::dvec3& x) const {
+            const glm::dvec3 d = glm::max(glm::max(cellLo - x, x - (cellLo + cellSize)), glm::dvec3(0.0));
+            return glm::dot(d, d);
+        }
     };
 
     // A sample as the tree stores it (in tree order, see order()).
@@ -128,12 +145,16 @@ public:
     int depth() const { return depth_; }
     size_t leafCount() const;
 
-    // Calls term(position, area, irradiance) for every term of the hierarchical sum at
-    // x with this epsilon (nodes used whole, then samples of leaves that are not), in a
-    // fixed order. Returns the number of terms. Templated so that other evaluations
-    // (the irradiance cache's gradient and spread) share the walk.
+    // Calls term(position, area, irradiance, k) for every term of the hierarchical sum
+    // at x with this epsilon (nodes used whole, then samples of leaves that are not), in
+    // a fixed order; k is the tree-order index of a sample term (order()[k] its input
+    // index) and kNodeTerm for a node used whole (a term taking three arguments is
+    // called without k). With nearRadius > 0 a node whose cell comes closer to x than
+    // that is never used whole (its samples have near parts: sample_cells.h). Returns the
+    // number of terms. Templated so that other evaluations (the irradiance cache's
+    // gradient and spread) share the walk.
     template <class Term>
-    size_t traverse(const glm::dvec3& x, double epsilon, Term&& term) const;
+    size_t traverse(const glm::dvec3& x, double epsilon, Term&& term, double nearRadius = 0.0) const;
 
 private:
     void build(uint32_t nodeIndex, uint32_t begin, uint32_t end, int depth, const OctreeOptions& options);
@@ -161,12 +182,17 @@ struct JensenBuhlerStats {
 class JensenBuhler {
 public:
     // The tree is taken by value (std::move it in). Validates the material and epsilon.
-    JensenBuhler(const Material& material, IrradianceOctree tree, const JensenBuhlerOptions& options = {});
+    // cells: the near field's cells over the same samples as the tree (sample_cells.h;
+    // set to this material if they hold another); none = the point rule everywhere.
+    // Throws prt::Error when the cells hold another number of samples than the tree.
+    JensenBuhler(const Material& material, IrradianceOctree tree, const JensenBuhlerOptions& options = {},
+                 std::optional<SampleCells> cells = std::nullopt);
 
     // Replaces the material, keeping the tree (see MATERIAL above). Throws prt::Error
     // for an invalid material or another eta than the constructor's (the renderer is
     // then unchanged).
     void setMaterial(const Material& material);
+    const SampleCells* cells() const { return cells_ ? &*cells_ : nullptr; }
 
     // M(x), W/m^2 per channel; *terms (optional) receives the number of terms summed.
     glm::dvec3 exitance(const glm::dvec3& x, size_t* terms = nullptr) const;
@@ -187,7 +213,24 @@ private:
     DipoleRGB dipole_;
     IrradianceOctree tree_;
     JensenBuhlerOptions options_;
+    std::optional<SampleCells> cells_;
 };
+
+// The check of both renderers' constructors: cells over as many samples as the tree,
+// set to `material` when they hold another. Throws prt::Error("sample cells", ...).
+void adoptCells(std::optional<SampleCells>& cells, const IrradianceOctree& tree, const Material& material);
+
+// One term of Keng Eq. 4 as both renderers sum it (S of irradiance_cache.h is bit for
+// bit JensenBuhler::exitance): the cell weight of a tree sample k in the near field of
+// x, else area R_d(|x - p|) with rd = R_d(|x - p|) per channel.
+inline glm::dvec3 exitanceTerm(const SampleCells* cells, const IrradianceOctree& tree, uint32_t k,
+                               const glm::vec3& x, double area, const glm::dvec3& rd, const glm::dvec3& e) {
+    if (cells && k != kNodeTerm) {
+        const uint32_t i = tree.order()[k];
+        if (cells->isNear(i, x)) return cells->weight(i, x) * e;
+    }
+    return area * rd * e;
+}
 
 // The brute-force sum over all samples (no hierarchy), in input order, in double:
 // the reference of the epsilon = 0 test.
@@ -198,7 +241,9 @@ glm::dvec3 bruteForceExitance(const IrradianceSamples& samples, const Material& 
 // ---------------------------------------------------------------------------
 
 template <class Term>
-size_t IrradianceOctree::traverse(const glm::dvec3& x, double epsilon, Term&& term) const {
+size_t IrradianceOctree::traverse(const glm::dvec3& x, double epsilon, Term&& term, double nearRadius) const {
+    constexpr bool withIndex = std::is_invocable_v<Term&, const glm::dvec3&, double, const glm::dvec3&, uint32_t>;
+    const double near2 = nearRadius * nearRadius;
     size_t terms = 0;
     // Depth-first with an explicit stack; children are pushed in reverse so that they
     // are visited in storage order (a fixed order: deterministic sums).
@@ -209,15 +254,17 @@ size_t IrradianceOctree::traverse(const glm::dvec3& x, double epsilon, Term&& te
         const Node& node = nodes_[stack[--top]];
         const glm::dvec3 d = x - node.position;
         const double d2 = glm::dot(d, d);
-        if (node.area < epsilon * d2 && !node.cellContains(x)) {
-            term(node.position, node.area, node.irradiance);
+        if (node.area < epsilon * d2 && !node.cellContains(x) && (near2 == 0.0 || node.cellDistance2(x) >= near2)) {
+            if constexpr (withIndex) term(node.position, node.area, node.irradiance, kNodeTerm);
+            else term(node.position, node.area, node.irradiance);
             ++terms;
             continue;
         }
         if (node.leaf()) {
             for (uint32_t k = node.firstSample, e = node.firstSample + node.sampleCount; k < e; ++k) {
                 const Sample& s = samples_[k];
-                term(glm::dvec3(s.position), double(s.area), glm::dvec3(s.irradiance));
+                if constexpr (withIndex) term(glm::dvec3(s.position), double(s.area), glm::dvec3(s.irradiance), k);
+                else term(glm::dvec3(s.position), double(s.area), glm::dvec3(s.irradiance));
             }
             terms += node.sampleCount;
             continue;

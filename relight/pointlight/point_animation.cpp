@@ -47,17 +47,30 @@ LitSamples lightSamples(const IrradianceSamples& placed, const RayScene& scene, 
     return lit;
 }
 
-PointFrameRenderer::PointFrameRenderer(IrradianceOctree tree, const PointRenderSettings& s) : settings_(s) {
+std::optional<SampleCells> nearFieldCells(const TriangleMesh& mesh, const IrradianceSamples& placed,
+                                          const PointRenderSettings& settings) {
+    if (settings.nearField == NearFieldRule::Points) return std::nullopt;
+    if (settings.nearField == NearFieldRule::Auto &&
+        !cellsDifferFromPoints(placed.totalArea(), placed.size(), settings.material))
+        return std::nullopt;
+    return SampleCells(mesh, placed, settings.material);
+}
+
+PointFrameRenderer::PointFrameRenderer(IrradianceOctree tree, const PointRenderSettings& s,
+                                       std::optional<SampleCells> cells)
+    : settings_(s) {
     if (s.method == PointMethod::TextureSpace)
         throw Error("--method", "tsis renders through TextureSpaceRenderer (it needs a surface atlas)");
     if (s.method == PointMethod::Cache)
         cache_.emplace(s.material, std::move(tree),
                        IrradianceCacheOptions{.a = s.a, .radius = s.radius, .epsilon = s.epsilon, .fresnel = s.fresnel,
-                                              .splitDisk = s.splitDisk});
+                                              .splitDisk = s.splitDisk},
+                       std::move(cells));
     else
         jb_.emplace(s.material, std::move(tree),
                     JensenBuhlerOptions{.epsilon = s.method == PointMethod::Brute ? 0.0 : s.epsilon,
-                                        .fresnel = s.fresnel});
+                                        .fresnel = s.fresnel},
+                    std::move(cells));
 }
 
 void PointFrameRenderer::setMaterial(const Material& material) {
@@ -81,10 +94,10 @@ PointFrame PointFrameRenderer::render(const GBuffer& g, bool wantVisuals) {
 }
 
 PointFrame renderPointFrame(const IrradianceOctree& tree, const GBuffer& g, const PointRenderSettings& s,
-                            bool wantVisuals) {
+                            bool wantVisuals, const std::optional<SampleCells>& cells) {
     if (s.method == PointMethod::TextureSpace)
         throw Error("--method", "tsis renders single frames only (its animations run in prt-relight view)");
-    return PointFrameRenderer(tree, s).render(g, wantVisuals);
+    return PointFrameRenderer(tree, s, cells).render(g, wantVisuals);
 }
 
 // ---------------------------------------------------------------------------
@@ -232,16 +245,19 @@ void renderAnimation(const PointAnimation& a, const TriangleMesh& mesh, const Ra
     const int count = a.kind == AnimationKind::None ? 1 : a.frames;
     // A light path may pass through the object: refuse before rendering anything.
     for (int k = 0; k < count; ++k) checkLightsOutside(scene, animationLights(a, lights, k));
+    const Stopwatch cellsTime;
+    PointRenderSettings first = settings;
+    if (a.kind == AnimationKind::MaterialPath) first.material = animationMaterial(a, settings.material, 0);
+    const std::optional<SampleCells> cells = nearFieldCells(mesh, placed, first);
+    const double cellsSeconds = cells ? cellsTime.seconds() : 0.0;
 
     if (a.kind == AnimationKind::MaterialPath) {
         // Pass 1 and the G-buffer once, one renderer whose material changes per frame.
-        PointRenderSettings first = settings;
-        first.material = animationMaterial(a, settings.material, 0);
         LitSamples lit = lightSamples(placed, scene, lights, first);
         const Stopwatch t;
         const GBuffer g = traceGBuffer(scene, mesh, baseCamera);
         const double gbufferSeconds = t.seconds();
-        PointFrameRenderer renderer(std::move(*lit.tree), first);
+        PointFrameRenderer renderer(std::move(*lit.tree), first, cells);
         for (int k = 0; k < count; ++k) {
             AnimationFrameInfo info;
             info.frame = k;
@@ -250,6 +266,7 @@ void renderAnimation(const PointAnimation& a, const TriangleMesh& mesh, const Ra
             info.material = animationMaterial(a, settings.material, k);
             info.sizeMm = animationSizeMm(a, k);
             if (k == 0) {
+                info.cellsSeconds = cellsSeconds;
                 info.irradianceSeconds = lit.irradianceSeconds;
                 info.octreeSeconds = lit.octreeSeconds;
                 info.gbufferSeconds = gbufferSeconds;
@@ -273,6 +290,7 @@ void renderAnimation(const PointAnimation& a, const TriangleMesh& mesh, const Ra
         info.frame = k;
         info.camera = animationCamera(a, baseCamera, pivot, k);
         info.lights = animationLights(a, lights, k);
+        if (k == 0) info.cellsSeconds = cellsSeconds;
 
         std::optional<LitSamples> own;
         const LitSamples* lit = nullptr;
@@ -308,7 +326,7 @@ void renderAnimation(const PointAnimation& a, const TriangleMesh& mesh, const Ra
         }
         info.hitPixels = g->objectPixels();
 
-        PointFrame frame = renderPointFrame(*lit->tree, *g, settings);
+        PointFrame frame = renderPointFrame(*lit->tree, *g, settings, false, cells);
         sink(info, frame);
     }
 }

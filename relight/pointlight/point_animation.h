@@ -15,8 +15,8 @@
 //                 the camera orbiting by -360 k / N degrees, so frame k equals a single
 //                 render from the orbited camera (for automatic framing: --azimuth
 //                 decreased by 360 k / N, to float rounding).
-//                 REUSED: the irradiance samples (positions, areas AND irradiance) and
-//                 their octree -- pass 1 depends on the lights and the surface only,
+//                 REUSED: the irradiance samples (positions, areas AND irradiance),
+//                 their near-field cells (nearFieldCells) and their octree -- pass 1 depends on the lights and the surface only,
 //                 and both are fixed in the object's frame. NOT reused: the G-buffer
 //                 and the caches: caches live on the visible points of one frame
 //                 (created in that frame's bottom-up scan order, with validity radii
@@ -27,7 +27,8 @@
 //                 end frames are exactly P0 and P1. Its intensity stays as given; the
 //                 other lights and the camera are fixed.
 //                 REUSED: only the mesh, its ray scene (Embree BVH) and the sample
-//                 positions / normals / areas (they depend on the surface alone), and
+//                 positions / normals / areas and their near-field cells (they depend
+//                 on the surface and the material alone), and
 //                 the G-buffer, because the camera does not move (it depends on the
 //                 camera and the mesh only). NOT reused: the irradiance (it depends on
 //                 the light), hence the octree (its nodes store mean irradiance), and
@@ -48,7 +49,8 @@
 //                 tsis TextureSpaceRenderer::setMaterial, which keeps the atlas, the
 //                 irradiance map, the draws and the shadow maps). NOT reused: the
 //                 caches (S, grad S and the validity radii depend on the material), the
-//                 R_d tables, R_p and the local filter (tsis).
+//                 near-field cells' quadrature (sample_cells.h), the R_d tables, R_p and
+//                 the local filter (tsis).
 //
 // Every frame is computed from scratch apart from the reused items above, with the
 // same code as a single render, so reuse changes times, never pixels (tested).
@@ -69,6 +71,7 @@
 #include "relight/pointlight/irradiance_cache.h"
 #include "relight/pointlight/jensen_buhler.h"
 #include "relight/pointlight/point_lights.h"
+#include "relight/pointlight/sample_cells.h"
 #include "relight/pointlight/texture_space_sampling.h"
 #include "relight/render/gbuffer.h"
 
@@ -92,7 +95,14 @@ struct PointRenderSettings {
     double a = IrradianceCacheOptions{}.a;
     double radius = 0.0;    // split-disk R, 0 = default
     SplitDiskModel splitDisk = SplitDiskModel::Paper;
+    NearFieldRule nearField = NearFieldRule::Auto;  // sample_cells.h (JB, brute and the cache's S)
 };
+
+// The near field's cells of `placed` on `mesh` for settings.material, or none for the
+// point rule (settings.nearField; Auto resolved by cellsDifferFromPoints). They depend on the samples' places and the
+// material, never on the lights: one set serves every frame of a light path or turntable.
+std::optional<SampleCells> nearFieldCells(const TriangleMesh& mesh, const IrradianceSamples& placed,
+                                          const PointRenderSettings& settings);
 
 // Pass 1 for one set of lights: a copy of `placed` (positions, normals, areas) with its
 // irradiance computed, and the octree over it.
@@ -118,7 +128,9 @@ struct PointFrame {
 // jensen_buhler.h). Throws prt::Error("--method", ...) for tsis.
 class PointFrameRenderer {
 public:
-    PointFrameRenderer(IrradianceOctree tree, const PointRenderSettings& settings);
+    // cells: nearFieldCells over the tree's samples (none: the point rule).
+    PointFrameRenderer(IrradianceOctree tree, const PointRenderSettings& settings,
+                       std::optional<SampleCells> cells = std::nullopt);
     // Throws prt::Error for an invalid material or another eta than settings.material's.
     void setMaterial(const Material& material);
     const Material& material() const { return settings_.material; }
@@ -133,7 +145,7 @@ private:
 // Passes 2-3 (or the JB / brute sum) over g, with a copy of `tree` (the renderers own
 // theirs, and the caller's tree stays reusable): PointFrameRenderer(tree, settings).render.
 PointFrame renderPointFrame(const IrradianceOctree& tree, const GBuffer& g, const PointRenderSettings& settings,
-                            bool wantVisuals = false);
+                            bool wantVisuals = false, const std::optional<SampleCells>& cells = std::nullopt);
 
 // --- animation -----------------------------------------------------------------------
 
@@ -185,7 +197,8 @@ struct AnimationFrameInfo {
     size_t hitPixels = 0;
     Material material;           // the frame's (animationMaterial)
     double sizeMm = 0.0;         // the frame's object size (animationSizeMm)
-    double materialSeconds = 0.0;  // the renderer's setMaterial (material path)
+    double materialSeconds = 0.0;  // the renderer's setMaterial (material path; includes the cells' rebuild)
+    double cellsSeconds = 0.0;     // nearFieldCells (frame 0 only)
 };
 using AnimationSink = std::function<void(const AnimationFrameInfo&, PointFrame&)>;
 

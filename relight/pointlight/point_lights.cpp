@@ -292,6 +292,7 @@ double IrradianceSamples::totalArea() const {
 IrradianceSamples faceCentroidSamples(const TriangleMesh& mesh) {
     const bool haveNormals = mesh.normals.size() == mesh.positions.size();
     IrradianceSamples s;
+    s.source = SampleSource::FaceCentroids;
     const size_t nf = mesh.triangleCount();
     s.positions.reserve(nf);
     s.normals.reserve(nf);

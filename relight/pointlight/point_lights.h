@@ -135,6 +135,11 @@ glm::dvec3 directIrradiance(const RayScene& scene, const std::vector<Light>& lig
 
 // --- irradiance samples (pass 1) ---------------------------------------------------------
 
+enum class SampleSource { FaceCentroids, PoissonDisk };
+const char* toString(SampleSource source);
+// "faces" or "poisson" (case-insensitive); prt::Error("--samples", ...) otherwise.
+SampleSource parseSampleSource(const std::string& text);
+
 // The sample points of Jensen and Buhler's integration (structure of arrays, sample i
 // at index i everywhere). area[i] is the area sample i stands for (mm^2); the
 // areas sum to the mesh area.
@@ -145,6 +150,9 @@ struct IrradianceSamples {
     std::vector<float> areas;                 // mm^2
     std::vector<uint32_t> triangles;          // the triangle each sample lies on
     std::vector<glm::vec3> irradiance;        // transmitted irradiance E^, W/m^2 (computeIrradiance)
+    // How they were placed: one per face at its centroid (faceCentroidSamples; sample i
+    // then stands for its whole triangle) or spread over the surface (samplesFromSampleSet).
+    SampleSource source = SampleSource::PoissonDisk;
 
     size_t size() const { return positions.size(); }
     double totalArea() const;  // double-precision sum of areas
@@ -159,11 +167,6 @@ IrradianceSamples faceCentroidSamples(const TriangleMesh& mesh);
 
 // The precompute's samples (sampling.h): each with A_i = set.areaPerSample.
 IrradianceSamples samplesFromSampleSet(const SampleSet& set);
-
-enum class SampleSource { FaceCentroids, PoissonDisk };
-const char* toString(SampleSource source);
-// "faces" or "poisson" (case-insensitive); prt::Error("--samples", ...) otherwise.
-SampleSource parseSampleSource(const std::string& text);
 
 // Fills samples.irradiance with directIrradiance at every sample, in parallel (TBB);
 // each sample is computed independently, so the result does not depend on the
