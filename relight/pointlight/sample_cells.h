@@ -32,8 +32,8 @@
 // its whole surface.
 //
 // MATERIAL. The sub-spacing, the split radii and the kernel tables depend on the
-// material: setMaterial rebuilds the quadrature (tens to hundreds of milliseconds on
-// the fetched meshes; docs/performance.md). The cells' areas depend on the samples only
+// material: setMaterial rebuilds the quadrature (docs/point-lights.md, "The near
+// field", gives its cost). The cells' areas depend on the samples only
 // for face cells, on the sub-spacing too (within a sub-triangle) for Poisson cells.
 //
 // Units: mm, mm^2; weights dimensionless (R_d in mm^-2 times mm^2). Indices are the
