@@ -676,7 +676,7 @@ int main(int argc, char** argv) {
         app.add_option("--near-field", o.nearField,
                        "Near-field rule of jb, brute and the cache's S: cells (R_d integrated over each sample's "
                        "face or cell), points (the papers' A_i R_d(|x - x_i|)) or auto (cells where the samples lie "
-                       "farther apart than a quarter of the narrowest kernel width, where the two differ)")
+                       "farther apart than the narrowest kernel width)")
             ->capture_default_str()->group("Jensen-Buhler");
         app.add_option("--leaf-size", o.leafSize, "Samples per octree leaf")->capture_default_str()->group("Jensen-Buhler");
         app.add_option("--fresnel", o.fresnel,

@@ -89,10 +89,10 @@ TEST(SampleCells, CoarseFlatFacesReachTheClosedFormWithCells) {
                 worstPoints);
     EXPECT_LT(worstCells, 5e-3);
     EXPECT_GT(worstPoints, 0.2);  // the point rule's failure this test guards against
-    // Auto picks the cells here (faces 2.5 mm, sub-spacing 0.07 mm), the point rule on a
-    // mesh finer than the sub-spacing (where every cell is one sub-point at its sample).
-    EXPECT_TRUE(cellsDifferFromPoints(totalArea(box), s.size(), m));
-    EXPECT_FALSE(cellsDifferFromPoints(totalArea(box), 10000000, m));
+    // Auto picks the cells here (spacing 2 mm, narrowest kernel width 0.19 mm), the point
+    // rule for samples closer than that width.
+    EXPECT_TRUE(nearFieldNeedsCells(totalArea(box), s.size(), m));
+    EXPECT_FALSE(nearFieldNeedsCells(totalArea(box), 200000, m));
 }
 
 TEST(SampleCells, HierarchyAndCacheAgreeWithTheBruteOrder) {

@@ -115,11 +115,12 @@ double splitDiskGradientFactor(const DipoleChannel& d, double radiusMm, SplitDis
 // The default split-disk radius of a material (mm): the radius within which a fifth of
 // the diffuse reflectance int R_d dA is collected, for the channel where that radius
 // is largest (Keng: "heuristically determined according to the material scattering
-// property"). Chosen with the default `a` to give Keng's ~2% caches (docs/point-lights.md).
+// property"). With it the default `a` gives 2.6-5% caches on the Keng-table scenes
+// (docs/point-lights.md, "The cache's goals").
 double defaultSplitDiskRadius(const Material& m);
 
 struct IrradianceCacheOptions {
-    double a = 0.015;        // relative error bound (> 0, finite); smaller = more caches
+    double a = 0.01;         // relative error bound (> 0, finite); smaller = more caches
     double radius = 0.0;     // split-disk radius R in mm (> 0); 0 = defaultSplitDiskRadius
     double epsilon = 0.05;   // the walk's solid-angle threshold (jensen_buhler.h), >= 0
     FresnelModel fresnel = FresnelModel::Exact;

@@ -51,7 +51,7 @@ std::optional<SampleCells> nearFieldCells(const TriangleMesh& mesh, const Irradi
                                           const PointRenderSettings& settings) {
     if (settings.nearField == NearFieldRule::Points) return std::nullopt;
     if (settings.nearField == NearFieldRule::Auto &&
-        !cellsDifferFromPoints(placed.totalArea(), placed.size(), settings.material))
+        !nearFieldNeedsCells(placed.totalArea(), placed.size(), settings.material))
         return std::nullopt;
     return SampleCells(mesh, placed, settings.material);
 }

@@ -99,7 +99,7 @@ struct PointRenderSettings {
 };
 
 // The near field's cells of `placed` on `mesh` for settings.material, or none for the
-// point rule (settings.nearField; Auto resolved by cellsDifferFromPoints). They depend on the samples' places and the
+// point rule (settings.nearField; Auto resolved by nearFieldNeedsCells). They depend on the samples' places and the
 // material, never on the lights: one set serves every frame of a light path or turntable.
 std::optional<SampleCells> nearFieldCells(const TriangleMesh& mesh, const IrradianceSamples& placed,
                                           const PointRenderSettings& settings);

@@ -25,10 +25,10 @@ NearFieldRule parseNearFieldRule(const std::string& text) {
     throw Error("--near-field", "expected 'auto', 'cells' or 'points', got '" + text + "'");
 }
 
-bool cellsDifferFromPoints(double areaMm2, size_t samples, const Material& material) {
+bool nearFieldNeedsCells(double areaMm2, size_t samples, const Material& material) {
     if (samples == 0 || !(areaMm2 > 0.0)) return false;
     const double spacing = std::sqrt(areaMm2 / double(samples));
-    return spacing > CellQuadratureOptions{}.subSpacingFraction * RadialKernels(material).narrowestWidth();
+    return spacing > RadialKernels(material).narrowestWidth();
 }
 
 SampleCells::SampleCells(const TriangleMesh& mesh, const IrradianceSamples& samples, const Material& material) {

@@ -57,16 +57,15 @@ namespace prt {
 
 // The rule of the renderers' near field: the cells, the point rule (Keng's and
 // Jensen-Buhler's cubature, kept for comparison with the papers), or Auto (the
-// default): the cells where they differ from the point rule, i.e. where the samples'
-// spacing sqrt(area / N) exceeds the quadrature's sub-spacing (a quarter of the
-// narrowest kernel width); finer samples give every cell one sub-point at its sample,
-// the point rule itself, at a higher cost (docs/point-lights.md, "The near field").
+// default): the cells where the samples' spacing sqrt(area / N) exceeds the narrowest
+// kernel width, the point rule below it, where the two were measured to agree and the
+// cells only cost time (docs/point-lights.md, "The near field").
 enum class NearFieldRule { Auto, Cells, Points };
 const char* toString(NearFieldRule rule);  // "auto", "cells", "points"
 // "auto", "cells" or "points" (case-insensitive); prt::Error("--near-field", ...) otherwise.
 NearFieldRule parseNearFieldRule(const std::string& text);
 // Auto resolved for samples of this count over this area (mm^2) and this material.
-bool cellsDifferFromPoints(double areaMm2, size_t samples, const Material& material);
+bool nearFieldNeedsCells(double areaMm2, size_t samples, const Material& material);
 
 // g of the graded sub-points (see SUB-POINTS above).
 inline constexpr double kGradedPiecesPerDistance = 8.0;
