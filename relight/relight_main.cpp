@@ -227,7 +227,7 @@ struct ViewOptions {
     int frames = 0;
     std::vector<std::string> screenshots;
     bool screenshotWithPanel = false, noVsync = false, hidePanel = false;
-    double spin = 0.0, orbit = 0.0;
+    double spin = 0.0, orbit = 0.0, lightOrbit = 0.0;
     // The scripted mid-run edit (makeScriptedEdit, view.h); absent = not given.
     std::optional<int> editAfter;
     std::optional<std::string> editMaterial;
@@ -266,6 +266,10 @@ void addViewOptions(CLI::App& app, ViewOptions& o) {
     app.add_option("--orbit", o.orbit,
                    "Turn the camera by this many degrees every frame about its up axis through the target "
                    "(the environment stays)")
+        ->capture_default_str()->group("Scripting");
+    app.add_option("--light-orbit", o.lightOrbit,
+                   "Turn the point and directional lights by this many degrees every frame about +Y through "
+                   "the object's centre (a new light position every frame)")
         ->capture_default_str()->group("Scripting");
     app.add_option("--edit-after", o.editAfter,
                    "Scripted edit (editable files): after K frames with light (1 <= K < --frames), edit the "
@@ -318,6 +322,9 @@ int runView(const ViewOptions& o) {
         throw Error("--screenshot", "needs --frames N (interactive screenshots: F12 or P)");
     if (!std::isfinite(o.spin)) throw Error("--spin", "must be finite");
     if (!std::isfinite(o.orbit)) throw Error("--orbit", "must be finite");
+    if (!std::isfinite(o.lightOrbit)) throw Error("--light-orbit", "must be finite");
+    if (o.lightOrbit != 0.0 && o.lights.empty() && o.lightsFile.empty())
+        throw Error("--light-orbit", "needs point or directional lights (--light / --lights)");
     for (const std::string& path : o.screenshots)
         if (path.empty()) throw Error("--screenshot", "empty path");
     // Cheap checks first: the display, the environments' paths.
@@ -346,6 +353,7 @@ int runView(const ViewOptions& o) {
     setup.screenshotWithPanel = o.screenshotWithPanel;
     setup.spinDegreesPerFrame = o.spin;
     setup.orbitDegreesPerFrame = o.orbit;
+    setup.lightOrbitDegreesPerFrame = o.lightOrbit;
     setup.vsync = !o.noVsync;
     setup.showPanel = !o.hidePanel;
     // The point lights render the object's current material (an editable file's edit).

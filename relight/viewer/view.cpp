@@ -195,7 +195,8 @@ void Viewer::start() {
     state_.singleScattering = s_.components.singleScattering;
     state_.specular = s_.frame.specular;
     state_.showPanel = s_.showPanel;
-    script_ = ScriptedMotion(s_.frames, s_.spinDegreesPerFrame, s_.orbitDegreesPerFrame);
+    script_ = ScriptedMotion(s_.frames, s_.spinDegreesPerFrame, s_.orbitDegreesPerFrame,
+                             s_.lightOrbitDegreesPerFrame, glm::dvec3(bounds(s_.object.mesh).centre()));
 
     loadEnvironments();
     window_ = std::make_unique<ViewerWindow>(s_.camera.width, s_.camera.height,

@@ -65,6 +65,8 @@ struct ViewerSetup {
     double spinDegreesPerFrame = 0.0;      // rotate the environment every frame
     double orbitDegreesPerFrame = 0.0;     // turn the camera about its up axis through the
                                            // target every frame (+ = toward +X from +Z)
+    double lightOrbitDegreesPerFrame = 0.0;  // turn the lights about +Y through the object's
+                                             // bounding-box centre every frame
     std::optional<ScriptedEdit> edit;      // editable files with frames > 0 (makeScriptedEdit)
     bool vsync = true;
     bool showPanel = true;

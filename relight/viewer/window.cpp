@@ -278,14 +278,24 @@ void ViewerWindow::applyInput(ViewState& s, const ViewLimits& limits) {
 // Scripted motion
 // ---------------------------------------------------------------------------
 
-ScriptedMotion::ScriptedMotion(int frames, double spinDegreesPerFrame, double orbitDegreesPerFrame)
-    : frames_(frames), spin_(spinDegreesPerFrame), orbit_(orbitDegreesPerFrame) {}
+ScriptedMotion::ScriptedMotion(int frames, double spinDegreesPerFrame, double orbitDegreesPerFrame,
+                               double lightOrbitDegreesPerFrame, glm::dvec3 lightPivot)
+    : frames_(frames), spin_(spinDegreesPerFrame), orbit_(orbitDegreesPerFrame),
+      lightOrbit_(lightOrbitDegreesPerFrame), lightPivot_(lightPivot) {}
 
 void ScriptedMotion::step(ViewState& s, bool lightShown) {
-    if ((spin_ == 0.0 && orbit_ == 0.0) || !lightShown || (scripted() && steps_ >= frames_)) return;
+    if ((spin_ == 0.0 && orbit_ == 0.0 && lightOrbit_ == 0.0) || !lightShown || (scripted() && steps_ >= frames_))
+        return;
     s.rotation = wrapDegrees(s.rotation + spin_);
     if (orbit_ != 0.0)
         s.camera.eye = s.camera.target + rotationAxisAngle(s.camera.up, orbit_) * (s.camera.eye - s.camera.target);
+    if (lightOrbit_ != 0.0) {
+        const glm::dmat3 turn = rotationAxisAngle(glm::dvec3(0.0, 1.0, 0.0), lightOrbit_);
+        for (Light& light : s.lights) {
+            if (light.type == LightType::Point) light.position = lightPivot_ + turn * (light.position - lightPivot_);
+            else light.direction = turn * light.direction;
+        }
+    }
     ++steps_;
 }
 

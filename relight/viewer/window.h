@@ -91,13 +91,16 @@ private:
 // The camera back at `home`, keeping the current image size (R, the panel's button).
 void resetCamera(ViewState& state, const ViewLimits& limits);
 
-// The scripted motion (--frames, --spin, --orbit; docs/viewer.md, "Scripting").
+// The scripted motion (--frames, --spin, --orbit, --light-orbit; docs/viewer.md, "Scripting").
 class ScriptedMotion {
 public:
     // frames > 0: a scripted run of that many frames with light on screen. Degrees per
     // frame: spin turns the environment about +Y, orbit the camera about its up axis
-    // through the target (+ = toward +X from +Z).
-    ScriptedMotion(int frames, double spinDegreesPerFrame, double orbitDegreesPerFrame);
+    // through the target (+ = toward +X from +Z), lightOrbit every point light about
+    // the +Y axis through lightPivot (mm, the object's frame) and every directional
+    // light's direction about +Y (a new light position every frame).
+    ScriptedMotion(int frames, double spinDegreesPerFrame, double orbitDegreesPerFrame,
+                   double lightOrbitDegreesPerFrame = 0.0, glm::dvec3 lightPivot = glm::dvec3(0.0));
 
     bool scripted() const { return frames_ > 0; }
     // Before a frame: one step of spin and orbit once light is on screen; a scripted
@@ -115,7 +118,8 @@ public:
 
 private:
     int frames_;
-    double spin_, orbit_;
+    double spin_, orbit_, lightOrbit_;
+    glm::dvec3 lightPivot_;
     int steps_ = 0, framesWithLight_ = 0;
 };
 
