@@ -20,7 +20,9 @@
 #     level of 255 apart.
 # Point lights (texture-space importance sampling) in the viewer must match
 # `prt-pointlight --method tsis --evaluate vertex` of the same lights, N and seed in the
-# same way (the same estimator at the vertices, the same shading per pixel).
+# same way (the same estimator at the vertices, the same shading per pixel), and after
+# --light-orbit steps must match prt-pointlight with the lights turned by hand (the
+# unturned lights are 68% off).
 # An editable file (prt-precompute --editable) shown with --material and --size-mm must
 # match the render of the command the viewer prints for its final state (which must
 # carry the edit), in the same way; its point lights must match prt-pointlight of the
@@ -167,6 +169,25 @@ else
     cat "$O/points.view.log"
     fail "points: the viewer failed"
 fi
+# --light-orbit: three steps of 30 degrees about +Y through the torus's centre (the
+# origin) end with the lights a quarter turn on, (x, y, z) -> (z, y, -x): the same frame
+# as prt-pointlight with those lights.
+PO="-W 200 -H 160 --azimuth 30 --elevation 20 --tsis-samples 300 --tsis-seed 4 --atlas-size 256 --light-map 256"
+# shellcheck disable=SC2086
+if view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" $PO --light point:30,40,-25:0.01 \
+    --light point:-35,10,30:0,0.004,0.008 --light-orbit 30 --no-environment-light --frames 3 \
+    --screenshot "$O/orbit.view.exr" --screenshot "$O/orbit.view.png" > "$O/orbit.view.log" 2>&1; then
+    grep -E "^point-light" "$O/orbit.view.log"
+    # shellcheck disable=SC2086
+    "$POINTLIGHT" "$S/torus.ply" --size-mm 20 -m Marble $PO --light point:-25,40,-30:0.01 \
+        --light point:30,10,35:0,0.004,0.008 --method tsis --evaluate vertex -o "$O/orbit.render" \
+        > "$O/orbit.render.log" 2>&1 || { cat "$O/orbit.render.log"; fail "light orbit: prt-pointlight failed"; }
+    agree "light orbit" "$O/orbit.view" "$O/orbit.render"
+    compare "light orbit: EXR, common object pixels" "$O/orbit.view.exr" "$O/orbit.render.masked.exr" 1e-4
+else
+    cat "$O/orbit.view.log"
+    fail "light orbit: the viewer failed"
+fi
 # Both sources together: the environment's light is still there (a different image).
 if view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" $P --frames 2 --screenshot "$O/both.view.exr" \
     > "$O/both.view.log" 2>&1; then
@@ -309,6 +330,8 @@ expect_error "scripted edit on a file that is not editable" "--edit-after: .*not
     inx "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --frames 5 --edit-after 2 --edit-material Ketchup
 expect_error "scripted edit after the last frame" "--edit-after: must be" \
     inx "$RELIGHT" view "$S/torus.ply" -t "$S/editable.prt" -e "$S/sky.exr" --frames 5 --edit-after 5 --edit-material Ketchup
+expect_error "light orbit without lights" "--light-orbit: needs point or directional lights" \
+    "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --frames 5 --light-orbit 5
 expect_error "screenshot without --frames" "needs --frames" \
     "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --screenshot "$O/x.png"
 
