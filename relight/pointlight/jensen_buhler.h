@@ -10,10 +10,10 @@
 //
 //     M^c(x) = sum_i A_i R_d^c(|x - x_i|) E^_i^c                       [W/m^2]
 //
-// With SampleCells (sample_cells.h, the product's default) the term of a sample whose
-// cell reaches the near field of x is R_d integrated over that cell instead,
+// With SampleCells (sample_cells.h; prt-pointlight's --near-field) the term of a sample
+// whose cell reaches the near field of x is R_d integrated over that cell instead,
 // w_i(x) E^_i, and no node within the cells' near radius of x is used whole: the point
-// rule above does not converge where the samples lie about a kernel width apart.
+// rule above does not converge where the samples lie a kernel width apart or more.
 //
 // and the radiance toward the viewer w_o at x with shading normal n is
 //
