@@ -161,7 +161,11 @@ std::string PointLightWorker::runComparison(const Camera& camera, double exposur
     // The current material: the renderer's (the last request's, size edits included).
     const Material& material = renderer_->material();
     computeIrradiance(faces, *scene_, current_->lights, material.eta, base_.fresnel);
-    const JensenBuhler jb(material, IrradianceOctree(faces), {.epsilon = 0.05, .fresnel = base_.fresnel});
+    // The near field as prt-pointlight's default (--near-field auto, sample_cells.h).
+    std::optional<SampleCells> cells;
+    if (nearFieldNeedsCells(faces.totalArea(), faces.size(), material)) cells.emplace(mesh_, faces, material);
+    const JensenBuhler jb(material, IrradianceOctree(faces), {.epsilon = 0.05, .fresnel = base_.fresnel},
+                          std::move(cells));
     const Image ref = jb.render(g);
     const CompareResult c = compareImages(image, ref);
     char buf[512];
