@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Relative RMSE of prt-relight render against prt-reference for the default scene
 # (bunny, 30 mm, Marble, 6x32x32) at several coefficient counts per vertex, under
-# the given environments. Reuses reference images in OUT if present.
-# Usage: tools/coefficient-table.sh [OUT_DIR] [env ...]
+# the given environments. Reuses reference images in OUT if present (delete them when
+# switching SAME_SAMPLES). SAME_SAMPLES=1: the reference on the precomputation's own
+# samples (prt-reference --same-samples), as the old table of docs/performance.md.
+# Usage: [SAME_SAMPLES=1] tools/coefficient-table.sh [OUT_DIR] [env ...]
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 out=${1:-$root/out/table}; shift || true
@@ -13,8 +15,10 @@ mesh=$root/data/meshes/bunny.off
 mkdir -p "$out"
 for env in "${envs[@]}"; do
     ref=$out/ref_$env
+    same=()
+    [ "${SAME_SAMPLES:-0}" = 1 ] && same=(--same-samples)
     [ -f "$ref.exr" ] || "$build/bin/prt-reference" "$mesh" -t "$root/out/bunny_marble.prt" \
-        -e "$root/data/envmaps/$env.exr" -o "$ref" >/dev/null 2>&1
+        -e "$root/data/envmaps/$env.exr" "${same[@]}" -o "$ref" >/dev/null 2>&1
 done
 printf '| coefficients | %s |\n' "$(IFS='|'; echo "${envs[*]}" | sed 's/|/ | /g')"
 for k in 32 64 128 256; do
