@@ -6,6 +6,9 @@
 # forest, and the pair of single-scattering frames like Wang et al. 2005, Fig. 3.
 #
 #   tools/ss-measurements.sh [output-dir]      (default out/ss; ~45 min on 2 cores)
+#   OLD_RULE=1 tools/ss-measurements.sh ...      the rule the doc's bunny table was measured
+#                                                with: 16 midpoint path samples, every
+#                                                direction traced, visibility by a second ray
 #
 # Up-to-date transport files are not recomputed (prt-precompute's input digest), so
 # a second run only re-renders. Needs a build (tools/build.sh) and the data
@@ -20,11 +23,13 @@ for f in "$mesh" "$forest" "$build/bin/prt-precompute" "$build/bin/prt-reference
     [[ -e "$f" ]] || { echo "ss-measurements: missing $f (run tools/build.sh and tools/fetch-data.sh)" >&2; exit 1; }
 done
 mkdir -p "$out"
+rule=()
+[ "${OLD_RULE:-0}" = 1 ] && rule=(--path-quadrature midpoint --path-samples 16 --ss-direction-stride 1 --ss-visibility ray)
 
 for g in 0 0.25 -0.25; do
     echo "== precompute g = $g"
     "$build/bin/prt-precompute" "$mesh" --size-mm 30 --material Marble \
-        --components ms,ss --g "$g" --phase-terms 4 -o "$out/bunny_g$g.prt" -q \
+        --components ms,ss --g "$g" --phase-terms 4 "${rule[@]}" -o "$out/bunny_g$g.prt" -q \
         | tee "$out/bunny_g$g.summary.txt"
     ls -l "$out/bunny_g$g.prt"
 done
