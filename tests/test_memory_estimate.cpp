@@ -119,6 +119,11 @@ TEST(MemoryEstimate, GrowsWithSamplesAndCoefficients) {
 // [0.75, 2]. Measured: 1.03 for the pass-1 job, 1.32 for the single-scattering one
 // (its vectors counted as the K terms x 8 bytes per entry it stores).
 TEST(MemoryEstimate, LandsNearTheMeasuredPeakOfRealJobs) {
+#if defined(__SANITIZE_ADDRESS__)
+    // AddressSanitizer's shadow memory and quarantine triple the measured peak (0.33 of
+    // the estimate for the pass-1 job under tools/sanitize.sh): the peak is not the job's.
+    GTEST_SKIP() << "peak memory is not measurable under AddressSanitizer";
+#endif
     PrecomputeSettings samples = settings();
     samples.cubemapSize = 8;
     samples.samples.count = 60000;
