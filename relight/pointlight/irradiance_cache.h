@@ -115,8 +115,8 @@ double splitDiskGradientFactor(const DipoleChannel& d, double radiusMm, SplitDis
 // The default split-disk radius of a material (mm): the radius within which a fifth of
 // the diffuse reflectance int R_d dA is collected, for the channel where that radius
 // is largest (Keng: "heuristically determined according to the material scattering
-// property"). With it the default `a` gives 2.6-5% caches on the Keng-table scenes
-// (docs/point-lights.md, "The cache's goals").
+// property"). Its caches per pixel with the default `a`: docs/point-lights.md, "The
+// cache's goals".
 double defaultSplitDiskRadius(const Material& m);
 
 struct IrradianceCacheOptions {

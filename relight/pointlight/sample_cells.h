@@ -20,7 +20,7 @@
 // their whole face: the cells are the faces and A_i the face areas, so the cells agree
 // with the areas the octree aggregates. Poisson-disk samples own the surface nearest
 // them (the quadrature's cells); their cell areas differ from the octree's A / N by
-// the set's irregularity (about 10%), which the far point rule then carries unchanged.
+// the set's irregularity, which the far point rule then carries unchanged.
 // The sample spacing h of the quadrature's near/far split is sqrt(mesh area / N), and
 // the split is at r1 = h, r2 = 3 h without the precompute's cap of a few kernel widths:
 // the far part's point rule needs cells small against r1, and faces may be far coarser
