@@ -18,6 +18,8 @@ struct Camera {
     double fovY = 30.0;  // degrees, (0, 180)
     int width = 512;
     int height = 512;
+
+    bool operator==(const Camera&) const = default;
 };
 
 // Throws prt::Error (subject "camera") for eye == target, up parallel to the view

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <vector>
 
 namespace prt {
 
@@ -28,6 +29,42 @@ void Progress::setQuiet(bool quiet) {
     if (quiet) setEnabled(false);
 }
 
+namespace {
+
+std::atomic<bool> cancelFlag{false};
+
+// The unfinished Progress objects in order of construction, for snapshot().
+struct Registry {
+    std::mutex mutex;
+    std::vector<const Progress*> live;
+    uint64_t made = 0;
+};
+Registry& registry() {
+    static Registry r;
+    return r;
+}
+
+}  // namespace
+
+void Progress::requestCancel(bool cancel) { cancelFlag.store(cancel); }
+bool Progress::cancelRequested() { return cancelFlag.load(std::memory_order_relaxed); }
+
+ProgressSnapshot Progress::snapshot() {
+    Registry& r = registry();
+    std::lock_guard lock(r.mutex);
+    ProgressSnapshot s;
+    if (r.live.empty()) return s;
+    const Progress* p = r.live.back();
+    s.active = true;
+    s.label = p->label_;
+    s.unit = p->unit_;
+    s.done = p->done_.load(std::memory_order_relaxed);
+    s.total = p->total_;
+    s.elapsedSeconds = p->elapsedSeconds();
+    s.stage = p->stage_;
+    return s;
+}
+
 std::string formatDuration(double s) {
     char buf[64];
     if (!std::isfinite(s) || s < 0) return "?";
@@ -48,10 +85,17 @@ Progress::Progress(std::string label, uint64_t total, std::string unit)
       start_(std::chrono::steady_clock::now()) {
     int override = enabledOverride();
     interactive_ = override >= 0 ? override == 1 : isatty(STDERR_FILENO) == 1;
+    Registry& r = registry();
+    std::lock_guard lock(r.mutex);
+    stage_ = ++r.made;
+    r.live.push_back(this);
 }
 
 Progress::~Progress() {
     if (!finished_) finish();
+    Registry& r = registry();
+    std::lock_guard lock(r.mutex);
+    std::erase(r.live, this);
 }
 
 double Progress::elapsedSeconds() const {
@@ -59,6 +103,7 @@ double Progress::elapsedSeconds() const {
 }
 
 void Progress::advance(uint64_t n) {
+    if (cancelFlag.load(std::memory_order_relaxed)) throw Cancelled();
     uint64_t done = done_.fetch_add(n, std::memory_order_relaxed) + n;
     if (!interactive_) return;
     int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(

@@ -10,7 +10,26 @@
 #include <mutex>
 #include <string>
 
+#include "common/error.h"
+
 namespace prt {
+
+// Thrown by Progress::advance() once a cancel was requested (Progress::requestCancel):
+// the long stage unwinds like any other error, so nothing half-written is left (every
+// output is written to a temporary file and renamed).
+class Cancelled : public Error {
+public:
+    Cancelled() : Error("", "cancelled") {}
+};
+
+// What the newest unfinished Progress has done (Progress::snapshot).
+struct ProgressSnapshot {
+    bool active = false;  // false: no stage is reporting
+    std::string label, unit;
+    uint64_t done = 0, total = 0;
+    double elapsedSeconds = 0.0;
+    uint64_t stage = 0;  // counts Progress objects made so far; a new stage has a new number
+};
 
 class Progress {
 public:
@@ -28,6 +47,14 @@ public:
     // only warnings and errors; the summaries on stdout report the stage times).
     static void setQuiet(bool quiet);
 
+    // For a host that embeds the library (the Python module): polls what the newest
+    // unfinished Progress has done, from any thread.
+    static ProgressSnapshot snapshot();
+    // While set, every advance() throws Cancelled (in a worker thread of a parallel
+    // loop the loop stops and rethrows it in the caller). Clear it before the next run.
+    static void requestCancel(bool cancel);
+    static bool cancelRequested();
+
 private:
     void redraw(uint64_t done);
 
@@ -40,6 +67,7 @@ private:
     std::mutex drawMutex_;
     bool interactive_;
     bool finished_ = false;
+    uint64_t stage_ = 0;
 };
 
 // "1.2 s", "3 min 4 s", "1 h 2 min"

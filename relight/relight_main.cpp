@@ -33,6 +33,7 @@
 #include "relight/pointlight/point_lights.h"
 #include "relight/pointlight/surface_atlas.h"
 #include "relight/pointlight/texture_space_sampling.h"
+#include "relight/prt/environment_frame.h"
 #include "relight/prt/frame_settings.h"
 #include "relight/prt/light_vector.h"
 #include "relight/prt/relight_kernel.h"
@@ -101,22 +102,17 @@ int runRender(const RenderOptions& o) {
     const ScatteringComponents components =
         selectComponents(look.components, componentsOf(object.transport), o.transport);
     const Camera camera = makeCamera(o.camera, object.sphereCentre, object.sphereRadius);
-    const Image environment = loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
-    const RayScene scene(object.mesh);
-    const TranslucentShader shader(object.mesh, object.eta,
-                                   components.singleScattering && object.transport.viewMaps
-                                       ? &*object.transport.viewMaps
-                                       : nullptr);
-    Image prefiltered;
-    if (look.specular)
-        prefiltered = prefilterEnvironment(environment, specularBlurFactor(look.specularBlur, environment));
+    const int frames = o.turntable > 0 ? o.turntable : o.envSpin > 0 ? o.envSpin : 0;
+    const int count = std::max(frames, 1);
+    // A sequence prepares the environment once (EnvironmentLight, light_vector.h;
+    // docs/relight.md, "Turning the environment: the fast path").
+    EnvironmentFrameRenderer renderer(object, loadEnvironment(o.environment, NonFinitePolicy::ClampNegative), look,
+                                      components, count > 1);
     const double loadMs = loadStart.milliseconds();
 
     const std::filesystem::path parent = std::filesystem::path(output).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);
 
-    const int frames = o.turntable > 0 ? o.turntable : o.envSpin > 0 ? o.envSpin : 0;
-    const int count = std::max(frames, 1);
     std::printf("object: %zu vertices, %zu triangles, %.4g mm across, eta %.4g; cubemap 6x%ux%u\n",
                 object.mesh.vertexCount(), object.mesh.triangleCount(), double(object.box.diagonal()),
                 object.eta, object.transport.cubemapSize, object.transport.cubemapSize);
@@ -132,13 +128,9 @@ int runRender(const RenderOptions& o) {
     std::fflush(stdout);
 
     const glm::dmat3 baseRotation = rotationY(look.envRotation);
-    GBuffer gbuffer;
-    bool haveGBuffer = false;
-    VertexRadiance radiance;
     double totalLight = 0, totalRelight = 0, totalRays = 0, totalShade = 0, totalWrite = 0;
     std::vector<std::string> written;
     const Stopwatch runStart;
-    std::optional<EnvironmentLight> prepared;
 
     for (int f = 0; f < count; ++f) {
         const double angle = frames > 0 ? 360.0 * f / frames : 0.0;
@@ -153,53 +145,28 @@ int runRender(const RenderOptions& o) {
             rotation = rotationY(angle) * baseRotation;
         }
 
-        Stopwatch t0;
-        // A sequence prepares the environment once (EnvironmentLight, light_vector.h;
-        // docs/relight.md, "Turning the environment: the fast path").
-        if (count > 1 && !prepared) prepared.emplace(environment, int(object.transport.cubemapSize));
-        const LightVector light =
-            prepared ? prepared->lightVector(rotation, look.lightTerms)
-                     : makeLightVector(environment, int(object.transport.cubemapSize), rotation, look.lightTerms);
-        const double lightMs = t0.milliseconds();
+        EnvironmentFrameTimes t;
+        const Image image = renderer.render(frameCamera, rotation, &t);
 
-        t0.restart();
-        relightVertices(object.transport, light, components, radiance);
-        const double relightMs = t0.milliseconds();
-
-        t0.restart();
-        if (!haveGBuffer || o.turntable > 0) {
-            gbuffer = traceGBuffer(scene, object.mesh, frameCamera);
-            haveGBuffer = true;
-        }
-        const double raysMs = t0.milliseconds();
-
-        t0.restart();
-        const Image image = compose(gbuffer, environment, rotation, [&](const GBufferPixel& p) {
-            glm::vec3 L = shader.shade(p, radiance);
-            if (look.specular) L += specularReflection(p, object.eta, prefiltered, rotation);
-            return L;
-        });
-        const double shadeMs = t0.milliseconds();
-
-        t0.restart();
+        const Stopwatch writeClock;
         const std::string base = frameName(output, f, frames);
         writeExr(base + ".exr", image);
         writePng(base + ".png", image, look.exposure);
-        const double writeMs = t0.milliseconds();
+        const double writeMs = writeClock.milliseconds();
         written.push_back(base);
 
-        totalLight += lightMs;
-        totalRelight += relightMs;
-        totalRays += raysMs;
-        totalShade += shadeMs;
+        totalLight += t.light;
+        totalRelight += t.relight;
+        totalRays += t.rays;
+        totalShade += t.shade;
         totalWrite += writeMs;
         std::printf("frame %d/%d", f + 1, count);
         if (o.turntable > 0) std::printf(" (object %.1f deg)", angle);
         if (o.envSpin > 0) std::printf(" (environment %.1f deg)", angle);
         std::printf(": light %.1f ms (%zu terms, L2 error %.2g), relight %.1f ms, rays %.1f ms, "
                     "shading %.1f ms, write %.1f ms; %zu object pixels -> %s.exr/.png\n",
-                    lightMs, light.keptTerms, light.relativeL2Error, relightMs, raysMs, shadeMs, writeMs,
-                    gbuffer.objectPixels(), base.c_str());
+                    t.light, t.lightTerms, t.lightRelativeL2, t.relight, t.rays, t.shade, writeMs,
+                    t.objectPixels, base.c_str());
         std::fflush(stdout);
     }
 

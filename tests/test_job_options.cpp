@@ -108,6 +108,17 @@ TEST(JobOptions, DirectionStride) {
     }
 }
 
+TEST(JobOptions, FlagsTakeTrueAndFalse) {
+    const nlohmann::json job = {{"mesh", "m.obj"}, {"output", "o"}};
+    EXPECT_TRUE(parseJob({{"editable", true}}, job, "j").editable.enabled);
+    EXPECT_FALSE(parseJob({{"editable", false}}, job, "j").editable.enabled);
+    EXPECT_FALSE(parseJob({}, job, "j").editable.enabled);
+    // The job's false overrides the defaults' true.
+    nlohmann::json off = job;
+    off["editable"] = false;
+    EXPECT_FALSE(parseJob({{"editable", true}}, off, "j").editable.enabled);
+}
+
 TEST(JobOptions, BadJobsNameWhereTheyAre) {
     const std::string unknown = errorOf([] { parseJob({}, {{"mesh", "m"}, {"colour", "red"}}, "jobs.json: job 3"); });
     EXPECT_EQ(unknown.rfind("jobs.json: job 3: ", 0), 0u) << unknown;

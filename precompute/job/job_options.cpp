@@ -177,6 +177,12 @@ PrecomputeSettings parseJob(const nlohmann::json& defaults, const nlohmann::json
         std::string key = it.key();
         std::replace(key.begin(), key.end(), '_', '-');
         if (key == "mesh") continue;
+        // A flag takes its value attached (CLI11: --editable=true / =false); a
+        // separate "true" would be read as a positional.
+        if (it.value().is_boolean()) {
+            args.push_back("--" + key + "=" + it.value().dump());
+            continue;
+        }
         args.push_back("--" + key);
         args.push_back(argumentText(it.value(), where + ": " + it.key()));
     }

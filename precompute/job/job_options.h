@@ -3,7 +3,8 @@
 // (docs/precompute.md): the same names, defaults and checks either way. A job file is
 // {"defaults": {...}, "jobs": [{...}, ...]}; a job's keys are the long option names
 // ("size-mm" or "size_mm" for --size-mm; "mesh" is the positional mesh file), its
-// values strings, numbers or arrays of numbers; job keys override the defaults.
+// values strings, numbers, arrays of numbers, or true / false for a flag ("editable": true);
+// job keys override the defaults.
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>

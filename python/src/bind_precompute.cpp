@@ -1,0 +1,179 @@
+// The precomputation from Python: prt-precompute's options as keyword arguments (the
+// job-file route, so the names, defaults, checks and messages are the command line's),
+// progress to a Python callable, Ctrl-C cancelling cleanly.
+//
+// The job runs on a worker thread while the calling thread, without the GIL, waits for
+// it in short steps; between steps it takes the GIL, reports progress and lets Python
+// check for signals (only the main thread sees SIGINT). A KeyboardInterrupt, or an
+// exception from the callable, requests a cancel (Progress::requestCancel): the job's
+// next progress step throws, the passes unwind, and no output is written (the file is
+// written to a temporary name and renamed only when complete).
+
+#include <chrono>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <future>
+#include <optional>
+#include <thread>
+
+#include <unistd.h>
+
+#include "common/options.h"
+#include "common/progress.h"
+#include "precompute/job/job_options.h"
+#include "precompute/job/pipeline.h"
+#include "precompute/job/summary_json.h"
+#include "python/src/bindings.h"
+
+namespace prt::python {
+
+namespace {
+
+nlohmann::json jsonValue(const py::handle& value, const std::string& key) {
+    if (py::isinstance<py::bool_>(value)) return value.cast<bool>();
+    if (py::isinstance<py::int_>(value)) return value.cast<long long>();
+    if (py::isinstance<py::float_>(value)) return value.cast<double>();
+    if (py::isinstance<py::str>(value)) return value.cast<std::string>();
+    if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value) || py::isinstance<py::array>(value)) {
+        nlohmann::json array = nlohmann::json::array();
+        for (const py::handle& item : value) {
+            if (!py::isinstance<py::int_>(item) && !py::isinstance<py::float_>(item) &&
+                !py::isinstance<py::array>(item))
+                throw py::type_error(key + ": expected numbers in the list");
+            array.push_back(item.cast<double>());
+        }
+        return array;
+    }
+    throw py::type_error(key + ": expected a string, a number, a bool or a list of numbers, got " +
+                         std::string(py::str(value.get_type().attr("__name__"))));
+}
+
+py::object jsonToPython(const nlohmann::json& j) {
+    return py::module_::import("json").attr("loads")(j.dump());
+}
+
+// Reports the newest stage's progress to `callback(stage, done, total, unit)`; a
+// finished stage is reported once more at done = total when the next one starts.
+class ProgressRelay {
+public:
+    explicit ProgressRelay(py::object callback) : callback_(std::move(callback)) {}
+
+    void poll() {
+        if (callback_.is_none()) return;
+        const ProgressSnapshot s = Progress::snapshot();
+        if (!s.active) return;
+        if (s.stage != last_.stage) finishLast();
+        last_ = s;
+        callback_(s.label, s.done, s.total, s.unit);
+    }
+    void finishLast() {
+        if (callback_.is_none() || last_.stage == 0 || last_.done == last_.total) return;
+        callback_(last_.label, last_.total, last_.total, last_.unit);
+        last_.done = last_.total;
+    }
+
+private:
+    py::object callback_;
+    ProgressSnapshot last_;
+};
+
+// Restores the process-wide progress switches however the call ends.
+struct ProgressSwitches {
+    explicit ProgressSwitches(bool quiet) {
+        Progress::requestCancel(false);
+        if (quiet) Progress::setQuiet(true);
+        quiet_ = quiet;
+    }
+    ~ProgressSwitches() {
+        Progress::requestCancel(false);
+        if (quiet_) Progress::setQuiet(false);
+    }
+    bool quiet_ = false;
+};
+
+std::string temporaryOutput() {
+    const std::filesystem::path dir = std::filesystem::temp_directory_path();
+    static int counter = 0;
+    return (dir / ("prt_python_" + std::to_string(::getpid()) + "_" + std::to_string(++counter) + ".prt")).string();
+}
+
+}  // namespace
+
+void bindPrecompute(py::module_& m) {
+    m.def(
+        "precompute",
+        [](const std::string& mesh, const py::object& output, const py::object& progress, bool force, int threads,
+           bool quiet, const py::kwargs& options) {
+            nlohmann::json job = nlohmann::json::object();
+            job["mesh"] = mesh;
+            for (const auto& [key, value] : options) {
+                const std::string name = py::str(key);
+                if (name == "mesh" || name == "output" || name == "o")
+                    throw py::type_error(name + ": give it as precompute's own argument");
+                job[name] = jsonValue(value, name);
+            }
+            const bool keep = !output.is_none();
+            const std::string path = keep ? output.cast<std::string>() : temporaryOutput();
+            job["output"] = path;
+            if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
+                throw py::type_error("progress: expected a callable (stage, done, total, unit)");
+            const PrecomputeSettings settings = parseJob(nlohmann::json::object(), job, "precompute");
+            if (settings.pass1Only) throw Error("--pass1-only", "not available from Python (use the command line)");
+
+            ProgressSwitches switches(quiet);
+            const ThreadLimit limit(threads);
+            ProgressRelay relay(progress);
+            std::promise<PrecomputeSummary> promise;
+            std::future<PrecomputeSummary> done = promise.get_future();
+            std::thread worker([&] {
+                try {
+                    promise.set_value(precomputeTransport(settings, force, nullptr));
+                } catch (...) {
+                    promise.set_exception(std::current_exception());
+                }
+            });
+            auto wait = [&](std::chrono::milliseconds step) {
+                py::gil_scoped_release release;
+                return done.wait_for(step) == std::future_status::ready;
+            };
+            try {
+                while (!wait(std::chrono::milliseconds(100))) {
+                    relay.poll();
+                    if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+                }
+                relay.poll();
+                relay.finishLast();
+            } catch (...) {
+                // A KeyboardInterrupt or the callable's own exception: stop the job, then
+                // raise it (the worker's Cancelled is not reported).
+                Progress::requestCancel(true);
+                {
+                    py::gil_scoped_release release;
+                    worker.join();
+                }
+                throw;
+            }
+            worker.join();
+            const PrecomputeSummary summary = done.get();
+
+            auto t = std::make_shared<PyTransport>();
+            t->path = keep ? path : "";
+            t->file = std::make_shared<TransportFile>(withoutGil([&] { return loadTransportFile(path); }));
+            if (!keep) std::filesystem::remove(path);
+            py::object result = py::cast(t);
+            result.attr("summary") = jsonToPython(summaryJson(summary));
+            result.attr("settings") = jsonToPython(settingsJson(settings));
+            return result;
+        },
+        py::arg("mesh"), py::arg("output") = py::none(), py::kw_only(), py::arg("progress") = py::none(),
+        py::arg("force") = false, py::arg("threads") = 0, py::arg("quiet") = true,
+        "Runs prt-precompute on a mesh file and returns the prt.Transport (with .summary and .settings "
+        "dicts). Keyword arguments are prt-precompute's long options (size_mm=30, material='Marble', "
+        "cubemap_size=16, components='ms,ss', editable=True, ...), checked with its messages. output: the "
+        "file to write (kept; an up-to-date one is reused unless force), or None for a temporary one. "
+        "progress: called as progress(stage, done, total, unit) about ten times a second from this thread. "
+        "Ctrl-C (KeyboardInterrupt) cancels cleanly. quiet: no progress lines on stderr.");
+}
+
+}  // namespace prt::python

@@ -1,0 +1,175 @@
+// Transport files: load (verified), save (atomic), describe (header only or loaded),
+// and the per-vertex vectors as arrays.
+
+#include <optional>
+
+#include "common/mesh.h"
+#include "common/mesh_io.h"
+#include "common/transport_file.h"
+#include "common/transport_params.h"
+#include "python/src/bindings.h"
+
+namespace prt::python {
+
+namespace {
+
+py::dict parametersDict(const std::vector<std::pair<std::string, std::string>>& parameters) {
+    py::dict d;
+    for (const auto& [key, value] : parameters) d[py::str(key)] = value;
+    return d;
+}
+
+// The short name Python uses for a component: "ms", "ss", "ss:k" (the k-th term of the
+// factored phase), "profiles:j" (an editable file's j-th group of profile vectors).
+std::string shortName(ComponentKind kind, uint32_t term) {
+    switch (kind) {
+    case ComponentKind::MultipleScattering: return "ms";
+    case ComponentKind::SingleScatteringIsotropic: return "ss";
+    case ComponentKind::SingleScatteringTerm: return "ss:" + std::to_string(term);
+    case ComponentKind::MultipleScatteringProfiles: return "profiles:" + std::to_string(term);
+    }
+    return componentName(kind, term);
+}
+
+py::dict infoDict(const TransportFileInfo& info) {
+    py::dict d;
+    d["version"] = info.version;
+    d["cubemap_size"] = info.cubemapSize;
+    d["sh_terms"] = info.shTerms;
+    d["vertex_count"] = info.mesh.vertexCount;
+    d["mesh_hash"] = info.mesh.positionHash;
+    d["mm_per_unit"] = info.mmPerUnit;
+    d["parameters"] = parametersDict(info.parameters);
+    py::list components;
+    for (const auto& c : info.components) {
+        py::dict e;
+        e["name"] = shortName(c.kind, c.term);
+        e["description"] = componentName(c.kind, c.term);
+        e["vertex_count"] = c.vertexCount;
+        e["coefficient_count"] = c.coefficientCount;
+        e["payload_bytes"] = c.payloadBytes;
+        e["blocked"] = c.blocked;
+        components.append(e);
+    }
+    d["components"] = components;
+    d["view_map_size"] = info.viewMapSize;
+    d["view_map_terms"] = info.viewMapTerms;
+    d["editable"] = info.radialRange.has_value();
+    if (info.radialRange) {
+        py::dict r;
+        r["zr_min_mm"] = info.radialRange->zrMin;
+        r["zr_max_mm"] = info.radialRange->zrMax;
+        r["alpha_min"] = info.radialRange->alphaMin;
+        r["alpha_max"] = info.radialRange->alphaMax;
+        r["eta"] = info.radialRange->eta;
+        r["r_max_mm"] = info.radialRange->rMax;
+        r["profiles"] = info.radialProfiles;
+        d["radial_range"] = r;
+    }
+    d["file_bytes"] = info.fileBytes;
+    d["text"] = describe(info);
+    return d;
+}
+
+const TransportComponent& findComponent(const TransportFile& file, const std::string& name) {
+    for (const TransportComponent& c : file.components)
+        if (shortName(c.kind, c.term) == name) return c;
+    std::string names;
+    for (const TransportComponent& c : file.components) names += (names.empty() ? "" : ", ") + shortName(c.kind, c.term);
+    throw Error("component", "'" + name + "' is not in the file (it has: " + names + ")");
+}
+
+}  // namespace
+
+void bindTransport(py::module_& m) {
+    py::class_<PyTransport, std::shared_ptr<PyTransport>>(
+        m, "Transport",
+        "A transport file in memory (docs/transport-format.md): per-vertex sparse RGB Haar vectors over a "
+        "6 x N x N lighting cubemap (+ SH terms), one per component.",
+        py::dynamic_attr())
+        .def_property_readonly("path", [](const PyTransport& t) { return t.path; })
+        .def_property_readonly("cubemap_size", [](const PyTransport& t) { return t.file->cubemapSize; })
+        .def_property_readonly("sh_terms", [](const PyTransport& t) { return t.file->shTerms; })
+        .def_property_readonly("vertex_count", [](const PyTransport& t) { return t.file->mesh.vertexCount; })
+        .def_property_readonly("mm_per_unit", [](const PyTransport& t) { return t.file->mmPerUnit; })
+        .def_property_readonly("parameters", [](const PyTransport& t) { return parametersDict(t.file->parameters); },
+                               "The precompute's parameters (material, seed, ...), as stored")
+        .def_property_readonly("components",
+                               [](const PyTransport& t) {
+                                   std::vector<std::string> names;
+                                   for (const TransportComponent& c : t.file->components)
+                                       names.push_back(shortName(c.kind, c.term));
+                                   return names;
+                               },
+                               "The components' short names: ms, ss, ss:k (a phase term), profiles:j (editable)")
+        .def_property_readonly("editable", [](const PyTransport& t) { return t.file->radialBasis.has_value(); })
+        .def("describe", [](const PyTransport& t) { return describe(*t.file); },
+             "prt-relight info --full's text")
+        .def(
+            "vectors",
+            [](py::object self, const std::string& component) {
+                const PyTransport& t = self.cast<const PyTransport&>();
+                const TransportComponent& c = findComponent(*t.file, component);
+                if (c.blocked())
+                    throw Error(component, "is stored in blocks (--block-coefficients): read it with vertex_vector(v)");
+                const SparseRgbVectors& v = c.vectors;
+                py::dict d;
+                d["offsets"] = view(v.offsets.data(), {py::ssize_t(v.offsets.size())}, self);
+                d["indices"] = view(v.indices.data(), {py::ssize_t(v.indices.size())}, self);
+                d["values"] = view(v.values.data(), {py::ssize_t(v.indices.size()), 3}, self);
+                d["scales"] = view(v.scales.data(), {py::ssize_t(v.vertexCount()), 3}, self);
+                return d;
+            },
+            py::arg("component") = "ms",
+            "The component's stored arrays (views): vertex v owns indices[offsets[v]:offsets[v+1]] and the int16 "
+            "values of the same rows; value = q * scales[v] per channel")
+        .def(
+            "vertex_vector",
+            [](const PyTransport& t, size_t v, const std::string& component) {
+                const TransportComponent& c = findComponent(*t.file, component);
+                if (v >= c.vertexCount())
+                    throw py::index_error("vertex " + std::to_string(v) + " of " + std::to_string(c.vertexCount()));
+                std::vector<uint32_t> idx;
+                std::vector<float> rgb;
+                c.dequantizeVertex(v, idx, rgb);
+                const py::ssize_t k = py::ssize_t(idx.size());
+                return py::make_tuple(adopt(std::move(idx), {k}), adopt(std::move(rgb), {k, 3}));
+            },
+            py::arg("v"), py::arg("component") = "ms",
+            "Vertex v's vector: (coefficient indices uint32 (K,), RGB values float32 (K, 3)); indices < 6 N^2 are "
+            "Haar coefficients of the cubemap, the rest SH terms")
+        .def(
+            "save",
+            [](const PyTransport& t, const std::string& path) {
+                withoutGil([&] { saveTransportFile(path, *t.file); });
+            },
+            py::arg("path"), "Writes the file (atomically: a temporary file, then a rename)")
+        .def("__eq__", [](const PyTransport& a, const PyTransport& b) { return *a.file == *b.file; })
+        .def("__repr__", [](const PyTransport& t) {
+            return "<prt.Transport " + std::to_string(t.file->mesh.vertexCount) + " vertices, cubemap 6x" +
+                   std::to_string(t.file->cubemapSize) + "^2, " + std::to_string(t.file->components.size()) +
+                   " components" + (t.path.empty() ? "" : ", from " + t.path) + ">";
+        });
+
+    m.def(
+        "load_transport",
+        [](const std::string& path, const py::object& mesh) {
+            auto t = std::make_shared<PyTransport>();
+            t->path = path;
+            std::optional<MeshFingerprint> expected;
+            if (!mesh.is_none()) {
+                const TriangleMesh tm = loadMesh(mesh.cast<std::string>());
+                expected = MeshFingerprint{tm.vertexCount(), meshFingerprint(tm)};
+            }
+            t->file = std::make_shared<TransportFile>(withoutGil(
+                [&] { return expected ? loadTransportFile(path, *expected) : loadTransportFile(path); }));
+            return t;
+        },
+        py::arg("path"), py::kw_only(), py::arg("mesh") = py::none(),
+        "Loads a transport file and verifies every checksum; with mesh (a mesh file's path) also that the file "
+        "was computed for that mesh");
+    m.def("transport_info", [](const std::string& path) { return infoDict(readTransportFileInfo(path)); },
+          py::arg("path"), "prt-relight info's header as a dict (the vectors are not read)");
+}
+
+}  // namespace prt::python

@@ -1,0 +1,60 @@
+#include "relight/prt/environment_frame.h"
+
+#include "common/util.h"
+#include "relight/render/specular.h"
+
+namespace prt {
+
+EnvironmentFrameRenderer::EnvironmentFrameRenderer(const RelightObject& object, Image environment,
+                                                   const FrameSettings& look,
+                                                   const ScatteringComponents& components, bool sequence)
+    : object_(object),
+      environment_(std::move(environment)),
+      look_(look),
+      components_(components),
+      scene_(object.mesh),
+      shader_(object.mesh, object.eta,
+              components.singleScattering && object.transport.viewMaps ? &*object.transport.viewMaps : nullptr) {
+    if (look_.specular)
+        prefiltered_ = prefilterEnvironment(environment_, specularBlurFactor(look_.specularBlur, environment_));
+    if (sequence) prepared_.emplace(environment_, int(object_.transport.cubemapSize));
+}
+
+LightVector EnvironmentFrameRenderer::lightVector(const glm::dmat3& rotation) const {
+    return prepared_ ? prepared_->lightVector(rotation, look_.lightTerms)
+                     : makeLightVector(environment_, int(object_.transport.cubemapSize), rotation, look_.lightTerms);
+}
+
+Image EnvironmentFrameRenderer::render(const Camera& camera, const glm::dmat3& rotation,
+                                       EnvironmentFrameTimes* times) {
+    EnvironmentFrameTimes t;
+    Stopwatch clock;
+    const LightVector light = lightVector(rotation);
+    t.light = clock.milliseconds();
+    t.lightTerms = light.keptTerms;
+    t.lightRelativeL2 = light.relativeL2Error;
+
+    clock.restart();
+    relightVertices(object_.transport, light, components_, radiance_);
+    t.relight = clock.milliseconds();
+
+    clock.restart();
+    if (!tracedCamera_ || !(*tracedCamera_ == camera)) {
+        gbuffer_ = traceGBuffer(scene_, object_.mesh, camera);
+        tracedCamera_ = camera;
+    }
+    t.rays = clock.milliseconds();
+
+    clock.restart();
+    Image image = compose(gbuffer_, environment_, rotation, [&](const GBufferPixel& p) {
+        glm::vec3 L = shader_.shade(p, radiance_);
+        if (look_.specular) L += specularReflection(p, object_.eta, prefiltered_, rotation);
+        return L;
+    });
+    t.shade = clock.milliseconds();
+    t.objectPixels = gbuffer_.objectPixels();
+    if (times) *times = t;
+    return image;
+}
+
+}  // namespace prt

@@ -1,0 +1,108 @@
+"""Meshes, materials, images and comparisons from Python against the library's own
+closed forms and the command-line tools."""
+
+import math
+
+import numpy as np
+import pytest
+
+import prt
+from conftest import run_tool
+
+
+def test_mesh_arrays_are_views_of_the_loaded_mesh(scene):
+    mesh = prt.load_mesh(str(scene / "torus.ply"))
+    v, f, n = mesh.vertices, mesh.faces, mesh.normals
+    assert v.shape == (1152, 3) and v.dtype == np.float32
+    assert f.shape == (2304, 3) and f.dtype == np.uint32
+    assert n.shape == v.shape
+    # No copies: two reads share the mesh's memory, and the arrays are read-only views.
+    assert np.shares_memory(mesh.vertices, v)
+    assert not v.flags.writeable
+    with pytest.raises(ValueError):
+        v[0, 0] = 1.0
+    # The view keeps the mesh alive after the Python name is gone.
+    del mesh
+    assert np.isfinite(v).all()
+    # Unit normals; a torus has Euler characteristic 0.
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-5)
+    m = prt.load_mesh(str(scene / "torus.ply"))
+    assert m.report["euler_characteristic"] == 0
+    # The area from the arrays equals the library's.
+    a, b, c = (v[f[:, k]].astype(np.float64) for k in range(3))
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum()
+    assert area == pytest.approx(m.area, rel=1e-9)
+
+
+def test_mesh_scale_and_save_round_trip(scene, tmp_path):
+    mesh = prt.load_mesh(str(scene / "torus.ply"), size_mm=20)
+    lo, hi = (np.array(x) for x in mesh.bounds)
+    assert np.linalg.norm(hi - lo) == pytest.approx(20.0, rel=1e-6)
+    raw = prt.load_mesh(str(scene / "torus.ply"))
+    assert np.allclose(mesh.vertices, raw.vertices * mesh.mm_per_unit, rtol=1e-6)
+    # The transport file records the same scale prt-precompute applied.
+    info = prt.transport_info(str(scene / "torus.prt"))
+    assert info["mm_per_unit"] == pytest.approx(mesh.mm_per_unit, rel=1e-12)
+    mesh.save(str(tmp_path / "copy.ply"))
+    back = prt.load_mesh(str(tmp_path / "copy.ply"))
+    assert np.array_equal(back.vertices, mesh.vertices)
+    assert np.array_equal(back.faces, mesh.faces)
+    assert back.fingerprint == mesh.fingerprint
+
+
+def dipole_total_reflectance(alpha_prime, eta):
+    """Jensen et al. 2001, Eq. 8 of the dipole's plane integral, with Egan-Hilgeman's F_dr."""
+    fdr = -1.440 / eta**2 + 0.710 / eta + 0.668 + 0.0636 * eta
+    a = (1 + fdr) / (1 - fdr)
+    s = np.sqrt(3 * (1 - alpha_prime))
+    return 0.5 * alpha_prime * (1 + np.exp(-4.0 / 3.0 * a * s)) * np.exp(-s)
+
+
+def test_materials_follow_the_dipole_closed_forms():
+    names = prt.material_names()
+    assert "Marble" in names and "Skin1" in names and len(names) == len(set(names))
+    for name in names:
+        m = prt.material(name)
+        sa, ss = np.array(m.sigma_a), np.array(m.sigma_s_prime)
+        st = sa + ss
+        assert np.allclose(m.sigma_t_prime, st)
+        assert np.allclose(m.alpha_prime, ss / st)
+        assert np.allclose(m.sigma_tr, np.sqrt(3 * sa * st))
+        assert np.allclose(m.zr, 1 / st)
+        assert np.allclose(m.total_diffuse_reflectance, dipole_total_reflectance(ss / st, m.eta), rtol=1e-9)
+        # The artist's pair inverts back to the coefficients (Spectralon, sigma_a = 0, has
+        # an infinite mean free path: no pair gives it).
+        colour, mfp = m.appearance
+        if not np.isfinite(mfp).all():
+            assert name == "Spectralon"
+            continue
+        back = prt.material_from_appearance(colour, mfp, eta=m.eta)
+        assert np.allclose(back.sigma_a, sa, rtol=1e-6) and np.allclose(back.sigma_s_prime, ss, rtol=1e-6)
+    # Scaling the coefficients by s is the same look on an object 1/s the size.
+    m = prt.material("Ketchup")
+    assert np.allclose(np.array(m.scaled(2.0).sigma_tr), 2 * np.array(m.sigma_tr))
+    custom = prt.Material(sigma_a=[0.01, 0.02, 0.03], sigma_s_prime=1.5, eta=1.4)
+    assert custom.sigma_s_prime == (1.5, 1.5, 1.5) and custom.eta == 1.4
+    assert prt.material("sigma:0.01,0.02,0.03:1.5,1.5,1.5", eta=1.4).sigma_a == custom.sigma_a
+
+
+def test_images_round_trip_and_compare_matches_prt_compare(scene, tmp_path):
+    rng = np.random.default_rng(7)
+    image = rng.random((24, 32, 4), dtype=np.float32)
+    image[..., 3] = (rng.random((24, 32)) > 0.3).astype(np.float32)
+    prt.write_exr(str(tmp_path / "a.exr"), image)
+    assert np.array_equal(prt.read_image(str(tmp_path / "a.exr")), image)
+    other = image.copy()
+    other[..., :3] *= 1.0 + 0.05 * rng.standard_normal((24, 32, 3)).astype(np.float32)
+    prt.write_exr(str(tmp_path / "b.exr"), other)
+    result = prt.compare(other, image)
+    from_files = prt.compare(str(tmp_path / "b.exr"), str(tmp_path / "a.exr"))
+    assert result["text"] == from_files["text"]
+    cli = run_tool("prt-compare", tmp_path / "b.exr", tmp_path / "a.exr").stdout
+    assert result["text"] in cli
+    # The relative RMSE over the reference's alpha by hand.
+    mask = image[..., 3] > 0.5
+    diff = (other[..., :3] - image[..., :3])[mask].astype(np.float64)
+    expected = math.sqrt((diff**2).sum() / (image[..., :3][mask].astype(np.float64) ** 2).sum())
+    assert result["relative_rmse"] == pytest.approx(expected, rel=1e-6)
+    assert prt.compare(image, image)["relative_rmse"] == 0.0
