@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs every Debian 12 package the project needs. Idempotent; runs as root or through sudo.
-# --plots also installs python3-matplotlib (Debian's) for tools/plot_scaling.py.
+# --plots is kept for old scripts: python3-matplotlib is now always installed (the Python
+# module's example plots with it).
 set -euo pipefail
 
 plots=0
@@ -31,6 +32,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   xvfb xauth libgl1-mesa-dri
   libopenmpi-dev openmpi-bin
+  # The Python module (python/, docs/python.md), its tests and its example.
+  python3 python3-dev pybind11-dev python3-numpy python3-pytest python3-matplotlib
 
 )
 
