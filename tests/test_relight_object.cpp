@@ -16,6 +16,7 @@
 #include "relight/prt/relight_kernel.h"
 #include "relight/prt/translucent_shader.h"
 #include "relight/render/gbuffer.h"
+#include "tests/test_support.h"
 
 using namespace prt;
 
@@ -34,37 +35,6 @@ std::string scratchDir(const std::string& name) {
 // End to end: files on disk -> placed object -> light vector -> relight -> frame
 // ---------------------------------------------------------------------------
 
-namespace {
-
-// A transport file for `mesh` whose multiple-scattering vector at vertex v holds only
-// the six face scaling coefficients, with RGB values (1 + 0.1 x_v / R) * faceWeight[f]
-// * rgb (x_v in file units).
-TransportFile syntheticTransport(const TriangleMesh& mesh, int n, double mmPerUnit, float R) {
-    TransportFile file;
-    file.cubemapSize = uint32_t(n);
-    file.mesh = MeshFingerprint{mesh.vertexCount(), meshFingerprint(mesh)};
-    file.mmPerUnit = mmPerUnit;
-    file.parameters = {{"material", "synthetic"}, {"eta", "1.3"}};
-    TransportComponent ms;
-    ms.kind = ComponentKind::MultipleScattering;
-    const float faceWeight[6] = {1.0f, 2.0f, 3.0f, 4.0f, 5.0f, 6.0f};
-    const glm::vec3 rgb(0.01f, 0.02f, 0.03f);
-    for (const glm::vec3& p : mesh.positions) {
-        std::vector<uint32_t> idx;
-        std::vector<float> values;
-        const float s = 1.0f + 0.1f * p.x / R;
-        for (int f = 0; f < 6; ++f) {
-            idx.push_back(uint32_t(f * n * n));
-            for (int c = 0; c < 3; ++c) values.push_back(s * faceWeight[f] * rgb[c]);
-        }
-        ms.vectors.appendVertex(idx, values);
-    }
-    file.components.push_back(std::move(ms));
-    return file;
-}
-
-}  // namespace
-
 TEST(RenderEndToEnd, ConstantEnvironmentGivesFresnelTimesClosedFormDot) {
     const std::string dir = scratchDir("end_to_end");
     const float R = 2.0f;  // file units
@@ -72,7 +42,7 @@ TEST(RenderEndToEnd, ConstantEnvironmentGivesFresnelTimesClosedFormDot) {
     const int n = 8;
     saveMesh(makeIcosphere(4, R), dir + "/sphere.obj");
     const TriangleMesh fileMesh = loadMesh(dir + "/sphere.obj");
-    saveTransportFile(dir + "/sphere.prt", syntheticTransport(fileMesh, n, mmPerUnit, R));
+    saveTransportFile(dir + "/sphere.prt", test::syntheticFaceTransport(fileMesh, n, mmPerUnit, R));
 
     const RelightObject object = loadRelightObject(dir + "/sphere.obj", dir + "/sphere.prt");
     EXPECT_DOUBLE_EQ(object.eta, 1.3);
@@ -131,7 +101,7 @@ TEST(RenderEndToEnd, MismatchedMeshIsRefused) {
     const std::string dir = scratchDir("mismatch");
     saveMesh(makeIcosphere(2, 1.0f), dir + "/a.obj");
     saveMesh(makeIcosphere(2, 1.5f), dir + "/b.obj");
-    saveTransportFile(dir + "/a.prt", syntheticTransport(loadMesh(dir + "/a.obj"), 4, 1.0, 1.0f));
+    saveTransportFile(dir + "/a.prt", test::syntheticFaceTransport(loadMesh(dir + "/a.obj"), 4, 1.0, 1.0f));
     EXPECT_NO_THROW(loadRelightObject(dir + "/a.obj", dir + "/a.prt"));
     try {
         loadRelightObject(dir + "/b.obj", dir + "/a.prt");

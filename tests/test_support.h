@@ -9,6 +9,8 @@
 #include <string>
 
 #include "common/error.h"
+#include "common/mesh.h"
+#include "common/transport_file.h"
 
 namespace prt::test {
 
@@ -41,5 +43,33 @@ inline void expectErrorSubject(const std::function<void()>& f, const std::string
         EXPECT_EQ(e.subject(), subject) << e.what();
     }
 }
+
+// A transport file for `mesh` whose multiple-scattering vector at vertex v holds only
+// the six face scaling coefficients, with RGB values (1 + 0.1 x_v / R) * faceWeight[f]
+// * rgb (x_v in file units).
+inline TransportFile syntheticFaceTransport(const TriangleMesh& mesh, int n, double mmPerUnit, float R) {
+    TransportFile file;
+    file.cubemapSize = uint32_t(n);
+    file.mesh = MeshFingerprint{mesh.vertexCount(), meshFingerprint(mesh)};
+    file.mmPerUnit = mmPerUnit;
+    file.parameters = {{"material", "synthetic"}, {"eta", "1.3"}};
+    TransportComponent ms;
+    ms.kind = ComponentKind::MultipleScattering;
+    const float faceWeight[6] = {1.0f, 2.0f, 3.0f, 4.0f, 5.0f, 6.0f};
+    const glm::vec3 rgb(0.01f, 0.02f, 0.03f);
+    for (const glm::vec3& p : mesh.positions) {
+        std::vector<uint32_t> idx;
+        std::vector<float> values;
+        const float s = 1.0f + 0.1f * p.x / R;
+        for (int f = 0; f < 6; ++f) {
+            idx.push_back(uint32_t(f * n * n));
+            for (int c = 0; c < 3; ++c) values.push_back(s * faceWeight[f] * rgb[c]);
+        }
+        ms.vectors.appendVertex(idx, values);
+    }
+    file.components.push_back(std::move(ms));
+    return file;
+}
+
 
 }  // namespace prt::test

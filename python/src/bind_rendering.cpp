@@ -8,6 +8,7 @@
 #include "common/material_edit.h"
 #include "common/options.h"
 #include "common/transport_params.h"
+#include "common/util.h"
 #include "python/src/bindings.h"
 #include "relight/prt/editable_transport.h"
 #include "relight/prt/environment_frame.h"
@@ -200,6 +201,26 @@ void bindRendering(py::module_& m) {
         "Per-vertex outgoing radiance (V, 3) float32: each vertex's transport vectors dotted with the light "
         "(the sparse relight kernel; docs/relight.md). components: 'all', 'ms', 'ss' or 'ms,ss'. out: a (V, 3) "
         "float32 array to fill instead of a new one.");
+
+    m.def(
+        "time_relight",
+        [](PyTransport& t, const py::handle& light, const std::string& components, int repeats) {
+            if (repeats < 1) throw py::value_error("repeats: must be >= 1");
+            const LightVector& l = lightOf(light);
+            const ScatteringComponents which = selectComponents(components, componentsOf(*t.file), t.path);
+            std::vector<double> seconds;
+            py::gil_scoped_release release;
+            std::lock_guard lock(t.mutex);
+            for (int i = 0; i < repeats; ++i) {
+                const Stopwatch clock;
+                relightVertices(*t.file, l, which, t.scratch);
+                seconds.push_back(clock.seconds());
+            }
+            return seconds;
+        },
+        py::arg("transport"), py::arg("light"), py::arg("components") = "all", py::arg("repeats") = 20,
+        "The relight kernel's own time, seconds per call, measured in C++ (no Python, no copy): the "
+        "yardstick of relight()'s overhead (tools/bench/python_relight.py)");
 
     py::class_<PyObject>(m, "Object",
                          "A mesh and its transport file placed as prt-relight places them (positions in mm); an "

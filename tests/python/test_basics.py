@@ -106,3 +106,25 @@ def test_images_round_trip_and_compare_matches_prt_compare(scene, tmp_path):
     expected = math.sqrt((diff**2).sum() / (image[..., :3][mask].astype(np.float64) ** 2).sum())
     assert result["relative_rmse"] == pytest.approx(expected, rel=1e-6)
     assert prt.compare(image, image)["relative_rmse"] == 0.0
+
+
+def test_install_script_puts_the_module_in_a_venv(tmp_path):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from conftest import BIN
+
+    source = Path(os.environ.get("PRT_SOURCE", Path(__file__).resolve().parents[2]))
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(venv)], check=True)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["BUILD_DIR"] = str(BIN.parent)
+    result = subprocess.run(["bash", str(source / "tools/install-python.sh"), str(venv / "bin/python")],
+                            capture_output=True, text=True, env=env)
+    assert result.returncode == 0, result.stderr
+    check = subprocess.run([str(venv / "bin/python"), "-c", "import prt; print(prt.__file__, prt.material('Skin1').sigma_a)"],
+                           capture_output=True, text=True, env=env)
+    assert check.returncode == 0, check.stderr
+    assert str(venv) in check.stdout and "(0.032, 0.17, 0.48)" in check.stdout
