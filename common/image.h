@@ -68,6 +68,24 @@ void writeExr(const std::string& path, const Image& image,
 // (channel 0 replicated). The file is PNG whatever the extension. Atomic (see above).
 void writePng(const std::string& path, const Image& image, double exposureStops = 0.0);
 
+// Where a command's images go (runPointLightCommand, runReferenceCommand): files for
+// the command-line tools (FileImageWriter: writeExr / writePng), memory for the Python
+// module. `path` is the file the tool would write.
+class ImageWriter {
+public:
+    virtual ~ImageWriter() = default;
+    virtual void exr(const std::string& path, const Image& image) = 0;
+    virtual void png(const std::string& path, const Image& image, double exposureStops = 0.0) = 0;
+};
+
+class FileImageWriter : public ImageWriter {
+public:
+    void exr(const std::string& path, const Image& image) override { writeExr(path, image); }
+    void png(const std::string& path, const Image& image, double exposureStops = 0.0) override {
+        writePng(path, image, exposureStops);
+    }
+};
+
 // An output prefix as the tools take it (they write <prefix>.exr and <prefix>.png):
 // `path` without a trailing ".exr" or ".png" (any case), so "-o frame.exr" writes
 // frame.exr and frame.png rather than frame.exr.exr.
