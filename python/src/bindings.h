@@ -35,6 +35,7 @@ void bindTransport(py::module_& m);
 void bindEnvironments(py::module_& m);
 void bindRendering(py::module_& m);
 void bindPrecompute(py::module_& m);
+void bindCommands(py::module_& m);
 
 // A transport file in memory (prt.Transport). It may be a part of a RelightObject
 // (prt.Object.transport), which the shared pointer then keeps alive. `scratch` is the

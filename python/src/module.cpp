@@ -15,4 +15,5 @@ PYBIND11_MODULE(_prt, m) {
     bindEnvironments(m);
     bindRendering(m);
     bindPrecompute(m);
+    bindCommands(m);
 }
