@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <map>
 #include <string>
 #include <vector>
 
@@ -16,20 +15,8 @@ using namespace prt;
 
 namespace {
 
-// Keeps the images by path, and counts the writes.
-struct MemoryWriter : ImageWriter {
-    std::map<std::string, Image> images;
-    void exr(const std::string& path, const Image& image) override { images[path] = image; }
-    void png(const std::string& path, const Image& image, double) override { images[path] = image; }
-};
-
-PointLightCommand parse(std::vector<std::string> args) {
-    CLI::App app;
-    PointLightCommand o;
-    addPointLightOptions(app, o);
-    std::vector<std::string> reversed(args.rbegin(), args.rend());
-    app.parse(reversed);
-    return o;
+PointLightCommand parse(const std::vector<std::string>& args) {
+    return test::parseCommand(&addPointLightOptions, args);
 }
 
 std::string sphere() {
@@ -49,7 +36,7 @@ TEST(PointLightCommand, ImagesGoToTheWriterUnderTheToolsPaths) {
     const std::string mesh = sphere();
     const std::string prefix = (std::filesystem::current_path() / "test_pointlight_command_scratch" / "frame").string();
     std::filesystem::remove(prefix + ".exr");
-    MemoryWriter writer;
+    test::MemoryImageWriter writer;
     const PointLightCommand o = parse({mesh, "-o", prefix, "--light", "point:0,40,20:2", "--size-mm", "20", "-W", "48",
                                        "-H", "40", "--compare-jb"});
     EXPECT_EQ(runPointLightCommand(o, writer), 0);
@@ -71,7 +58,7 @@ TEST(PointLightCommand, ImagesGoToTheWriterUnderTheToolsPaths) {
 // Bad options are refused by the run with the tool's one-line messages.
 TEST(PointLightCommand, BadOptionsNameTheOption) {
     const std::string mesh = sphere();
-    MemoryWriter writer;
+    test::MemoryImageWriter writer;
     test::expectErrorSubject([&] { runPointLightCommand(parse({mesh, "-o", "x"}), writer); }, "--light");
     test::expectErrorSubject(
         [&] { runPointLightCommand(parse({mesh, "-o", "x", "--light", "point:0,40,0:1", "--method", "magic"}), writer); },

@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <map>
 #include <string>
 #include <vector>
 
@@ -15,18 +14,11 @@ using namespace prt;
 
 namespace {
 
-struct MemoryWriter : ImageWriter {
-    std::map<std::string, Image> images;
-    void exr(const std::string& path, const Image& image) override { images[path] = image; }
-    void png(const std::string& path, const Image& image, double) override { images[path] = image; }
-};
-
-ReferenceCommand parse(std::vector<std::string> args) {
+ReferenceCommand parse(const std::vector<std::string>& args) {
     CLI::App app;
     ReferenceCommand o;
     addReferenceOptions(app, o);
-    std::vector<std::string> reversed(args.rbegin(), args.rend());
-    app.parse(reversed);
+    app.parse(std::vector<std::string>(args.rbegin(), args.rend()));
     noteGivenReferenceOptions(app, o);
     return o;
 }
@@ -41,7 +33,7 @@ TEST(ReferenceCommand, ImagesGoToTheWriter) {
     const std::string mesh = (dir / "sphere.obj").string();
     saveMesh(makeIcosphere(3, 10.0f), mesh);
     const std::string prefix = (dir / "frame").string(), noise = (dir / "noise.exr").string();
-    MemoryWriter writer;
+    test::MemoryImageWriter writer;
     const ReferenceCommand o = parse({mesh, "-o", prefix, "-m", "Marble", "--size-mm", "20", "--light", "dir:0,1,0:1",
                                       "-W", "24", "-H", "24", "--noise-image", noise});
     EXPECT_TRUE(o.materialGiven);
@@ -63,7 +55,7 @@ TEST(ReferenceCommand, ImagesGoToTheWriter) {
 }
 
 TEST(ReferenceCommand, BadOptionsNameTheOption) {
-    MemoryWriter writer;
+    test::MemoryImageWriter writer;
     test::expectErrorSubject([&] { runReferenceCommand(parse({"m.obj", "-o", "x"}), writer); }, "--environment");
     EXPECT_TRUE(writer.images.empty());
 }

@@ -3,12 +3,17 @@
 
 #include <gtest/gtest.h>
 
+#include <CLI/CLI.hpp>
+
 #include <functional>
+#include <map>
 #include <new>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "common/error.h"
+#include "common/image.h"
 #include "common/mesh.h"
 #include "common/transport_file.h"
 
@@ -71,5 +76,23 @@ inline TransportFile syntheticFaceTransport(const TriangleMesh& mesh, int n, dou
     return file;
 }
 
+
+// The images a command writes (runPointLightCommand, runReferenceCommand), by path,
+// in memory.
+struct MemoryImageWriter : ImageWriter {
+    std::map<std::string, Image> images;
+    void exr(const std::string& path, const Image& image) override { images[path] = image; }
+    void png(const std::string& path, const Image& image, double) override { images[path] = image; }
+};
+
+// A command's options parsed from `args` (no program name) by its declarations.
+template <typename Command>
+Command parseCommand(void (*declare)(CLI::App&, Command&), const std::vector<std::string>& args) {
+    CLI::App app;
+    Command command;
+    declare(app, command);
+    app.parse(std::vector<std::string>(args.rbegin(), args.rend()));
+    return command;
+}
 
 }  // namespace prt::test
