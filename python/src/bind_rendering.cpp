@@ -220,7 +220,7 @@ void bindRendering(py::module_& m) {
         },
         py::arg("transport"), py::arg("light"), py::arg("components") = "all", py::arg("repeats") = 20,
         "The relight kernel's own time, seconds per call, measured in C++ (no Python, no copy): the "
-        "yardstick of relight()'s overhead (tools/bench/python_relight.py)");
+        "yardstick of relight()'s overhead (python/benchmarks/relight_overhead.py)");
 
     py::class_<PyObject>(m, "Object",
                          "A mesh and its transport file placed as prt-relight places them (positions in mm); an "

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The overhead of prt.relight from Python against the C++ kernel (docs/performance.md).
 
-    PYTHONPATH=build/python python3 tools/bench/python_relight.py [TRANSPORT] [ENVIRONMENT]
+    PYTHONPATH=build/python python3 python/benchmarks/relight_overhead.py [TRANSPORT] [ENVIRONMENT]
 
 Default: out/bunny_marble.prt (tools/demo.sh) under data/envmaps/forest.exr. Each run
 times, interleaved (so both see the same machine state), R calls of
