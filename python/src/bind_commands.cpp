@@ -98,19 +98,29 @@ void parseArguments(CLI::App& app, const std::string& program, std::vector<std::
 
 constexpr const char* kPrefix = "frame";
 
+// The command line of a command: the mesh, the output prefix (never written), the
+// lights (--light, repeated; --lights for the file) and the other options.
+std::vector<std::string> commandArguments(const std::string& mesh, const py::object& lights,
+                                          const py::object& lightsFile, const py::kwargs& options) {
+    std::vector<std::string> args{mesh, std::string("--output=") + kPrefix};
+    appendOption(args, "light", py::isinstance<py::str>(lights) ? py::list(py::make_tuple(lights)) : lights);
+    appendOption(args, "lights", lightsFile);
+    for (const auto& [key, value] : options) {
+        const std::string name = py::str(key);
+        if (name == "output" || name == "o") throw py::type_error(name + ": the images are returned, not written");
+        if (name == "light") throw py::type_error("light: give the lights as `lights`");
+        appendOption(args, name, value);
+    }
+    return args;
+}
+
 }  // namespace
 
 void bindCommands(py::module_& m) {
     m.def(
         "render_point_lights",
-        [](const std::string& mesh, const py::object& lights, const py::kwargs& options) {
-            std::vector<std::string> args{mesh, std::string("--output=") + kPrefix};
-            appendOption(args, "light", py::isinstance<py::str>(lights) ? py::list(py::make_tuple(lights)) : lights);
-            for (const auto& [key, value] : options) {
-                const std::string name = py::str(key);
-                if (name == "output" || name == "o") throw py::type_error(name + ": the images are returned, not written");
-                appendOption(args, name, value);
-            }
+        [](const std::string& mesh, const py::object& lights, const py::object& lightsFile, const py::kwargs& options) {
+            const std::vector<std::string> args = commandArguments(mesh, lights, lightsFile, options);
             CLI::App app;
             PointLightCommand command;
             addPointLightOptions(app, command);
@@ -119,22 +129,18 @@ void bindCommands(py::module_& m) {
             withoutGil([&] { return runPointLightCommand(command, writer); });
             return writer.images(kPrefix);
         },
-        py::arg("mesh"), py::arg("lights") = py::list(),
+        py::arg("mesh"), py::arg("lights") = py::list(), py::arg("lights_file") = py::none(),
         "prt-pointlight's frame(s) as arrays: a dict with 'image' (H, W, 4) float32 linear RGBA, equal bit for "
         "bit to its EXR, and whatever else the options ask ('jb', 'brute', 'error' with compare_jb / "
         "compare_brute; 'caches', 'gradient', 'variance' with cache_image; '0000', '0001', ... for an "
-        "animation). lights: 'point:X,Y,Z:R,G,B' or 'dir:X,Y,Z:R,G,B' texts (mm, W/sr or W/m^2). Keyword "
+        "animation). lights: 'point:X,Y,Z:R,G,B' or 'dir:X,Y,Z:R,G,B' texts (mm, W/sr or W/m^2), one or a list "
+        "(--light); lights_file: a JSON light scene (--lights). Keyword "
         "arguments are prt-pointlight's long options (method='tsis', material='Skin1', size_mm=40, width=256, "
         "compare_jb=True, ...). Prints the tool's summary lines on stdout.");
     m.def(
         "render_reference",
-        [](const std::string& mesh, const py::kwargs& options) {
-            std::vector<std::string> args{mesh, std::string("--output=") + kPrefix};
-            for (const auto& [key, value] : options) {
-                const std::string name = py::str(key);
-                if (name == "output" || name == "o") throw py::type_error(name + ": the images are returned, not written");
-                appendOption(args, name, value);
-            }
+        [](const std::string& mesh, const py::object& lights, const py::object& lightsFile, const py::kwargs& options) {
+            const std::vector<std::string> args = commandArguments(mesh, lights, lightsFile, options);
             CLI::App app;
             ReferenceCommand command;
             addReferenceOptions(app, command);
@@ -144,11 +150,12 @@ void bindCommands(py::module_& m) {
             withoutGil([&] { return runReferenceCommand(command, writer); });
             return writer.images(kPrefix);
         },
-        py::arg("mesh"),
+        py::arg("mesh"), py::arg("lights") = py::list(), py::arg("lights_file") = py::none(),
         "prt-reference's frame as arrays: a dict with 'image' (H, W, 4) float32 linear RGBA, equal bit for bit "
         "to its EXR ('ms' and 'ss' with component_images=True; the noise image under the path given as "
         "noise_image). Keyword arguments are prt-reference's long options (transport='bunny.prt', "
-        "environment='forest.exr', width=256, light=['point:...'], pixel_stride=4, ...). Prints the tool's "
+        "environment='forest.exr', width=256, pixel_stride=4, ...); lights and lights_file as render_point_lights. "
+        "Prints the tool's "
         "summary lines on stdout.");
 }
 

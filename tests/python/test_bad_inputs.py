@@ -30,6 +30,9 @@ def work(scene, tmp_path_factory):
     (root / "corrupted.prt").write_bytes(bytes(corrupted))
     shutil.copy(root / "sky.exr", root / "not-a-transport.prt")
     (root / "fake.png").write_text("not a PNG at all")
+    (root / "typo-lights.json").write_text('{"lights": [ {"type": "point", "positon": [0, 50, 0], "intensity": 1} ]}\n')
+    (root / "negative-lights.json").write_text('{"lights": [ {"type": "point", "position": [0, 50, 0], "intensity": -1} ]}\n')
+    (root / "a-file").write_text("")
     subprocess.run(["oiiotool", "--pattern", "constant:color=0,1,1", "64x32", "3", "-d", "float", "--powc", "-1,1,1",
                     "-o", str(root / "inf.exr")], check=True, capture_output=True)
     subprocess.run(["oiiotool", "--pattern", "constant:color=0.5,0.5,0.5", "32x32", "3", "-d", "float", "-o",
@@ -47,6 +50,19 @@ def sky():
 
 P = ["prt-precompute"]
 R = ["prt-relight", "render", "torus.ply", "-o", "out"]
+L = ["prt-pointlight", "torus.ply", "-o", "out"]
+F = ["prt-reference", "torus.ply", "-W", "16", "-H", "16", "-o", "out"]
+ON = "point:0,50,0:1"
+
+
+def lit(lights=ON, **options):
+    return prt.render_point_lights("torus.ply", lights, **options)
+
+
+def ref(**options):
+    return prt.render_reference("torus.ply", width=16, height=16, **options)
+
+
 CASES = [
     # (name, Python call, command line, exception)
     ("missing mesh", lambda: prt.load_mesh("missing.obj"), P + ["missing.obj", "-o", "o.prt"], FileNotFoundError),
@@ -95,6 +111,55 @@ CASES = [
      R + ["-t", "torus.prt", "-e", "sky.exr", "--components", "ss"], ValueError),
     ("material on a plain file", lambda: prt.render(obj(), sky(), material="Skin1"),
      R + ["-t", "torus.prt", "-e", "sky.exr", "--material", "Skin1"], ValueError),
+    ("block coefficients beyond 6 N^2", lambda: prt.precompute("torus.ply", block_coefficients=7000),
+     P + ["torus.ply", "--block-coefficients", "7000", "-o", "o.prt"], ValueError),
+    ("blocks in a shard job", lambda: prt.precompute("torus.ply", block_coefficients=160, shard="0/2"),
+     P + ["torus.ply", "--block-coefficients", "160", "--shard", "0/2", "-o", "o.prt"], ValueError),
+    ("absurd sample count", lambda: prt.precompute("torus.ply", "o.prt", samples=800000000),
+     P + ["torus.ply", "--samples", "800000000", "-o", "o.prt"], ValueError),
+    ("over --max-memory", lambda: prt.precompute("torus.ply", "o.prt", samples=100000, max_memory=0.01),
+     P + ["torus.ply", "--samples", "100000", "--max-memory", "0.01", "-o", "o.prt"], ValueError),
+    ("negative --max-memory", lambda: prt.precompute("torus.ply", max_memory=-1),
+     P + ["torus.ply", "--max-memory", "-1", "-o", "o.prt"], ValueError),
+    ("output under a file", lambda: prt.precompute("torus.ply", "a-file/o.prt"),
+     P + ["torus.ply", "-o", "a-file/o.prt"], FileNotFoundError),
+    ("pointlight: no light", lambda: lit([]), L, ValueError),
+    ("pointlight: bad light syntax", lambda: lit("point:1,2:1"), L + ["--light", "point:1,2:1"], ValueError),
+    ("pointlight: light inside the object", lambda: lit("point:5,0,0:1", size_mm=20),
+     L + ["--size-mm", "20", "--light", "point:5,0,0:1"], ValueError),
+    ("pointlight: misspelt lights key", lambda: lit([], lights_file="typo-lights.json"),
+     L + ["--lights", "typo-lights.json"], ValueError),
+    ("pointlight: negative intensity", lambda: lit([], lights_file="negative-lights.json"),
+     L + ["--lights", "negative-lights.json"], ValueError),
+    ("pointlight: unknown method", lambda: lit(method="magic"), L + ["--light", ON, "--method", "magic"], ValueError),
+    ("pointlight: atlas not a power of two", lambda: lit(method="tsis", atlas_size=1000),
+     L + ["--light", ON, "--method", "tsis", "--atlas-size", "1000"], ValueError),
+    ("pointlight: unknown split", lambda: lit(method="tsis", split="both"),
+     L + ["--light", ON, "--method", "tsis", "--split", "both"], ValueError),
+    ("pointlight: zero samples", lambda: lit(method="tsis", tsis_samples=0),
+     L + ["--light", ON, "--method", "tsis", "--tsis-samples", "0"], ValueError),
+    ("pointlight: cache bound a = 0", lambda: lit(a=0), L + ["--light", ON, "--a", "0"], ValueError),
+    ("pointlight: unknown near-field rule", lambda: lit(near_field="exact"),
+     L + ["--light", ON, "--near-field", "exact"], ValueError),
+    ("reference: missing environment", lambda: ref(transport="torus.prt", environment="nowhere.exr"),
+     F + ["-t", "torus.prt", "-e", "nowhere.exr"], FileNotFoundError),
+    ("reference: the file's seed", lambda: ref(transport="torus.prt", environment="sky.exr", seed=1),
+     F + ["-t", "torus.prt", "-e", "sky.exr", "--seed", "1"], ValueError),
+    ("reference: both an environment and lights", lambda: ref(transport="torus.prt", environment="sky.exr", lights=[ON]),
+     F + ["-t", "torus.prt", "-e", "sky.exr", "--light", ON], ValueError),
+    ("reference: no light at all", lambda: ref(transport="torus.prt"), F + ["-t", "torus.prt"], ValueError),
+    ("reference: environment without a transport file", lambda: ref(environment="sky.exr"),
+     F + ["-e", "sky.exr"], ValueError),
+    ("reference: single scattering under lights", lambda: ref(lights=[ON], components="ms,ss"),
+     F + ["--light", ON, "--components", "ms,ss"], ValueError),
+    ("reference: a size with the transport file", lambda: ref(transport="torus.prt", lights=[ON], size_mm=20),
+     F + ["-t", "torus.prt", "--light", ON, "--size-mm", "20"], ValueError),
+    ("reference: a light inside the object", lambda: ref(size_mm=20, lights=["point:5,0,0:1"]),
+     F + ["--size-mm", "20", "--light", "point:5,0,0:1"], ValueError),
+    ("reference: misspelt light scene key", lambda: ref(lights_file="typo-lights.json"),
+     F + ["--lights", "typo-lights.json"], ValueError),
+    ("reference: zero pixel stride", lambda: ref(lights=[ON], pixel_stride=0),
+     F + ["--light", ON, "--pixel-stride", "0"], ValueError),
     ("compare: missing image", lambda: prt.compare("nowhere.exr", "sky.exr"),
      ["prt-compare", "nowhere.exr", "sky.exr"], FileNotFoundError),
     ("compare: different sizes", lambda: prt.compare("small.exr", "sky.exr"),
@@ -110,6 +175,7 @@ def test_same_message_as_the_command_line(work, monkeypatch, name, call, command
         call()
     assert str(e.value) == expected
     assert not (work / "o.prt").exists() and not (work / "out.exr").exists()
+    assert not list(work.glob("*.tmp*"))
 
 
 def test_arrays_of_the_wrong_kind_name_the_argument(scene):

@@ -66,7 +66,7 @@ def test_reference_equals_prt_reference(scene, tmp_path):
 
 
 def test_reference_under_lights_and_compare(scene):
-    ref = prt.render_reference(str(scene / "torus.ply"), light=[LIGHT], size_mm=20, width=48, height=48)["image"]
+    ref = prt.render_reference(str(scene / "torus.ply"), [LIGHT], size_mm=20, width=48, height=48)["image"]
     jb = prt.render_point_lights(str(scene / "torus.ply"), LIGHT, size_mm=20, width=48, height=48, method="jb")["image"]
     result = prt.compare(jb, ref)
     # Jensen-Buhler over face centroids against the independent reference: a few percent.
