@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <deque>
 #include <vector>
 
 namespace prt {
@@ -37,8 +38,10 @@ std::atomic<bool> cancelFlag{false};
 struct Registry {
     std::mutex mutex;
     std::vector<const Progress*> live;
+    std::deque<ProgressSnapshot> finished;  // the last kKeptFinished, oldest first
     uint64_t made = 0;
 };
+constexpr size_t kKeptFinished = 64;
 Registry& registry() {
     static Registry r;
     return r;
@@ -49,20 +52,38 @@ Registry& registry() {
 void Progress::requestCancel(bool cancel) { cancelFlag.store(cancel); }
 bool Progress::cancelRequested() { return cancelFlag.load(std::memory_order_relaxed); }
 
+ProgressSnapshot Progress::snapshotLocked() const {
+    ProgressSnapshot s;
+    s.active = true;
+    s.label = label_;
+    s.unit = unit_;
+    s.done = done_.load(std::memory_order_relaxed);
+    s.total = total_;
+    s.elapsedSeconds = elapsedSeconds();
+    s.stage = stage_;
+    return s;
+}
+
 ProgressSnapshot Progress::snapshot() {
     Registry& r = registry();
     std::lock_guard lock(r.mutex);
-    ProgressSnapshot s;
-    if (r.live.empty()) return s;
-    const Progress* p = r.live.back();
-    s.active = true;
-    s.label = p->label_;
-    s.unit = p->unit_;
-    s.done = p->done_.load(std::memory_order_relaxed);
-    s.total = p->total_;
-    s.elapsedSeconds = p->elapsedSeconds();
-    s.stage = p->stage_;
-    return s;
+    if (r.live.empty()) return {};
+    return r.live.back()->snapshotLocked();
+}
+
+uint64_t Progress::stagesMade() {
+    Registry& r = registry();
+    std::lock_guard lock(r.mutex);
+    return r.made;
+}
+
+std::vector<ProgressSnapshot> Progress::finishedAfter(uint64_t stage) {
+    Registry& r = registry();
+    std::lock_guard lock(r.mutex);
+    std::vector<ProgressSnapshot> out;
+    for (const ProgressSnapshot& s : r.finished)
+        if (s.stage > stage) out.push_back(s);
+    return out;
 }
 
 std::string formatDuration(double s) {
@@ -96,6 +117,10 @@ Progress::~Progress() {
     Registry& r = registry();
     std::lock_guard lock(r.mutex);
     std::erase(r.live, this);
+    ProgressSnapshot s = snapshotLocked();
+    s.active = false;
+    r.finished.push_back(std::move(s));
+    if (r.finished.size() > kKeptFinished) r.finished.pop_front();
 }
 
 double Progress::elapsedSeconds() const {

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include "common/error.h"
 
@@ -48,8 +49,13 @@ public:
     static void setQuiet(bool quiet);
 
     // For a host that embeds the library (the Python module): polls what the newest
-    // unfinished Progress has done, from any thread.
+    // unfinished Progress has done, from any thread; and the last 64 finished ones whose
+    // stage number is above `stage`, oldest first (a stage shorter than the host's
+    // polling period is seen there).
     static ProgressSnapshot snapshot();
+    static std::vector<ProgressSnapshot> finishedAfter(uint64_t stage);
+    // How many Progress objects were made so far (the newest one's stage number).
+    static uint64_t stagesMade();
     // While set, every advance() throws Cancelled (in a worker thread of a parallel
     // loop the loop stops and rethrows it in the caller). Clear it before the next run.
     static void requestCancel(bool cancel);
@@ -68,6 +74,7 @@ private:
     bool interactive_;
     bool finished_ = false;
     uint64_t stage_ = 0;
+    ProgressSnapshot snapshotLocked() const;
 };
 
 // "1.2 s", "3 min 4 s", "1 h 2 min"

@@ -62,6 +62,65 @@ TEST(Progress, QuietPrintsNothing) {
     EXPECT_NE(testing::internal::GetCapturedStderr().find("pass 2: 0 items in"), std::string::npos);
 }
 
+// What an embedding host polls: the newest unfinished stage, and the finished ones by
+// stage number, even those that began and ended between two polls.
+TEST(Progress, SnapshotsForAHostThatPolls) {
+    Progress::setQuiet(true);
+    const uint64_t before = Progress::stagesMade();
+    {
+        Progress short1("short stage", 5, "items");
+        short1.advance(5);
+    }
+    {
+        Progress outer("outer", 100, "vertices");
+        outer.advance(40);
+        {
+            Progress inner("inner", 3, "samples");
+            inner.advance(1);
+            const ProgressSnapshot s = Progress::snapshot();
+            EXPECT_TRUE(s.active);
+            EXPECT_EQ(s.label, "inner");  // the newest unfinished one
+            EXPECT_EQ(s.done, 1u);
+            EXPECT_EQ(s.stage, before + 3);
+        }
+        const ProgressSnapshot s = Progress::snapshot();
+        EXPECT_EQ(s.label, "outer");
+        EXPECT_EQ(s.done, 40u);
+        EXPECT_EQ(s.total, 100u);
+        EXPECT_EQ(s.unit, "vertices");
+    }
+    Progress::setQuiet(false);
+    EXPECT_FALSE(Progress::snapshot().active);
+    EXPECT_EQ(Progress::stagesMade(), before + 3);
+    const std::vector<ProgressSnapshot> done = Progress::finishedAfter(before);
+    ASSERT_EQ(done.size(), 3u);
+    EXPECT_EQ(done[0].label, "short stage");
+    EXPECT_EQ(done[0].done, 5u);
+    EXPECT_EQ(done[1].label, "inner");
+    EXPECT_EQ(done[2].label, "outer");
+    EXPECT_EQ(Progress::finishedAfter(before + 2).size(), 1u);
+}
+
+// A cancel request makes advance() throw Cancelled (in every thread) until cleared.
+TEST(Progress, CancelThrowsFromAdvance) {
+    Progress::setQuiet(true);
+    Progress p("cancelled stage", 10);
+    p.advance();
+    Progress::requestCancel(true);
+    EXPECT_TRUE(Progress::cancelRequested());
+    EXPECT_THROW(p.advance(), Cancelled);
+    std::thread other([&] { EXPECT_THROW(p.advance(), Cancelled); });
+    other.join();
+    Progress::requestCancel(false);
+    EXPECT_NO_THROW(p.advance());
+    Progress::setQuiet(false);
+    try {
+        throw Cancelled();
+    } catch (const Error& e) {
+        EXPECT_STREQ(e.what(), "cancelled");
+    }
+}
+
 TEST(Progress, FormatDuration) {
     EXPECT_EQ(formatDuration(1.25), "1.2 s");
     EXPECT_EQ(formatDuration(125), "2 min 05 s");

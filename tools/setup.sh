@@ -33,7 +33,7 @@ packages=(
   xvfb xauth libgl1-mesa-dri
   libopenmpi-dev openmpi-bin
   # The Python module (python/, docs/python.md), its tests and its example.
-  python3 python3-dev pybind11-dev python3-numpy python3-pytest python3-matplotlib
+  python3 python3-dev pybind11-dev python3-numpy python3-pytest python3-matplotlib python3-tqdm
 
 )
 

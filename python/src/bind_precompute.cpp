@@ -53,29 +53,29 @@ py::object jsonToPython(const nlohmann::json& j) {
     return py::module_::import("json").attr("loads")(j.dump());
 }
 
-// Reports the newest stage's progress to `callback(stage, done, total, unit)`; a
-// finished stage is reported once more at done = total when the next one starts.
+// Reports every stage to `callback(stage, done, total, unit)`: the newest unfinished
+// one as it goes, and each finished one once more with its final count (also the
+// stages that began and ended between two polls).
 class ProgressRelay {
 public:
     explicit ProgressRelay(py::object callback) : callback_(std::move(callback)) {}
 
     void poll() {
         if (callback_.is_none()) return;
+        for (const ProgressSnapshot& f : Progress::finishedAfter(lastFinished_)) {
+            if (f.stage <= firstStage_) continue;  // a stage of an earlier call
+            callback_(f.label, f.done, f.total, f.unit);
+            lastFinished_ = f.stage;
+        }
         const ProgressSnapshot s = Progress::snapshot();
-        if (!s.active) return;
-        if (s.stage != last_.stage) finishLast();
-        last_ = s;
-        callback_(s.label, s.done, s.total, s.unit);
-    }
-    void finishLast() {
-        if (callback_.is_none() || last_.stage == 0 || last_.done == last_.total) return;
-        callback_(last_.label, last_.total, last_.total, last_.unit);
-        last_.done = last_.total;
+        if (s.active && s.stage > lastFinished_ && s.stage > firstStage_) callback_(s.label, s.done, s.total, s.unit);
     }
 
 private:
     py::object callback_;
-    ProgressSnapshot last_;
+    // Stages up to this number were made before the call.
+    uint64_t firstStage_ = Progress::stagesMade();
+    uint64_t lastFinished_ = firstStage_;
 };
 
 // Restores the process-wide progress switches however the call ends.
@@ -143,7 +143,6 @@ void bindPrecompute(py::module_& m) {
                     if (PyErr_CheckSignals() != 0) throw py::error_already_set();
                 }
                 relay.poll();
-                relay.finishLast();
             } catch (...) {
                 // A KeyboardInterrupt or the callable's own exception: stop the job, then
                 // raise it (the worker's Cancelled is not reported).

@@ -132,3 +132,15 @@ def test_ctrl_c_stops_a_precompute_in_a_script(scene, tmp_path):
     assert time.monotonic() - start < 10  # a cancel, not the whole job (about a minute)
     assert not output.exists()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_tqdm_draws_one_bar_per_stage(scene):
+    import io
+
+    out = io.StringIO()
+    t = prt.precompute(str(scene / "torus.ply"), progress=prt.tqdm_progress(file=out, mininterval=0), **SMALL)
+    assert t.vertex_count == 1152
+    text = out.getvalue()
+    # tqdm's own lines: each stage's bar reached 100% of its total.
+    assert "pass 1 (irradiance transport): 100%" in text and "2000/2000" in text, text
+    assert "pass 2 (multiple scattering): 100%" in text and "1152/1152" in text, text
