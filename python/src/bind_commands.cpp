@@ -119,27 +119,30 @@ std::vector<std::string> commandArguments(const std::string& mesh, const py::obj
 void bindCommands(py::module_& m) {
     m.def(
         "render_point_lights",
-        [](const std::string& mesh, const py::object& lights, const py::object& lightsFile, const py::kwargs& options) {
+        [](const std::string& mesh, const py::object& lights, const py::object& lightsFile, const py::object& progress,
+           const py::kwargs& options) {
             const std::vector<std::string> args = commandArguments(mesh, lights, lightsFile, options);
             CLI::App app;
             PointLightCommand command;
             addPointLightOptions(app, command);
             parseArguments(app, "prt-pointlight", args);
             MemoryImageWriter writer;
-            withoutGil([&] { return runPointLightCommand(command, writer); });
+            runCancellable([&] { runPointLightCommand(command, writer); }, progress, false, command.threads);
             return writer.images(kPrefix);
         },
         py::arg("mesh"), py::arg("lights") = py::list(), py::arg("lights_file") = py::none(),
+        py::arg("progress") = py::none(),
         "prt-pointlight's frame(s) as arrays: a dict with 'image' (H, W, 4) float32 linear RGBA, equal bit for "
         "bit to its EXR, and whatever else the options ask ('jb', 'brute', 'error' with compare_jb / "
         "compare_brute; 'caches', 'gradient', 'variance' with cache_image; '0000', '0001', ... for an "
         "animation). lights: 'point:X,Y,Z:R,G,B' or 'dir:X,Y,Z:R,G,B' texts (mm, W/sr or W/m^2), one or a list "
         "(--light); lights_file: a JSON light scene (--lights). Keyword "
         "arguments are prt-pointlight's long options (method='tsis', material='Skin1', size_mm=40, width=256, "
-        "compare_jb=True, ...). Prints the tool's summary lines on stdout.");
+        "compare_jb=True, ...). progress and Ctrl-C as precompute. Prints the tool's summary lines on stdout.");
     m.def(
         "render_reference",
-        [](const std::string& mesh, const py::object& lights, const py::object& lightsFile, const py::kwargs& options) {
+        [](const std::string& mesh, const py::object& lights, const py::object& lightsFile, const py::object& progress,
+           const py::kwargs& options) {
             const std::vector<std::string> args = commandArguments(mesh, lights, lightsFile, options);
             CLI::App app;
             ReferenceCommand command;
@@ -147,10 +150,11 @@ void bindCommands(py::module_& m) {
             parseArguments(app, "prt-reference", args);
             noteGivenReferenceOptions(app, command);
             MemoryImageWriter writer;
-            withoutGil([&] { return runReferenceCommand(command, writer); });
+            runCancellable([&] { runReferenceCommand(command, writer); }, progress, false, command.threads);
             return writer.images(kPrefix);
         },
         py::arg("mesh"), py::arg("lights") = py::list(), py::arg("lights_file") = py::none(),
+        py::arg("progress") = py::none(),
         "prt-reference's frame as arrays: a dict with 'image' (H, W, 4) float32 linear RGBA, equal bit for bit "
         "to its EXR ('ms' and 'ss' with component_images=True; the noise image under the path given as "
         "noise_image). Keyword arguments are prt-reference's long options (transport='bunny.prt', "

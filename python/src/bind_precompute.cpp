@@ -1,6 +1,7 @@
 // The precomputation from Python: prt-precompute's options as keyword arguments (the
 // job-file route, so the names, defaults, checks and messages are the command line's),
-// progress to a Python callable, Ctrl-C cancelling cleanly.
+// progress to a Python callable, Ctrl-C cancelling cleanly; and runCancellable, which
+// does the last two for every long call.
 //
 // The job runs on a worker thread while the calling thread, without the GIL, waits for
 // it in short steps; between steps it takes the GIL, reports progress and lets Python
@@ -100,6 +101,46 @@ std::string temporaryOutput() {
 
 }  // namespace
 
+void runCancellable(const std::function<void()>& job, const py::object& progress, bool quiet, int threads) {
+    if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
+        throw py::type_error("progress: expected a callable (stage, done, total, unit)");
+    ProgressSwitches switches(quiet);
+    const ThreadLimit limit(threads);
+    ProgressRelay relay(progress);
+    std::promise<void> promise;
+    std::future<void> done = promise.get_future();
+    std::thread worker([&] {
+        try {
+            job();
+            promise.set_value();
+        } catch (...) {
+            promise.set_exception(std::current_exception());
+        }
+    });
+    auto wait = [&](std::chrono::milliseconds step) {
+        py::gil_scoped_release release;
+        return done.wait_for(step) == std::future_status::ready;
+    };
+    try {
+        while (!wait(std::chrono::milliseconds(100))) {
+            relay.poll();
+            if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+        }
+        relay.poll();
+    } catch (...) {
+        // A KeyboardInterrupt or the callable's own exception: stop the job, then raise
+        // it (the worker's Cancelled is not reported).
+        Progress::requestCancel(true);
+        {
+            py::gil_scoped_release release;
+            worker.join();
+        }
+        throw;
+    }
+    worker.join();
+    done.get();  // the job's own error, if any
+}
+
 void bindPrecompute(py::module_& m) {
     m.def(
         "precompute",
@@ -121,40 +162,8 @@ void bindPrecompute(py::module_& m) {
             const PrecomputeSettings settings = parseJob(nlohmann::json::object(), job, "precompute");
             if (settings.pass1Only) throw Error("--pass1-only", "not available from Python (use the command line)");
 
-            ProgressSwitches switches(quiet);
-            const ThreadLimit limit(threads);
-            ProgressRelay relay(progress);
-            std::promise<PrecomputeSummary> promise;
-            std::future<PrecomputeSummary> done = promise.get_future();
-            std::thread worker([&] {
-                try {
-                    promise.set_value(precomputeTransport(settings, force, nullptr));
-                } catch (...) {
-                    promise.set_exception(std::current_exception());
-                }
-            });
-            auto wait = [&](std::chrono::milliseconds step) {
-                py::gil_scoped_release release;
-                return done.wait_for(step) == std::future_status::ready;
-            };
-            try {
-                while (!wait(std::chrono::milliseconds(100))) {
-                    relay.poll();
-                    if (PyErr_CheckSignals() != 0) throw py::error_already_set();
-                }
-                relay.poll();
-            } catch (...) {
-                // A KeyboardInterrupt or the callable's own exception: stop the job, then
-                // raise it (the worker's Cancelled is not reported).
-                Progress::requestCancel(true);
-                {
-                    py::gil_scoped_release release;
-                    worker.join();
-                }
-                throw;
-            }
-            worker.join();
-            const PrecomputeSummary summary = done.get();
+            PrecomputeSummary summary;
+            runCancellable([&] { summary = precomputeTransport(settings, force, nullptr); }, progress, quiet, threads);
 
             auto t = std::make_shared<PyTransport>();
             t->path = keep ? path : "";

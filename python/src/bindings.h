@@ -12,6 +12,7 @@
 
 #include <glm/glm.hpp>
 
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -88,6 +89,14 @@ Image imageFromArray(const py::handle& value, const std::string& name, int minCh
 // Three finite numbers (a tuple, a list or an array), or one number for all three.
 glm::dvec3 vec3From(const py::handle& value, const std::string& name);
 py::tuple tupleOf(const glm::dvec3& v);
+
+// Runs a long job (precompute, a command) on a worker thread while this thread waits
+// without the GIL, reports progress to `progress(stage, done, total, unit)` (None: no
+// reports) and lets Python see Ctrl-C; a KeyboardInterrupt, or an exception from the
+// callable, cancels the job (Progress::requestCancel) and is raised once it has stopped.
+// The job's own error is rethrown. `quiet`: no progress lines on stderr meanwhile;
+// `threads`: at most that many workers (0 = all cores).
+void runCancellable(const std::function<void()>& job, const py::object& progress, bool quiet, int threads);
 
 // Runs f with the GIL released (long calls: other Python threads run meanwhile).
 template <typename F>

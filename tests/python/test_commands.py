@@ -99,3 +99,22 @@ def test_bad_options_raise_the_tools_messages(scene, tmp_path, monkeypatch):
     with pytest.raises(TypeError, match="width"):
         prt.render_point_lights("torus.ply", LIGHT, width={"a": 1})
     assert not (scene / "x.exr").exists()
+
+
+def test_reference_reports_progress_and_cancels(scene):
+    stages = set()
+
+    def record(stage, done, total, unit):
+        stages.add(stage)
+
+    prt.render_reference(str(scene / "torus.ply"), [LIGHT], size_mm=20, width=24, height=24, progress=record)
+    assert stages, "no stage reported"
+
+    def interrupt(stage, done, total, unit):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        prt.render_reference(str(scene / "torus.ply"), [LIGHT], size_mm=20, width=64, height=64, progress=interrupt)
+    # The cancel is over: the next call runs.
+    again = prt.render_reference(str(scene / "torus.ply"), [LIGHT], size_mm=20, width=16, height=16)
+    assert again["image"].shape == (16, 16, 4)
