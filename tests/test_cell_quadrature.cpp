@@ -246,8 +246,9 @@ TEST(CellQuadrature, GradedSubPointsMatchTheFineOnes) {
             for (size_t i = 0; i < s.positions.size(); ++i) {
                 double w[3];
                 q.nearWeightOverPi(i, xo, w);
-                if (!q.cellIsNear(i, xo))
+                if (!q.cellIsNear(i, xo)) {
                     for (int c = 0; c < 3; ++c) EXPECT_EQ(w[c], 0.0);
+                }
                 out.insert(out.end(), w, w + 3);
             }
         }
