@@ -25,10 +25,7 @@ std::atomic<bool>& quietFlag() {
 }
 }  // namespace
 
-void Progress::setQuiet(bool quiet) {
-    quietFlag() = quiet;
-    if (quiet) setEnabled(false);
-}
+void Progress::setQuiet(bool quiet) { quietFlag() = quiet; }
 
 namespace {
 
@@ -51,6 +48,10 @@ Registry& registry() {
 
 void Progress::requestCancel(bool cancel) { cancelFlag.store(cancel); }
 bool Progress::cancelRequested() { return cancelFlag.load(std::memory_order_relaxed); }
+
+void Progress::throwIfCancelled() {
+    if (cancelRequested()) throw Cancelled();
+}
 
 ProgressSnapshot Progress::snapshotLocked() const {
     ProgressSnapshot s;
@@ -105,7 +106,7 @@ Progress::Progress(std::string label, uint64_t total, std::string unit)
       total_(total),
       start_(std::chrono::steady_clock::now()) {
     int override = enabledOverride();
-    interactive_ = override >= 0 ? override == 1 : isatty(STDERR_FILENO) == 1;
+    interactive_ = !quietFlag() && (override >= 0 ? override == 1 : isatty(STDERR_FILENO) == 1);
     Registry& r = registry();
     std::lock_guard lock(r.mutex);
     stage_ = ++r.made;

@@ -60,6 +60,9 @@ public:
     // loop the loop stops and rethrows it in the caller). Clear it before the next run.
     static void requestCancel(bool cancel);
     static bool cancelRequested();
+    // Throws Cancelled when a cancel was requested: for the last step before an output
+    // is written, which no advance() may come before.
+    static void throwIfCancelled();
 
 private:
     void redraw(uint64_t done);

@@ -449,6 +449,8 @@ WriteOutput writeTransport(const JobContext& job, const PreparedJob& prepared,
         derived.insert(derived.end(), shard.begin(), shard.end());
         file.parameters.insert(file.parameters.end() - 1, derived.begin(), derived.end());
         const Stopwatch writeStart;
+        // A cancel that came after the last progress step still writes nothing.
+        Progress::throwIfCancelled();
         saveTransportFile(s.outputPath, file);
         out.summary.seconds = writeStart.seconds();
         out.summary.fileBytes = std::filesystem::file_size(s.outputPath);

@@ -16,9 +16,6 @@ TypeError (a wrong argument type), with the command line's one-line message.
 from ._prt import *  # noqa: F401,F403
 from ._prt import __doc__ as _native_doc  # noqa: F401
 
-__all__ = [name for name in dir() if not name.startswith("_")]
-
-
 def tqdm_progress(**tqdm_arguments):
     """A progress callable for prt.precompute that draws one tqdm bar per stage.
 
@@ -41,3 +38,6 @@ def tqdm_progress(**tqdm_arguments):
             bar.close()
 
     return update
+
+
+__all__ = [name for name in dir() if not name.startswith("_")]

@@ -56,7 +56,12 @@ void appendOption(std::vector<std::string>& args, const std::string& name, const
     auto number = [&](const py::handle& v) {
         if (py::isinstance<py::bool_>(v)) throw py::type_error(name + ": expected numbers");
         if (py::isinstance<py::int_>(v)) return std::to_string(v.cast<long long>());
-        const double x = v.cast<double>();
+        double x = 0.0;
+        try {
+            x = v.cast<double>();
+        } catch (const py::cast_error&) {
+            throw py::type_error(name + ": expected numbers");
+        }
         char buf[32];
         std::snprintf(buf, sizeof buf, "%.17g", x);
         return std::string(buf);
@@ -119,26 +124,26 @@ std::vector<std::string> commandArguments(const std::string& mesh, const py::obj
 void bindCommands(py::module_& m) {
     m.def(
         "render_point_lights",
-        [](const std::string& mesh, const py::object& lights, const py::object& lightsFile, const py::object& progress,
-           const py::kwargs& options) {
+        [](const std::string& mesh, const py::object& lights, const py::object& lightsFile, const py::kwargs& options) {
             const std::vector<std::string> args = commandArguments(mesh, lights, lightsFile, options);
             CLI::App app;
             PointLightCommand command;
             addPointLightOptions(app, command);
             parseArguments(app, "prt-pointlight", args);
             MemoryImageWriter writer;
-            runCancellable([&] { runPointLightCommand(command, writer); }, progress, false, command.threads);
+            // The point-light renderers have no progress steps: Ctrl-C takes effect when the run ends.
+            runCancellable([&] { runPointLightCommand(command, writer); }, py::none(), false, command.threads);
             return writer.images(kPrefix);
         },
         py::arg("mesh"), py::arg("lights") = py::list(), py::arg("lights_file") = py::none(),
-        py::arg("progress") = py::none(),
         "prt-pointlight's frame(s) as arrays: a dict with 'image' (H, W, 4) float32 linear RGBA, equal bit for "
         "bit to its EXR, and whatever else the options ask ('jb', 'brute', 'error' with compare_jb / "
         "compare_brute; 'caches', 'gradient', 'variance' with cache_image; '0000', '0001', ... for an "
         "animation). lights: 'point:X,Y,Z:R,G,B' or 'dir:X,Y,Z:R,G,B' texts (mm, W/sr or W/m^2), one or a list "
         "(--light); lights_file: a JSON light scene (--lights). Keyword "
         "arguments are prt-pointlight's long options (method='tsis', material='Skin1', size_mm=40, width=256, "
-        "compare_jb=True, ...). progress and Ctrl-C as precompute. Prints the tool's summary lines on stdout.");
+        "compare_jb=True, ...). Ctrl-C raises KeyboardInterrupt when the run ends (the renderers have no progress "
+        "steps to stop at). Prints the tool's summary lines on stdout.");
     m.def(
         "render_reference",
         [](const std::string& mesh, const py::object& lights, const py::object& lightsFile, const py::object& progress,

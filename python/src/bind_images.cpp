@@ -1,6 +1,7 @@
 // Errors, images (read, write, compare) and the array helpers of bindings.h.
 
 #include <cmath>
+#include <filesystem>
 #include <new>
 
 #include "common/error.h"
@@ -13,10 +14,17 @@ namespace prt::python {
 
 namespace {
 
+// A missing file or folder: the readers' and writers' own words for it, or a file that
+// could not be opened and does not exist.
 bool missingFile(const Error& e) {
     const std::string& r = e.reason();
-    return r == "no such file" || r == "file does not exist" || r == "no such file or folder" ||
-           r.rfind("directory '", 0) == 0;
+    auto endsWith = [&](const std::string& tail) {
+        return r.size() >= tail.size() && r.compare(r.size() - tail.size(), tail.size(), tail) == 0;
+    };
+    if (r == "no such file" || r == "file does not exist" || r == "no such file or folder") return true;
+    if (r.rfind("directory '", 0) == 0 && endsWith("' does not exist")) return true;
+    std::error_code ec;
+    return r.rfind("cannot open", 0) == 0 && !e.subject().empty() && !std::filesystem::exists(e.subject(), ec);
 }
 
 std::string shapeText(const py::array& a) {
@@ -93,6 +101,12 @@ glm::dvec3 vec3From(const py::handle& value, const std::string& name) {
 }
 
 py::tuple tupleOf(const glm::dvec3& v) { return py::make_tuple(v.x, v.y, v.z); }
+
+std::string stringArgument(const py::handle& value, const std::string& name) {
+    if (!py::isinstance<py::str>(value) && !py::isinstance(value, py::module_::import("os").attr("PathLike")))
+        throw py::type_error(name + ": expected a string, got " + std::string(py::str(value.get_type().attr("__name__"))));
+    return py::str(value).cast<std::string>();
+}
 
 void bindErrors(py::module_& m) {
     py::register_exception_translator([](std::exception_ptr p) {

@@ -57,10 +57,13 @@ void bindMaterials(py::module_& m) {
                                "(diffuse colour, mean free path in mm): the artist's pair that gives this material")
         .def("scaled", &scaledMaterial, py::arg("s"),
              "sigma_a and sigma_s' times s: the same look on an object 1/s times the size")
-        .def("__eq__", [](const Material& a, const Material& b) {
-            return a.name == b.name && a.sigmaA == b.sigmaA && a.sigmaSPrime == b.sigmaSPrime && a.eta == b.eta &&
-                   a.g == b.g;
-        })
+        .def(
+            "__eq__",
+            [](const Material& a, const Material& b) {
+                return a.name == b.name && a.sigmaA == b.sigmaA && a.sigmaSPrime == b.sigmaSPrime && a.eta == b.eta &&
+                       a.g == b.g;
+            },
+            py::is_operator())
         .def("__str__", &describeMaterial)
         .def("__repr__", [](const Material& x) { return "<prt.Material " + describeMaterial(x) + ">"; });
 

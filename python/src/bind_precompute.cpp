@@ -15,6 +15,7 @@
 #include <exception>
 #include <filesystem>
 #include <future>
+#include <mutex>
 #include <optional>
 #include <thread>
 
@@ -42,7 +43,11 @@ nlohmann::json jsonValue(const py::handle& value, const std::string& key) {
             if (!py::isinstance<py::int_>(item) && !py::isinstance<py::float_>(item) &&
                 !py::isinstance<py::array>(item))
                 throw py::type_error(key + ": expected numbers in the list");
-            array.push_back(item.cast<double>());
+            try {
+                array.push_back(item.cast<double>());
+            } catch (const py::cast_error&) {
+                throw py::type_error(key + ": expected numbers in the list");
+            }
         }
         return array;
     }
@@ -104,6 +109,15 @@ std::string temporaryOutput() {
 void runCancellable(const std::function<void()>& job, const py::object& progress, bool quiet, int threads) {
     if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
         throw py::type_error("progress: expected a callable (stage, done, total, unit)");
+    // The cancel flag, the quiet switch, the thread limit and the stage numbers are the
+    // process's: one long call at a time (another Python thread's call waits here,
+    // without the GIL).
+    static std::mutex oneAtATime;
+    std::unique_lock<std::mutex> turn(oneAtATime, std::defer_lock);
+    {
+        py::gil_scoped_release release;
+        turn.lock();
+    }
     ProgressSwitches switches(quiet);
     const ThreadLimit limit(threads);
     ProgressRelay relay(progress);
@@ -155,7 +169,7 @@ void bindPrecompute(py::module_& m) {
                 job[name] = jsonValue(value, name);
             }
             const bool keep = !output.is_none();
-            const std::string path = keep ? output.cast<std::string>() : temporaryOutput();
+            const std::string path = keep ? stringArgument(output, "output") : temporaryOutput();
             job["output"] = path;
             if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
                 throw py::type_error("progress: expected a callable (stage, done, total, unit)");
@@ -167,7 +181,13 @@ void bindPrecompute(py::module_& m) {
 
             auto t = std::make_shared<PyTransport>();
             t->path = keep ? path : "";
-            t->file = std::make_shared<TransportFile>(withoutGil([&] { return loadTransportFile(path); }));
+            try {
+                t->file = std::make_shared<TransportFile>(withoutGil([&] { return loadTransportFile(path); }));
+            } catch (...) {
+                std::error_code ec;
+                if (!keep) std::filesystem::remove(path, ec);
+                throw;
+            }
             if (!keep) std::filesystem::remove(path);
             py::object result = py::cast(t);
             result.attr("summary") = jsonToPython(summaryJson(summary));

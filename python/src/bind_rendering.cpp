@@ -19,6 +19,10 @@ namespace prt::python {
 
 namespace {
 
+void requireEditable(const PyObject& o) {
+    if (!o.object->editable) throw Error(o.transportPath, "is not editable (prt-precompute --editable)");
+}
+
 // A lat-long environment (prt.Environment): RGB, finite, twice as wide as high.
 struct PyEnvironment {
     Image image;
@@ -254,45 +258,49 @@ void bindRendering(py::module_& m) {
         .def_property_readonly(
             "material",
             [](const PyObject& o) -> std::optional<Material> {
-                if (o.object->editable) return o.object->editable->material();
-                return readTransportParameters(o.object->transport.parameters, o.transportPath).material;
+                return locked(o, [&]() -> std::optional<Material> {
+                    if (o.object->editable) return o.object->editable->material();
+                    return readTransportParameters(o.object->transport.parameters, o.transportPath).material;
+                });
             },
             "The material the object relights with (an editable file's current one)")
         .def_property_readonly(
             "weights",
             [](const PyObject& o) {
-                if (!o.object->editable) throw Error(o.transportPath, "is not editable (prt-precompute --editable)");
-                const auto& w = o.object->editable->weights();
-                std::vector<double> flat;
-                for (const auto& channel : w) flat.insert(flat.end(), channel.begin(), channel.end());
-                return adopt(std::move(flat), {3, py::ssize_t(w[0].size())});
+                requireEditable(o);
+                std::vector<double> flat = locked(o, [&] {
+                    std::vector<double> w;
+                    for (const auto& channel : o.object->editable->weights()) w.insert(w.end(), channel.begin(), channel.end());
+                    return w;
+                });
+                const py::ssize_t J = py::ssize_t(flat.size() / 3);
+                return adopt(std::move(flat), {3, J});
             },
             "(3, J) float64: the current material's weights on the file's J radial profiles")
         .def(
             "set_material",
             [](PyObject& o, const py::object& material, std::optional<double> sizeMm) {
-                std::string line;
-                if (py::isinstance<Material>(material)) {
-                    const double size = sizeMm.value_or(o.object->editable ? o.object->editable->sizeMm() : 0.0);
-                    if (!o.object->editable)
-                        throw Error(o.transportPath, "is not editable (prt-precompute --editable)");
-                    py::gil_scoped_release release;
-                    std::lock_guard lock(o.transport->mutex);
-                    setObjectMaterial(*o.object, material.cast<Material>(), size, o.transportPath);
-                } else {
-                    const std::string text = material.is_none() ? "" : material.cast<std::string>();
-                    if (sizeMm && !(*sizeMm > 0.0 && std::isfinite(*sizeMm)))
-                        throw Error("--size-mm", "must be a size in mm > 0");
-                    py::gil_scoped_release release;
-                    std::lock_guard lock(o.transport->mutex);
-                    line = applyMaterialEdit(*o.object, text, sizeMm.value_or(0.0), o.transportPath);
-                }
-                return line;
+                requireEditable(o);
+                if (sizeMm && !(*sizeMm > 0.0 && std::isfinite(*sizeMm))) throw Error("--size-mm", "must be a size in mm > 0");
+                // Taken with the GIL: a Material, --material's text, or None (keep the material).
+                std::optional<Material> given;
+                std::string text;
+                if (py::isinstance<Material>(material)) given = material.cast<Material>();
+                else if (!material.is_none()) text = stringArgument(material, "material");
+                return locked(o, [&] {
+                    EditableTransport& e = *o.object->editable;
+                    const double size = sizeMm.value_or(e.sizeMm());
+                    if (!text.empty()) return applyMaterialEdit(*o.object, text, size, o.transportPath);
+                    const bool etaChanged =
+                        setObjectMaterial(*o.object, given ? *given : e.material(), size, o.transportPath);
+                    return describeMaterialEdit(*o.object, etaChanged);
+                });
             },
             py::arg("material") = py::none(), py::kw_only(), py::arg("size_mm") = py::none(),
-            "Makes the material (a prt.Material or --material's text) at size_mm (default: the current size) "
-            "the object's, without a new precompute (editable files only; outside the file's range it raises). "
-            "Returns the line render prints (single scattering keeps the file's material).")
+            "Makes the material (a prt.Material, --material's text, or None for the current one) at size_mm "
+            "(default: the current size) the object's, without a new precompute (editable files only; outside the "
+            "file's range it raises and the object keeps its material). Returns the line render prints (single "
+            "scattering keeps the file's material).")
         .def(
             "relight",
             [](PyObject& o, const py::handle& light, const std::string& components, const py::object& out) {
@@ -303,10 +311,12 @@ void bindRendering(py::module_& m) {
         .def(
             "project_light",
             [](PyObject& o, const py::handle& light) {
-                if (!o.object->editable) throw Error(o.transportPath, "is not editable (prt-precompute --editable)");
+                requireEditable(o);
                 const LightVector& l = lightOf(light);
-                py::gil_scoped_release release;
-                o.object->editable->projectLight(l);
+                locked(o, [&] {
+                    o.object->editable->projectLight(l);
+                    return 0;
+                });
             },
             py::arg("light"),
             "Editable files: dots every profile vector with the light once, so that relight_projected() after "
@@ -314,14 +324,17 @@ void bindRendering(py::module_& m) {
         .def(
             "relight_projected",
             [](PyObject& o, const py::object& out) {
-                if (!o.object->editable || !o.object->editable->hasProjectedLight())
-                    throw Error(o.transportPath, "no projected light (call project_light first)");
+                requireEditable(o);
                 py::array_t<float> result = outputArray(out, o.object->mesh.vertexCount());
                 float* dst = result.mutable_data();
-                py::gil_scoped_release release;
-                std::lock_guard lock(o.transport->mutex);
-                o.object->editable->relightProjected(o.transport->scratch.diffuse);
-                std::copy_n(&o.transport->scratch.diffuse.data()->x, 3 * o.transport->scratch.diffuse.size(), dst);
+                locked(o, [&] {
+                    if (!o.object->editable->hasProjectedLight())
+                        throw Error(o.transportPath, "no projected light (call project_light first)");
+                    std::vector<glm::vec3>& diffuse = o.transport->scratch.diffuse;
+                    o.object->editable->relightProjected(diffuse);
+                    std::copy_n(&diffuse.data()->x, 3 * diffuse.size(), dst);
+                    return 0;
+                });
                 return result;
             },
             py::arg("out") = py::none(),
@@ -337,6 +350,7 @@ void bindRendering(py::module_& m) {
             o.transport = std::make_shared<PyTransport>();
             o.transport->file = std::shared_ptr<TransportFile>(o.object, &o.object->transport);
             o.transport->path = transportPath;
+            o.transport->edited = o.object->editable.has_value();
             return o;
         },
         py::arg("mesh"), py::arg("transport"),
@@ -371,15 +385,23 @@ void bindRendering(py::module_& m) {
             camera.elevation = elevation;
             camera.fill = fill;
             const glm::dmat3 rotation = rotationOf(envRotation);
-            const std::string materialText = material.is_none() ? "" : material.cast<std::string>();
+            const std::string materialText = material.is_none() ? "" : stringArgument(material, "material");
             if (sizeMm && !(*sizeMm > 0.0 && std::isfinite(*sizeMm))) throw Error("--size-mm", "must be a size in mm > 0");
             py::gil_scoped_release release;
             std::lock_guard lock(o.transport->mutex);
-            if (!materialText.empty() || sizeMm)
-                applyMaterialEdit(*o.object, materialText, sizeMm.value_or(0.0), o.transportPath);
+            // Checked before the edit, which stays the object's: a refused frame leaves it as it was.
+            const Camera cam = makeCamera(camera, o.object->sphereCentre, o.object->sphereRadius);
             const ScatteringComponents which =
                 selectComponents(look.components, componentsOf(o.object->transport), o.transportPath);
-            const Camera cam = makeCamera(camera, o.object->sphereCentre, o.object->sphereRadius);
+            if (!materialText.empty() || sizeMm) {
+                // As set_material: the current size unless size_mm, the current material
+                // unless material.
+                if (!o.object->editable) applyMaterialEdit(*o.object, materialText, 1.0, o.transportPath);  // refused
+                const EditableTransport& e = *o.object->editable;
+                const double size = sizeMm.value_or(e.sizeMm());
+                if (!materialText.empty()) applyMaterialEdit(*o.object, materialText, size, o.transportPath);
+                else setObjectMaterial(*o.object, e.material(), size, o.transportPath);
+            }
             EnvironmentFrameRenderer renderer(*o.object, environment.image, look, which);
             Image image = renderer.render(cam, rotation);
             py::gil_scoped_acquire acquire;

@@ -103,35 +103,53 @@ void bindTransport(py::module_& m) {
                                },
                                "The components' short names: ms, ss, ss:k (a phase term), profiles:j (editable)")
         .def_property_readonly("editable", [](const PyTransport& t) { return t.file->radialBasis.has_value(); })
-        .def("describe", [](const PyTransport& t) { return describe(*t.file); },
+        .def("describe", [](PyTransport& t) { return locked(t, [&] { return describe(*t.file); }); },
              "prt-relight info --full's text")
         .def(
             "vectors",
             [](py::object self, const std::string& component) {
-                const PyTransport& t = self.cast<const PyTransport&>();
-                const TransportComponent& c = findComponent(*t.file, component);
-                if (c.blocked())
-                    throw Error(component, "is stored in blocks (--block-coefficients): read it with vertex_vector(v)");
-                const SparseRgbVectors& v = c.vectors;
+                PyTransport& t = self.cast<PyTransport&>();
                 py::dict d;
-                d["offsets"] = view(v.offsets.data(), {py::ssize_t(v.offsets.size())}, self);
-                d["indices"] = view(v.indices.data(), {py::ssize_t(v.indices.size())}, self);
-                d["values"] = view(v.values.data(), {py::ssize_t(v.indices.size()), 3}, self);
-                d["scales"] = view(v.scales.data(), {py::ssize_t(v.vertexCount()), 3}, self);
+                auto arrays = [&](const SparseRgbVectors& v, py::handle owner) {
+                    d["offsets"] = view(v.offsets.data(), {py::ssize_t(v.offsets.size())}, owner);
+                    d["indices"] = view(v.indices.data(), {py::ssize_t(v.indices.size())}, owner);
+                    d["values"] = view(v.values.data(), {py::ssize_t(v.indices.size()), 3}, owner);
+                    d["scales"] = view(v.scales.data(), {py::ssize_t(v.vertexCount()), 3}, owner);
+                };
+                if (!t.edited) {
+                    const TransportComponent& c = findComponent(*t.file, component);
+                    if (c.blocked())
+                        throw Error(component, "is stored in blocks (--block-coefficients): read it with vertex_vector(v)");
+                    arrays(c.vectors, self);
+                    return d;
+                }
+                // An edited object's vectors change with its material: a copy, which its
+                // arrays keep alive.
+                auto* copy = new SparseRgbVectors(locked(t, [&] {
+                    const TransportComponent& c = findComponent(*t.file, component);
+                    if (c.blocked())
+                        throw Error(component, "is stored in blocks (--block-coefficients): read it with vertex_vector(v)");
+                    return c.vectors;
+                }));
+                py::capsule owner(copy, [](void* p) { delete static_cast<SparseRgbVectors*>(p); });
+                arrays(*copy, owner);
                 return d;
             },
             py::arg("component") = "ms",
-            "The component's stored arrays (views): vertex v owns indices[offsets[v]:offsets[v+1]] and the int16 "
-            "values of the same rows; value = q * scales[v] per channel")
+            "The component's stored arrays: vertex v owns indices[offsets[v]:offsets[v+1]] and the int16 values "
+            "of the same rows; value = q * scales[v] per channel. Views of a loaded file; copies for an editable "
+            "Object's transport, whose multiple scattering changes with set_material")
         .def(
             "vertex_vector",
-            [](const PyTransport& t, size_t v, const std::string& component) {
-                const TransportComponent& c = findComponent(*t.file, component);
-                if (v >= c.vertexCount())
-                    throw py::index_error("vertex " + std::to_string(v) + " of " + std::to_string(c.vertexCount()));
+            [](PyTransport& t, size_t v, const std::string& component) {
                 std::vector<uint32_t> idx;
                 std::vector<float> rgb;
-                c.dequantizeVertex(v, idx, rgb);
+                const size_t count = locked(t, [&] {
+                    const TransportComponent& c = findComponent(*t.file, component);
+                    if (v < c.vertexCount()) c.dequantizeVertex(v, idx, rgb);
+                    return c.vertexCount();
+                });
+                if (v >= count) throw py::index_error("vertex " + std::to_string(v) + " of " + std::to_string(count));
                 const py::ssize_t k = py::ssize_t(idx.size());
                 return py::make_tuple(adopt(std::move(idx), {k}), adopt(std::move(rgb), {k, 3}));
             },
@@ -140,11 +158,22 @@ void bindTransport(py::module_& m) {
             "Haar coefficients of the cubemap, the rest SH terms")
         .def(
             "save",
-            [](const PyTransport& t, const std::string& path) {
+            [](PyTransport& t, const std::string& path) {
+                if (t.edited)
+                    throw Error(t.path, "is an editable object's transport: its multiple scattering is the edited "
+                                        "material's, which its parameters do not name (save the file itself)");
                 withoutGil([&] { saveTransportFile(path, *t.file); });
             },
             py::arg("path"), "Writes the file (atomically: a temporary file, then a rename)")
-        .def("__eq__", [](const PyTransport& a, const PyTransport& b) { return *a.file == *b.file; })
+        .def(
+            "__eq__",
+            [](PyTransport& a, PyTransport& b) {
+                if (&a == &b) return true;
+                py::gil_scoped_release release;
+                std::scoped_lock lock(a.mutex, b.mutex);  // both at once: no order to deadlock on
+                return *a.file == *b.file;
+            },
+            py::is_operator())
         .def("__repr__", [](const PyTransport& t) {
             return "<prt.Transport " + std::to_string(t.file->mesh.vertexCount) + " vertices, cubemap 6x" +
                    std::to_string(t.file->cubemapSize) + "^2, " + std::to_string(t.file->components.size()) +
@@ -158,7 +187,7 @@ void bindTransport(py::module_& m) {
             t->path = path;
             std::optional<MeshFingerprint> expected;
             if (!mesh.is_none()) {
-                const TriangleMesh tm = loadMesh(mesh.cast<std::string>());
+                const TriangleMesh tm = loadMesh(stringArgument(mesh, "mesh"));
                 expected = MeshFingerprint{tm.vertexCount(), meshFingerprint(tm)};
             }
             t->file = std::make_shared<TransportFile>(withoutGil(

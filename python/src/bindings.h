@@ -45,7 +45,8 @@ struct PyTransport {
     std::shared_ptr<TransportFile> file;
     std::string path;
     VertexRadiance scratch;
-    std::mutex mutex;  // guards scratch
+    std::mutex mutex;     // guards scratch, and the file when it is an object's (set_material changes it)
+    bool edited = false;  // an editable object's: its multiple scattering is the current material's
 };
 
 // A mesh + transport file placed as the relighting tools place them (prt.Object).
@@ -97,6 +98,22 @@ py::tuple tupleOf(const glm::dvec3& v);
 // The job's own error is rethrown. `quiet`: no progress lines on stderr meanwhile;
 // `threads`: at most that many workers (0 = all cores).
 void runCancellable(const std::function<void()>& job, const py::object& progress, bool quiet, int threads);
+
+// `value` as a string; TypeError naming the argument otherwise.
+std::string stringArgument(const py::handle& value, const std::string& name);
+
+// Runs f with the GIL released and the transport's mutex held (in that order, so a
+// thread waiting for the mutex never holds the GIL).
+template <typename F>
+auto locked(PyTransport& t, F&& f) {
+    py::gil_scoped_release release;
+    std::lock_guard lock(t.mutex);
+    return f();
+}
+template <typename F>
+auto locked(const PyObject& o, F&& f) {
+    return locked(*o.transport, std::forward<F>(f));
+}
 
 // Runs f with the GIL released (long calls: other Python threads run meanwhile).
 template <typename F>

@@ -141,7 +141,9 @@ TransportComponent EditableTransport::recombine() const {
 
 void EditableTransport::projectLight(const LightVector& light) {
     const size_t V = vertexCount(), J = size_t(basis_.size());
-    projected_.assign(V * J * 3, 0.0f);
+    // Built apart and swapped in at the end: a light the kernel refuses leaves the
+    // previous projection as it was.
+    std::vector<float> projected(V * J * 3, 0.0f);
     // Per light channel c a grey light (L_c in all three channels): the relight kernel
     // then gives U_{3p+ch} . L_c in channel ch of component p.
     LightVector grey = light;
@@ -156,9 +158,10 @@ void EditableTransport::projectLight(const LightVector& light) {
                 grey.sh[3 * k] = grey.sh[3 * k + 1] = grey.sh[3 * k + 2] = light.sh[3 * k + size_t(c)];
             relightVertices(file, grey, ms, out);
             for (size_t v = 0; v < V; ++v)
-                for (int ch = 0; ch < 3; ++ch) projected_[(v * J + 3 * p + size_t(ch)) * 3 + size_t(c)] = out.diffuse[v][ch];
+                for (int ch = 0; ch < 3; ++ch) projected[(v * J + 3 * p + size_t(ch)) * 3 + size_t(c)] = out.diffuse[v][ch];
         }
     }
+    projected_.swap(projected);
 }
 
 void EditableTransport::relightProjected(std::vector<glm::vec3>& diffuse) const {

@@ -52,6 +52,12 @@ std::string applyMaterialEdit(RelightObject& object, const std::string& material
     const Material material =
         materialText.empty() ? e.fileMaterial() : parseMaterial(materialText, e.fileMaterial().eta, e.fileMaterial().g);
     const bool etaChanged = setObjectMaterial(object, material, sizeMm > 0.0 ? sizeMm : e.objectSizeMm(), transportPath);
+    return describeMaterialEdit(object, etaChanged);
+}
+
+std::string describeMaterialEdit(const RelightObject& object, bool etaChanged) {
+    if (!object.editable) return "";
+    const EditableTransport& e = *object.editable;
     std::string line = "material: " + describeMaterial(e.material()) + " at " + formatParameter(e.sizeMm()) +
                        " mm (edited; the file's: " + e.fileMaterial().name + " at " + formatParameter(e.objectSizeMm()) +
                        " mm)";

@@ -53,4 +53,8 @@ bool setObjectMaterial(RelightObject& object, const Material& material, double s
 std::string applyMaterialEdit(RelightObject& object, const std::string& materialText, double sizeMm,
                               const std::string& transportPath);
 
+// applyMaterialEdit's line for the object's current material (after setObjectMaterial,
+// whose result is etaChanged); "" for a file that is not editable.
+std::string describeMaterialEdit(const RelightObject& object, bool etaChanged);
+
 }  // namespace prt

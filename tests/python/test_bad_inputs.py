@@ -135,6 +135,8 @@ CASES = [
      L + ["--lights", "typo-lights.json"], ValueError),
     ("pointlight: negative intensity", lambda: lit([], lights_file="negative-lights.json"),
      L + ["--lights", "negative-lights.json"], ValueError),
+    ("pointlight: missing lights file", lambda: lit([], lights_file="nowhere.json"), L + ["--lights", "nowhere.json"],
+     FileNotFoundError),
     ("pointlight: unknown method", lambda: lit(method="magic"), L + ["--light", ON, "--method", "magic"], ValueError),
     ("pointlight: atlas not a power of two", lambda: lit(method="tsis", atlas_size=1000),
      L + ["--light", ON, "--method", "tsis", "--atlas-size", "1000"], ValueError),
@@ -207,5 +209,11 @@ def test_arrays_of_the_wrong_kind_name_the_argument(scene):
         prt.relight(t, prt.Environment(np.ones((8, 16, 3), np.float32)).light_vector(4))
     with pytest.raises(ValueError, match="sigma_a: expected three numbers"):
         prt.Material(sigma_a=[1, 2], sigma_s_prime=1)
+    with pytest.raises(TypeError, match="output: expected a string"):
+        prt.precompute(str(scene / "torus.ply"), 3)
+    with pytest.raises(TypeError, match="eye: mixes strings and numbers"):
+        prt.render_point_lights(str(scene / "torus.ply"), "point:0,40,0:1", eye=[1, "a"])
+    with pytest.raises(TypeError, match="eye: expected numbers"):
+        prt.render_point_lights(str(scene / "torus.ply"), "point:0,40,0:1", eye=[1, {}])
     with pytest.raises(ValueError, match="non_finite"):
         prt.load_environment(str(scene / "sky.exr"), non_finite="ignore")

@@ -144,3 +144,34 @@ def test_live_material_equals_render_with_material(scene, tmp_path):
     plain = prt.load_object(str(scene / "torus.ply"), str(scene / "torus.prt"))
     with pytest.raises(ValueError, match="editable"):
         plain.set_material("Skin1")
+
+
+def test_an_edited_objects_arrays_and_state_stay_consistent(scene, tmp_path):
+    obj = prt.load_object(str(scene / "torus.ply"), str(scene / "torus_edit.prt"))
+    before = obj.transport.vectors("ms")
+    values = before["values"].copy()
+    obj.set_material("Ketchup")
+    # The arrays taken before the edit are copies: still readable, still the old material's.
+    assert np.array_equal(before["values"], values)
+    after = obj.transport.vectors("ms")["values"]
+    assert after.shape != values.shape or not np.array_equal(after, values)
+    # None keeps the material and changes the size; text keeps the size.
+    obj.set_material(size_mm=24.0)
+    assert obj.material.name == "Ketchup"
+    assert "24 mm" in obj.set_material("Skin2")
+    assert obj.material.name == "Skin2"
+    # A refused light leaves the projection it had.
+    env = prt.load_environment(str(scene / "sky.exr"))
+    obj.project_light(env.light_vector(8))
+    good = obj.relight_projected()
+    with pytest.raises(ValueError, match="light"):
+        obj.project_light(env.light_vector(4))
+    assert np.array_equal(obj.relight_projected(), good)
+    # Its transport no longer matches its file's parameters: saving it is refused.
+    with pytest.raises(ValueError, match="editable object's transport"):
+        obj.transport.save(str(tmp_path / "edited.prt"))
+    assert not (tmp_path / "edited.prt").exists()
+    with pytest.raises(TypeError, match="material: expected a string"):
+        obj.set_material(3)
+    assert (prt.material("Marble") == 3) is False
+    assert prt.material("Marble") == prt.material("Marble")
