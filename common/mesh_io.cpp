@@ -486,12 +486,26 @@ ScanResult scanOff(const std::string& path, std::string_view data) {
     Tokens tokens(data, lines.offset(), 2);
     std::string_view token;
     size_t counts[3] = {0, 0, 0};
-    for (size_t& c : counts)
+    size_t countsLine = 0;
+    for (size_t& c : counts) {
         if (!tokens.next(token) || !parseCount(token, c))
             throw Error(path, "line " + std::to_string(tokens.line()) +
                                   ": expected the vertex, face and edge counts (comments "
                                   "before the counts are not supported)");
+        if (countsLine == 0) countsLine = tokens.line();
+        if (tokens.line() != countsLine)
+            throw Error(path, "line " + std::to_string(countsLine) +
+                                  ": the vertex, face and edge counts must be on one line");
+    }
+    // OpenMesh reads on from the third count: anything after it on the line would be
+    // read as the first vertex's x, every record after out of step (a face of
+    // -8 = 2^32 - 8 corners exhausts memory: tools/fuzz/crashes/mesh/).
+    const size_t afterCounts = tokens.offset();
     tokens.skipLine();
+    for (size_t i = afterCounts; i < tokens.offset(); ++i)
+        if (!isSpace(data[i]))
+            throw Error(path, "line " + std::to_string(countsLine) +
+                                  ": more than the vertex, face and edge counts on the counts line");
     // The body line by line, as OpenMesh 9.0 reads vertices: one vertex per line (x y z
     // first, then optional colours or normals), one face per line (its corner count,
     // then that many indices, then optional colours). Anything else reaches OpenMesh's

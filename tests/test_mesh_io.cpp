@@ -345,6 +345,14 @@ TEST_F(MeshFiles, MalformedHeadersAndCountsAreRefusedBeforeOpenMesh) {
     expectError([&] { prt::loadMesh(offSplit); }, offSplit, "line 3: vertex 0 has 2 coordinates");
     const std::string offEmptyFace = writeText("empty_face.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n0 1.5 2 3\n");
     expectError([&] { prt::loadMesh(offEmptyFace); }, offEmptyFace, "line 6: face 0 has 0 corners (a face needs at least 3)");
+    // A fourth number after the counts shifted OpenMesh's reading of every record after
+    // it; a face then had 2^32 - 8 corners (tools/fuzz/crashes/mesh/openmesh-off-counts-line-extra-token-oom).
+    const std::string offExtra = writeText("extra.off", "OFF\n3 1 0 -8.5\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectError([&] { prt::loadMesh(offExtra); }, offExtra, "line 2: more than the vertex, face and edge counts");
+    const std::string offSplitCounts = writeText("split_counts.off", "OFF\n3 1\n0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectError([&] { prt::loadMesh(offSplitCounts); }, offSplitCounts, "counts must be on one line");
+    const std::string offTrailingSpace = writeText("trailing.off", "OFF\n3 1 0  \r\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    EXPECT_EQ(prt::loadMesh(offTrailingSpace).triangleCount(), 1u);
     const std::string offVariant = writeText("variant.off", "COFF\n3 1 0\n0 0 0 1 1 1 1\n1 0 0 1 1 1 1\n0 1 0 1 1 1 1\n3 0 1 2\n");
     expectError([&] { prt::loadMesh(offVariant); }, offVariant, "unsupported OFF header 'COFF'");
     const std::string offRange = writeText("range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
