@@ -506,9 +506,9 @@ ScanResult scanOff(const std::string& path, std::string_view data) {
         if (!isSpace(data[i]))
             throw Error(path, "line " + std::to_string(countsLine) +
                                   ": more than the vertex, face and edge counts on the counts line");
-    // The body line by line, as OpenMesh 9.0 reads vertices: one vertex per line (x y z
-    // first, then optional colours or normals), one face per line (its corner count,
-    // then that many indices, then optional colours). Anything else reaches OpenMesh's
+    // The body line by line: one vertex per line (x y z, nothing else), one face per
+    // line (its corner count, then that many indices, then optional colours, which
+    // OpenMesh 9.0 reads with the rest of the line). Anything else reaches OpenMesh's
     // stream reader out of step and it loops forever (a face index '1p':
     // tools/fuzz/crashes/mesh/).
     Lines body(data.substr(std::min(data.size(), tokens.offset())));
@@ -530,6 +530,13 @@ ScanResult scanOff(const std::string& path, std::string_view data) {
         if (fields.size() < 3)
             throw Error(path, at() + "vertex " + std::to_string(i) + " has " + std::to_string(fields.size()) +
                                   " coordinates, expected x y z on one line");
+        // Plain OFF: OpenMesh reads x y z and goes on with the next number, so a fourth
+        // one on the line would start the next record and put every later one out of
+        // step (a coordinate read as a face's corner count exhausts memory:
+        // tools/fuzz/crashes/mesh/openmesh-off-vertex-extra-value-oom).
+        if (fields.size() > 3)
+            throw Error(path, at() + "vertex " + std::to_string(i) + " has " + std::to_string(fields.size()) +
+                                  " values, expected x y z only (plain OFF: no colours or normals)");
         for (int k = 0; k < 3; ++k) checkCoordinate(path, firstBodyLine + body.number() - 1, fields[size_t(k)]);
     }
     for (size_t i = 0; i < counts[1]; ++i) {

@@ -351,6 +351,9 @@ TEST_F(MeshFiles, MalformedHeadersAndCountsAreRefusedBeforeOpenMesh) {
     expectError([&] { prt::loadMesh(offExtra); }, offExtra, "line 2: more than the vertex, face and edge counts");
     const std::string offSplitCounts = writeText("split_counts.off", "OFF\n3 1\n0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
     expectError([&] { prt::loadMesh(offSplitCounts); }, offSplitCounts, "counts must be on one line");
+    // The same on a vertex line (tools/fuzz/crashes/mesh/openmesh-off-vertex-extra-value-oom).
+    const std::string offVertexExtra = writeText("vertex_extra.off", "OFF\n3 1 0\n0 0 0 -8.5\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectError([&] { prt::loadMesh(offVertexExtra); }, offVertexExtra, "line 3: vertex 0 has 4 values, expected x y z only");
     const std::string offTrailingSpace = writeText("trailing.off", "OFF\n3 1 0  \r\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
     EXPECT_EQ(prt::loadMesh(offTrailingSpace).triangleCount(), 1u);
     const std::string offVariant = writeText("variant.off", "COFF\n3 1 0\n0 0 0 1 1 1 1\n1 0 0 1 1 1 1\n0 1 0 1 1 1 1\n3 0 1 2\n");
