@@ -1,4 +1,5 @@
 #include "common/image.h"
+#include "common/tonemap.h"
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
@@ -166,28 +167,27 @@ void writeExr(const std::string& path, const Image& image, ExrPixelType pixelTyp
     writeImageAtomically(path, "openexr", spec, OIIO::TypeDesc::FLOAT, image.pixels.data());
 }
 
-void writePng(const std::string& path, const Image& image, double exposureStops) {
+void writePng(const std::string& path, const Image& image, const DisplayTransform& display) {
     checkWritable(path, image);
-    const double scale = std::exp2(exposureStops);
-    if (!std::isfinite(scale)) throw Error(path, "exposure must be finite");
+    if (!std::isfinite(display.exposureStops)) throw Error(path, "exposure must be finite");
+    const Image shown = displayImage(image, displayMapping(image, display));
 
     const size_t count = size_t(image.width) * size_t(image.height);
     std::vector<std::uint8_t> rgb(count * 3);
-    const int c = image.channels;
-    for (size_t p = 0; p < count; ++p) {
-        const float* src = &image.pixels[p * size_t(c)];
-        for (int k = 0; k < 3; ++k) {
-            double v = double(src[c >= 3 ? k : 0]) * scale;
-            if (!(v > 0.0)) v = 0.0;  // negatives and NaN
-            if (v > 1.0) v = 1.0;
-            const double encoded = linearToSrgb(float(v));
-            rgb[p * 3 + size_t(k)] = std::uint8_t(std::clamp(std::lround(encoded * 255.0), 0L, 255L));
-        }
-    }
+    for (size_t i = 0; i < count * 3; ++i)
+        rgb[i] = std::uint8_t(std::clamp(std::lround(double(linearToSrgb(shown.pixels[i])) * 255.0), 0L, 255L));
 
     OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
     spec.attribute("oiio:ColorSpace", "sRGB");
     writeImageAtomically(path, "png", spec, OIIO::TypeDesc::UINT8, rgb.data());
+}
+
+void writePng(const std::string& path, const Image& image, double exposureStops) {
+    writePng(path, image, DisplayTransform{exposureStops, ToneMapOperator::Clamp});
+}
+
+void FileImageWriter::png(const std::string& path, const Image& image, const DisplayTransform* display) {
+    writePng(path, image, display ? *display : DisplayTransform{});
 }
 
 std::string outputPrefix(const std::string& path) {

@@ -21,6 +21,8 @@
 
 namespace prt {
 
+struct DisplayTransform;  // common/tonemap.h
+
 struct Image {
     int width = 0;
     int height = 0;
@@ -61,11 +63,14 @@ enum class ExrPixelType { Float, Half };
 void writeExr(const std::string& path, const Image& image,
               ExrPixelType pixelType = ExrPixelType::Float);
 
-// Writes an 8-bit RGB PNG for display: each value is scaled by 2^exposureStops,
-// clamped to [0, 1] (NaN -> 0), encoded with the sRGB transfer function
-// (linearToSrgb) and rounded to the nearest of 256 levels. Channels 0-2 are used
-// (alpha and extra channels dropped); 1- and 2-channel images are shown as gray
-// (channel 0 replicated). The file is PNG whatever the extension. Atomic (see above).
+// Writes an 8-bit RGB PNG for display: each pixel goes through the display transform
+// (common/tonemap.h: 2^exposure, the operator, display-linear [0, 1]), is encoded
+// with the sRGB transfer function (linearToSrgb) and rounded to the nearest of 256
+// levels. Channels 0-2 are used (alpha and extra channels dropped); 1- and 2-channel
+// images are shown as gray (channel 0 replicated). The file is PNG whatever the
+// extension. Atomic (see above). Throws prt::Error(path, ...) for a non-finite exposure.
+void writePng(const std::string& path, const Image& image, const DisplayTransform& display);
+// The clamp operator at this exposure.
 void writePng(const std::string& path, const Image& image, double exposureStops = 0.0);
 
 // Where a command's images go (runPointLightCommand, runReferenceCommand): files for
@@ -75,15 +80,14 @@ class ImageWriter {
 public:
     virtual ~ImageWriter() = default;
     virtual void exr(const std::string& path, const Image& image) = 0;
-    virtual void png(const std::string& path, const Image& image, double exposureStops = 0.0) = 0;
+    // `display` null: the clamp operator at exposure 0 (images already meant for display).
+    virtual void png(const std::string& path, const Image& image, const DisplayTransform* display = nullptr) = 0;
 };
 
 class FileImageWriter : public ImageWriter {
 public:
     void exr(const std::string& path, const Image& image) override { writeExr(path, image); }
-    void png(const std::string& path, const Image& image, double exposureStops = 0.0) override {
-        writePng(path, image, exposureStops);
-    }
+    void png(const std::string& path, const Image& image, const DisplayTransform* display = nullptr) override;
 };
 
 // An output prefix as the tools take it (they write <prefix>.exr and <prefix>.png):

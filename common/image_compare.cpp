@@ -268,20 +268,27 @@ std::string formatCompareResult(const CompareResult& r) {
     return o.str();
 }
 
-double displayRmse(const Image& test, const Image& reference, double exposure) {
-    const float scale = float(std::exp2(exposure));
-    auto display = [&](float v) { return linearToSrgb(std::clamp(std::isfinite(v) ? v * scale : 0.0f, 0.0f, 1.0f)); };
+double displayRmse(const Image& test, const Image& reference, const DisplayTransform& display) {
+    const DisplayMapping mapping = displayMapping(reference, display);
+    auto shown = [&](const Image& image, int x, int y) {
+        const glm::vec3 d = mapping.apply({image.at(x, y, 0), image.at(x, y, 1), image.at(x, y, 2)});
+        return glm::vec3(linearToSrgb(d.r), linearToSrgb(d.g), linearToSrgb(d.b));
+    };
     double sum = 0.0;
     size_t n = 0;
     for (int y = 0; y < reference.height; ++y)
         for (int x = 0; x < reference.width; ++x) {
             if (!(reference.at(x, y, 3) > 0.5f)) continue;
-            double d = 0.0;
-            for (int c = 0; c < 3; ++c) d += display(test.at(x, y, c)) - display(reference.at(x, y, c));
-            sum += (d / 3.0) * (d / 3.0);
+            const glm::vec3 d = shown(test, x, y) - shown(reference, x, y);
+            const double mean = (double(d.r) + double(d.g) + double(d.b)) / 3.0;
+            sum += mean * mean;
             ++n;
         }
     return n ? std::sqrt(sum / double(n)) : 0.0;
+}
+
+double displayRmse(const Image& test, const Image& reference, double exposure) {
+    return displayRmse(test, reference, DisplayTransform{exposure, ToneMapOperator::Clamp});
 }
 
 }  // namespace prt

@@ -27,6 +27,7 @@
 #include <string>
 
 #include "common/image.h"
+#include "common/tonemap.h"
 
 namespace prt {
 
@@ -90,9 +91,12 @@ std::string formatCompareResult(const CompareResult& r);
 
 // The papers' RMS (Keng et al. 2006 Table 1, Chang et al. 2008 Figs. 7-14): over the
 // reference's object pixels (A > 0.5), the RMS of the mean of R, G, B of the DISPLAYED
-// images, i.e. writePng's tone mapping without its 8-bit rounding: x 2^exposure,
-// clamped to [0, 1], sRGB-encoded. It depends on the exposure; non-finite values count
-// as 0.
+// images, i.e. writePng's display transform without its 8-bit rounding: both images
+// through the REFERENCE's mapping (common/tonemap.h; for chang the reference's
+// Radiance_avg, so an overall scale error is not normalised away), then sRGB-encoded.
+// It depends on the transform; non-finite values count as 0. The exposure-only form
+// is the clamp operator.
+double displayRmse(const Image& test, const Image& reference, const DisplayTransform& display);
 double displayRmse(const Image& test, const Image& reference, double exposure);
 
 }  // namespace prt

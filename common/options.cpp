@@ -128,6 +128,16 @@ MeshScale makeScale(const ScaleOptions& o) {
     return scale;
 }
 
+void addDisplayOptions(CLI::App& app, DisplayTransform& d, const std::string& group) {
+    app.add_option("--exposure", d.exposureStops, "Exposure in stops for the PNG (the EXR stays linear)")
+        ->capture_default_str()->group(group);
+    app.add_option_function<std::string>(
+           "--tonemap", [&d](const std::string& name) { d.op = parseToneMapOperator(name); },
+           "PNG tone mapping: clamp, reinhard, filmic or chang (Chang et al. 2008; docs/conventions.md, "
+           "\"Display\"); the EXR stays linear")
+        ->default_str(toneMapOperatorName(d.op))->group(group);
+}
+
 std::optional<int> parseCommandLine(CLI::App& app, int argc, char** argv, const std::string& program) {
     try {
         app.parse(argc, argv);

@@ -19,6 +19,7 @@
 #include "common/camera.h"
 #include "common/materials.h"
 #include "common/mesh.h"
+#include "common/tonemap.h"
 
 namespace prt {
 
@@ -58,6 +59,11 @@ struct ScaleOptions {
 void addScaleOptions(CLI::App& app, ScaleOptions& o, const std::string& group = "Object");
 // Throws prt::Error when both are given.
 MeshScale makeScale(const ScaleOptions& o);
+
+// The display of PNG outputs (common/tonemap.h): --exposure (stops) and --tonemap
+// (clamp, reinhard, filmic, chang), group `group`. An unknown operator throws
+// prt::Error("--tonemap", ...) while parsing.
+void addDisplayOptions(CLI::App& app, DisplayTransform& d, const std::string& group = "Output");
 
 // Parses the command line. --help / --help-all print the help and give exit code 0;
 // any other usage error (unknown option, missing or malformed value, missing

@@ -6,7 +6,7 @@
 //   info    what a transport file holds (header only, or --full: load and verify).
 // render and view take the same camera options (addCameraOptions / makeCamera) and the
 // same look (FrameSettings, bound once by addFrameOptions: --env-rotation, --components,
-// -L, --specular, --specular-blur, --exposure), so a viewer screenshot and a render of
+// -L, --specular, --specular-blur, --exposure, --tonemap), so a viewer screenshot and a render of
 // the same arguments show the same image.
 
 #include <CLI/CLI.hpp>
@@ -151,7 +151,7 @@ int runRender(const RenderOptions& o) {
         const Stopwatch writeClock;
         const std::string base = frameName(output, f, frames);
         writeExr(base + ".exr", image);
-        writePng(base + ".png", image, look.exposure);
+        writePng(base + ".png", image, look.display);
         const double writeMs = writeClock.milliseconds();
         written.push_back(base);
 

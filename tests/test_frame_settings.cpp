@@ -41,7 +41,8 @@ void expectSame(const FrameSettings& a, const FrameSettings& b) {
     EXPECT_EQ(a.lightTerms, b.lightTerms);
     EXPECT_EQ(a.specular, b.specular);
     EXPECT_EQ(a.specularBlur, b.specularBlur);
-    EXPECT_EQ(a.exposure, b.exposure);
+    EXPECT_EQ(a.display.exposureStops, b.display.exposureStops);
+    EXPECT_EQ(a.display.op, b.display.op);
 }
 
 }  // namespace
@@ -54,18 +55,20 @@ TEST(FrameSettings, DefaultsAreTheStructs) {
     EXPECT_FALSE(d.specular);
     EXPECT_EQ(d.specularBlur, 0);
     EXPECT_EQ(d.envRotation, 0.0);
-    EXPECT_EQ(d.exposure, 0.0);
+    EXPECT_EQ(d.display.exposureStops, 0.0);
+    EXPECT_EQ(d.display.op, ToneMapOperator::Clamp);
 }
 
 TEST(FrameSettings, OptionsBindEveryField) {
     const FrameSettings s = parse({"--env-rotation=-70", "--components", "ms", "-L", "40", "--specular",
-                                   "--specular-blur", "4", "--exposure", "1.5"});
+                                   "--specular-blur", "4", "--exposure", "1.5", "--tonemap", "Filmic"});
     EXPECT_EQ(s.envRotation, -70.0);
     EXPECT_EQ(s.components, "ms");
     EXPECT_EQ(s.lightTerms, 40u);
     EXPECT_TRUE(s.specular);
     EXPECT_EQ(s.specularBlur, 4);
-    EXPECT_EQ(s.exposure, 1.5);
+    EXPECT_EQ(s.display.exposureStops, 1.5);
+    EXPECT_EQ(s.display.op, ToneMapOperator::Filmic);
     EXPECT_EQ(parse({"--light-terms", "7"}).lightTerms, 7u);
 }
 
@@ -78,6 +81,7 @@ TEST(FrameSettings, OptionGroups) {
     EXPECT_EQ(o.specular->get_group(), "Lighting");
     EXPECT_EQ(o.specularBlur->get_group(), "Lighting");
     EXPECT_EQ(app.get_option("--exposure")->get_group(), "Output");
+    EXPECT_EQ(app.get_option("--tonemap")->get_group(), "Output");
     for (const char* name : {"--env-rotation", "--components", "--light-terms"})
         EXPECT_EQ(app.get_option(name)->get_group(), "Lighting") << name;
 }
@@ -96,7 +100,7 @@ TEST(FrameSettings, ChecksNameTheOption) {
     EXPECT_EQ(subjectOf([](FrameSettings&) {}), "<accepted>");
     EXPECT_EQ(subjectOf([](FrameSettings& s) { s.envRotation = NAN; }), "--env-rotation");
     EXPECT_EQ(subjectOf([](FrameSettings& s) { s.envRotation = INFINITY; }), "--env-rotation");
-    EXPECT_EQ(subjectOf([](FrameSettings& s) { s.exposure = -INFINITY; }), "--exposure");
+    EXPECT_EQ(subjectOf([](FrameSettings& s) { s.display.exposureStops = -INFINITY; }), "--exposure");
     EXPECT_EQ(subjectOf([](FrameSettings& s) { s.specularBlur = -1; }), "--specular-blur");
     EXPECT_EQ(subjectOf([](FrameSettings& s) { s.envRotation = -1e300; }), "<accepted>");
 }
@@ -105,7 +109,7 @@ TEST(FrameSettings, RenderArgumentsText) {
     EXPECT_EQ(renderArguments(FrameSettings{}), " --env-rotation=0 --exposure=0");
     FrameSettings s;
     s.envRotation = -70.25;
-    s.exposure = double(1.1f);  // the viewer's float exposure, printed to float precision
+    s.display.exposureStops = double(1.1f);  // the viewer's float exposure, printed to float precision
     s.lightTerms = 256;
     s.components = "ms,ss";
     s.specular = true;
@@ -119,7 +123,7 @@ TEST(FrameSettings, RenderArgumentsText) {
 TEST(FrameSettings, RenderArgumentsParseBackToTheSettings) {
     FrameSettings s;
     s.envRotation = -123.456789012;  // %.9g: float precision survives
-    s.exposure = -2.5;
+    s.display = {-2.5, ToneMapOperator::Chang};
     s.lightTerms = 40;
     s.components = "ss";
     s.specular = true;

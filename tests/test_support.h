@@ -82,7 +82,7 @@ inline TransportFile syntheticFaceTransport(const TriangleMesh& mesh, int n, dou
 struct MemoryImageWriter : ImageWriter {
     std::map<std::string, Image> images;
     void exr(const std::string& path, const Image& image) override { images[path] = image; }
-    void png(const std::string& path, const Image& image, double) override { images[path] = image; }
+    void png(const std::string& path, const Image& image, const DisplayTransform*) override { images[path] = image; }
 };
 
 // A command's options parsed from `args` (no program name) by its declarations.

@@ -7,7 +7,7 @@
 #
 # Under xvfb-run (Mesa llvmpipe), `prt-relight view --frames N --screenshot` of a small
 # generated scene must match `prt-relight render` of the same camera, environment,
-# rotation, light terms and exposure:
+# rotation, light terms, exposure and tone mapping:
 #   - coverage: pixels that are object in one image and background in the other are
 #     silhouette pixels whose centre lies within a rounding error of an edge (OpenGL
 #     snaps vertices to 1/256 pixel); at most 0.1% of the object pixels + 2
@@ -117,14 +117,14 @@ A="$S/torus.ply -t $S/torus.prt -W 256 -H 192"
 matches_render precomputed 1e-4 "$A -e $S/sky.exr" $A -e "$S/sky.exr"
 
 # 2. Three view-map terms (synthetic transport), explicit camera, rotation, exposure,
-#    light terms, environment list (the first is shown).
+#    the filmic tone mapping, light terms, environment list (the first is shown).
 B="$S/torus.ply -t $S/synthetic.prt -W 320 -H 240 --eye=-18,14,22 --target=0,-1,0 --up=0,1,0 --fov 35
-   --env-rotation=-70 --exposure 1.5 -L 40"
+   --env-rotation=-70 --exposure 1.5 --tonemap filmic -L 40"
 matches_render view_terms 1e-4 "$B -e $S/dusk.exr" $B -e "$S/dusk.exr" -e "$S/sky.exr"
 
-# 3. The specular layer.
+# 3. The specular layer, Reinhard's tone mapping.
 C="$S/torus.ply -t $S/synthetic.prt -W 320 -H 240 --azimuth 40 --elevation 35 --env-rotation=-70 --exposure 1.5
-   --specular"
+   --specular --tonemap reinhard"
 matches_render specular 2e-3 "$C -e $S/dusk.exr" $C -e "$S/dusk.exr"
 
 # 4. Relights in flight: the environment turns 7 degrees per frame for 5 frames after

@@ -18,7 +18,7 @@ namespace {
 class MemoryImageWriter : public ImageWriter {
 public:
     void exr(const std::string& path, const Image& image) override { keep(path, image, true); }
-    void png(const std::string& path, const Image& image, double) override { keep(path, image, false); }
+    void png(const std::string& path, const Image& image, const DisplayTransform*) override { keep(path, image, false); }
 
     // "image" for <prefix>.exr, "jb" for <prefix>_jb.exr, "error" for <prefix>_error.png,
     // ...; a PNG beside an EXR of the same name is the same image, tone-mapped: the

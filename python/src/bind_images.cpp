@@ -8,6 +8,7 @@
 #include "common/image.h"
 #include "common/image_compare.h"
 #include "common/progress.h"
+#include "common/tonemap.h"
 #include "python/src/bindings.h"
 
 namespace prt::python {
@@ -137,12 +138,22 @@ void bindImages(py::module_& m) {
         "Writes an (H, W, C) float array as OpenEXR (atomically: a temporary file, then a rename).");
     m.def(
         "write_png",
-        [](const std::string& path, const py::handle& image, double exposure) {
+        [](const std::string& path, const py::handle& image, double exposure, const std::string& tonemap) {
             const Image im = imageFromArray(image, "image", 1, 4);
-            writePng(path, im, exposure);
+            writePng(path, im, DisplayTransform{exposure, parseToneMapOperator(tonemap)});
         },
-        py::arg("path"), py::arg("image"), py::arg("exposure") = 0.0,
-        "Writes a linear (H, W, C) float array as an sRGB PNG, `exposure` stops brighter.");
+        py::arg("path"), py::arg("image"), py::arg("exposure") = 0.0, py::arg("tonemap") = "clamp",
+        "Writes a linear (H, W, C) float array as an sRGB PNG, `exposure` stops brighter, through the tone "
+        "mapping operator `tonemap` (clamp, reinhard, filmic, chang; docs/conventions.md, \"Display\").");
+    m.def(
+        "tonemap",
+        [](const py::handle& image, double exposure, const std::string& tonemap) {
+            const Image im = imageFromArray(image, "image", 1, 4);
+            const DisplayTransform display{exposure, parseToneMapOperator(tonemap)};
+            return imageArray(displayImage(im, displayMapping(im, display)));
+        },
+        py::arg("image"), py::arg("exposure") = 0.0, py::arg("tonemap") = "clamp",
+        "The display-linear values (H, W, 3) in [0, 1] that write_png encodes (before the sRGB curve).");
     m.def(
         "compare",
         [](const py::handle& test, const py::handle& reference, double alphaThreshold, double relativeFloor) {

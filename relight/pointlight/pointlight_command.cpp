@@ -39,11 +39,11 @@ namespace {
 
 // Writes an animation frame as <base>.exr and <base>.png, remembers the first and the
 // last frame written (for the summary) and returns the seconds the writing took.
-double writeAnimationFrame(ImageWriter& writer, const std::string& base, const Image& image, double exposure,
-                           std::string& first, std::string& last) {
+double writeAnimationFrame(ImageWriter& writer, const std::string& base, const Image& image,
+                           const DisplayTransform& display, std::string& first, std::string& last) {
     const Stopwatch t;
     writer.exr(base + ".exr", image);
-    writer.png(base + ".png", image, exposure);
+    writer.png(base + ".png", image, &display);
     if (first.empty()) first = base;
     last = base;
     return t.seconds();
@@ -64,12 +64,14 @@ double writeErrorHeatmap(ImageWriter& writer, const std::string& output, const I
 // = magnitude / its 99th percentile) and the split-disk spread V (gray, / its 99th
 // percentile).
 void writeCacheImages(ImageWriter& writer, const std::string& output, const Image& frame, const GBuffer& g,
-                      const std::vector<CacheRecord>& caches, const CacheVisuals& visuals, double exposure) {
-    const float scale = float(std::exp2(exposure));
+                      const std::vector<CacheRecord>& caches, const CacheVisuals& visuals, const DisplayTransform& display) {
+    const DisplayMapping mapping = displayMapping(frame, display);
     Image dots(g.width, g.height, 3, 0.0f);
     for (int y = 0; y < g.height; ++y)
-        for (int x = 0; x < g.width; ++x)
-            for (int c = 0; c < 3; ++c) dots.at(x, y, c) = 0.6f * frame.at(x, y, c) * scale;
+        for (int x = 0; x < g.width; ++x) {
+            const glm::vec3 shown = mapping.apply({frame.at(x, y, 0), frame.at(x, y, 1), frame.at(x, y, 2)});
+            for (int c = 0; c < 3; ++c) dots.at(x, y, c) = 0.6f * shown[c];
+        }
     for (const CacheRecord& r : caches) {
         const int cx = int(r.pixel % uint32_t(g.width)), cy = int(r.pixel / uint32_t(g.width));
         for (int dy = -1; dy <= 1; ++dy)
@@ -148,7 +150,7 @@ int runAnimation(const PointLightCommand& o, ImageWriter& writer, const PointAni
     renderAnimation(animation, mesh, scene, placed, lights, camera, pivot, settings,
                     [&](const AnimationFrameInfo& info, PointFrame& frame) {
         const std::string base = animationFrameName(output, info.frame);
-        const double tWrite = writeAnimationFrame(writer, base, frame.image, o.exposure, first, last);
+        const double tWrite = writeAnimationFrame(writer, base, frame.image, o.display, first, last);
         sumIrr += info.irradianceSeconds;
         sumTree += info.octreeSeconds;
         sumG += info.gbufferSeconds;
@@ -233,7 +235,7 @@ int runTextureSpaceAnimation(const PointLightCommand& o, ImageWriter& writer, co
     renderTextureSpaceAnimation(animation, renderer, g, perVertex, base,
                                 [&](const AnimationFrameInfo& info, PointFrame& frame) {
         const std::string name = animationFrameName(output, info.frame);
-        const double tWrite = writeAnimationFrame(writer, name, frame.image, o.exposure, first, last);
+        const double tWrite = writeAnimationFrame(writer, name, frame.image, o.display, first, last);
         sumMat += info.materialSeconds;
         sumEval += frame.renderSeconds;
         sumWrite += tWrite;
@@ -315,7 +317,7 @@ int runTextureSpace(const PointLightCommand& o, ImageWriter& writer, const Trian
                 1.0 / std::max(tt.lighting() + tEval, 1e-9), tGBuffer);
     t.restart();
     writer.exr(output + ".exr", image);
-    writer.png(output + ".png", image, o.exposure);
+    writer.png(output + ".png", image, &o.display);
     const double tWrite = t.seconds();
 
     if (o.compareJb || o.compareBrute) {
@@ -332,15 +334,16 @@ int runTextureSpace(const PointLightCommand& o, ImageWriter& writer, const Trian
         const double tRef = frame.renderSeconds;
         const std::string suffix = o.compareBrute ? "_brute" : "_jb";
         writer.exr(output + suffix + ".exr", ref);
-        writer.png(output + suffix + ".png", ref, o.exposure);
+        writer.png(output + suffix + ".png", ref, &o.display);
         const CompareResult r = compareImages(image, ref);
         const double scale = writeErrorHeatmap(writer, output, image, ref, r);
         std::printf("%s_error.png: relative error, yellow = %g or more (the 99th percentile, rounded up)\n",
                     output.c_str(), scale);
         std::printf("%s (epsilon %g, %zu %s samples): %.3f s; RMSE (hit pixels, mean of R G B of the displayed 0..1 "
-                    "image at exposure %g) %.5f; relative RMSE (linear) %.4g, mean ratio %.5f\n",
+                    "image at exposure %g, %s) %.5f; relative RMSE (linear) %.4g, mean ratio %.5f\n",
                     o.compareBrute ? "brute force" : "Jensen-Buhler", epsilon, placed.size(), toString(source), tRef,
-                    o.exposure, displayRmse(image, ref, o.exposure), r.overall.relativeRmse, r.overall.meanRatio);
+                    o.display.exposureStops, toneMapOperatorName(o.display.op), displayRmse(image, ref, o.display),
+                    r.overall.relativeRmse, r.overall.meanRatio);
     }
     std::printf("wrote %s.exr and %s.png (write %.3f s) in %s\n", output.c_str(), output.c_str(), tWrite,
                 formatDuration(start.seconds()).c_str());
@@ -354,7 +357,7 @@ int runPointLightCommand(const PointLightCommand& o, ImageWriter& writer) {
     const ThreadLimit limit(o.threads);
     validateEpsilon(o.epsilon);
     if (o.leafSize < 1) throw Error("--leaf-size", "must be at least 1");
-    if (!std::isfinite(o.exposure)) throw Error("--exposure", "must be finite");
+    if (!std::isfinite(o.display.exposureStops)) throw Error("--exposure", "must be finite");
     const FresnelModel fresnel = parseFresnelModel(o.fresnel);
     const PointMethod method = parsePointMethod(o.method);
     const SplitDiskModel splitDisk = parseSplitDiskModel(o.splitDisk);
@@ -531,7 +534,7 @@ int runPointLightCommand(const PointLightCommand& o, ImageWriter& writer) {
         std::printf("cache times: pass 2 %.3f s (serial scan %.3f s, S and gradient in parallel tasks), pass 3 %.3f s; "
                     "T_cache %.3f s\n",
                     cs.pass2Seconds, cs.scanSeconds, cs.pass3Seconds, tRender);
-        if (o.cacheImage) writeCacheImages(writer, output, image, g, frame.caches, frame.visuals, o.exposure);
+        if (o.cacheImage) writeCacheImages(writer, output, image, g, frame.caches, frame.visuals, o.display);
     } else {
         std::printf("%s: epsilon %g, %zu object pixels, %.1f terms per pixel (of %zu samples)\n",
                     method == PointMethod::Brute ? "brute force" : "Jensen-Buhler",
@@ -541,7 +544,7 @@ int runPointLightCommand(const PointLightCommand& o, ImageWriter& writer) {
 
     t.restart();
     writer.exr(output + ".exr", image);
-    writer.png(output + ".png", image, o.exposure);
+    writer.png(output + ".png", image, &o.display);
     const double tWrite = t.seconds();
 
     std::printf("frame: %d x %d, %zu hit pixels, %zu samples\n", g.width, g.height, g.objectPixels(), placed.size());
@@ -560,13 +563,13 @@ int runPointLightCommand(const PointLightCommand& o, ImageWriter& writer) {
         const PointFrame jb = reference(PointMethod::JensenBuhler);
         const double tJb = jb.renderSeconds;
         writer.exr(output + "_jb.exr", jb.image);
-        writer.png(output + "_jb.png", jb.image, o.exposure);
+        writer.png(output + "_jb.png", jb.image, &o.display);
         const CompareResult r = compareImages(image, jb.image);
         writeErrorHeatmap(writer, output, image, jb.image, r);
         std::printf("Jensen-Buhler (epsilon %g): T_JB %.3f s, speedup %.2fx; RMS (paper: hit pixels, mean of R G B of "
-                    "the displayed 0..1 image, writePng's tone mapping) %.5f; relative RMSE (linear) %.4g, mean ratio "
-                    "%.5f\n",
-                    o.epsilon, tJb, tJb / std::max(tRender, 1e-9), displayRmse(image, jb.image, o.exposure),
+                    "the displayed 0..1 image, exposure %g, %s) %.5f; relative RMSE (linear) %.4g, mean ratio %.5f\n",
+                    o.epsilon, tJb, tJb / std::max(tRender, 1e-9), o.display.exposureStops,
+                    toneMapOperatorName(o.display.op), displayRmse(image, jb.image, o.display),
                     r.overall.relativeRmse, r.overall.meanRatio);
     }
     if (o.compareBrute) {
@@ -575,10 +578,10 @@ int runPointLightCommand(const PointLightCommand& o, ImageWriter& writer) {
         writer.exr(output + "_brute.exr", brute.image);
         const CompareResult r = compareImages(image, brute.image);
         std::printf("brute force (epsilon 0): %.3f s, %.1fx the %s time; %s vs brute: relative RMSE %.3g, max relative "
-                    "error %.3g, mean ratio %.6f, RMS (paper) %.5f\n",
+                    "error %.3g, mean ratio %.6f, RMS (paper, %s) %.5f\n",
                     tBrute, tBrute / std::max(tRender, 1e-9), toString(method), toString(method),
                     r.overall.relativeRmse, r.overall.maxRelative, r.overall.meanRatio,
-                    displayRmse(image, brute.image, o.exposure));
+                    toneMapOperatorName(o.display.op), displayRmse(image, brute.image, o.display));
     }
     std::printf("wrote %s.exr and %s.png in %s\n", output.c_str(), output.c_str(),
                 formatDuration(start.seconds()).c_str());
@@ -693,7 +696,7 @@ void addPointLightOptions(CLI::App& app, PointLightCommand& o) {
         ->group("Animation");
     app.add_option("--frames", o.frames, "Frame count of --light-path, --material-path or --size-path")
         ->group("Animation");
-    app.add_option("--exposure", o.exposure, "PNG exposure in stops (the EXR is unscaled)")->capture_default_str();
+    addDisplayOptions(app, o.display);
     addThreadsOption(app, o.threads);
     addCameraOptions(app, o.camera);
 }

@@ -52,7 +52,7 @@ struct PointLightCommand {
     double epsilon = 0.05;
     int leafSize = 8;
     std::string fresnel = "exact";
-    double exposure = 0.0;
+    DisplayTransform display;
     bool compareBrute = false;
     std::string method = "cache";
     double a = IrradianceCacheOptions{}.a;

@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "common/error.h"
+#include "common/options.h"
 
 namespace prt {
 
@@ -34,22 +35,22 @@ FrameOptions addFrameOptions(CLI::App& app, FrameSettings& s) {
     app.add_option("--size-mm", s.sizeMm,
                    "Editable files only: the object's size (bounding-box diagonal, mm); default: the file's")
         ->group("Material");
-    app.add_option("--exposure", s.exposure, "Exposure in stops for the PNG (the EXR stays linear)")
-        ->capture_default_str()->group("Output");
+    addDisplayOptions(app, s.display);
     return o;
 }
 
 void checkFrameSettings(const FrameSettings& s) {
     if (!std::isfinite(s.envRotation)) throw Error("--env-rotation", "must be finite");
-    if (!std::isfinite(s.exposure)) throw Error("--exposure", "must be finite");
+    if (!std::isfinite(s.display.exposureStops)) throw Error("--exposure", "must be finite");
     if (s.specularBlur < 0) throw Error("--specular-blur", "must be >= 1");
     if (!(s.sizeMm >= 0.0) || !std::isfinite(s.sizeMm)) throw Error("--size-mm", "must be a size in mm > 0");
 }
 
 std::string renderArguments(const FrameSettings& s) {
     char buf[128];
-    std::snprintf(buf, sizeof buf, " --env-rotation=%.9g --exposure=%.9g", s.envRotation, s.exposure);
+    std::snprintf(buf, sizeof buf, " --env-rotation=%.9g --exposure=%.9g", s.envRotation, s.display.exposureStops);
     std::string args = buf;
+    if (s.display.op != ToneMapOperator::Clamp) args += std::string(" --tonemap ") + toneMapOperatorName(s.display.op);
     if (s.lightTerms > 0) args += " -L " + std::to_string(s.lightTerms);
     if (s.components != "all") args += " --components " + s.components;
     if (s.specular) {

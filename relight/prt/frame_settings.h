@@ -14,6 +14,8 @@
 #include <cstddef>
 #include <string>
 
+#include "common/tonemap.h"
+
 namespace prt {
 
 struct FrameSettings {
@@ -22,7 +24,7 @@ struct FrameSettings {
     size_t lightTerms = 0;            // -L: keep the light's largest Haar terms; 0 = all
     bool specular = false;            // --specular: the Fresnel-weighted pre-filtered reflection
     int specularBlur = 0;             // --specular-blur: pre-filter factor; 0 = automatic (specularBlurFactor)
-    double exposure = 0.0;            // --exposure: stops, applied to the displayed / PNG image only
+    DisplayTransform display;         // --exposure, --tonemap: the displayed / PNG image only
     // The object's material and size, for files made with prt-precompute --editable
     // (relight/prt/editable_transport.h): --material as parseMaterial reads it
     // (common/material_edit.h), --size-mm the object's size in mm; empty / 0 = the
@@ -39,8 +41,8 @@ struct FrameOptions {
 };
 
 // Declares --env-rotation, --components, -L/--light-terms, --specular, --specular-blur
-// (group "Lighting"), --material and --size-mm (group "Material") and --exposure (group
-// "Output"), bound to `s`; the defaults are FrameSettings'.
+// (group "Lighting"), --material and --size-mm (group "Material") and --exposure,
+// --tonemap (group "Output", addDisplayOptions), bound to `s`; the defaults are FrameSettings'.
 FrameOptions addFrameOptions(CLI::App& app, FrameSettings& s);
 
 // Throws prt::Error naming the option: a non-finite --env-rotation or --exposure, a
@@ -49,7 +51,8 @@ FrameOptions addFrameOptions(CLI::App& app, FrameSettings& s);
 void checkFrameSettings(const FrameSettings& s);
 
 // The options that give `s` back through addFrameOptions:
-// " --env-rotation=R --exposure=E" (%.9g; '=' so negative values parse), then " -L N"
+// " --env-rotation=R --exposure=E" (%.9g; '=' so negative values parse), then
+// " --tonemap T" unless T is clamp, " -L N"
 // when N > 0, " --components C" unless C is "all", " --specular" followed by
 // " --specular-blur F" (F > 0) when the layer is on, and " --material 'M'" /
 // " --size-mm=S" when set.

@@ -209,7 +209,7 @@ void drawPointLightPanel(const PanelInputs& in, ViewState& state, PointLightWork
     }
     ImGui::BeginDisabled(comparison.running || state.lights.empty() || !state.pointLights);
     if (ImGui::Button("RMSE vs Jensen-Buhler")) {
-        pointWorker->compare(state.camera, double(state.exposure));
+        pointWorker->compare(state.camera, {double(state.exposure), ToneMapOperator(state.toneMap)});
         comparison.running = true;
         comparison.text = "rendering the reference ...";
     }
@@ -331,6 +331,10 @@ void drawPanel(const PanelInputs& in, ViewState& state, PointLightWorker* pointW
     ImGui::SameLine();
     ImGui::Checkbox("specular (G)", &state.specular);
     ImGui::SliderFloat("exposure (+/-)", &state.exposure, -10.0f, 10.0f, "%.2f stops");
+    {
+        static const char* const kToneMaps[] = {"clamp", "reinhard", "filmic", "chang"};
+        ImGui::Combo("tone mapping (T)", &state.toneMap, kToneMaps, int(std::size(kToneMaps)));
+    }
     const int maxTerms = 6 * int(file.cubemapSize * file.cubemapSize);
     ImGui::SliderInt("light terms ([/])", &state.lightTerms, 0, maxTerms, state.lightTerms == 0 ? "all" : "%d",
                      ImGuiSliderFlags_Logarithmic);
@@ -370,7 +374,7 @@ void drawPanel(const PanelInputs& in, ViewState& state, PointLightWorker* pointW
             "N, B (PgDn, PgUp): next, previous environment\n"
             "M, S, G: multiple, single scattering, specular\n"
             "E, L: environment light, point lights\n"
-            "+, -, 0: exposure; [, ]: light terms\n"
+            "+, -, 0: exposure; T: tone mapping; [, ]: light terms\n"
             "F12 or P: screenshot, H: panel, Esc: quit");
     }
     if (ImGui::Button("reset camera (R)")) resetCamera(state, in.limits);

@@ -43,9 +43,9 @@ PointLightWorker::PointLightWorker(const TriangleMesh& meshMm, const Material& m
     worker_.emplace("point lights", [this](const PointLightRequest& r, PointLightResult& out) { compute(r, out); });
 }
 
-void PointLightWorker::compare(const Camera& camera, double exposure) {
-    worker_->post([this, camera, exposure] {
-        std::string text = runComparison(camera, exposure);
+void PointLightWorker::compare(const Camera& camera, const DisplayTransform& display) {
+    worker_->post([this, camera, display] {
+        std::string text = runComparison(camera, display);
         std::lock_guard<std::mutex> lock(textMutex_);
         comparison_ = std::move(text);
         haveComparison_ = true;
@@ -152,7 +152,7 @@ void PointLightWorker::compute(const PointLightRequest& r, PointLightResult& out
     out.totalMs = total.milliseconds();
 }
 
-std::string PointLightWorker::runComparison(const Camera& camera, double exposure) {
+std::string PointLightWorker::runComparison(const Camera& camera, const DisplayTransform& display) {
     if (!renderer_ || !current_) return "no point light to compare";
     const Stopwatch t;
     const GBuffer g = traceGBuffer(*scene_, mesh_, camera);
@@ -170,9 +170,10 @@ std::string PointLightWorker::runComparison(const Camera& camera, double exposur
     const CompareResult c = compareImages(image, ref);
     char buf[512];
     std::snprintf(buf, sizeof buf,
-                  "point lights (%s) vs Jensen-Buhler (eps 0.05, %zu faces): RMSE %.4f (displayed, exposure %.2g), "
+                  "point lights (%s) vs Jensen-Buhler (eps 0.05, %zu faces): RMSE %.4f (displayed, exposure %.2g, %s), "
                   "relative RMSE %.3f; %.1f s",
-                  material.name.c_str(), faces.size(), displayRmse(image, ref, exposure), exposure, c.overall.relativeRmse, t.seconds());
+                  material.name.c_str(), faces.size(), displayRmse(image, ref, display), display.exposureStops,
+                  toneMapOperatorName(display.op), c.overall.relativeRmse, t.seconds());
     std::printf("%s\n", buf);
     std::fflush(stdout);
     return buf;

@@ -23,7 +23,7 @@
 // On demand (compare()): the error of the point-light part of the frame a camera sees,
 // with the current material (the last request's), against Jensen-Buhler (face-centroid samples, epsilon 0.05; docs/viewer.md, "Controls"):
 // the per-vertex TSIS frame and the reference are rendered on this thread, after any
-// pending request, and the RMSE of the displayed images (exposure as given) and the
+// pending request, and the RMSE of the displayed images (exposure and tone mapping as given) and the
 // linear relative RMSE come back as one line of text.
 //
 // Contract as RelightWorker (latest_request_worker.h): submit() replaces a request not
@@ -45,6 +45,7 @@
 #include "common/camera.h"
 #include "common/materials.h"
 #include "common/mesh.h"
+#include "common/tonemap.h"
 #include "relight/pointlight/point_lights.h"
 #include "relight/pointlight/texture_space_sampling.h"
 #include "relight/viewer/latest_request_worker.h"
@@ -102,7 +103,7 @@ public:
     bool take(PointLightResult& out) { return worker_->take(out); }
 
     // Queues a comparison of the current lighting (the last request) seen by `camera`.
-    void compare(const Camera& camera, double exposure);
+    void compare(const Camera& camera, const DisplayTransform& display);
     // The comparison's line of text once done.
     bool takeComparison(std::string& text);
 
@@ -113,7 +114,7 @@ private:
     // On the worker's thread:
     void compute(const PointLightRequest& r, PointLightResult& out);
     void ensureAtlas();  // the ray scene and the atlas, built on the first light
-    std::string runComparison(const Camera& camera, double exposure);
+    std::string runComparison(const Camera& camera, const DisplayTransform& display);
 
     const TriangleMesh& mesh_;
     Material material_;  // the constructor's: requests without a material use it

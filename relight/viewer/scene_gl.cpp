@@ -61,6 +61,9 @@ SceneGl::SceneGl(const RelightObject& object, const std::vector<Image>& environm
       fileTerms_(object.transport.viewMaps ? object.transport.viewMaps->terms : 0) {
     const TriangleMesh& mesh = object_.mesh;
     const size_t V = mesh.vertexCount(), T = mesh.triangleCount();
+    vertexAreas_.assign(V, 0.0f);
+    for (size_t f = 0; f < T; ++f)
+        for (int k = 0; k < 3; ++k) vertexAreas_[mesh.triangles[f][k]] += faceArea(mesh, f) / 3.0f;
     GLint maxSize = 0;
     glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxSize);
     rowWidth_ = std::min(4096, int(maxSize));
@@ -209,6 +212,16 @@ void SceneGl::uploadRadiance(const std::vector<glm::vec4>& packed, int slots) {
     for (int k = 0; k < slots; ++k)
         uploadRows(radiance_[back], rowWidth_, k * slotRows_, V, GL_RGBA, GL_FLOAT, &packed[size_t(k) * V].x, 4);
     radianceFront_ = back;
+    // Chang's Radiance_avg without reading the frame back: the area-weighted mean
+    // luminance of the view-independent radiance (slot 0) over the surface.
+    double sum = 0.0, area = 0.0;
+    for (size_t v = 0; v < V && slots > 0; ++v) {
+        const glm::vec4& L = packed[v];
+        const float y = luminance(glm::vec3(std::max(L.r, 0.0f), std::max(L.g, 0.0f), std::max(L.b, 0.0f)));
+        if (std::isfinite(y)) sum += double(vertexAreas_[v]) * double(y);
+        area += double(vertexAreas_[v]);
+    }
+    radianceAverage_ = area > 0.0 ? sum / area : 0.0;
 }
 
 void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
@@ -271,7 +284,9 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
     glUniform1f(glGetUniformLocation(p, "uTanHalf"), float(tanHalf));
     glUniform2f(glGetUniformLocation(p, "uViewSize"), float(c.width), float(c.height));
     glUniformMatrix3fv(glGetUniformLocation(p, "uEnvRotationT"), 1, GL_FALSE, &rotationT[0][0]);
-    glUniform1f(glGetUniformLocation(p, "uScale"), float(std::exp2(double(frame.exposure))));
+    const DisplayMapping mapping = displayMapping(frame.display, radianceAverage_);
+    glUniform1f(glGetUniformLocation(p, "uScale"), mapping.scale);
+    glUniform1i(glGetUniformLocation(p, "uToneMap"), int(mapping.op));
     glUniform1i(glGetUniformLocation(p, "uRowWidth"), rowWidth_);
     glUniform1i(glGetUniformLocation(p, "uSlotRows"), slotRows_);
     glUniform1i(glGetUniformLocation(p, "uTermCount"), frame.viewTerms);

@@ -8,7 +8,9 @@
 //   2. shading, one full-screen triangle every frame: TranslucentShader::shade's
 //      formula for any number K of view terms, the optional specular layer
 //      (specularReflection) and, where no triangle is, the environment along the ray
-//      (environmentRadiance); tone mapping as writePng (2^exposure, clamp, exact sRGB).
+//      (environmentRadiance); the display transform of writePng (common/tonemap.h),
+//      except that chang's Radiance_avg is the area-weighted mean luminance of the
+//      uploaded per-vertex radiance (no read-back of the frame), not the image's.
 // The frame goes straight to the window, or to an offscreen framebuffer (tone-mapped
 // RGBA8 + linear RGBA32F, alpha 1 on the object) for screenshots and for a window
 // whose framebuffer is not the camera's size.
@@ -28,6 +30,7 @@
 
 #include "common/camera.h"
 #include "common/image.h"
+#include "common/tonemap.h"
 #include "relight/prt/relight_object.h"
 
 namespace prt {
@@ -37,7 +40,7 @@ struct SceneFrame {
     Camera camera;
     int environment = 0;           // the map of the background and the specular layer
     double rotation = 0.0;         // the environment's rotation, degrees about +Y
-    float exposure = 0.0f;         // stops
+    DisplayTransform display;      // exposure and tone mapping (chang: Radiance_avg of the uploaded radiance)
     int viewTerms = 0;             // K of the uploaded radiance (0: diffuse only)
     bool specular = false;         // the specular layer asked for (its pre-filtered map is bound)
     bool environmentLight = true;  // background and specular layer shown
@@ -100,6 +103,8 @@ private:
     Camera visibilityCamera_;  // the camera the visibility buffer was drawn with
     int targetWidth_ = 0, targetHeight_ = 0;
     int rowWidth_ = 4096, slotRows_ = 0, viewMapSize_ = 0;
+    std::vector<float> vertexAreas_;  // a third of each adjacent triangle's area, mm^2
+    double radianceAverage_ = 0.0;    // chang's Radiance_avg of the drawn radiance
 };
 
 }  // namespace prt

@@ -189,7 +189,8 @@ void Viewer::start() {
 
     state_.camera = s_.camera;
     state_.rotation = wrapDegrees(s_.frame.envRotation);
-    state_.exposure = float(s_.frame.exposure);
+    state_.exposure = float(s_.frame.display.exposureStops);
+    state_.toneMap = int(s_.frame.display.op);
     state_.lightTerms = int(std::min<size_t>(s_.frame.lightTerms, size_t(6) * file.cubemapSize * file.cubemapSize));
     state_.multipleScattering = s_.components.multipleScattering;
     state_.singleScattering = s_.components.singleScattering;
@@ -342,7 +343,7 @@ SceneFrame Viewer::sceneFrame() const {
     f.camera = state_.camera;
     f.environment = haveLight_ ? displayed_.environment : state_.environment;
     f.rotation = haveLight_ ? displayed_.rotation : state_.rotation;
-    f.exposure = state_.exposure;
+    f.display = {double(state_.exposure), ToneMapOperator(state_.toneMap)};
     f.viewTerms = haveLight_ ? displayedTerms_ : 0;
     f.specular = state_.specular;
     f.environmentLight = state_.environmentLight;
@@ -416,7 +417,7 @@ std::string Viewer::renderCommand() const {
     cmd += buf;
     FrameSettings frame;
     frame.envRotation = state_.rotation;
-    frame.exposure = double(state_.exposure);
+    frame.display = {double(state_.exposure), ToneMapOperator(state_.toneMap)};
     frame.lightTerms = size_t(std::max(state_.lightTerms, 0));
     const LightRequest r = currentRequest();
     if (r.multipleScattering != available_.multipleScattering || r.singleScattering != available_.singleScattering)

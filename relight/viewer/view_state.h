@@ -23,6 +23,7 @@ struct ViewState {
     int environment = 0;                // index into the environments
     double rotation = 0.0;              // environment rotation, degrees about +Y, in (-180, 180]
     float exposure = 0.0f;              // stops
+    int toneMap = 0;                    // ToneMapOperator (common/tonemap.h)
     int lightTerms = 0;                 // the light's largest Haar terms kept; 0 = all
     bool multipleScattering = true, singleScattering = true;  // asked for (the file may lack one)
     bool specular = false;              // the specular layer

@@ -199,6 +199,7 @@ void ViewerWindow::handleKey(ViewState& s, const ViewLimits& limits, int key, in
         case GLFW_KEY_MINUS:
         case GLFW_KEY_KP_SUBTRACT: s.exposure -= 0.5f; break;
         case GLFW_KEY_0: s.exposure = 0.0f; break;
+        case GLFW_KEY_T: s.toneMap = (s.toneMap + 1) % 4; break;
         case GLFW_KEY_RIGHT_BRACKET:
             s.lightTerms = s.lightTerms == 0 ? 0 : std::min(s.lightTerms * 2, limits.maxLightTerms);
             break;

@@ -108,6 +108,28 @@ def test_images_round_trip_and_compare_matches_prt_compare(scene, tmp_path):
     assert prt.compare(image, image)["relative_rmse"] == 0.0
 
 
+def test_tone_mapping_follows_the_formulas_and_reaches_the_png(tmp_path):
+    rng = np.random.default_rng(3)
+    image = (rng.random((16, 16, 4)) * 4.0).astype(np.float32)
+    image[..., 3] = (rng.random((16, 16)) > 0.25).astype(np.float32)
+    # Chang et al. 2008 (R / (1 + R), the printed (1 + R) / R corrected) over the mean
+    # luminance of the object pixels, one stop up.
+    rgb = image[..., :3].astype(np.float64)
+    lum = rgb @ np.array([0.2126, 0.7152, 0.0722])
+    r = 2.0 * rgb / lum[image[..., 3] > 0.5].mean()
+    assert np.allclose(prt.tonemap(image, exposure=1.0, tonemap="chang"), r / (1.0 + r), atol=1e-6)
+    x = 0.5 * rgb
+    filmic = np.clip(x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
+    assert np.allclose(prt.tonemap(image, exposure=-1.0, tonemap="filmic"), filmic, atol=2e-6)
+    # The PNG holds the sRGB encoding of those values, to the 8-bit rounding.
+    prt.write_png(str(tmp_path / "f.png"), image, exposure=-1.0, tonemap="filmic")
+    back = prt.read_image(str(tmp_path / "f.png")).astype(np.float64)
+    srgb = np.where(filmic <= 0.0031308, 12.92 * filmic, 1.055 * filmic ** (1 / 2.4) - 0.055)
+    assert np.abs(back - srgb).max() <= 0.5 / 255 + 1e-6
+    with pytest.raises(ValueError, match="--tonemap: unknown operator 'gamma'"):
+        prt.tonemap(image, tonemap="gamma")
+
+
 def test_install_script_puts_the_module_in_a_venv(tmp_path):
     import os
     import subprocess

@@ -64,7 +64,7 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
     const Stopwatch start;
     const ThreadLimit limit(o.threads);
     if (!std::isfinite(o.envRotation)) throw Error("--env-rotation", "must be finite");
-    if (!std::isfinite(o.exposure)) throw Error("--exposure", "must be finite");
+    if (!std::isfinite(o.display.exposureStops)) throw Error("--exposure", "must be finite");
     const std::string output = outputPrefix(o.output);
     if (output.empty()) throw Error("--output", "empty prefix");
     if (o.spacingFraction && !(*o.spacingFraction > 0 && *o.spacingFraction <= 10))
@@ -396,12 +396,12 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
     const ReferenceFrame frame = parts.size() == 1 ? parts[0] : sumReferenceFrames(partPointers);
 
     writer.exr(output + ".exr", frame.image);
-    writer.png(output + ".png", frame.image, o.exposure);
+    writer.png(output + ".png", frame.image, &o.display);
     if (!o.noiseImage.empty()) writer.exr(o.noiseImage, frame.standardError);
     if (o.componentImages)
         for (size_t k = 0; k < parts.size(); ++k) {
             writer.exr(output + "_" + partNames[k] + ".exr", parts[k].image);
-            writer.png(output + "_" + partNames[k] + ".png", parts[k].image, o.exposure);
+            writer.png(output + "_" + partNames[k] + ".png", parts[k].image, &o.display);
         }
 
     std::printf("%zu object pixels, %d x %d primary rays in %.2f s\n", frame.objectPixels, camera.width,
@@ -434,8 +434,7 @@ void addReferenceOptions(CLI::App& app, ReferenceCommand& o) {
     addCameraOptions(app, o.camera);
     app.add_option("--env-rotation", o.envRotation, "Rotate the environment by this many degrees about +Y")
         ->capture_default_str()->group("Lighting");
-    app.add_option("--exposure", o.exposure, "Exposure in stops for the PNG (the EXR stays linear)")
-        ->capture_default_str()->group("Output");
+    addDisplayOptions(app, o.display);
     app.add_option("--noise-image", o.noiseImage,
                    "Also write the estimated standard error of every pixel (RGB EXR) to this file")
         ->group("Output");

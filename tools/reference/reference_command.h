@@ -34,7 +34,8 @@ struct ReferenceCommand {
     std::vector<std::string> lights;
     std::string lightsFile;
     CameraOptions camera;
-    double envRotation = 0.0, exposure = 0.0;
+    double envRotation = 0.0;
+    DisplayTransform display;
     MaterialOptions material;
     bool materialGiven = false;  // any of the material options was given
     ScaleOptions scale;

@@ -6,19 +6,33 @@ uniform vec3 uForward, uRight, uUp;  // camera basis (camera.cpp)
 uniform float uTanHalf;              // tan(fovY / 2)
 uniform vec2 uViewSize;              // width, height in pixels
 uniform mat3 uEnvRotationT;          // R^T: the environment is L(R^T d)
-uniform float uScale;                // 2^exposure
+uniform float uScale;                // 2^exposure (divided by Radiance_avg for chang)
+uniform int uToneMap;                // ToneMapOperator: 0 clamp, 1 reinhard, 2 filmic, 3 chang
 layout(location = 0) out vec4 displayColor;  // tone-mapped, sRGB-encoded (RGBA8 target or window)
 layout(location = 1) out vec4 linearColor;   // radiance, alpha 1 on the object (RGBA32F target)
 
-// writePng: scale, clamp to [0, 1] (negatives and NaN -> 0), exact sRGB encoding; the
-// 8-bit target rounds to the nearest of 256 levels.
+// writePng's display transform (common/tonemap.h): scale, the operator, then the exact
+// sRGB encoding; the 8-bit target rounds to the nearest of 256 levels. Negatives and NaN
+// display as 0.
 float encodeSrgb(float v) {
     if (!(v > 0.0)) v = 0.0;
     if (v > 1.0) v = 1.0;
     return v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
 }
+float positive(float v) { return v > 0.0 ? v : 0.0; }
+vec3 toneMap(vec3 c) {
+    if (uToneMap == 1) {  // Reinhard et al. 2002 eq. 3 on the luminance, hue kept
+        float y = dot(c, vec3(0.2126, 0.7152, 0.0722));
+        return y > 0.0 ? c / (1.0 + y) : vec3(0.0);
+    }
+    if (uToneMap == 2)  // ACES filmic, Narkowicz's fit
+        return (c * (2.51 * c + 0.03)) / (c * (2.43 * c + 0.59) + 0.14);
+    if (uToneMap == 3)  // Chang et al. 2008: R / (1 + R)
+        return c / (1.0 + c);
+    return c;
+}
 void writeColor(vec3 L, float alpha) {
-    vec3 c = L * uScale;
+    vec3 c = toneMap(vec3(positive(L.r), positive(L.g), positive(L.b)) * uScale);
     displayColor = vec4(encodeSrgb(c.r), encodeSrgb(c.g), encodeSrgb(c.b), 1.0);
     linearColor = vec4(L, alpha);
 }
