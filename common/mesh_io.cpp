@@ -14,6 +14,12 @@
 #include <OpenMesh/Core/Mesh/BaseKernel.hh>
 #include <OpenMesh/Core/System/omstream.hh>
 
+#include <assimp/Importer.hpp>
+#include <assimp/material.h>
+#include <assimp/scene.h>
+
+#include <nlohmann/json.hpp>
+
 #include <zlib.h>
 
 #include <sys/stat.h>
@@ -31,6 +37,7 @@
 #include <mutex>
 #include <string_view>
 #include <system_error>
+#include <unordered_map>
 
 namespace prt {
 
@@ -40,7 +47,7 @@ namespace prt {
 
 namespace {
 
-enum class Format { Obj, Ply, Off, Stl };
+enum class Format { Obj, Ply, Off, Stl, Gltf, Glb };
 
 
 std::string formatName(Format f) {
@@ -49,6 +56,8 @@ std::string formatName(Format f) {
         case Format::Ply: return "ply";
         case Format::Off: return "off";
         case Format::Stl: return "stl";
+        case Format::Gltf: return "gltf";
+        case Format::Glb: return "glb";
     }
     return "?";
 }
@@ -67,10 +76,15 @@ Format formatOf(const std::string& path, bool& gz, const char* verb) {
     if (ext == "ply") return Format::Ply;
     if (ext == "off") return Format::Off;
     if (ext == "stl") return Format::Stl;
+    const bool load = std::string(verb) == "load";
+    if (load && (ext == "gltf" || ext == "glb")) {
+        if (gz) throw Error(path, "compressed glTF (." + ext + ".gz) is not supported");
+        return ext == "gltf" ? Format::Gltf : Format::Glb;
+    }
     throw Error(path, std::string("cannot ") + verb + " a mesh with extension '" +
                           (ext.empty() ? std::string() : "." + ext) +
                           "' (supported: .obj .ply .off .stl" +
-                          (std::string(verb) == "load" ? ", each optionally .gz" : "") + ")");
+                          (load ? ", each optionally .gz, and .gltf .glb" : "") + ")");
 }
 
 // Whole file, decompressed if it is gzip data (zlib reads plain files unchanged).
@@ -294,10 +308,60 @@ bool objCornerIsValid(std::string_view corner) {
     return !n.empty() && objIndexIsValid(n) && n.find('/') == std::string_view::npos;
 }
 
-ScanResult scanObj(const std::string& path, std::string_view data) {
+// What the OBJ pre-scan collects for loadMeshSurface: per face record that OpenMesh
+// keeps (three or more distinct vertices), its corners after OpenMesh's removal of
+// repeated vertices (the first occurrence stays), each with its vertex, texture
+// coordinate and normal (0-based; -1 for none), and the material named by the last
+// usemtl before it.
+struct ObjSurfaceScan {
+    std::vector<glm::vec2> texcoords;  // vt records, (u, v)
+    std::vector<glm::vec3> normals;    // vn records
+    std::vector<int> cornerVertex, cornerTexcoord, cornerNormal;
+    std::vector<size_t> faceStart{0};  // record r: corners [faceStart[r], faceStart[r + 1])
+    std::vector<uint32_t> faceMaterial;     // index into materialNames, or kNoMaterial
+    std::vector<std::string> materialNames; // usemtl names in order of first use
+    std::vector<std::string> libraries;     // mtllib file names, as written
+    static constexpr uint32_t kNoMaterial = 0xffffffffu;
+};
+
+// A finite float, or throws naming the line and what it is.
+float parseFiniteValue(const std::string& path, size_t line, std::string_view token, const char* what) {
+    std::string_view t = token;
+    if (!t.empty() && t.front() == '+') t.remove_prefix(1);
+    double value = 0.0;
+    const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), value);
+    const std::string where = "line " + std::to_string(line) + ": ";
+    if (ec == std::errc::invalid_argument || end != t.data() + t.size())
+        throw Error(path, where + "cannot parse " + what + " " + shown(token));
+    if (ec == std::errc::result_out_of_range) {
+        const double v = std::strtod(std::string(t).c_str(), nullptr);
+        if (std::isinf(v)) throw Error(path, where + what + " " + shown(token) + " overflows");
+        return float(v);
+    }
+    if (!std::isfinite(value) || !std::isfinite(float(value)))
+        throw Error(path, where + "non-finite " + what + " " + shown(token));
+    return float(value);
+}
+
+// An OBJ index (1-based or negative = relative to the `count` records so far) as a
+// 0-based index; throws when it falls outside [0, count).
+int resolveObjIndex(const std::string& path, size_t line, std::string_view token, size_t count, const char* what) {
+    long long value = 0;
+    std::string_view t = token;
+    if (!t.empty() && t.front() == '+') t.remove_prefix(1);
+    std::from_chars(t.data(), t.data() + t.size(), value);  // objCornerIsValid checked the syntax
+    const long long resolved = value < 0 ? (long long)count + value : value - 1;
+    if (resolved < 0 || resolved >= (long long)count)
+        throw Error(path, "line " + std::to_string(line) + ": " + what + " index " + shown(token) +
+                              " is out of range (" + std::to_string(count) + " " + what + "s so far)");
+    return int(resolved);
+}
+
+ScanResult scanObj(const std::string& path, std::string_view data, ObjSurfaceScan* surface) {
     ScanResult r;
     r.readerDropsDegenerate = true;
     size_t v = 0, f = 0;
+    uint32_t material = ObjSurfaceScan::kNoMaterial;
     Lines lines(data);
     std::string_view line;
     while (lines.next(line)) {
@@ -320,6 +384,63 @@ ScanResult scanObj(const std::string& path, std::string_view data) {
                     throw Error(path, "line " + std::to_string(lines.number()) + ": malformed face corner " +
                                           shown(tok[k]) + " (expected V, V/T, V//N or V/T/N, indices from 1 or negative)");
             ++f;
+            if (surface) {
+                // The corners OpenMesh keeps: repeated vertices removed, first occurrence
+                // stays; a record of fewer than three distinct vertices is not a face.
+                const size_t begin = surface->cornerVertex.size();
+                for (size_t k = 1; k < tok.size(); ++k) {
+                    const std::string_view c = tok[k];
+                    const size_t a = c.find('/');
+                    const int vi = resolveObjIndex(path, lines.number(), c.substr(0, a), v, "vertex");
+                    int ti = -1, ni = -1;
+                    if (a != std::string_view::npos) {
+                        const std::string_view rest = c.substr(a + 1);
+                        const size_t b = rest.find('/');
+                        if (!rest.substr(0, b).empty())
+                            ti = resolveObjIndex(path, lines.number(), rest.substr(0, b), surface->texcoords.size(),
+                                                 "texture coordinate");
+                        if (b != std::string_view::npos)
+                            ni = resolveObjIndex(path, lines.number(), rest.substr(b + 1), surface->normals.size(),
+                                                 "normal");
+                    }
+                    bool repeated = false;
+                    for (size_t j = begin; j < surface->cornerVertex.size() && !repeated; ++j)
+                        repeated = surface->cornerVertex[j] == vi;
+                    if (repeated) continue;
+                    surface->cornerVertex.push_back(vi);
+                    surface->cornerTexcoord.push_back(ti);
+                    surface->cornerNormal.push_back(ni);
+                }
+                if (surface->cornerVertex.size() - begin < 3) {
+                    surface->cornerVertex.resize(begin);
+                    surface->cornerTexcoord.resize(begin);
+                    surface->cornerNormal.resize(begin);
+                } else {
+                    surface->faceStart.push_back(surface->cornerVertex.size());
+                    surface->faceMaterial.push_back(material);
+                }
+            }
+        } else if (surface && tok[0] == "vt") {
+            if (tok.size() < 2)
+                throw Error(path, "line " + std::to_string(lines.number()) + ": texture coordinate needs u (and v)");
+            glm::vec2 uv(0.0f);
+            for (size_t k = 1; k <= std::min<size_t>(2, tok.size() - 1); ++k)
+                uv[int(k - 1)] = parseFiniteValue(path, lines.number(), tok[k], "texture coordinate");
+            surface->texcoords.push_back(uv);
+        } else if (surface && tok[0] == "vn") {
+            if (tok.size() < 4)
+                throw Error(path, "line " + std::to_string(lines.number()) + ": normal needs three components");
+            glm::vec3 n;
+            for (int k = 0; k < 3; ++k) n[k] = parseFiniteValue(path, lines.number(), tok[size_t(k + 1)], "normal");
+            surface->normals.push_back(n);
+        } else if (surface && tok[0] == "usemtl") {
+            // The name is the rest of the line (names may hold spaces).
+            const std::string name(trim(std::string(line.substr(line.find("usemtl") + 6))));
+            auto it = std::find(surface->materialNames.begin(), surface->materialNames.end(), name);
+            material = uint32_t(it - surface->materialNames.begin());
+            if (it == surface->materialNames.end()) surface->materialNames.push_back(name);
+        } else if (surface && tok[0] == "mtllib") {
+            for (size_t k = 1; k < tok.size(); ++k) surface->libraries.emplace_back(tok[k]);
         }
     }
     r.vertices = v;
@@ -610,12 +731,14 @@ ScanResult scanStl(const std::string& path, std::string_view data) {
     return r;
 }
 
-ScanResult scan(Format format, const std::string& path, std::string_view data) {
+ScanResult scan(Format format, const std::string& path, std::string_view data, ObjSurfaceScan* objSurface) {
     switch (format) {
-        case Format::Obj: return scanObj(path, data);
+        case Format::Obj: return scanObj(path, data, objSurface);
         case Format::Ply: return scanPly(path, data);
         case Format::Off: return scanOff(path, data);
         case Format::Stl: return scanStl(path, data);
+        case Format::Gltf:
+        case Format::Glb: return {};  // checked by readGltf
     }
     return {};
 }
@@ -627,6 +750,11 @@ struct Soup {
     std::vector<int> corners;          // vertex indices as the reader gave them
     std::vector<size_t> faceStart{0};  // face f is corners[faceStart[f], faceStart[f + 1])
     size_t faceCount() const { return faceStart.size() - 1; }
+    // For loadMeshSurface only: per corner (parallel to corners; empty when the file has
+    // none) and per face.
+    std::vector<glm::vec2> cornerUv;
+    std::vector<glm::vec3> cornerNormal;
+    std::vector<uint32_t> faceMaterial;
 };
 
 // Receives vertices and faces from any OpenMesh reader without building a halfedge
@@ -716,6 +844,8 @@ private:
 // Splits polygon `poly` (vertex indices, >= 4 distinct consecutive corners) into
 // triangles with the same orientation: ear clipping in the plane of the polygon's
 // Newell normal; a fan when the polygon is huge, has no area, or clipping gets stuck.
+// `out` receives each triangle as three positions in `poly` (0 .. poly.size() - 1), so
+// that the caller can carry per-corner data along.
 void triangulatePolygon(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& poly,
                         std::vector<glm::uvec3>& out) {
     const size_t n = poly.size();
@@ -728,7 +858,9 @@ void triangulatePolygon(const std::vector<glm::vec3>& positions, const std::vect
         normal += glm::dvec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
     }
     if (n > 256 || !(glm::length(normal) > 0.0)) {
-        fan(poly);
+        std::vector<uint32_t> all(n);
+        for (size_t i = 0; i < n; ++i) all[i] = uint32_t(i);
+        fan(all);
         return;
     }
     // Project onto the coordinate plane most perpendicular to the normal, flipping one
@@ -760,22 +892,350 @@ void triangulatePolygon(const std::vector<glm::vec3>& positions, const std::vect
                          cross2(q[ic], q[ia], q[ip]) >= 0.0;
             }
             if (inside) continue;
-            out.emplace_back(poly[ia], poly[ib], poly[ic]);
+            out.emplace_back(uint32_t(ia), uint32_t(ib), uint32_t(ic));
             ring.erase(ring.begin() + std::ptrdiff_t(k));
             clipped = true;
         }
         if (!clipped) {
             std::vector<uint32_t> rest;
-            for (size_t i : ring) rest.push_back(poly[i]);
+            for (size_t i : ring) rest.push_back(uint32_t(i));
             fan(rest);
             return;
         }
     }
-    out.emplace_back(poly[ring[0]], poly[ring[1]], poly[ring[2]]);
+    out.emplace_back(uint32_t(ring[0]), uint32_t(ring[1]), uint32_t(ring[2]));
 }
 
 std::string plural(size_t n, const char* one, const char* many) {
     return std::to_string(n) + " " + (n == 1 ? one : many);
+}
+
+// ---- glTF through Assimp -------------------------------------------------------------
+// Assimp's glTF 2.0 importer silently drops triangles with an index out of range and
+// reports broken JSON as "no suitable reader", so the JSON is checked first: the .glb
+// container, the primitives' modes and the number of triangles they declare, which the
+// triangles Assimp delivers must match.
+
+std::string oneLine(std::string text) {
+    for (char& c : text)
+        if (c == '\n' || c == '\r') c = ' ';
+    while (!text.empty() && text.back() == ' ') text.pop_back();
+    return text;
+}
+
+const char* gltfModeName(int mode) {
+    switch (mode) {
+        case 0: return "POINTS";
+        case 1: return "LINES";
+        case 2: return "LINE_LOOP";
+        case 3: return "LINE_STRIP";
+        case 4: return "TRIANGLES";
+        case 5: return "TRIANGLE_STRIP";
+        case 6: return "TRIANGLE_FAN";
+    }
+    return "unknown";
+}
+
+uint32_t readLe32(std::string_view data, size_t at) {
+    uint32_t v = 0;
+    std::memcpy(&v, data.data() + at, 4);
+    return v;
+}
+
+// The glTF JSON (a .glb's JSON chunk) checked for what Assimp would get wrong; returns
+// the number of triangles the primitives declare.
+size_t gltfPrecheck(const std::string& path, Format format, std::string_view data) {
+    std::string_view jsonText = data;
+    if (format == Format::Glb) {
+        if (data.size() < 12 || data.substr(0, 4) != "glTF")
+            throw Error(path, "not a binary glTF file (no 'glTF' magic)");
+        const uint32_t version = readLe32(data, 4), length = readLe32(data, 8);
+        if (version != 2) throw Error(path, "binary glTF version " + std::to_string(version) + " (only 2 is read)");
+        if (length > data.size())
+            throw Error(path, "truncated: the .glb header declares " + std::to_string(length) + " bytes but the file has " +
+                                  std::to_string(data.size()));
+        if (length < data.size())
+            throw Error(path, "the .glb header declares " + std::to_string(length) + " bytes but the file has " +
+                                  std::to_string(data.size()) + " (corrupt)");
+        if (data.size() < 20) throw Error(path, "truncated: the .glb file ends before its JSON chunk");
+        const uint32_t chunkLength = readLe32(data, 12);
+        if (data.substr(16, 4) != "JSON") throw Error(path, "the first chunk of the .glb file is not JSON (corrupt)");
+        if (uint64_t(chunkLength) > data.size() - 20)
+            throw Error(path, "truncated: the .glb JSON chunk declares " + std::to_string(chunkLength) +
+                                  " bytes, more than the file holds");
+        jsonText = data.substr(20, chunkLength);
+    }
+    nlohmann::json doc;
+    try {
+        doc = nlohmann::json::parse(jsonText.begin(), jsonText.end());
+    } catch (const nlohmann::json::exception& e) {
+        std::string what = e.what();
+        const size_t bracket = what.find("] ");
+        if (what.rfind("[json.exception", 0) == 0 && bracket != std::string::npos) what = what.substr(bracket + 2);
+        throw Error(path, "invalid glTF JSON: " + oneLine(what));
+    }
+    if (!doc.is_object()) throw Error(path, "invalid glTF: the JSON is not an object");
+    const auto asset = doc.find("asset");
+    if (asset == doc.end() || !asset->is_object() || !asset->contains("version") || !(*asset)["version"].is_string())
+        throw Error(path, "invalid glTF: no asset.version");
+    const std::string version = (*asset)["version"].get<std::string>();
+    if (version.rfind("2.", 0) != 0) throw Error(path, "glTF version " + version + " (only 2.x is read)");
+
+    const nlohmann::json accessors = doc.value("accessors", nlohmann::json::array());
+    auto accessorCount = [&](const nlohmann::json& ref, const std::string& where) -> size_t {
+        if (!ref.is_number_unsigned() || ref.get<size_t>() >= accessors.size())
+            throw Error(path, where + " refers to accessor " + ref.dump() + " but the file has " +
+                                  std::to_string(accessors.size()));
+        const auto& a = accessors[ref.get<size_t>()];
+        if (!a.is_object() || !a.contains("count") || !a["count"].is_number_unsigned())
+            throw Error(path, "accessor " + ref.dump() + " has no valid count");
+        return a["count"].get<size_t>();
+    };
+    size_t triangles = 0;
+    const nlohmann::json meshes = doc.value("meshes", nlohmann::json::array());
+    if (!meshes.is_array()) throw Error(path, "invalid glTF: meshes is not an array");
+    for (size_t m = 0; m < meshes.size(); ++m) {
+        const auto& prims = meshes[m].is_object() ? meshes[m].value("primitives", nlohmann::json::array())
+                                                  : nlohmann::json::array();
+        for (size_t p = 0; p < prims.size(); ++p) {
+            const std::string where = "mesh " + std::to_string(m) + " primitive " + std::to_string(p);
+            const auto& prim = prims[p];
+            if (!prim.is_object()) throw Error(path, where + " is not an object");
+            const nlohmann::json modeValue = prim.value("mode", nlohmann::json(4));
+            const int mode = modeValue.is_number_integer() ? modeValue.get<int>() : -1;
+            if (mode < 0 || mode > 6) throw Error(path, where + " has unknown mode " + modeValue.dump());
+            if (mode < 4)
+                throw Error(path, where + " is " + gltfModeName(mode) + " (mode " + std::to_string(mode) +
+                                      "): only triangle primitives are read");
+            const auto attributes = prim.find("attributes");
+            if (attributes == prim.end() || !attributes->is_object() || !attributes->contains("POSITION"))
+                throw Error(path, where + " has no POSITION attribute");
+            const size_t count = prim.contains("indices") ? accessorCount(prim["indices"], where + "'s indices")
+                                                          : accessorCount((*attributes)["POSITION"], where);
+            if (mode == 4) {
+                if (count % 3 != 0)
+                    throw Error(path, where + " has " + std::to_string(count) +
+                                          " indices, not a multiple of 3 (TRIANGLES)");
+                triangles += count / 3;
+            } else {
+                triangles += count >= 3 ? count - 2 : 0;
+            }
+        }
+    }
+    // Assimp 5.2 reads past a media type without '/' (a crash): an image's mimeType, and
+    // the media type of a data URI (images and buffers).
+    auto mediaTypeIsValid = [](const std::string& text) {
+        const size_t slash = text.find('/');
+        return slash != std::string::npos && slash > 0 && slash + 1 < text.size();
+    };
+    for (const char* kind : {"images", "buffers"}) {
+        const nlohmann::json items = doc.value(kind, nlohmann::json::array());
+        for (size_t i = 0; items.is_array() && i < items.size(); ++i) {
+            if (!items[i].is_object()) continue;
+            const std::string what = std::string(kind).substr(0, std::strlen(kind) - 1) + " " + std::to_string(i);
+            if (items[i].contains("mimeType")) {
+                const auto& mime = items[i]["mimeType"];
+                if (!mime.is_string() || !mediaTypeIsValid(mime.get<std::string>()))
+                    throw Error(path, what + " has an invalid mimeType " + mime.dump().substr(0, 40));
+            }
+            if (items[i].contains("uri")) {
+                const auto& uri = items[i]["uri"];
+                if (!uri.is_string()) throw Error(path, what + " has a uri that is not a string");
+                const std::string text = uri.get<std::string>();
+                if (text.rfind("data:", 0) == 0) {
+                    const std::string media = text.substr(5, text.find_first_of(";,") - 5);
+                    if (!mediaTypeIsValid(media) || text.find(',') == std::string::npos)
+                        throw Error(path, what + " has a malformed data URI");
+                }
+            }
+        }
+    }
+    if (triangles == 0)
+        throw Error(path, meshes.empty() ? "contains no meshes (empty mesh)"
+                                         : "its primitives hold no triangles (empty mesh)");
+    return triangles;
+}
+
+TextureWrap wrapOf(int mode) {
+    switch (mode) {
+        case aiTextureMapMode_Clamp: return TextureWrap::ClampToEdge;
+        case aiTextureMapMode_Mirror: return TextureWrap::MirroredRepeat;
+        default: return TextureWrap::Repeat;
+    }
+}
+
+// The materials of an Assimp scene as written: name, base-colour factor, base-colour
+// texture (a path, or the bytes of an embedded image) and its wrap modes.
+std::vector<FileMaterial> gltfMaterials(const std::string& path, const aiScene& scene) {
+    std::vector<FileMaterial> out;
+    for (unsigned i = 0; i < scene.mNumMaterials; ++i) {
+        const aiMaterial& mat = *scene.mMaterials[i];
+        FileMaterial fm;
+        aiString name;
+        if (mat.Get(AI_MATKEY_NAME, name) == AI_SUCCESS) fm.name = name.C_Str();
+        aiColor4D colour(1.0f, 1.0f, 1.0f, 1.0f);
+        if (mat.Get(AI_MATKEY_BASE_COLOR, colour) != AI_SUCCESS) mat.Get(AI_MATKEY_COLOR_DIFFUSE, colour);
+        fm.baseColorFactor = glm::vec4(colour.r, colour.g, colour.b, colour.a);
+        aiTextureType type = aiTextureType_BASE_COLOR;
+        if (mat.GetTextureCount(type) == 0) type = aiTextureType_DIFFUSE;
+        if (mat.GetTextureCount(type) > 0) {
+            aiString texPath;
+            unsigned uvIndex = 0;
+            aiTextureMapMode modes[2] = {aiTextureMapMode_Wrap, aiTextureMapMode_Wrap};
+            mat.GetTexture(type, 0, &texPath, nullptr, &uvIndex, nullptr, nullptr, modes);
+            if (uvIndex != 0)
+                throw Error(path, "material '" + fm.name + "': its base-colour texture uses TEXCOORD_" +
+                                      std::to_string(uvIndex) + "; only TEXCOORD_0 is read");
+            fm.wrapU = wrapOf(modes[0]);
+            fm.wrapV = wrapOf(modes[1]);
+            if (const aiTexture* embedded = scene.GetEmbeddedTexture(texPath.C_Str())) {
+                if (embedded->mHeight != 0)
+                    throw Error(path, "material '" + fm.name + "': uncompressed embedded textures are not supported");
+                fm.embeddedTexture.assign(reinterpret_cast<const char*>(embedded->pcData), embedded->mWidth);
+                fm.embeddedFormat = embedded->achFormatHint;
+            } else if (texPath.length > 0 && texPath.C_Str()[0] == '*') {
+                throw Error(path, "material '" + fm.name + "' refers to embedded texture " + texPath.C_Str() +
+                                      ", which the file does not hold");
+            } else {
+                fm.texture = texPath.C_Str();
+            }
+        }
+        out.push_back(std::move(fm));
+    }
+    if (out.empty()) out.emplace_back();
+    return out;
+}
+
+// Reads a glTF file into `soup` (welded vertices, triangles, and with `surface` the
+// per-corner texture coordinates and normals and the per-face material). Returns the
+// number of triangles read (over all instances).
+size_t readGltf(const std::string& path, Format format, std::string_view data, Soup& soup,
+                std::vector<FileMaterial>* materials) {
+    const size_t declared = gltfPrecheck(path, format, data);
+
+    // From the file, not from `data`: Assimp opens a .gltf's buffers relative to it.
+    Assimp::Importer importer;
+    const aiScene* scene = importer.ReadFile(path, 0);
+    if (!scene) {
+        std::string why = oneLine(importer.GetErrorString());
+        if (why.rfind("GLTF: ", 0) == 0) why = why.substr(6);
+        throw Error(path, "cannot be read as glTF: " + (why.empty() ? std::string("unknown error") : why));
+    }
+    size_t read = 0;
+    for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+        const aiMesh& mesh = *scene->mMeshes[m];
+        if (mesh.mPrimitiveTypes & (aiPrimitiveType_POINT | aiPrimitiveType_LINE))
+            throw Error(path, "mesh '" + std::string(mesh.mName.C_Str()) +
+                                  "' holds points or lines: only triangle primitives are read");
+        for (unsigned f = 0; f < mesh.mNumFaces; ++f)
+            if (mesh.mFaces[f].mNumIndices == 3) ++read;
+    }
+    if (read != declared)
+        throw Error(path, "the file declares " + std::to_string(declared) + " triangles but " + std::to_string(read) +
+                              " could be read (an index out of range, or a corrupt buffer)");
+    if (!scene->mRootNode) throw Error(path, "cannot be read as glTF: no scene");
+
+    const bool wantSurface = materials != nullptr;
+    if (wantSurface) *materials = gltfMaterials(path, *scene);
+
+    // Welding by position; -0 and +0 are one key.
+    struct Key {
+        uint32_t x, y, z;
+        bool operator==(const Key&) const = default;
+    };
+    struct KeyHash {
+        size_t operator()(const Key& k) const {
+            uint64_t h = 1469598103934665603ull;
+            for (uint32_t v : {k.x, k.y, k.z}) h = (h ^ v) * 1099511628211ull;
+            return size_t(h);
+        }
+    };
+    auto bits = [](float v) {
+        if (v == 0.0f) v = 0.0f;
+        uint32_t b;
+        std::memcpy(&b, &v, 4);
+        return b;
+    };
+    std::unordered_map<Key, uint32_t, KeyHash> welded;
+    bool anyUv = false, anyNormal = false;
+    size_t triangles = 0;
+    const glm::vec2 noUv(std::numeric_limits<float>::quiet_NaN());
+    const glm::vec3 noNormal(std::numeric_limits<float>::quiet_NaN());
+
+    std::vector<std::pair<const aiNode*, aiMatrix4x4>> stack{{scene->mRootNode, scene->mRootNode->mTransformation}};
+    std::vector<uint32_t> vertexOf;
+    while (!stack.empty()) {
+        const auto [node, transform] = stack.back();
+        stack.pop_back();
+        const bool identity = transform == aiMatrix4x4();
+        aiMatrix3x3 normalMatrix(transform);
+        normalMatrix.Inverse().Transpose();
+        for (unsigned k = 0; k < node->mNumMeshes; ++k) {
+            const unsigned mi = node->mMeshes[k];
+            if (mi >= scene->mNumMeshes) throw Error(path, "a node refers to mesh " + std::to_string(mi) + " that does not exist");
+            const aiMesh& mesh = *scene->mMeshes[mi];
+            vertexOf.assign(mesh.mNumVertices, 0);
+            for (unsigned v = 0; v < mesh.mNumVertices; ++v) {
+                aiVector3D p = mesh.mVertices[v];
+                if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+                    throw Error(path, "vertex " + std::to_string(v) + " of Assimp mesh " + std::to_string(mi) +
+                                          " (a glTF primitive) has a non-finite coordinate (NaN/Inf coordinates "
+                                          "are not allowed)");
+                if (!identity) {
+                    const glm::dvec4 q = glm::dvec4(p.x, p.y, p.z, 1.0);
+                    glm::dvec3 r(0.0);
+                    for (int row = 0; row < 3; ++row)
+                        r[row] = transform[row][0] * q.x + transform[row][1] * q.y + transform[row][2] * q.z +
+                                 transform[row][3];
+                    p = aiVector3D(float(r.x), float(r.y), float(r.z));
+                    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+                        throw Error(path, "a node transform takes a vertex to a non-finite position");
+                }
+                const Key key{bits(p.x), bits(p.y), bits(p.z)};
+                const auto [it, inserted] = welded.try_emplace(key, uint32_t(soup.positions.size()));
+                if (inserted) soup.positions.emplace_back(p.x, p.y, p.z);
+                vertexOf[v] = it->second;
+            }
+            const bool hasUv = mesh.HasTextureCoords(0), hasNormal = mesh.HasNormals();
+            anyUv = anyUv || hasUv;
+            anyNormal = anyNormal || hasNormal;
+            for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
+                const aiFace& face = mesh.mFaces[f];
+                if (face.mNumIndices != 3) continue;
+                for (int c = 0; c < 3; ++c) {
+                    const unsigned idx = face.mIndices[c];
+                    if (idx >= mesh.mNumVertices)
+                        throw Error(path, "mesh '" + std::string(mesh.mName.C_Str()) + "' triangle " +
+                                              std::to_string(f) + " refers to vertex " + std::to_string(idx) +
+                                              " but the mesh has " + std::to_string(mesh.mNumVertices));
+                    soup.corners.push_back(int(vertexOf[idx]));
+                    if (!wantSurface) continue;
+                    soup.cornerUv.push_back(hasUv ? glm::vec2(mesh.mTextureCoords[0][idx].x, mesh.mTextureCoords[0][idx].y)
+                                                  : noUv);
+                    if (hasNormal) {
+                        aiVector3D n = mesh.mNormals[idx];
+                        if (!identity) n = normalMatrix * n;
+                        const float len = n.Length();
+                        soup.cornerNormal.push_back(len > 0.0f ? glm::vec3(n.x, n.y, n.z) / len : noNormal);
+                    } else {
+                        soup.cornerNormal.push_back(noNormal);
+                    }
+                }
+                soup.faceStart.push_back(soup.corners.size());
+                if (wantSurface) soup.faceMaterial.push_back(mesh.mMaterialIndex);
+                ++triangles;
+            }
+        }
+        for (unsigned c = node->mNumChildren; c-- > 0;)
+            stack.emplace_back(node->mChildren[c], transform * node->mChildren[c]->mTransformation);
+    }
+    if (wantSurface) {
+        if (!anyUv) soup.cornerUv.clear();
+        if (!anyNormal) soup.cornerNormal.clear();
+        for (uint32_t& m : soup.faceMaterial)
+            if (m >= materials->size()) m = uint32_t(materials->size() - 1);
+    }
+    return triangles;
 }
 
 }  // namespace
@@ -784,7 +1244,9 @@ std::string plural(size_t n, const char* one, const char* many) {
 // loadMesh
 // ---------------------------------------------------------------------------------
 
-TriangleMesh loadMesh(const std::string& path, MeshReport* report) {
+namespace {
+
+TriangleMesh loadMeshImpl(const std::string& path, MeshReport* report, MeshSurface* surface) {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (!fs::exists(path, ec)) throw Error(path, "no such file");
@@ -792,18 +1254,25 @@ TriangleMesh loadMesh(const std::string& path, MeshReport* report) {
 
     bool gzName = false;
     const Format format = formatOf(path, gzName, "load");
+    const bool gltf = format == Format::Gltf || format == Format::Glb;
     bool compressed = false;
     const std::string data = readFileBytes(path, compressed);
     if (data.empty()) throw Error(path, compressed ? "decompresses to nothing" : "file is empty");
+    if (gltf && compressed) throw Error(path, "compressed glTF is not supported");
 
     MeshReport rep;
     rep.format = formatName(format);
     rep.compressed = compressed;
 
-    const ScanResult expected = scan(format, path, data);
+    std::optional<ObjSurfaceScan> objSurface;
+    if (surface && format == Format::Obj) objSurface.emplace();
+    const ScanResult expected = scan(format, path, data, objSurface ? &*objSurface : nullptr);
 
     Soup soup;
-    {
+    std::vector<FileMaterial> materials;
+    if (gltf) {
+        readGltf(path, format, data, soup, surface ? &materials : nullptr);
+    } else {
         std::lock_guard lock(openMeshMutex());
         std::optional<TempFile> temp;
         std::string readPath = path;
@@ -867,26 +1336,82 @@ TriangleMesh loadMesh(const std::string& path, MeshReport* report) {
                                   : "contains " + plural(nv, "vertex", "vertices") +
                                         " but no faces (empty mesh)");
 
+    // OBJ surface data from the pre-scan, face by face against what OpenMesh read.
+    if (objSurface) {
+        const ObjSurfaceScan& o = *objSurface;
+        const size_t records = o.faceStart.size() - 1;
+        bool same = records == soup.faceCount() && o.cornerVertex.size() == soup.corners.size();
+        for (size_t c = 0; same && c < soup.corners.size(); ++c) same = o.cornerVertex[c] == soup.corners[c];
+        for (size_t f = 0; same && f < records; ++f) same = o.faceStart[f + 1] == soup.faceStart[f + 1];
+        if (!same)
+            throw Error(path, "the faces' texture coordinates and normals cannot be matched to the faces read "
+                              "(unsupported OBJ layout)");
+        const glm::vec2 noUv(std::numeric_limits<float>::quiet_NaN());
+        const glm::vec3 noNormal(std::numeric_limits<float>::quiet_NaN());
+        const bool anyUv = std::any_of(o.cornerTexcoord.begin(), o.cornerTexcoord.end(), [](int t) { return t >= 0; });
+        const bool anyNormal = std::any_of(o.cornerNormal.begin(), o.cornerNormal.end(), [](int n) { return n >= 0; });
+        for (size_t c = 0; c < soup.corners.size(); ++c) {
+            if (anyUv) soup.cornerUv.push_back(o.cornerTexcoord[c] >= 0 ? o.texcoords[size_t(o.cornerTexcoord[c])] : noUv);
+            if (anyNormal) {
+                const int n = o.cornerNormal[c];
+                const float len = n >= 0 ? glm::length(o.normals[size_t(n)]) : 0.0f;
+                soup.cornerNormal.push_back(len > 0.0f ? o.normals[size_t(n)] / len : noNormal);
+            }
+        }
+        for (const std::string& name : o.materialNames) {
+            materials.emplace_back();
+            materials.back().name = name;
+        }
+        materials.push_back(FileMaterial{});  // faces before any usemtl
+        for (uint32_t m : o.faceMaterial)
+            soup.faceMaterial.push_back(m == ObjSurfaceScan::kNoMaterial ? uint32_t(materials.size() - 1) : m);
+    }
+    if (surface && !gltf && format != Format::Obj) {
+        materials.assign(1, FileMaterial{});
+        soup.faceMaterial.assign(soup.faceCount(), 0);
+    }
+
     // Triangulate; a record with fewer than three distinct consecutive corners is one
-    // degenerate input triangle.
+    // degenerate input triangle. With a surface, each triangle's corners remember the
+    // soup corners they came from and its face.
+    const bool track = surface != nullptr;
     std::vector<glm::uvec3> tris;
     tris.reserve(soup.corners.size() / 3 + 1);
+    std::vector<std::array<size_t, 3>> triCorners;
+    std::vector<size_t> triFace;
     size_t degenerate = droppedByReader;
     std::vector<uint32_t> poly;
+    std::vector<size_t> polyCorner;
+    std::vector<glm::uvec3> local;
     for (size_t f = 0; f < soup.faceCount(); ++f) {
         poly.clear();
+        polyCorner.clear();
         for (size_t c = soup.faceStart[f]; c < soup.faceStart[f + 1]; ++c) {
             const auto idx = uint32_t(soup.corners[c]);
-            if (poly.empty() || poly.back() != idx) poly.push_back(idx);
+            if (poly.empty() || poly.back() != idx) {
+                poly.push_back(idx);
+                polyCorner.push_back(c);
+            }
         }
-        while (poly.size() > 1 && poly.front() == poly.back()) poly.pop_back();
+        while (poly.size() > 1 && poly.front() == poly.back()) {
+            poly.pop_back();
+            polyCorner.pop_back();
+        }
+        local.clear();
         if (poly.size() == 3) {
-            tris.emplace_back(poly[0], poly[1], poly[2]);
+            local.emplace_back(0, 1, 2);
         } else if (poly.size() > 3) {
             ++rep.polygonsTriangulated;
-            triangulatePolygon(soup.positions, poly, tris);
+            triangulatePolygon(soup.positions, poly, local);
         } else {
             ++degenerate;
+        }
+        for (const glm::uvec3& l : local) {
+            tris.emplace_back(poly[l.x], poly[l.y], poly[l.z]);
+            if (track) {
+                triCorners.push_back({polyCorner[l.x], polyCorner[l.y], polyCorner[l.z]});
+                triFace.push_back(f);
+            }
         }
     }
     rep.inputTriangles = tris.size() + degenerate;
@@ -899,7 +1424,8 @@ TriangleMesh loadMesh(const std::string& path, MeshReport* report) {
         const double limit = 2.0 * 1e-12 * diag * diag;  // on |cross| = 2 * area
         std::vector<glm::uvec3> kept;
         kept.reserve(tris.size());
-        for (const auto& t : tris) {
+        for (size_t i = 0; i < tris.size(); ++i) {
+            const glm::uvec3& t = tris[i];
             if (t.x == t.y || t.y == t.z || t.x == t.z) {
                 ++degenerate;
                 continue;
@@ -910,6 +1436,13 @@ TriangleMesh loadMesh(const std::string& path, MeshReport* report) {
                 continue;
             }
             kept.push_back(t);
+            if (track) {
+                for (size_t corner : triCorners[i]) {
+                    if (!soup.cornerUv.empty()) surface->uvs.push_back(soup.cornerUv[corner]);
+                    if (!soup.cornerNormal.empty()) surface->normals.push_back(soup.cornerNormal[corner]);
+                }
+                surface->triangleMaterials.push_back(soup.faceMaterial[triFace[i]]);
+            }
         }
         mesh.triangles = std::move(kept);
     }
@@ -965,7 +1498,22 @@ TriangleMesh loadMesh(const std::string& path, MeshReport* report) {
              " faces of opposite orientation; kept");
 
     if (report) *report = rep;
+    if (surface) {
+        surface->materials = std::move(materials);
+        if (objSurface) surface->materialLibraries = objSurface->libraries;
+    }
     return mesh;
+}
+
+}  // namespace
+
+TriangleMesh loadMesh(const std::string& path, MeshReport* report) {
+    return loadMeshImpl(path, report, nullptr);
+}
+
+TriangleMesh loadMeshSurface(const std::string& path, MeshSurface& surface, MeshReport* report) {
+    surface = MeshSurface{};
+    return loadMeshImpl(path, report, &surface);
 }
 
 // ---------------------------------------------------------------------------------

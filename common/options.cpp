@@ -35,6 +35,21 @@ void addCameraOptions(CLI::App& app, CameraOptions& o) {
         ->capture_default_str()->group("Camera");
 }
 
+void addBaseColourOption(CLI::App& app, bool& on, const std::string& group) {
+    app.add_flag("--base-colour", on,
+                 "Tint the translucent exitance at the exit point by the mesh file's base colour (glTF "
+                 "baseColorFactor x baseColorTexture, OBJ+MTL Kd x map_Kd; docs/assets.md); the specular layer "
+                 "is not tinted")
+        ->group(group);
+}
+
+void addSamplesPerPixelOption(CLI::App& app, CameraOptions& o) {
+    app.add_option("--spp", o.spp,
+                   "Anti-aliasing: samples per pixel, a square number (4 = a 2 x 2 grid of sub-pixel samples "
+                   "averaged by a box filter; the alpha becomes the pixel's coverage)")
+        ->capture_default_str()->group("Camera");
+}
+
 Camera makeCamera(const CameraOptions& o, const glm::dvec3& sphereCentre, double sphereRadius) {
     // The image and lens first: framing divides by them.
     constexpr int kMaxSide = 16384;

@@ -28,10 +28,18 @@ struct CameraOptions {
     double fov = 30.0;                                    // vertical, degrees
     int width = 512, height = 512;
     double azimuth = 0.0, elevation = 15.0, fill = 0.9;  // automatic framing
+    int spp = 1;  // --spp: sub-pixel samples (offline renderers; relight/render/supersample.h)
 };
 
 // Declares --eye --target --up --fov -W -H --azimuth --elevation --fill (group "Camera").
 void addCameraOptions(CLI::App& app, CameraOptions& o);
+
+// Declares --base-colour (a flag): the mesh file's base colour tints the translucent
+// exitance (relight/render/base_colour.h).
+void addBaseColourOption(CLI::App& app, bool& on, const std::string& group = "Object");
+
+// Declares --spp (group "Camera") for the offline renderers; the viewer does not take it.
+void addSamplesPerPixelOption(CLI::App& app, CameraOptions& o);
 
 // The camera of `o` for an object with this bounding sphere: --eye given -> that
 // camera looking at --target (default: the sphere centre); otherwise the sphere framed

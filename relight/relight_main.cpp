@@ -40,6 +40,7 @@
 #include "relight/prt/relight_object.h"
 #include "relight/prt/translucent_shader.h"
 #include "relight/render/gbuffer.h"
+#include "relight/render/supersample.h"
 #include "relight/render/specular.h"
 #ifdef PRT_HAVE_VIEWER
 #include "relight/viewer/view.h"  // the viewer's entry points: ViewerSetup, runViewer, ...
@@ -68,6 +69,7 @@ void addRenderOptions(CLI::App& app, RenderOptions& o) {
                    "<prefix>.png (sRGB); sequences write <prefix>_0000.exr/.png, ...")
         ->required();
     addCameraOptions(app, o.camera);
+    addSamplesPerPixelOption(app, o.camera);
     const FrameOptions frame = addFrameOptions(app, o.frame);
     frame.specularBlur->needs(frame.specular);
     auto* tt = app.add_option("--turntable", o.turntable,
@@ -99,9 +101,12 @@ int runRender(const RenderOptions& o) {
     const Stopwatch loadStart;
     RelightObject object = loadRelightObject(o.mesh, o.transport);
     const std::string materialLine = applyMaterialEdit(object, look.material, look.sizeMm, o.transport);
+    if (look.baseColour) object.baseColour = BaseColour::load(o.mesh, object.mesh);
     const ScatteringComponents components =
         selectComponents(look.components, componentsOf(object.transport), o.transport);
     const Camera camera = makeCamera(o.camera, object.sphereCentre, object.sphereRadius);
+    const int subpixels = subpixelGridSize(o.camera.spp);
+    supersampledCamera(camera, subpixels);  // refuses a frame too large before any work
     const int frames = o.turntable > 0 ? o.turntable : o.envSpin > 0 ? o.envSpin : 0;
     const int count = std::max(frames, 1);
     // A sequence prepares the environment once (EnvironmentLight, light_vector.h;
@@ -117,9 +122,11 @@ int runRender(const RenderOptions& o) {
                 object.mesh.vertexCount(), object.mesh.triangleCount(), double(object.box.diagonal()),
                 object.eta, object.transport.cubemapSize, object.transport.cubemapSize);
     if (!materialLine.empty()) std::printf("%s\n", materialLine.c_str());
-    std::printf("camera: eye (%.4g, %.4g, %.4g) target (%.4g, %.4g, %.4g) fov %.4g, %dx%d\n",
+    if (object.baseColour.enabled()) std::printf("%s\n", object.baseColour.describe().c_str());
+    std::printf("camera: eye (%.4g, %.4g, %.4g) target (%.4g, %.4g, %.4g) fov %.4g, %dx%d, %d spp%s\n",
                 camera.eye.x, camera.eye.y, camera.eye.z, camera.target.x, camera.target.y,
-                camera.target.z, camera.fovY, camera.width, camera.height);
+                camera.target.z, camera.fovY, camera.width, camera.height, o.camera.spp,
+                subpixels > 1 ? " (a regular sub-pixel grid, box filter)" : "");
     std::printf("components: %s%s%s%s; light terms: %s; loaded in %.0f ms\n",
                 components.multipleScattering ? "ms" : "",
                 components.multipleScattering && components.singleScattering ? "," : "",
@@ -146,7 +153,8 @@ int runRender(const RenderOptions& o) {
         }
 
         EnvironmentFrameTimes t;
-        const Image image = renderer.render(frameCamera, rotation, &t);
+        const Image image = boxDownsample(renderer.render(supersampledCamera(frameCamera, subpixels), rotation, &t),
+                                          subpixels);
 
         const Stopwatch writeClock;
         const std::string base = frameName(output, f, frames);
@@ -294,6 +302,7 @@ int runView(const ViewOptions& o) {
         throw Error("--light-orbit", "needs point or directional lights (--light / --lights)");
     for (const std::string& path : o.screenshots)
         if (path.empty()) throw Error("--screenshot", "empty path");
+    if (o.frame.baseColour) throw Error("--base-colour", "the viewer does not draw base colours yet (use render)");
     // Cheap checks first: the display, the environments' paths.
     checkViewerDisplay();
     ViewerSetup setup;

@@ -27,6 +27,7 @@ VERTEX_ERROR=$BUILD/bin/prt-vertex-error
 COMPARE=$BUILD/bin/prt-compare
 ENVCHECK=$BUILD/bin/prt-envcheck
 MAKE_SCENE=$BUILD/bin/prt-make-test-scene
+MAKE_ASSET=$BUILD/bin/prt-make-asset
 
 rm -rf "$WORK"
 mkdir -p "$WORK"
@@ -61,6 +62,15 @@ printf '{"lights": [ {"type": "point", "positon": [0, 50, 0], "intensity": 1} ]}
 printf '{"lights": [ {"type": "point", "position": [0, 50, 0], "intensity": -1} ]}\n' > negative-lights.json
 mkdir -p outdir
 : > a-file
+# glTF assets (docs/assets.md): the torus as a textured .gltf (+ .bin, PNG) and .glb, and
+# broken copies of them.
+"$MAKE_ASSET" "$S/torus.ply" -o torus.gltf > /dev/null 2>&1 && "$MAKE_ASSET" "$S/torus.ply" -o torus.glb > /dev/null 2>&1 \
+    || { echo "FAIL: prt-make-asset could not write the torus"; exit 1; }
+sed 's/"mode":4/"mode":1/' torus.gltf > lines.gltf
+sed 's/"mode":4/"mode":0/' torus.gltf > points.gltf
+sed '0,/"byteOffset":0,/s//"byteOffset":99999999,/' torus.gltf > view.gltf
+head -c 300 torus.gltf > broken.gltf
+head -c 5000 torus.glb > truncated.glb
 
 failures=0 cases=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
@@ -113,6 +123,17 @@ expect "precompute: not a PLY" "garbage\.ply: not a PLY" $O $P garbage.ply -q -o
 expect "precompute: NaN vertex" "nan\.obj: .*non-finite" $O $P nan.obj -q -o $O
 expect "precompute: index out of range" "index\.obj: .*vertex 8" $O $P index.obj -q -o $O
 expect "precompute: degenerate mesh" "flat\.obj: .*degenerate" $O $P flat.obj -q -o $O
+expect "precompute: glTF LINES primitive" "lines\.gltf: mesh 0 primitive 0 is LINES" $O $P lines.gltf -q -o $O
+expect "precompute: glTF POINTS primitive" "points\.gltf: mesh 0 primitive 0 is POINTS" $O $P points.gltf -q -o $O
+expect "precompute: glTF buffer view out of range" "view\.gltf: .*out of range" $O $P view.gltf -q -o $O
+expect "precompute: broken glTF JSON" "broken\.gltf: invalid glTF JSON" $O $P broken.gltf -q -o $O
+expect "precompute: truncated .glb" "truncated\.glb: truncated" $O $P truncated.glb -q -o $O
+# --- prt-make-asset -------------------------------------------------------------------
+A=outdir/asset.glb
+expect "make-asset: missing mesh" "missing\.obj: no such file" $A "$MAKE_ASSET" missing.obj -o $A
+expect "make-asset: texture not an image" "fake\.png" $A "$MAKE_ASSET" "$S/torus.ply" --texture fake.png -o $A
+expect "make-asset: unknown projection" "--projection" $A "$MAKE_ASSET" "$S/torus.ply" --projection cube -o $A
+expect "make-asset: output not glTF" "asset\.fbx: .*extension" - "$MAKE_ASSET" "$S/torus.ply" -o outdir/asset.fbx
 # --- prt-precompute: options ----------------------------------------------------------
 expect "precompute: unknown option" "--bogus" $O $P "$S/torus.ply" --bogus -q -o $O
 expect "precompute: missing value" "--output" - $P "$S/torus.ply" -o
@@ -152,6 +173,10 @@ expect "render: not a transport file" "not-a-transport\.prt" $F.exr \
 expect "render: missing environment" "nowhere\.exr" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e nowhere.exr -o $F
 expect "render: Inf pixels" "inf\.exr: .*(Inf|non-finite)" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e inf.exr -o $F
 expect "render: not an image" "fake\.png" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e fake.png -o $F
+expect "render: samples per pixel not a square" "--spp: must be a square number" $F.exr \
+    $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --spp 8 -o $F
+expect "render: unknown tone mapping" "--tonemap: unknown operator 'gamma'" $F.exr \
+    $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --tonemap gamma -o $F
 expect "render: square environment" "small\.exr: .*(2:1|lat-long|aspect|twice)" $F.exr \
     $R "$S/torus.ply" -t "$S/torus.prt" -e small.exr -o $F
 expect "render: zero width" "-W" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 0 -o $F
@@ -196,9 +221,23 @@ else
     fail "info: the good file is not described"
 fi
 
+# --- glTF assets pair with the transport file of the mesh they were made from ---------
+# (the asset's mesh is loadMesh's, vertex for vertex: same fingerprint)
+cases=$((cases + 1))
+if $R torus.glb -t "$S/torus.prt" -e "$S/sky.exr" -W 32 -H 32 -o outdir/glb > /dev/null 2> stderr.txt \
+    && $R torus.gltf -t "$S/torus.prt" -e "$S/sky.exr" -W 32 -H 32 -o outdir/gltf > /dev/null 2>> stderr.txt \
+    && [ -f outdir/glb.exr ] && [ -f outdir/gltf.exr ]; then
+    echo "PASS: render: the torus as .glb and .gltf pairs with its transport file"
+else
+    head -5 stderr.txt
+    fail "render: a glTF made from the torus does not pair with its transport file"
+fi
+
 # --- prt-pointlight -------------------------------------------------------------------
 L="$POINTLIGHT"
 expect "pointlight: no light" "--light: no light" $F.exr $L "$S/torus.ply" -o $F
+expect "pointlight: samples per pixel not a square" "--spp: must be a square number" $F.exr \
+    $L "$S/torus.ply" --size-mm 20 --light point:30,30,30:0.01 --spp 2 -o $F
 expect "pointlight: bad light syntax" "--light point:1,2:1" $F.exr $L "$S/torus.ply" --light point:1,2:1 -o $F
 expect "pointlight: light inside the object" "inside the object" $F.exr \
     $L "$S/torus.ply" --size-mm 20 --light point:5,0,0:1 -o $F

@@ -506,3 +506,64 @@ TEST_F(MeshFiles, UnreferencedVerticesRemovedInOrder) {
     EXPECT_EQ(m.positions, expected);
     EXPECT_EQ(m.triangles[0], glm::uvec3(0, 2, 1));
 }
+
+// ---------------------------------------------------------------------------------
+// loadMeshSurface: the same mesh, plus what the file says about the surface
+// ---------------------------------------------------------------------------------
+
+TEST_F(MeshFiles, SurfaceMeshIsLoadMeshsMesh) {
+    const TriangleMesh original = prt::makeIcosphere(2, 1.3f);
+    for (const char* ext : {"ply", "obj", "off", "stl"}) {
+        SCOPED_TRACE(ext);
+        const std::string p = file(std::string("s.") + ext);
+        prt::saveMesh(original, p);
+        prt::MeshSurface surface;
+        prt::MeshReport a, b;
+        const TriangleMesh plain = prt::loadMesh(p, &a);
+        const TriangleMesh withSurface = prt::loadMeshSurface(p, surface, &b);
+        expectIdentical(plain, withSurface);
+        EXPECT_EQ(prt::meshFingerprint(plain), prt::meshFingerprint(withSurface));
+        EXPECT_EQ(a.vertices, b.vertices);
+        EXPECT_TRUE(surface.uvs.empty());  // saveMesh writes no texture coordinates
+        EXPECT_EQ(surface.triangleMaterials.size(), plain.triangles.size());
+        ASSERT_FALSE(surface.materials.empty());
+    }
+}
+
+TEST_F(MeshFiles, SurfaceFollowsTriangulationAndDroppedFaces) {
+    // The L-shaped hexagon (ear clipping, not a fan) with one vt per corner, u = 10 x + y,
+    // v = vertex number; a quad; a degenerate triangle (zero area) between them.
+    const std::string obj = writeText("ell.obj",
+                                      "v 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nv 0 0 0\nv 2 0 0\nv 3 0 0\nv 4 0 0\n"
+                                      "vt 21 1\nvt 11 2\nvt 12 3\nvt 2 4\nvt 0 5\nvt 20 6\nvt 30 7\nvt 40 8\n"
+                                      "vn 0 0 1\nvn 0 0 -1\n"
+                                      "f 1/1/1 2/2/1 3/3/1 4/4/1 5/5/1 6/6/1\n"
+                                      "f 6/6/2 7/7/2 8/8/2\n"
+                                      "f 6/6 7/7 1/1 2/2\n");
+    prt::MeshSurface surface;
+    prt::MeshReport report;
+    const TriangleMesh m = prt::loadMeshSurface(obj, surface, &report);
+    EXPECT_EQ(prt::meshFingerprint(m), prt::meshFingerprint(prt::loadMesh(obj)));
+    EXPECT_EQ(report.degenerateFaces, 1u);
+    ASSERT_EQ(m.triangles.size(), 6u);  // 4 from the hexagon, 2 from the quad
+    ASSERT_EQ(surface.uvs.size(), 18u);
+    ASSERT_EQ(surface.normals.size(), 18u);
+    for (size_t t = 0; t < m.triangles.size(); ++t)
+        for (int k = 0; k < 3; ++k) {
+            const glm::vec3 p = m.positions[m.triangles[t][k]];
+            const glm::vec2 uv = surface.uvs[t * 3 + size_t(k)];
+            EXPECT_EQ(uv.x, 10.0f * p.x + p.y) << "triangle " << t << " corner " << k;
+            if (t < 4) EXPECT_EQ(surface.normals[t * 3 + size_t(k)], glm::vec3(0, 0, 1));
+            else EXPECT_TRUE(std::isnan(surface.normals[t * 3 + size_t(k)].x));  // the quad has no vn
+        }
+    // No usemtl: every triangle has the default material.
+    ASSERT_EQ(surface.materials.size(), 1u);
+    for (uint32_t mat : surface.triangleMaterials) EXPECT_EQ(mat, 0u);
+}
+
+TEST_F(MeshFiles, GltfIsInTheExtensionMessage) {
+    const std::string odd = writeText("mesh.xyz", kTetraObj);
+    expectError([&] { prt::loadMesh(odd); }, odd, ".gltf .glb");
+    const std::string gz = writeText("mesh.glb.gz", "x");
+    expectError([&] { prt::loadMesh(gz); }, gz, "compressed glTF");
+}

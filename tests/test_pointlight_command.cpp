@@ -2,10 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <string>
 #include <vector>
 
+#include "common/asset_io.h"
 #include "common/image_compare.h"
 #include "common/mesh_io.h"
 #include "common/shapes.h"
@@ -66,4 +68,46 @@ TEST(PointLightCommand, BadOptionsNameTheOption) {
     test::expectErrorSubject(
         [&] { runPointLightCommand(parse({mesh, "-o", "x", "--light", "point:0,40,0:1", "--a", "0"}), writer); }, "--a");
     EXPECT_TRUE(writer.images.empty());
+}
+
+// --base-colour: a texture constant c gives c times the untextured frame, for the cache
+// (and its Jensen-Buhler comparison) and texture-space sampling alike.
+TEST(PointLightCommand, BaseColourTintsEveryMethod) {
+    const std::string mesh = sphere();
+    const auto dir = std::filesystem::current_path() / "test_pointlight_command_scratch";
+    const std::string glb = (dir / "sphere.glb").string();
+    const TriangleMesh fileMesh = loadMesh(mesh);
+    Image texture(2, 2, 3);
+    const glm::vec3 c(0.7f, 0.4f, 0.25f);
+    for (size_t p = 0; p < 4; ++p)
+        for (int k = 0; k < 3; ++k) texture.pixels[3 * p + size_t(k)] = c[k];
+    saveTexturedGltf(glb, fileMesh, projectUvs(fileMesh, UvProjection::Box), texture);
+    glm::vec3 decoded;
+    for (int k = 0; k < 3; ++k) decoded[k] = srgbToLinear(std::round(linearToSrgb(c[k]) * 255.0f) / 255.0f);
+    const std::string prefix = (dir / "tinted").string();
+    for (const char* method : {"cache", "tsis"}) {
+        std::vector<std::string> args{glb, "-o", prefix, "--light", "point:0,40,20:2", "--size-mm", "20", "-W",
+                                      "40", "-H", "32", "--method", method};
+        if (std::string(method) == "cache") args.push_back("--compare-jb");
+        test::MemoryImageWriter plain, tinted;
+        EXPECT_EQ(runPointLightCommand(parse(args), plain), 0);
+        args.push_back("--base-colour");
+        EXPECT_EQ(runPointLightCommand(parse(args), tinted), 0);
+        ASSERT_EQ(plain.images.size(), tinted.images.size());
+        for (const std::string suffix : {".exr", "_jb.exr"}) {
+            if (!plain.images.count(prefix + suffix)) continue;
+            const Image& a = plain.images[prefix + suffix];
+            const Image& b = tinted.images[prefix + suffix];
+            size_t objectPixels = 0;
+            for (int y = 0; y < a.height; ++y)
+                for (int x = 0; x < a.width; ++x) {
+                    if (!(a.at(x, y, 3) > 0.5f)) continue;
+                    ++objectPixels;
+                    for (int k = 0; k < 3; ++k)
+                        EXPECT_NEAR(b.at(x, y, k), decoded[k] * a.at(x, y, k), 1e-6f + 1e-5f * a.at(x, y, k))
+                            << method << suffix;
+                }
+            EXPECT_GT(objectPixels, 200u) << method << suffix;
+        }
+    }
 }

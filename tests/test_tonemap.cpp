@@ -75,7 +75,9 @@ TEST(ToneMap, ReinhardMapsTheLuminanceAndKeepsTheHue) {
         for (int k = 0; k < 3; ++k)
             EXPECT_NEAR(d[k], std::min(c[k] * reinhardLuminanceScale(y), 1.0), 1e-6 * std::max(1.0, c[k])) << x;
         // Displayed luminance is Y / (1 + Y) while no channel clips.
-        if (d.r < 1.0f) EXPECT_NEAR(luminance(d), y / (1.0 + y), 1e-6) << x;
+        if (d.r < 1.0f) {
+            EXPECT_NEAR(luminance(d), y / (1.0 + y), 1e-6) << x;
+        }
     }
 }
 

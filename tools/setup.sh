@@ -25,6 +25,7 @@ packages=(
   libglfw3-dev libglew-dev libgl-dev libimgui-dev
   libglm-dev
   libopenmesh-dev
+  libassimp-dev
   libeigen3-dev
   libtbb-dev
   libcli11-dev nlohmann-json3-dev

@@ -14,6 +14,7 @@
 #include "relight/prt/environment_frame.h"
 #include "relight/prt/frame_settings.h"
 #include "relight/prt/light_vector.h"
+#include "relight/render/supersample.h"
 
 namespace prt::python {
 
@@ -361,7 +362,8 @@ void bindRendering(py::module_& m) {
         [](PyObject& o, const PyEnvironment& environment, const py::object& eye, const py::object& target,
            const py::object& up, double fov, int width, int height, double azimuth, double elevation, double fill,
            const py::object& envRotation, const std::string& components, size_t lightTerms, bool specular,
-           int specularBlur, const py::object& material, std::optional<double> sizeMm) {
+           int specularBlur, const py::object& material, std::optional<double> sizeMm, int spp) {
+            const int subpixels = subpixelGridSize(spp);
             FrameSettings look;
             look.components = components;
             look.lightTerms = lightTerms;
@@ -390,7 +392,8 @@ void bindRendering(py::module_& m) {
             py::gil_scoped_release release;
             std::lock_guard lock(o.transport->mutex);
             // Checked before the edit, which stays the object's: a refused frame leaves it as it was.
-            const Camera cam = makeCamera(camera, o.object->sphereCentre, o.object->sphereRadius);
+            const Camera cam =
+                supersampledCamera(makeCamera(camera, o.object->sphereCentre, o.object->sphereRadius), subpixels);
             const ScatteringComponents which =
                 selectComponents(look.components, componentsOf(o.object->transport), o.transportPath);
             if (!materialText.empty() || sizeMm) {
@@ -403,7 +406,7 @@ void bindRendering(py::module_& m) {
                 else setObjectMaterial(*o.object, e.material(), size, o.transportPath);
             }
             EnvironmentFrameRenderer renderer(*o.object, environment.image, look, which);
-            Image image = renderer.render(cam, rotation);
+            Image image = boxDownsample(renderer.render(cam, rotation), subpixels);
             py::gil_scoped_acquire acquire;
             return imageArray(std::move(image));
         },
@@ -412,10 +415,11 @@ void bindRendering(py::module_& m) {
         py::arg("width") = 512, py::arg("height") = 512, py::arg("azimuth") = 0.0, py::arg("elevation") = 15.0,
         py::arg("fill") = 0.9, py::arg("env_rotation") = 0.0, py::arg("components") = "all",
         py::arg("light_terms") = 0, py::arg("specular") = false, py::arg("specular_blur") = 0,
-        py::arg("material") = py::none(), py::arg("size_mm") = py::none(),
+        py::arg("material") = py::none(), py::arg("size_mm") = py::none(), py::arg("spp") = 1,
         "prt-relight render's frame as an (H, W, 4) float32 linear RGBA array (A = 1 on the object), the same "
         "bit for bit as its EXR for the same arguments. Camera: eye/target/up in mm (default: the object framed "
-        "from azimuth/elevation to fill that share of the image), fov in degrees. material/size_mm: as "
+        "from azimuth/elevation to fill that share of the image), fov in degrees; spp: anti-aliasing samples per "
+        "pixel (a square number; render's --spp). material/size_mm: as "
         "set_material, and they stay the object's.");
 }
 

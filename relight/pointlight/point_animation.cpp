@@ -90,6 +90,7 @@ PointFrame PointFrameRenderer::render(const GBuffer& g, bool wantVisuals) {
         f.image = jb_->render(g, &f.jbStats);
         f.renderSeconds = t.seconds();
     }
+    if (settings_.baseColour) applyBaseColour(f.image, g, *settings_.baseColour);
     return f;
 }
 

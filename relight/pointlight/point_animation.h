@@ -67,6 +67,7 @@
 #include "common/camera.h"
 #include "common/image.h"
 #include "common/mesh.h"
+#include "relight/render/base_colour.h"
 #include "common/raytrace.h"
 #include "relight/pointlight/irradiance_cache.h"
 #include "relight/pointlight/jensen_buhler.h"
@@ -96,6 +97,7 @@ struct PointRenderSettings {
     double radius = 0.0;    // split-disk R, 0 = default
     SplitDiskModel splitDisk = SplitDiskModel::Paper;
     NearFieldRule nearField = NearFieldRule::Auto;  // sample_cells.h (JB, brute and the cache's S)
+    const BaseColour* baseColour = nullptr;  // tints every frame's object pixels (base_colour.h); null: none
 };
 
 // The near field's cells of `placed` on `mesh` for settings.material, or none for the

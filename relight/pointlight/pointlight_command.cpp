@@ -23,6 +23,7 @@
 #include "common/progress.h"
 #include "common/raytrace.h"
 #include "relight/render/gbuffer.h"
+#include "relight/render/supersample.h"
 #include "common/sampling.h"
 #include "common/transport_params.h"
 #include "common/util.h"
@@ -220,8 +221,8 @@ int runAnimation(const PointLightCommand& o, ImageWriter& writer, const PointAni
 // map, draws, shadow maps) and one G-buffer; per frame setMaterial (the R_d tables, R_p,
 // the local filter) and the sums (renderTextureSpaceAnimation, point_animation.h).
 int runTextureSpaceAnimation(const PointLightCommand& o, ImageWriter& writer, const PointAnimation& animation, TextureSpaceRenderer& renderer,
-                             const GBuffer& g, bool perVertex, const Material& base, double tGBuffer,
-                             const std::string& output, const Stopwatch& start) {
+                             const GBuffer& g, bool perVertex, const Material& base, const BaseColour* colour,
+                             double tGBuffer, const std::string& output, const Stopwatch& start) {
     const TextureSpaceTimings& tt = renderer.timings();
     std::printf("animation: material / size path (Chang et al. Fig. 11: coefficients and size interpolated linearly; "
                 "lights, camera and irradiance attached to the object), %d frames; reused between frames: the atlas, "
@@ -235,6 +236,7 @@ int runTextureSpaceAnimation(const PointLightCommand& o, ImageWriter& writer, co
     renderTextureSpaceAnimation(animation, renderer, g, perVertex, base,
                                 [&](const AnimationFrameInfo& info, PointFrame& frame) {
         const std::string name = animationFrameName(output, info.frame);
+        if (colour) applyBaseColour(frame.image, g, *colour);
         const double tWrite = writeAnimationFrame(writer, name, frame.image, o.display, first, last);
         sumMat += info.materialSeconds;
         sumEval += frame.renderSeconds;
@@ -305,9 +307,11 @@ int runTextureSpace(const PointLightCommand& o, ImageWriter& writer, const Trian
     const double tGBuffer = t.seconds();
     t.restart();
     if (animation.kind == AnimationKind::MaterialPath)
-        return runTextureSpaceAnimation(o, writer, animation, renderer, g, evaluate == "vertex", settings.material, tGBuffer,
+        return runTextureSpaceAnimation(o, writer, animation, renderer, g, evaluate == "vertex", settings.material,
+                                        settings.baseColour, tGBuffer,
                                         output, start);
-    const Image image = evaluate == "vertex" ? renderer.renderPerVertex(g) : renderer.render(g);
+    Image image = evaluate == "vertex" ? renderer.renderPerVertex(g) : renderer.render(g);
+    if (settings.baseColour) applyBaseColour(image, g, *settings.baseColour);
     const double tEval = t.seconds();
     std::printf("frame: %d x %d, %zu hit pixels; %zu distinct sample texels of %d draws\n", g.width, g.height,
                 g.objectPixels(), renderer.uniqueSamples(), to.samples);
@@ -352,9 +356,10 @@ int runTextureSpace(const PointLightCommand& o, ImageWriter& writer, const Trian
 
 }  // namespace
 
-int runPointLightCommand(const PointLightCommand& o, ImageWriter& writer) {
+int runPointLightCommand(const PointLightCommand& o, ImageWriter& target) {
     const Stopwatch start;
     const ThreadLimit limit(o.threads);
+    const int subpixels = subpixelGridSize(o.camera.spp);
     validateEpsilon(o.epsilon);
     if (o.leafSize < 1) throw Error("--leaf-size", "must be at least 1");
     if (!std::isfinite(o.display.exposureStops)) throw Error("--exposure", "must be finite");
@@ -484,13 +489,23 @@ int runPointLightCommand(const PointLightCommand& o, ImageWriter& writer) {
     }
     const double tPlace = t.seconds();
 
+    const BaseColour colour = o.baseColour ? BaseColour::load(o.mesh, mesh) : BaseColour();
+    if (colour.enabled()) std::printf("%s\n", colour.describe().c_str());
     const PointRenderSettings settings{.material = material, .method = method, .fresnel = fresnel,
                                        .leafSize = o.leafSize, .epsilon = o.epsilon, .a = o.a,
-                                       .radius = o.radius, .splitDisk = splitDisk, .nearField = nearField};
+                                       .radius = o.radius, .splitDisk = splitDisk, .nearField = nearField,
+                                       .baseColour = colour.enabled() ? &colour : nullptr};
     glm::dvec3 centre(box.centre());
     double radius = 0.0;
     for (const glm::vec3& p : mesh.positions) radius = std::max(radius, glm::length(glm::dvec3(p) - centre));
-    const Camera camera = makeCamera(o.camera, centre, radius);
+    // At --spp N every frame is drawn N times larger and written box-downsampled
+    // (supersample.h); the figures printed on the way are over the sub-pixel samples.
+    const Camera camera = supersampledCamera(makeCamera(o.camera, centre, radius), subpixels);
+    DownsamplingImageWriter downsampled(target, subpixels);
+    ImageWriter& writer = downsampled;
+    if (subpixels > 1)
+        std::printf("anti-aliasing: %d spp (a %d x %d sub-pixel grid, box filter); frames are traced at %d x %d\n",
+                    o.camera.spp, subpixels, subpixels, camera.width, camera.height);
 
     const std::filesystem::path parent = std::filesystem::path(output).parent_path();
     if (!parent.empty()) std::filesystem::create_directories(parent);
@@ -600,6 +615,7 @@ void addPointLightOptions(CLI::App& app, PointLightCommand& o) {
         ->group("Lights");
     addScaleOptions(app, o.scale);
     addMaterialOptions(app, o.material, /*withG=*/false);
+    addBaseColourOption(app, o.baseColour);
     app.add_option("--samples", o.samples,
                    "Irradiance samples: faces (one per face at its centroid with the face area, Keng's choice) "
                    "or poisson (the precompute's Poisson-disk samples)")
@@ -699,6 +715,7 @@ void addPointLightOptions(CLI::App& app, PointLightCommand& o) {
     addDisplayOptions(app, o.display);
     addThreadsOption(app, o.threads);
     addCameraOptions(app, o.camera);
+    addSamplesPerPixelOption(app, o.camera);
 }
 
 }  // namespace prt

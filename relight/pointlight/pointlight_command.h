@@ -53,6 +53,7 @@ struct PointLightCommand {
     int leafSize = 8;
     std::string fresnel = "exact";
     DisplayTransform display;
+    bool baseColour = false;
     bool compareBrute = false;
     std::string method = "cache";
     double a = IrradianceCacheOptions{}.a;

@@ -47,7 +47,7 @@ Image EnvironmentFrameRenderer::render(const Camera& camera, const glm::dmat3& r
 
     clock.restart();
     Image image = compose(gbuffer_, environment_, rotation, [&](const GBufferPixel& p) {
-        glm::vec3 L = shader_.shade(p, radiance_);
+        glm::vec3 L = object_.baseColour.at(p) * shader_.shade(p, radiance_);
         if (look_.specular) L += specularReflection(p, object_.eta, prefiltered_, rotation);
         return L;
     });

@@ -35,6 +35,7 @@ FrameOptions addFrameOptions(CLI::App& app, FrameSettings& s) {
     app.add_option("--size-mm", s.sizeMm,
                    "Editable files only: the object's size (bounding-box diagonal, mm); default: the file's")
         ->group("Material");
+    addBaseColourOption(app, s.baseColour, "Material");
     addDisplayOptions(app, s.display);
     return o;
 }
@@ -62,6 +63,7 @@ std::string renderArguments(const FrameSettings& s) {
         std::snprintf(buf, sizeof buf, " --size-mm=%.9g", s.sizeMm);
         args += buf;
     }
+    if (s.baseColour) args += " --base-colour";
     return args;
 }
 

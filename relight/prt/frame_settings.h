@@ -31,6 +31,9 @@ struct FrameSettings {
     // file's own.
     std::string material;
     double sizeMm = 0.0;
+    // --base-colour: the mesh file's base colour tints the translucent exitance at the
+    // exit point (relight/render/base_colour.h); loaded into RelightObject::baseColour.
+    bool baseColour = false;
 };
 
 // The options addFrameOptions declared that a subcommand may tie together
@@ -55,7 +58,7 @@ void checkFrameSettings(const FrameSettings& s);
 // " --tonemap T" unless T is clamp, " -L N"
 // when N > 0, " --components C" unless C is "all", " --specular" followed by
 // " --specular-blur F" (F > 0) when the layer is on, and " --material 'M'" /
-// " --size-mm=S" when set.
+// " --size-mm=S" when set, " --base-colour" when on.
 std::string renderArguments(const FrameSettings& s);
 
 }  // namespace prt

@@ -11,6 +11,7 @@
 #include "common/mesh.h"
 #include "common/transport_file.h"
 #include "relight/prt/editable_transport.h"
+#include "relight/render/base_colour.h"
 
 namespace prt {
 
@@ -31,6 +32,7 @@ struct RelightObject {
     glm::dvec3 sphereCentre{0.0};  // bounding sphere: the box centre and the largest
     double sphereRadius = 0.0;     // distance of a vertex from it
     std::optional<EditableTransport> editable;  // the file has a radial basis
+    BaseColour baseColour;    // --base-colour: tints the translucent exitance (white when off)
 };
 RelightObject loadRelightObject(const std::string& meshPath, const std::string& transportPath);
 

@@ -24,6 +24,8 @@
 #include "common/transport_file.h"
 #include "common/transport_params.h"
 #include "relight/render/gbuffer.h"
+#include "relight/render/base_colour.h"
+#include "relight/render/supersample.h"
 #include "common/sampling.h"
 #include "common/mesh_io.h"
 #include "common/util.h"
@@ -57,12 +59,12 @@ void printNoise(const char* what, const ReferenceFrame& f) {
                 100 * f.maxRelativeStandardError);
 }
 
-
 }  // namespace
 
 int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
     const Stopwatch start;
     const ThreadLimit limit(o.threads);
+    const int subpixels = subpixelGridSize(o.camera.spp);
     if (!std::isfinite(o.envRotation)) throw Error("--env-rotation", "must be finite");
     if (!std::isfinite(o.display.exposureStops)) throw Error("--exposure", "must be finite");
     const std::string output = outputPrefix(o.output);
@@ -157,7 +159,9 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
             throw Error("--ss-env-fraction", "must be in [0, 1]");
     }
     const BoundingSphere sphere = boundingSphere(mesh);  // as prt-relight and prt-pointlight frame it
-    const Camera camera = makeCamera(o.camera, sphere.centre, sphere.radius);
+    // At --spp N the frame is traced N times larger and box-downsampled (supersample.h).
+    const Camera camera = supersampledCamera(makeCamera(o.camera, sphere.centre, sphere.radius), subpixels);
+    const BaseColour colour = o.baseColour ? BaseColour::load(o.mesh, mesh) : BaseColour();
     const Image environment =
         lightMode ? Image() : loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
     const glm::dmat3 rotation = rotationY(o.envRotation);
@@ -176,10 +180,12 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
                 components.multipleScattering && components.singleScattering ? " + " : "",
                 components.singleScattering ? (std::string("single scattering (") + toString(ssOptions.path) + " path)").c_str()
                               : "");
-    std::printf("camera: eye (%.4g, %.4g, %.4g) target (%.4g, %.4g, %.4g) fov %.4g, %dx%d\n", camera.eye.x,
-                camera.eye.y, camera.eye.z, camera.target.x, camera.target.y, camera.target.z, camera.fovY,
-                camera.width, camera.height);
+    std::printf("camera: eye (%.4g, %.4g, %.4g) target (%.4g, %.4g, %.4g) fov %.4g, %dx%d, %d spp%s\n",
+                camera.eye.x, camera.eye.y, camera.eye.z, camera.target.x, camera.target.y, camera.target.z,
+                camera.fovY, camera.width / subpixels, camera.height / subpixels, o.camera.spp,
+                subpixels > 1 ? " (a regular sub-pixel grid, box filter)" : "");
     for (const Light& l : lights) std::printf("light: %s (exact Fresnel)\n", describe(l).c_str());
+    if (colour.enabled()) std::printf("%s\n", colour.describe().c_str());
     std::fflush(stdout);
 
     const RayScene scene(mesh);
@@ -391,17 +397,25 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
         std::fflush(stdout);
     }
 
+    // The base colour tints what leaves at each pixel's surface point, as in every renderer.
+    for (ReferenceFrame& f : parts) {
+        applyBaseColour(f.image, gbuffer, colour);
+        applyBaseColour(f.standardError, gbuffer, colour);
+    }
     std::vector<const ReferenceFrame*> partPointers;
     for (const ReferenceFrame& f : parts) partPointers.push_back(&f);
     const ReferenceFrame frame = parts.size() == 1 ? parts[0] : sumReferenceFrames(partPointers);
 
-    writer.exr(output + ".exr", frame.image);
-    writer.png(output + ".png", frame.image, &o.display);
-    if (!o.noiseImage.empty()) writer.exr(o.noiseImage, frame.standardError);
+    DownsamplingImageWriter downsampled(writer, subpixels);
+    downsampled.exr(output + ".exr", frame.image);
+    downsampled.png(output + ".png", frame.image, &o.display);
+    // The mean of the sub-pixel standard errors bounds the standard error of their mean
+    // whatever their correlation (they share the sample set).
+    if (!o.noiseImage.empty()) downsampled.exr(o.noiseImage, frame.standardError);
     if (o.componentImages)
         for (size_t k = 0; k < parts.size(); ++k) {
-            writer.exr(output + "_" + partNames[k] + ".exr", parts[k].image);
-            writer.png(output + "_" + partNames[k] + ".png", parts[k].image, &o.display);
+            downsampled.exr(output + "_" + partNames[k] + ".exr", parts[k].image);
+            downsampled.png(output + "_" + partNames[k] + ".png", parts[k].image, &o.display);
         }
 
     std::printf("%zu object pixels, %d x %d primary rays in %.2f s\n", frame.objectPixels, camera.width,
@@ -432,6 +446,7 @@ void addReferenceOptions(CLI::App& app, ReferenceCommand& o) {
                    "<prefix>.png (sRGB)")
         ->required();
     addCameraOptions(app, o.camera);
+    addSamplesPerPixelOption(app, o.camera);
     app.add_option("--env-rotation", o.envRotation, "Rotate the environment by this many degrees about +Y")
         ->capture_default_str()->group("Lighting");
     addDisplayOptions(app, o.display);
@@ -442,6 +457,7 @@ void addReferenceOptions(CLI::App& app, ReferenceCommand& o) {
     // holds and a material overrides the file's (experiments only, with a warning).
     const std::string objectGroup = "Object (without -t; with -t a material overrides the file's)";
     addMaterialOptions(app, o.material, false, objectGroup);
+    addBaseColourOption(app, o.baseColour, objectGroup);
     addScaleOptions(app, o.scale, objectGroup);
     app.add_flag("--same-samples", o.sameSamples,
                  "Use the precomputation's sample set (the file's count and seed): isolates the transport "

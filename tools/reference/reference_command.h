@@ -36,6 +36,7 @@ struct ReferenceCommand {
     CameraOptions camera;
     double envRotation = 0.0;
     DisplayTransform display;
+    bool baseColour = false;  // --base-colour
     MaterialOptions material;
     bool materialGiven = false;  // any of the material options was given
     ScaleOptions scale;
