@@ -10,6 +10,7 @@
 
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include "common/error.h"
 #include "common/options.h"
@@ -111,7 +112,15 @@ int main(int argc, char** argv) {
         JobOptions raw;
         PrecomputeSettings settings;
         addJobOptions(app, raw, settings);
-        std::string jobFile, summaryJsonPath;
+        std::string jobFile, summaryJsonPath, baseline;
+        std::vector<double> albedo{0.8};
+        app.add_option("--baseline", baseline,
+                       "Instead of translucency, the baseline the papers compare it with: diffuse-brdf, a shadowed "
+                       "Lambertian PRT of the same mesh (albedo / pi x visibility x cosine per vertex; "
+                       "docs/precompute.md, \"The diffuse baseline\"); every renderer relights the file as usual")
+            ->check(CLI::IsMember({"diffuse-brdf"}))->group("Baseline");
+        app.add_option("--albedo", albedo, "Baseline only: the Lambertian reflectance, one value or R,G,B in [0, 1]")
+            ->delimiter(',')->expected(1, 3)->capture_default_str()->group("Baseline");
         bool force = false, quiet = false;
         int threads = 0;
         app.add_option("--jobs", jobFile, "JSON job file: {\"defaults\": {...}, \"jobs\": [{...}, ...]}");
@@ -126,10 +135,19 @@ int main(int argc, char** argv) {
         const ThreadLimit limit(threads);
         if (!summaryJsonPath.empty()) checkJsonPath(summaryJsonPath);
         const std::string command = commandLine(argc, argv);
+        if (baseline.empty() && app.count("--albedo")) throw Error("--albedo", "only with --baseline diffuse-brdf");
+        if (!baseline.empty() && !jobFile.empty()) throw Error("--baseline", "not in job files (give a mesh)");
         if (!jobFile.empty()) return runJobFile(jobFile, force, summaryJsonPath, command, dist);
         if (raw.mesh.empty()) throw Error("prt-precompute", "no mesh given (see --help)");
         if (raw.output.empty() && !settings.pass1Only) throw Error("--output", "no output path given (see --help)");
         const PrecomputeSettings job = settingsFromOptions(raw, settings);
+        if (!baseline.empty()) {
+            if (albedo.size() == 2) throw Error("--albedo", "give one value or three (R,G,B)");
+            if (dist && dist->partial()) throw Error("--baseline", "runs in one process (not under mpirun)");
+            const glm::dvec3 a = albedo.size() == 3 ? glm::dvec3(albedo[0], albedo[1], albedo[2]) : glm::dvec3(albedo[0]);
+            precomputeDiffuseBaseline(job, a);
+            return 0;
+        }
         Json report = runJson(command);
         PrecomputeSummary summary = precomputeTransport(job, force, dist);
         std::printf("%s", summary.format().c_str());

@@ -123,6 +123,9 @@ expect "precompute: not a PLY" "garbage\.ply: not a PLY" $O $P garbage.ply -q -o
 expect "precompute: NaN vertex" "nan\.obj: .*non-finite" $O $P nan.obj -q -o $O
 expect "precompute: index out of range" "index\.obj: .*vertex 8" $O $P index.obj -q -o $O
 expect "precompute: degenerate mesh" "flat\.obj: .*degenerate" $O $P flat.obj -q -o $O
+expect "precompute: baseline albedo above 1" "--albedo: each channel must be in \[0, 1\]" $O \
+    $P "$S/torus.ply" --baseline diffuse-brdf --albedo 0.5,1.5,0.5 -q -o $O
+expect "precompute: albedo without baseline" "--albedo: only with --baseline" $O $P "$S/torus.ply" --albedo 0.5 -q -o $O
 expect "precompute: glTF LINES primitive" "lines\.gltf: mesh 0 primitive 0 is LINES" $O $P lines.gltf -q -o $O
 expect "precompute: glTF POINTS primitive" "points\.gltf: mesh 0 primitive 0 is POINTS" $O $P points.gltf -q -o $O
 expect "precompute: glTF buffer view out of range" "view\.gltf: .*out of range" $O $P view.gltf -q -o $O

@@ -6,8 +6,15 @@
 #include <tuple>
 #include <utility>
 
+#include <cstdio>
+#include <filesystem>
+
+#include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/mesh_io.h"
+#include "common/raytrace.h"
 #include "common/util.h"
+#include "precompute/passes/diffuse_baseline.h"
 #include "precompute/job/pipeline_stages.h"
 
 namespace prt {
@@ -35,6 +42,43 @@ PrecomputeSummary finished(PrecomputeSummary summary, const Stopwatch& start) {
 }
 
 }  // namespace
+
+size_t precomputeDiffuseBaseline(const PrecomputeSettings& s, const glm::dvec3& albedo) {
+    const Stopwatch start;
+    if (s.components.singleScattering) throw Error("--baseline", "the diffuse baseline has no single scattering");
+    if (s.editable.enabled) throw Error("--baseline", "the diffuse baseline has no material to edit (--editable)");
+    if (s.shard || !s.pass1File.empty() || s.pass1Only)
+        throw Error("--baseline", "the diffuse baseline runs in one process, without shards or pass-1 files");
+    if (s.outputPath.empty()) throw Error("--output", "no output path given (see --help)");
+    checkOutputPath(s.outputPath);
+    TriangleMesh mesh = loadMesh(s.meshPath);
+    const MeshFingerprint fingerprint{mesh.vertexCount(), meshFingerprint(mesh)};
+    const double mmPerUnit = scaleToPhysical(mesh, s.scale);
+    computeVertexNormals(mesh);
+    const RayScene scene(mesh);
+    DiffuseBaselineOptions o;
+    o.albedo = albedo;
+    o.cubemapSize = s.cubemapSize;
+    o.shTerms = s.shTerms;
+    o.coefficients = s.vertexCoefficients;
+    o.supersample = s.pass1.supersample;
+    o.sampling = s.pass1.sampling;
+    Progress progress("diffuse baseline: vertices", mesh.vertexCount());
+    char sizeMm[32];
+    std::snprintf(sizeMm, sizeof sizeMm, "%.9g", double(bounds(mesh).diagonal()));
+    const TransportFile file =
+        diffuseBaselineTransport(mesh, scene, fingerprint, mmPerUnit, o,
+                                 {{"mesh_file", std::filesystem::path(s.meshPath).filename().string()},
+                                  {"size_mm", sizeMm}},
+                                 &progress);
+    progress.finish();
+    saveTransportFile(s.outputPath, file);
+    std::printf("diffuse baseline: %zu vertices, albedo (%.3g, %.3g, %.3g), cubemap 6x%dx%d, %zu terms per vertex, "
+                "%s rays; wrote %s in %s\n",
+                mesh.vertexCount(), albedo.r, albedo.g, albedo.b, s.cubemapSize, s.cubemapSize, s.vertexCoefficients,
+                file.parameter("rays_traced").c_str(), s.outputPath.c_str(), formatDuration(start.seconds()).c_str());
+    return mesh.vertexCount();
+}
 
 size_t peakMemoryBytes() {
     rusage usage{};

@@ -14,6 +14,8 @@
 // as stages (pipeline_stages.h), splits the work over processes and collects the
 // summary.
 
+#include <glm/glm.hpp>
+
 #include <cstddef>
 
 #include "precompute/job/distribution.h"
@@ -31,6 +33,15 @@ namespace prt {
 // too little memory, ...) before any pass where it can.
 PrecomputeSummary precomputeTransport(const PrecomputeSettings& settings, bool force = false,
                                       Distribution* distribution = nullptr);
+
+// The diffuse baseline (prt-precompute --baseline diffuse-brdf; precompute/passes/diffuse_baseline.h)
+// for the mesh, scale, cubemap, SH terms, coefficients, supersampling and visibility
+// sampling of `settings` (the material, samples and passes do not apply), written
+// atomically to settings.outputPath. Prints one summary line; returns the file's
+// vertex count. Throws prt::Error for bad settings, an unreadable mesh, an unwritable
+// output, and for settings it cannot honour (single scattering, --editable, shards, a
+// pass-1 file).
+size_t precomputeDiffuseBaseline(const PrecomputeSettings& settings, const glm::dvec3& albedo);
 
 // Peak resident set size of this process in bytes (getrusage).
 size_t peakMemoryBytes();

@@ -343,19 +343,25 @@ void bindRendering(py::module_& m) {
 
     m.def(
         "load_object",
-        [](const std::string& meshPath, const std::string& transportPath) {
+        [](const std::string& meshPath, const std::string& transportPath, bool baseColour) {
             PyObject o;
             o.meshPath = meshPath;
             o.transportPath = transportPath;
-            o.object = std::make_shared<RelightObject>(withoutGil([&] { return loadRelightObject(meshPath, transportPath); }));
+            o.object = std::make_shared<RelightObject>(withoutGil([&] {
+                RelightObject object = loadRelightObject(meshPath, transportPath);
+                if (baseColour) object.baseColour = BaseColour::load(meshPath, object.mesh);
+                return object;
+            }));
             o.transport = std::make_shared<PyTransport>();
             o.transport->file = std::shared_ptr<TransportFile>(o.object, &o.object->transport);
             o.transport->path = transportPath;
             o.transport->edited = o.object->editable.has_value();
             return o;
         },
-        py::arg("mesh"), py::arg("transport"),
-        "The mesh file and its transport file, checked against each other and scaled to mm (prt-relight's object)");
+        py::arg("mesh"), py::arg("transport"), py::arg("base_colour") = false,
+        "The mesh file and its transport file, checked against each other and scaled to mm (prt-relight's object). "
+        "base_colour: the mesh file's base colour tints the translucent exitance in render (render's --base-colour; "
+        "docs/assets.md)");
 
     m.def(
         "render",

@@ -175,3 +175,24 @@ def test_an_edited_objects_arrays_and_state_stay_consistent(scene, tmp_path):
         obj.set_material(3)
     assert (prt.material("Marble") == 3) is False
     assert prt.material("Marble") == prt.material("Marble")
+
+
+def test_base_colour_and_spp_follow_the_command_line(scene, tmp_path):
+    # A .glb of the torus with a constant texture: render(base_colour) is c x render, and
+    # both equal prt-relight render's EXR with the same options, spp included.
+    glb = tmp_path / "torus.glb"
+    run_tool("prt-make-asset", scene / "torus.ply", "-o", glb, "--cells", "1")
+    plain = prt.load_object(str(glb), str(scene / "torus.prt"))
+    tinted = prt.load_object(str(glb), str(scene / "torus.prt"), base_colour=True)
+    env = prt.load_environment(str(scene / "sky.exr"))
+    a = prt.render(plain, env, width=48, height=40, spp=4)
+    b = prt.render(tinted, env, width=48, height=40, spp=4)
+    assert a.shape == (40, 48, 4)
+    covered = (a[..., 3] > 0) & (a[..., 3] < 1)
+    assert covered.sum() > 10  # coverage at the silhouette
+    ratio = b[..., :3][a[..., 3] == 1] / np.maximum(a[..., :3][a[..., 3] == 1], 1e-12)
+    assert np.ptp(ratio, axis=0).max() < 1e-4  # one colour: the checker has one cell
+    cli = tmp_path / "cli"
+    run_tool("prt-relight", "render", glb, "-t", scene / "torus.prt", "-e", scene / "sky.exr",
+             "-W", "48", "-H", "40", "--spp", "4", "--base-colour", "-o", cli)
+    assert np.array_equal(prt.read_image(str(cli) + ".exr"), b)

@@ -8,6 +8,7 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "common/envmap.h"
@@ -695,6 +696,25 @@ void frameStatistics(ReferenceFrame& frame, const std::vector<uint8_t>& object, 
 }
 
 }  // namespace
+
+RadianceEstimate DiffuseBrdfReference::radiance(const GBufferPixel& p) const {
+    // The renderers' convention at silhouettes (translucent_shader.h): an interpolated
+    // normal facing away from the viewer shows black.
+    if (!(glm::dot(p.normal, p.toViewer) > 0.0f)) return {};
+    // A stream per surface point: the triangle and the barycentrics' bits.
+    uint64_t stream = 1469598103934665603ull ^ p.triangle;
+    for (int k = 0; k < 2; ++k) {
+        uint32_t bits;
+        std::memcpy(&bits, &p.barycentric[k + 1], sizeof bits);
+        stream = (stream ^ bits) * 1099511628211ull;
+    }
+    const IrradianceEstimate e = estimateIrradiance(env_, &scene_, p.position, p.normal, p.normal, 1.0, options_, stream);
+    RadianceEstimate r;
+    const glm::dvec3 k = albedo_ / kPi;
+    r.value = k * e.value;
+    r.variance = k * k * e.variance;
+    return r;
+}
 
 ReferenceFrame renderReference(const GBuffer& g, const std::vector<const ReferenceComponent*>& components,
                                const Image& background, const glm::dmat3& envRotation, Progress* progress) {

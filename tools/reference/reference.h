@@ -402,6 +402,30 @@ struct ReferenceFrame {
     double seconds = 0.0;
 };
 
+// The diffuse baseline (prt-precompute --baseline diffuse-brdf) traced directly: at each
+// pixel's own surface point x and interpolated normal n,
+//   L_o = (albedo / pi) E(x),  E = integral of L(w) V(x, w) max(0, n . w) dw,
+// E by estimateIrradiance with eta = 1 (no Fresnel) and `options` (its own directions
+// and seed; the stream is a hash of the pixel's triangle and barycentrics). It shares
+// with the precomputed baseline only the mesh, its vertex normals, the albedo and the
+// renderers' silhouette convention (a pixel whose interpolated normal faces away from
+// the viewer is black): no cubemap, no Haar truncation, no interpolation between
+// vertices.
+class DiffuseBrdfReference : public ReferenceComponent {
+public:
+    DiffuseBrdfReference(const EnvironmentSampler& env, const RayScene& scene, const glm::dvec3& albedo,
+                         const IrradianceEstimatorOptions& options)
+        : env_(env), scene_(scene), albedo_(albedo), options_(options) {}
+    std::string name() const override { return "diffuse-brdf"; }
+    RadianceEstimate radiance(const GBufferPixel& p) const override;
+
+private:
+    const EnvironmentSampler& env_;
+    const RayScene& scene_;
+    glm::dvec3 albedo_;
+    IrradianceEstimatorOptions options_;
+};
+
 // Shades every object pixel of `g` as the sum of `components` (in parallel, one
 // progress unit per object pixel) and fills the background with the environment
 // along the primary ray (environmentRadiance of gbuffer.h, `background` rotated by

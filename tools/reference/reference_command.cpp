@@ -59,6 +59,47 @@ void printNoise(const char* what, const ReferenceFrame& f) {
                 100 * f.maxRelativeStandardError);
 }
 
+// The reference of a diffuse-baseline file (prt-precompute --baseline diffuse-brdf):
+// the shadowed Lambertian surface traced per pixel (DiffuseBrdfReference).
+int runDiffuseBaselineReference(const ReferenceCommand& o, const TriangleMesh& mesh, const TransportFileInfo& info,
+                                int subpixels, const std::string& output, ImageWriter& writer,
+                                const Stopwatch& start) {
+    const std::vector<double> a = parseNumberList(info.parameter("albedo"), o.transport, "albedo");
+    if (a.size() != 3) throw Error(o.transport, "the baseline's albedo is not R,G,B");
+    const glm::dvec3 albedo(a[0], a[1], a[2]);
+    const BoundingSphere sphere = boundingSphere(mesh);
+    const Camera camera = supersampledCamera(makeCamera(o.camera, sphere.centre, sphere.radius), subpixels);
+    const BaseColour colour = o.baseColour ? BaseColour::load(o.mesh, mesh) : BaseColour();
+    const Image environment = loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
+    const glm::dmat3 rotation = rotationY(o.envRotation);
+    const EnvironmentSampler sampler(environment, rotation);
+    IrradianceEstimatorOptions irradiance = o.irradiance;
+    irradiance.directions = o.envSamples ? o.envSamples : 4096;
+    const std::filesystem::path parent = std::filesystem::path(output).parent_path();
+    if (!parent.empty()) std::filesystem::create_directories(parent);
+    std::printf("baseline: shadowed Lambertian (diffuse-brdf), albedo (%.4g, %.4g, %.4g); %zu irradiance directions "
+                "per pixel, seed %llu\n",
+                albedo.r, albedo.g, albedo.b, irradiance.directions, (unsigned long long)irradiance.seed);
+    std::fflush(stdout);
+    const RayScene scene(mesh);
+    const GBuffer full = traceGBuffer(scene, mesh, camera);
+    const GBuffer gbuffer = o.pixelStride > 1 ? subsampleObjectPixels(full, o.pixelStride) : full;
+    const DiffuseBrdfReference diffuse(sampler, scene, albedo, irradiance);
+    Progress progress("diffuse baseline per pixel", gbuffer.objectPixels(), "pixels");
+    ReferenceFrame frame = renderReference(gbuffer, {&diffuse}, environment, rotation, &progress);
+    progress.finish();
+    applyBaseColour(frame.image, gbuffer, colour);
+    applyBaseColour(frame.standardError, gbuffer, colour);
+    DownsamplingImageWriter downsampled(writer, subpixels);
+    downsampled.exr(output + ".exr", frame.image);
+    downsampled.png(output + ".png", frame.image, &o.display);
+    if (!o.noiseImage.empty()) downsampled.exr(o.noiseImage, frame.standardError);
+    printNoise("total", frame);
+    std::printf("wrote %s.exr and %s.png; total %s\n", output.c_str(), output.c_str(),
+                formatDuration(start.seconds()).c_str());
+    return 0;
+}
+
 }  // namespace
 
 int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
@@ -122,6 +163,10 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
         mmPerUnit = scaleToPhysical(mesh, makeScale(o.scale));
     }
 
+    if (info && info->parameter("baseline") == "diffuse-brdf") {
+        if (lightMode) throw Error(o.transport, "the diffuse baseline is referenced under environments only");
+        return runDiffuseBaselineReference(o, mesh, *info, subpixels, output, writer, start);
+    }
     Material material;
     if (info && !o.materialGiven) {
         material = require(params.material, o.transport, "sigma_s_prime, sigma_a or eta", "--material");
