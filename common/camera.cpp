@@ -1,6 +1,7 @@
 #include "common/camera.h"
 
 #include <cmath>
+#include <string>
 
 #include "common/error.h"
 
@@ -22,8 +23,8 @@ Basis basis(const Camera& c) {
 }  // namespace
 
 void validateCamera(const Camera& c) {
-    if (c.width < 1 || c.height < 1 || c.width > 16384 || c.height > 16384)
-        throw Error("camera", "image size must be between 1 and 16384 pixels");
+    if (c.width < 1 || c.height < 1 || c.width > kMaxCameraSide || c.height > kMaxCameraSide)
+        throw Error("camera", "image size must be between 1 and " + std::to_string(kMaxCameraSide) + " pixels");
     if (!(c.fovY > 0 && c.fovY < 180)) throw Error("camera", "vertical field of view must be in (0, 180) degrees");
     const glm::dvec3 view = c.target - c.eye;
     if (!(glm::length(view) > 0)) throw Error("camera", "eye and target coincide");

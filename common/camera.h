@@ -22,6 +22,9 @@ struct Camera {
     bool operator==(const Camera&) const = default;
 };
 
+// The largest image side validateCamera accepts.
+inline constexpr int kMaxCameraSide = 16384;
+
 // Throws prt::Error (subject "camera") for eye == target, up parallel to the view
 // direction, fovY outside (0, 180) or non-positive image sizes.
 void validateCamera(const Camera& camera);

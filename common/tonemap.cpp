@@ -90,6 +90,8 @@ DisplayMapping displayMapping(const DisplayTransform& t, double radianceAverage)
     if (t.op == ToneMapOperator::Chang && radianceAverage > 0.0 && std::isfinite(radianceAverage))
         scale /= radianceAverage;
     m.scale = float(scale);
+    if (!std::isfinite(m.scale) || !(m.scale > 0.0f))
+        throw Error("--exposure", "2^exposure (over the image's average for chang) is out of range");
     return m;
 }
 

@@ -106,7 +106,7 @@ int runRender(const RenderOptions& o) {
         selectComponents(look.components, componentsOf(object.transport), o.transport);
     const Camera camera = makeCamera(o.camera, object.sphereCentre, object.sphereRadius);
     const int subpixels = subpixelGridSize(o.camera.spp);
-    supersampledCamera(camera, subpixels);  // refuses a frame too large before any work
+    supersampledCamera(camera, subpixels);  // refuses a frame too large before the environment is read
     const int frames = o.turntable > 0 ? o.turntable : o.envSpin > 0 ? o.envSpin : 0;
     const int count = std::max(frames, 1);
     // A sequence prepares the environment once (EnvironmentLight, light_vector.h;
@@ -302,7 +302,6 @@ int runView(const ViewOptions& o) {
         throw Error("--light-orbit", "needs point or directional lights (--light / --lights)");
     for (const std::string& path : o.screenshots)
         if (path.empty()) throw Error("--screenshot", "empty path");
-    if (o.frame.baseColour) throw Error("--base-colour", "the viewer does not draw base colours yet (use render)");
     // Cheap checks first: the display, the environments' paths.
     checkViewerDisplay();
     ViewerSetup setup;
@@ -311,6 +310,7 @@ int runView(const ViewOptions& o) {
     const Stopwatch loadStart;
     setup.object = loadRelightObject(o.mesh, o.transport);
     const std::string materialLine = applyMaterialEdit(setup.object, o.frame.material, o.frame.sizeMm, o.transport);
+    if (o.frame.baseColour) setup.object.baseColour = BaseColour::load(o.mesh, setup.object.mesh);
     setup.meshPath = o.mesh;
     setup.transportPath = o.transport;
     setup.frame = o.frame;

@@ -126,6 +126,8 @@ expect "precompute: degenerate mesh" "flat\.obj: .*degenerate" $O $P flat.obj -q
 expect "precompute: baseline albedo above 1" "--albedo: each channel must be in \[0, 1\]" $O \
     $P "$S/torus.ply" --baseline diffuse-brdf --albedo 0.5,1.5,0.5 -q -o $O
 expect "precompute: albedo without baseline" "--albedo: only with --baseline" $O $P "$S/torus.ply" --albedo 0.5 -q -o $O
+expect "precompute: baseline with blocks" "--block-coefficients: not with --baseline" $O \
+    $P "$S/torus.ply" --baseline diffuse-brdf --block-coefficients 64 -q -o $O
 expect "precompute: glTF LINES primitive" "lines\.gltf: mesh 0 primitive 0 is LINES" $O $P lines.gltf -q -o $O
 expect "precompute: glTF POINTS primitive" "points\.gltf: mesh 0 primitive 0 is POINTS" $O $P points.gltf -q -o $O
 expect "precompute: glTF buffer view out of range" "view\.gltf: .*out of range" $O $P view.gltf -q -o $O
@@ -262,6 +264,8 @@ expect "reference: missing environment" "nowhere\.exr" $F.exr \
     $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e nowhere.exr -W 16 -H 16 -o $F
 expect "reference: the file's seed" "--seed" $F.exr \
     $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 16 -H 16 --seed 1 -o $F
+expect "reference: pixel stride with samples per pixel" "--pixel-stride: not with --spp" $F.exr \
+    $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 16 -H 16 --pixel-stride 2 --spp 4 -o $F
 expect "reference: both an environment and lights" "--environment: .*not both" $F.exr \
     $REFERENCE "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --light point:0,50,0:1 -W 16 -H 16 -o $F
 expect "reference: no light at all" "--environment: no light" $F.exr \

@@ -3,7 +3,7 @@
 # in tests/CMakeLists.txt; docs/viewer.md, "Agreement with prt-relight render", holds the
 # figures measured with it).
 #
-#   viewer_test.sh PRT_RELIGHT PRT_PRECOMPUTE PRT_COMPARE PRT_MAKE_TEST_SCENE WORKDIR PRT_POINTLIGHT
+#   viewer_test.sh PRT_RELIGHT PRT_PRECOMPUTE PRT_COMPARE PRT_MAKE_TEST_SCENE WORKDIR PRT_POINTLIGHT PRT_MAKE_ASSET
 #
 # Under xvfb-run (Mesa llvmpipe), `prt-relight view --frames N --screenshot` of a small
 # generated scene must match `prt-relight render` of the same camera, environment,
@@ -35,11 +35,11 @@
 # Exit 77 (CTest: skipped) when xvfb-run is not installed.
 set -u
 
-if [ $# -ne 6 ]; then
-    echo "usage: $0 PRT_RELIGHT PRT_PRECOMPUTE PRT_COMPARE PRT_MAKE_TEST_SCENE WORKDIR PRT_POINTLIGHT" >&2
+if [ $# -ne 7 ]; then
+    echo "usage: $0 PRT_RELIGHT PRT_PRECOMPUTE PRT_COMPARE PRT_MAKE_TEST_SCENE WORKDIR PRT_POINTLIGHT PRT_MAKE_ASSET" >&2
     exit 2
 fi
-RELIGHT=$1 PRECOMPUTE=$2 COMPARE=$3 MAKE_SCENE=$4 WORK=$5 POINTLIGHT=$6
+RELIGHT=$1 PRECOMPUTE=$2 COMPARE=$3 MAKE_SCENE=$4 WORK=$5 POINTLIGHT=$6 MAKE_ASSET=$7
 
 if ! command -v xvfb-run > /dev/null; then
     echo "SKIP: xvfb-run not found (apt-get install xvfb xauth libgl1-mesa-dri)"
@@ -121,6 +121,16 @@ matches_render precomputed 1e-4 "$A -e $S/sky.exr" $A -e "$S/sky.exr"
 B="$S/torus.ply -t $S/synthetic.prt -W 320 -H 240 --eye=-18,14,22 --target=0,-1,0 --up=0,1,0 --fov 35
    --env-rotation=-70 --exposure 1.5 --tonemap filmic -L 40"
 matches_render view_terms 1e-4 "$B -e $S/dusk.exr" $B -e "$S/dusk.exr" -e "$S/sky.exr"
+
+# 3a. A textured asset's base colour (prt-make-asset's .glb of the torus, a checker on
+#     spherical coordinates): the texture lookup at the exit point in the shader.
+if "$MAKE_ASSET" "$S/torus.ply" --cells 4 --texture-size 64 -o "$S/torus.glb" > "$O/asset.log" 2>&1; then
+    G="$S/torus.glb -t $S/torus.prt -W 256 -H 192 --azimuth 20 --elevation 40 --base-colour"
+    matches_render base_colour 1e-4 "$G -e $S/sky.exr" $G -e "$S/sky.exr"
+else
+    cat "$O/asset.log"
+    fail "prt-make-asset"
+fi
 
 # 3. The specular layer, Reinhard's tone mapping.
 C="$S/torus.ply -t $S/synthetic.prt -W 320 -H 240 --azimuth 40 --elevation 35 --env-rotation=-70 --exposure 1.5

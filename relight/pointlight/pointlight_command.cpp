@@ -549,7 +549,8 @@ int runPointLightCommand(const PointLightCommand& o, ImageWriter& target) {
         std::printf("cache times: pass 2 %.3f s (serial scan %.3f s, S and gradient in parallel tasks), pass 3 %.3f s; "
                     "T_cache %.3f s\n",
                     cs.pass2Seconds, cs.scanSeconds, cs.pass3Seconds, tRender);
-        if (o.cacheImage) writeCacheImages(writer, output, image, g, frame.caches, frame.visuals, o.display);
+        // At the traced resolution (sub-pixels at --spp > 1): a cache's dot would fade in the box filter.
+        if (o.cacheImage) writeCacheImages(target, output, image, g, frame.caches, frame.visuals, o.display);
     } else {
         std::printf("%s: epsilon %g, %zu object pixels, %.1f terms per pixel (of %zu samples)\n",
                     method == PointMethod::Brute ? "brute force" : "Jensen-Buhler",

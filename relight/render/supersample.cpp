@@ -20,10 +20,10 @@ int subpixelGridSize(int samplesPerPixel) {
 
 Camera supersampledCamera(const Camera& camera, int n) {
     if (n < 1) throw Error("--spp", "the sub-pixel grid must be at least 1 x 1");
-    if (double(camera.width) * n > kMaxImageSide || double(camera.height) * n > kMaxImageSide)
+    if (double(camera.width) * n > kMaxCameraSide || double(camera.height) * n > kMaxCameraSide)
         throw Error("--spp", "the supersampled frame (" + std::to_string(camera.width) + " x " +
                                  std::to_string(camera.height) + " times " + std::to_string(n) +
-                                 ") exceeds " + std::to_string(kMaxImageSide) + " pixels a side");
+                                 ") exceeds " + std::to_string(kMaxCameraSide) + " pixels a side");
     Camera c = camera;
     c.width = camera.width * n;
     c.height = camera.height * n;

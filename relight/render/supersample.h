@@ -32,7 +32,7 @@ inline constexpr int kMaxSamplesPerPixel = 256;
 int subpixelGridSize(int samplesPerPixel);
 
 // `camera` with n times the width and height. Throws prt::Error("--spp", ...) when the
-// result would exceed kMaxImageSide pixels a side.
+// result would exceed kMaxCameraSide pixels a side (common/camera.h).
 Camera supersampledCamera(const Camera& camera, int n);
 
 // The mean of every n x n block: a (width / n) x (height / n) image with the same

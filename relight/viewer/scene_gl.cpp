@@ -115,6 +115,7 @@ SceneGl::SceneGl(const RelightObject& object, const std::vector<Image>& environm
             throw Error("OpenGL", "view maps too large for this OpenGL's textures");
         viewMaps_ = makeTexture(GL_R32F, maps.size, 6 * maps.size * fileTerms_, GL_RED, GL_FLOAT, maps.data.data());
     }
+    if (object_.baseColour.enabled()) uploadBaseColour(maxSize);
     const float zero[4] = {0, 0, 0, 0};
     dummy_ = makeTexture(GL_RGBA32F, 1, 1, GL_RGBA, GL_FLOAT, zero);
     envTextures_.assign(environments_.size(), 0);
@@ -129,7 +130,8 @@ SceneGl::SceneGl(const RelightObject& object, const std::vector<Image>& environm
 
 SceneGl::~SceneGl() {
     destroyTargets();
-    GLuint textures[] = {positions_, normals_, triangles_, radiance_[0], radiance_[1], viewMaps_, dummy_};
+    GLuint textures[] = {positions_,      normals_,         triangles_, radiance_[0], radiance_[1], viewMaps_, dummy_,
+                         triangleColours_, cornerUvs_, baseTexture_};
     glDeleteTextures(GLsizei(std::size(textures)), textures);
     if (!envTextures_.empty()) glDeleteTextures(GLsizei(envTextures_.size()), envTextures_.data());
     if (!prefilteredTextures_.empty())
@@ -204,6 +206,49 @@ GLuint SceneGl::environmentTexture(int index, bool prefiltered) {
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
     checkGl("uploading an environment");
     return t;
+}
+
+void SceneGl::uploadBaseColour(int maxSize) {
+    const Asset& asset = *object_.baseColour.asset();
+    const size_t T = object_.mesh.triangleCount();
+    // One texture at most: the shader samples a single image.
+    const AssetMaterial* textured = nullptr;
+    for (const AssetMaterial& m : asset.materials) {
+        if (!m.hasTexture() || asset.uvs.empty()) continue;
+        if (textured && !(m.baseColorTexture.pixels == textured->baseColorTexture.pixels &&
+                          m.wrapU == textured->wrapU && m.wrapV == textured->wrapV))
+            throw Error("--base-colour", "the viewer draws one base-colour texture; this asset has several (use render)");
+        textured = &m;
+    }
+    // Per triangle: the material's factor, and in A whether its texture applies.
+    std::vector<glm::vec4> colours(T);
+    for (size_t t = 0; t < T; ++t) {
+        const AssetMaterial& m = asset.materials[asset.triangleMaterials.empty() ? 0 : asset.triangleMaterials[t]];
+        colours[t] = glm::vec4(glm::vec3(m.baseColorFactor), m.hasTexture() && !asset.uvs.empty() ? 1.0f : 0.0f);
+    }
+    const auto rowsFor = [&](size_t n) { return std::max(1, int((n + size_t(rowWidth_) - 1) / size_t(rowWidth_))); };
+    if (rowsFor(3 * T) > maxSize) throw Error("OpenGL", "mesh too large for this OpenGL's texture coordinates");
+    triangleColours_ = makeTexture(GL_RGBA32F, rowWidth_, rowsFor(T), GL_RGBA, GL_FLOAT, nullptr);
+    uploadRows(triangleColours_, rowWidth_, 0, T, GL_RGBA, GL_FLOAT, &colours[0].x, 4);
+    if (!textured) return;
+    std::vector<glm::vec4> uvs(3 * T);
+    for (size_t i = 0; i < uvs.size(); ++i) uvs[i] = glm::vec4(asset.uvs[i], 0.0f, 0.0f);
+    cornerUvs_ = makeTexture(GL_RGBA32F, rowWidth_, rowsFor(3 * T), GL_RGBA, GL_FLOAT, nullptr);
+    uploadRows(cornerUvs_, rowWidth_, 0, uvs.size(), GL_RGBA, GL_FLOAT, &uvs[0].x, 4);
+    const Image& image = textured->baseColorTexture;
+    if (image.width > maxSize || image.height > maxSize)
+        throw Error("OpenGL", "base-colour texture too large for this OpenGL's textures");
+    std::vector<glm::vec4> texels(size_t(image.width) * size_t(image.height));
+    for (int y = 0; y < image.height; ++y)
+        for (int x = 0; x < image.width; ++x) {
+            const float* p = image.pixel(x, y);
+            const int c = image.channels;
+            texels[size_t(y) * size_t(image.width) + size_t(x)] =
+                c >= 3 ? glm::vec4(p[0], p[1], p[2], 1.0f) : glm::vec4(p[0], p[0], p[0], 1.0f);
+        }
+    baseTexture_ = makeTexture(GL_RGBA32F, image.width, image.height, GL_RGBA, GL_FLOAT, texels.data());
+    baseTextureSize_ = glm::ivec2(image.width, image.height);
+    baseWrap_ = glm::ivec2(int(textured->wrapU), int(textured->wrapV));
 }
 
 void SceneGl::uploadRadiance(const std::vector<glm::vec4>& packed, int slots) {
@@ -294,6 +339,9 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
     glUniform1f(glGetUniformLocation(p, "uEta"), float(object_.eta));
     glUniform1i(glGetUniformLocation(p, "uSpecular"), frame.specular && frame.environmentLight ? 1 : 0);
     glUniform1i(glGetUniformLocation(p, "uBackground"), frame.environmentLight ? 1 : 0);
+    glUniform1i(glGetUniformLocation(p, "uHasBaseColour"), triangleColours_ ? 1 : 0);
+    glUniform2i(glGetUniformLocation(p, "uBaseSize"), baseTextureSize_.x, baseTextureSize_.y);
+    glUniform2i(glGetUniformLocation(p, "uBaseWrap"), baseWrap_.x, baseWrap_.y);
     const std::pair<const char*, GLuint> textures[] = {
         {"uVisibility", visibility_},
         {"uEnvironment", environmentTexture(env, false)},
@@ -303,6 +351,9 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
         {"uRadiance", radiance_[radianceFront_]},
         {"uViewMaps", viewMaps_ ? viewMaps_ : dummy_},
         {"uPrefiltered", frame.specular ? environmentTexture(env, true) : dummy_},
+        {"uTriangleColours", triangleColours_ ? triangleColours_ : dummy_},
+        {"uCornerUvs", cornerUvs_ ? cornerUvs_ : dummy_},
+        {"uBaseTexture", baseTexture_ ? baseTexture_ : dummy_},
     };
     for (int unit = 0; unit < int(std::size(textures)); ++unit) {
         glActiveTexture(GLenum(GL_TEXTURE0 + unit));

@@ -8,7 +8,8 @@
 //   2. shading, one full-screen triangle every frame: TranslucentShader::shade's
 //      formula for any number K of view terms, the optional specular layer
 //      (specularReflection) and, where no triangle is, the environment along the ray
-//      (environmentRadiance); the display transform of writePng (common/tonemap.h),
+//      (environmentRadiance), the object's base colour tinting the translucent part
+//      (base_colour.h; one texture at most); the display transform of writePng (common/tonemap.h),
 //      except that chang's Radiance_avg is the area-weighted mean luminance of the
 //      uploaded per-vertex radiance (no read-back of the frame), not the image's.
 // The frame goes straight to the window, or to an offscreen framebuffer (tone-mapped
@@ -103,6 +104,11 @@ private:
     Camera visibilityCamera_;  // the camera the visibility buffer was drawn with
     int targetWidth_ = 0, targetHeight_ = 0;
     int rowWidth_ = 4096, slotRows_ = 0, viewMapSize_ = 0;
+    // The object's base colour (RelightObject::baseColour): per-triangle factors (A = 1
+    // where the texture applies), per-corner texture coordinates and the one texture.
+    void uploadBaseColour(int maxSize);
+    GLuint triangleColours_ = 0, cornerUvs_ = 0, baseTexture_ = 0;
+    glm::ivec2 baseTextureSize_{1, 1}, baseWrap_{0, 0};
     std::vector<float> vertexAreas_;  // a third of each adjacent triangle's area, mm^2
     double radianceAverage_ = 0.0;    // chang's Radiance_avg of the drawn radiance
 };

@@ -418,6 +418,7 @@ std::string Viewer::renderCommand() const {
     FrameSettings frame;
     frame.envRotation = state_.rotation;
     frame.display = {double(state_.exposure), ToneMapOperator(state_.toneMap)};
+    frame.baseColour = s_.frame.baseColour;
     frame.lightTerms = size_t(std::max(state_.lightTerms, 0));
     const LightRequest r = currentRequest();
     if (r.multipleScattering != available_.multipleScattering || r.singleScattering != available_.singleScattering)

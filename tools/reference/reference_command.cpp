@@ -106,6 +106,8 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
     const Stopwatch start;
     const ThreadLimit limit(o.threads);
     const int subpixels = subpixelGridSize(o.camera.spp);
+    if (o.pixelStride > 1 && subpixels > 1)
+        throw Error("--pixel-stride", "not with --spp > 1 (it would thin out the sub-pixel samples of each pixel)");
     if (!std::isfinite(o.envRotation)) throw Error("--env-rotation", "must be finite");
     if (!std::isfinite(o.display.exposureStops)) throw Error("--exposure", "must be finite");
     const std::string output = outputPrefix(o.output);
@@ -165,6 +167,13 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
 
     if (info && info->parameter("baseline") == "diffuse-brdf") {
         if (lightMode) throw Error(o.transport, "the diffuse baseline is referenced under environments only");
+        const std::pair<bool, const char*> scatteringOnly[] = {
+            {o.componentImages, "--component-images"}, {o.perVertex, "--per-vertex"},
+            {o.sameSamples, "--same-samples"},         {!o.components.empty(), "--components"},
+            {o.materialGiven, "--material"},           {o.samples.has_value(), "--samples"},
+            {o.maxSamples.has_value(), "--max-samples"}, {o.spacingFraction.has_value(), "--spacing-fraction"}};
+        for (const auto& [given, option] : scatteringOnly)
+            if (given) throw Error(option, "does not apply to a diffuse-baseline file (" + o.transport + ")");
         return runDiffuseBaselineReference(o, mesh, *info, subpixels, output, writer, start);
     }
     Material material;

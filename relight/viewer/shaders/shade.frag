@@ -14,6 +14,12 @@ uniform float uEta;
 uniform bool uSpecular;
 uniform bool uBackground;      // false: black background (the environment's light is off)
 uniform sampler2D uPrefiltered;
+uniform bool uHasBaseColour;         // the object's base colour tints the translucent part
+uniform sampler2D uTriangleColours;  // RGBA32F per triangle: the factor, A = 1 where the texture applies
+uniform sampler2D uCornerUvs;        // RGBA32F, corner k of triangle t at index 3 t + k: (u, v)
+uniform sampler2D uBaseTexture;      // RGBA32F, linear, row 0 the top of the image (v = 1)
+uniform ivec2 uBaseSize;             // its width, height
+uniform ivec2 uBaseWrap;             // TextureWrap per axis: 0 repeat, 1 clamp to edge, 2 mirrored repeat
 
 ivec3 gTriangle;
 vec3 gBarycentric;
@@ -41,6 +47,37 @@ void findTriangle(int triangle, vec3 d) {
     vec3 b = max(vec3(1.0 - u - v, u, v), vec3(0.0));
     float sum = b.x + b.y + b.z;
     gBarycentric = sum > 0.0 && !isinf(sum) ? b / sum : vec3(1.0 / 3.0);
+}
+
+// wrapIndex (asset_io.cpp): texel index i of n under a glTF wrap mode.
+int floorMod(int i, int n) { return i - n * int(floor(float(i) / float(n))); }
+int wrapIndex(int i, int n, int mode) {
+    if (mode == 1) return clamp(i, 0, n - 1);
+    if (mode == 2) {
+        int m = floorMod(i, 2 * n);
+        return m < n ? m : 2 * n - 1 - m;
+    }
+    return floorMod(i, n);
+}
+
+// baseColorAt (asset_io.cpp): the factor times the bilinear texel at the interpolated
+// texture coordinate (sampleTexture: texel centres, row 0 at v = 1).
+vec3 baseColour(int triangle) {
+    vec4 f = texelFetch(uTriangleColours, at(triangle), 0);
+    if (f.a < 0.5) return f.rgb;
+    vec2 uv = gBarycentric.x * texelFetch(uCornerUvs, at(3 * triangle), 0).xy +
+              gBarycentric.y * texelFetch(uCornerUvs, at(3 * triangle + 1), 0).xy +
+              gBarycentric.z * texelFetch(uCornerUvs, at(3 * triangle + 2), 0).xy;
+    if (isnan(uv.x) || isnan(uv.y)) return f.rgb;
+    float s = uv.x * float(uBaseSize.x) - 0.5, t = (1.0 - uv.y) * float(uBaseSize.y) - 0.5;
+    float s0 = floor(s), t0 = floor(t);
+    float fx = s - s0, fy = t - t0;
+    int xa = wrapIndex(int(s0), uBaseSize.x, uBaseWrap.x), xb = wrapIndex(int(s0) + 1, uBaseSize.x, uBaseWrap.x);
+    int ya = wrapIndex(int(t0), uBaseSize.y, uBaseWrap.y), yb = wrapIndex(int(t0) + 1, uBaseSize.y, uBaseWrap.y);
+    vec3 top = mix(texelFetch(uBaseTexture, ivec2(xa, ya), 0).rgb, texelFetch(uBaseTexture, ivec2(xb, ya), 0).rgb, fx);
+    vec3 bottom =
+        mix(texelFetch(uBaseTexture, ivec2(xa, yb), 0).rgb, texelFetch(uBaseTexture, ivec2(xb, yb), 0).rgb, fx);
+    return f.rgb * mix(top, bottom, fy);
 }
 
 // fresnelReflectance (bssrdf.cpp): exact unpolarised dielectric reflectance.
@@ -150,6 +187,7 @@ void main() {
             }
         }
         L = (1.0 - fr) * max(sum, vec3(0.0));
+        if (uHasBaseColour) L *= baseColour(int(id - 1u));
         if (uSpecular) L += fr * latLongRadiance(uPrefiltered, 2.0 * cosO * n - wo);
     }
     writeColor(L, 1.0);

@@ -32,7 +32,8 @@ vec3 toneMap(vec3 c) {
     return c;
 }
 void writeColor(vec3 L, float alpha) {
-    vec3 c = toneMap(vec3(positive(L.r), positive(L.g), positive(L.b)) * uScale);
+    // +Inf displays as 1, as in C++: keep the operators' ratios finite.
+    vec3 c = toneMap(min(vec3(positive(L.r), positive(L.g), positive(L.b)) * uScale, vec3(1e30)));
     displayColor = vec4(encodeSrgb(c.r), encodeSrgb(c.g), encodeSrgb(c.b), 1.0);
     linearColor = vec4(L, alpha);
 }
