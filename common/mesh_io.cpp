@@ -255,26 +255,30 @@ std::string shown(std::string_view token) {
     return "'" + s + (token.size() > 40 ? "...'" : "'");
 }
 
-// Throws unless token is a finite number.
-void checkCoordinate(const std::string& path, size_t line, std::string_view token) {
+// The number `token` as a double, or throws naming the line and `what` (`hint` appended
+// to the overflow and non-finite messages) unless it parses and is finite. Underflow (a
+// tiny number) is fine.
+double parseFiniteToken(const std::string& path, size_t line, std::string_view token, const char* what,
+                        const char* hint = "") {
     std::string_view t = token;
     if (!t.empty() && t.front() == '+') t.remove_prefix(1);
     double value = 0.0;
     const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), value);
     const std::string where = "line " + std::to_string(line) + ": ";
     if (ec == std::errc::invalid_argument || end != t.data() + t.size())
-        throw Error(path, where + "cannot parse vertex coordinate " + shown(token));
+        throw Error(path, where + "cannot parse " + what + " " + shown(token));
     if (ec == std::errc::result_out_of_range) {
-        // Overflow is non-finite; underflow (a tiny number) is fine.
         const double v = std::strtod(std::string(t).c_str(), nullptr);
-        if (std::isinf(v))
-            throw Error(path, where + "vertex coordinate " + shown(token) +
-                                  " overflows (NaN/Inf coordinates are not allowed)");
-        return;
+        if (std::isinf(v)) throw Error(path, where + what + " " + shown(token) + " overflows" + hint);
+        return v;
     }
-    if (!std::isfinite(value))
-        throw Error(path, where + "non-finite vertex coordinate " + shown(token) +
-                              " (NaN/Inf coordinates are not allowed)");
+    if (!std::isfinite(value)) throw Error(path, where + "non-finite " + what + " " + shown(token) + hint);
+    return value;
+}
+
+// Throws unless token is a finite number.
+void checkCoordinate(const std::string& path, size_t line, std::string_view token) {
+    parseFiniteToken(path, line, token, "vertex coordinate", " (NaN/Inf coordinates are not allowed)");
 }
 
 bool parseCount(std::string_view token, size_t& out) {
@@ -326,20 +330,9 @@ struct ObjSurfaceScan {
 
 // A finite float, or throws naming the line and what it is.
 float parseFiniteValue(const std::string& path, size_t line, std::string_view token, const char* what) {
-    std::string_view t = token;
-    if (!t.empty() && t.front() == '+') t.remove_prefix(1);
-    double value = 0.0;
-    const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), value);
-    const std::string where = "line " + std::to_string(line) + ": ";
-    if (ec == std::errc::invalid_argument || end != t.data() + t.size())
-        throw Error(path, where + "cannot parse " + what + " " + shown(token));
-    if (ec == std::errc::result_out_of_range) {
-        const double v = std::strtod(std::string(t).c_str(), nullptr);
-        if (std::isinf(v)) throw Error(path, where + what + " " + shown(token) + " overflows");
-        return float(v);
-    }
-    if (!std::isfinite(value) || !std::isfinite(float(value)))
-        throw Error(path, where + "non-finite " + what + " " + shown(token));
+    const double value = parseFiniteToken(path, line, token, what);
+    if (!std::isfinite(float(value)))
+        throw Error(path, "line " + std::to_string(line) + ": non-finite " + what + " " + shown(token));
     return float(value);
 }
 

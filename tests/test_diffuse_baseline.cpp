@@ -29,18 +29,22 @@ VertexRadiance relit(const TransportFile& file, const Image& environment) {
     return radiance;
 }
 
+// The baseline of `mesh` (its normals computed, traced against itself).
+TransportFile baselineOf(TriangleMesh mesh, const DiffuseBaselineOptions& o) {
+    computeVertexNormals(mesh);
+    const RayScene scene(mesh);
+    return diffuseBaselineTransport(mesh, scene, {mesh.vertexCount(), 1}, 1.0, o);
+}
+
 }  // namespace
 
 // A sphere sees the whole hemisphere above every vertex: under a constant radiance L the
 // Lambertian surface sends albedo x L (E = pi L), per channel.
 TEST(DiffuseBaseline, ConvexSurfaceUnderAConstantSkyReflectsAlbedoTimesL) {
-    TriangleMesh sphere = makeIcosphere(3, 10.0f);
-    computeVertexNormals(sphere);
-    const RayScene scene(sphere);
     DiffuseBaselineOptions o;
     o.albedo = {0.25, 0.5, 0.9};
     o.cubemapSize = 16;
-    const TransportFile file = diffuseBaselineTransport(sphere, scene, {sphere.vertexCount(), 1}, 1.0, o);
+    const TransportFile file = baselineOf(makeIcosphere(3, 10.0f), o);
     EXPECT_EQ(file.parameter("baseline"), "diffuse-brdf");
     EXPECT_EQ(file.parameter("eta"), "1");
     const glm::vec3 L(2.0f, 1.0f, 0.5f);
@@ -101,13 +105,10 @@ TEST(DiffuseBaseline, ShadowedSurfaceMatchesTheMonteCarloIrradiance) {
 }
 
 TEST(DiffuseBaseline, AlbedoOutsideTheUnitIntervalIsRefused) {
-    TriangleMesh sphere = makeIcosphere(1, 10.0f);
-    computeVertexNormals(sphere);
-    const RayScene scene(sphere);
     DiffuseBaselineOptions o;
     o.albedo = {0.5, 1.2, 0.5};
     try {
-        diffuseBaselineTransport(sphere, scene, {sphere.vertexCount(), 1}, 1.0, o);
+        baselineOf(makeIcosphere(1, 10.0f), o);
         FAIL() << "accepted";
     } catch (const Error& e) {
         EXPECT_EQ(e.subject(), "--albedo");
