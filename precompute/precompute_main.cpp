@@ -146,6 +146,7 @@ int main(int argc, char** argv) {
             if (dist && dist->partial()) throw Error("--baseline", "runs in one process (not under mpirun)");
             if (!summaryJsonPath.empty()) throw Error("--summary-json", "not with --baseline (it prints one line)");
             if (job.blockCoefficients > 0) throw Error("--block-coefficients", "not with --baseline (per-vertex vectors)");
+            if (job.ground) throw Error("--ground", "not with --baseline (precompute the object with --ground)");
             const glm::dvec3 a = albedo.size() == 3 ? glm::dvec3(albedo[0], albedo[1], albedo[2]) : glm::dvec3(albedo[0]);
             precomputeDiffuseBaseline(job, a);
             return 0;

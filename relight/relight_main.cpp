@@ -102,6 +102,7 @@ int runRender(const RenderOptions& o) {
     RelightObject object = loadRelightObject(o.mesh, o.transport);
     const std::string materialLine = applyMaterialEdit(object, look.material, look.sizeMm, o.transport);
     if (look.baseColour) object.baseColour = BaseColour::load(o.mesh, object.mesh);
+    const std::string groundLine = attachGround(object, look.ground, o.transport);
     const ScatteringComponents components =
         selectComponents(look.components, componentsOf(object.transport), o.transport);
     const Camera camera = makeCamera(o.camera, object.sphereCentre, object.sphereRadius);
@@ -123,6 +124,7 @@ int runRender(const RenderOptions& o) {
                 object.eta, object.transport.cubemapSize, object.transport.cubemapSize);
     if (!materialLine.empty()) std::printf("%s\n", materialLine.c_str());
     if (object.baseColour.enabled()) std::printf("%s\n", object.baseColour.describe().c_str());
+    if (!groundLine.empty()) std::printf("%s\n", groundLine.c_str());
     std::printf("camera: eye (%.4g, %.4g, %.4g) target (%.4g, %.4g, %.4g) fov %.4g, %dx%d, %d spp%s\n",
                 camera.eye.x, camera.eye.y, camera.eye.z, camera.target.x, camera.target.y,
                 camera.target.z, camera.fovY, camera.width, camera.height, o.camera.spp,
@@ -311,6 +313,7 @@ int runView(const ViewOptions& o) {
     setup.object = loadRelightObject(o.mesh, o.transport);
     const std::string materialLine = applyMaterialEdit(setup.object, o.frame.material, o.frame.sizeMm, o.transport);
     if (o.frame.baseColour) setup.object.baseColour = BaseColour::load(o.mesh, setup.object.mesh);
+    if (!o.frame.ground.empty()) throw Error("--ground", "the viewer does not draw the ground yet (prt-relight render does)");
     setup.meshPath = o.mesh;
     setup.transportPath = o.transport;
     setup.frame = o.frame;

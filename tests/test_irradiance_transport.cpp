@@ -3,12 +3,14 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/util.h"
 #include "common/bssrdf.h"
 #include "common/cubemap.h"
 #include "common/error.h"
+#include "common/ground.h"
 #include "common/sh_part.h"
 #include "common/shapes.h"
 
@@ -330,4 +332,69 @@ TEST(IrradianceTransport, CoherentVisibilityMatchesEveryRayWithFewerRays) {
     std::printf("[ info ] needle: irradiance blocked, every ray %.3e sr, coherent %.3e sr\n", lostEvery, lostCoherent);
     EXPECT_GT(lostEvery, 0.0);
     EXPECT_NE(every, coherent);
+}
+
+namespace {
+
+// int F_t(eta, n . w) (n . w) dOmega over the directions above both the surface's
+// horizon (n . w > 0) and the plane (w.y > 0): at cosine mu to n the directions form a
+// circle, of which the fraction acos(c) / pi lies above the plane, c = -mu n_y /
+// (sqrt(1 - mu^2) sqrt(1 - n_y^2)); then a 1D midpoint rule in mu.
+double fresnelCosineAbovePlane(double eta, glm::dvec3 n) {
+    n = glm::normalize(n);
+    const double s = std::sqrt(std::max(0.0, 1.0 - n.y * n.y));
+    const int m = 200000;
+    double total = 0;
+    for (int k = 0; k < m; ++k) {
+        const double mu = (k + 0.5) / m;
+        double fraction;
+        if (s < 1e-12) fraction = n.y > 0 ? 1.0 : 0.0;
+        else fraction = std::acos(std::clamp(-mu * n.y / (std::sqrt(1 - mu * mu) * s), -1.0, 1.0)) / kPi;
+        total += fresnelTransmittance(eta, mu) * mu * fraction;
+    }
+    return 2 * kPi * total / m;
+}
+
+}  // namespace
+
+TEST(IrradianceTransport, GroundPlaneOccludesExactlyTheDirectionsBelowIt) {
+    // A sphere resting on the ground plane under a constant environment: each sample's
+    // pass-1 transport sums to the integral of F_t cos over the directions above both
+    // its horizon and the plane. Face centroids with face normals: the flat faces of a
+    // convex solid do not shadow themselves, so only the plane occludes. The plane is
+    // as wide as allowed; a ray from height h going below the horizontal can still miss
+    // it when |w.y| < h / H (H its half side), which bounds the closed form's excess
+    // over the finite plane by 2 h / H (the band's solid angle with F_t cos <= 1, over
+    // half a circle); the rest of the tolerance is the cubemap's horizon texels.
+    const double eta = 1.3;
+    const TriangleMesh sphere = makeIcosphere(3, 10.0f);
+    GroundSettings settings;
+    settings.halfExtentPerDiagonal = kMaxGroundHalfExtent;
+    settings.cells = 1;
+    const GroundPlane plane = groundPlaneUnder(bounds(sphere), settings);
+    const RayScene withPlane(withGround(sphere, groundMesh(plane)));
+    const RayScene alone(sphere);
+    const TexelDirections dirs = makeTexelDirections(32, 4);
+    IrradianceTransportScratch scratch;
+    std::vector<float> e(6 * 32 * 32);
+    const double full = hemisphericalFresnelCosine(eta);
+    int facingDown = 0;
+    for (size_t t = 0; t < sphere.triangleCount(); t += 17) {
+        const glm::uvec3 tri = sphere.triangles[t];
+        const glm::vec3 a = sphere.positions[tri.x], b = sphere.positions[tri.y], c = sphere.positions[tri.z];
+        const glm::vec3 n = glm::normalize(glm::cross(b - a, c - a));
+        const SurfaceSample sample = sampleAt((a + b + c) / 3.0f, n);
+        irradianceTransport(&withPlane, sample, dirs, eta, e.data(), scratch);
+        const double expected = fresnelCosineAbovePlane(eta, glm::dvec3(n));
+        const double band = 2.0 * (double(sample.position.y) - plane.height) / plane.halfExtent;
+        EXPECT_NEAR(sum(e), expected, 3e-3 * full + band) << "face " << t << " normal y " << n.y;
+        if (n.y < -0.3) {
+            ++facingDown;
+            // Without the plane the same sample sees the whole hemisphere.
+            irradianceTransport(&alone, sample, dirs, eta, e.data(), scratch);
+            EXPECT_NEAR(sum(e), full, 3e-3 * full);
+            EXPECT_LT(expected, 0.8 * full);
+        }
+    }
+    EXPECT_GT(facingDown, 5);
 }

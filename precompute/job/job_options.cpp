@@ -132,6 +132,20 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
                    "g: pass 2 integrates the profiles over pieces no wider than 1/g of their distance from "
                    "the vertex (fine only at the narrowest profile's peak); 0: fine everywhere (slower)")
         ->capture_default_str()->group("Editable transport");
+    CLI::Option* ground =
+        app.add_flag("--ground", raw.ground,
+                     "A diffuse plane under the object that receives its shadow and hides the environment below "
+                     "it in pass 1; writes a second transport file, <output>.ground.prt, for the renderers' "
+                     "--ground (docs/ground.md)")
+            ->group("Ground");
+    app.add_option("--ground-size", raw.groundSettings.halfExtentPerDiagonal,
+                   "Half the side of the square plane, in object diagonals")
+        ->capture_default_str()->needs(ground)->group("Ground");
+    app.add_option("--ground-cells", raw.groundSettings.cells,
+                   "Cells per side of the plane's grid (its vertices carry the shadow: (cells + 1)^2 of them)")
+        ->capture_default_str()->needs(ground)->group("Ground");
+    app.add_option("--ground-albedo", raw.groundAlbedo, "Lambertian reflectance of the plane, one value or R,G,B in [0, 1]")
+        ->delimiter(',')->expected(1, 3)->default_str("0.5")->needs(ground)->group("Ground");
     app.add_option("--shard", raw.shard,
                    "i/n: compute only shard i (0-based) of n of the vertices into a shard file; "
                    "prt-merge joins the n shard files (docs/cluster.md)");
@@ -160,6 +174,14 @@ PrecomputeSettings settingsFromOptions(const JobOptions& raw, PrecomputeSettings
         if (!(lo[0] > 0.0)) throw Error("--editable-sizes", "sizes must be > 0 mm, got '" + raw.editableSizes + "'");
     }
     if (!raw.shard.empty()) s.shard = parseShard(raw.shard);
+    if (raw.ground) {
+        s.ground = raw.groundSettings;
+        if (raw.groundAlbedo.size() == 1) s.ground->albedo = glm::dvec3(raw.groundAlbedo[0]);
+        else if (raw.groundAlbedo.size() == 3)
+            s.ground->albedo = {raw.groundAlbedo[0], raw.groundAlbedo[1], raw.groundAlbedo[2]};
+        else if (!raw.groundAlbedo.empty()) throw Error("--ground-albedo", "one value or R,G,B");
+        validateGroundSettings(*s.ground);
+    }
     s.vertexCoefficients = raw.coefficients ? *raw.coefficients : s.blockCoefficients ? 512 : 128;
     s.singleScattering.pathSamples =
         raw.pathSamples ? *raw.pathSamples : defaultPathSamples(s.singleScattering.pathQuadrature);

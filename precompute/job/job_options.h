@@ -30,6 +30,9 @@ struct JobOptions {
     std::optional<int> pathSamples;      // --path-samples; absent: defaultPathSamples(--path-quadrature)
     std::string editableMaterials;       // --editable-materials "A;B;...": parseMaterial texts
     std::string editableSizes;           // --editable-sizes S0:S1 (mm)
+    bool ground = false;                 // --ground, with --ground-size / -cells / -albedo
+    GroundSettings groundSettings;
+    std::vector<double> groundAlbedo;
 };
 
 // Declares every per-job option on `app`, bound to `raw` and to the fields of `s` (and of

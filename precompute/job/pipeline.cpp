@@ -144,6 +144,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& requested, bool 
     summary.blocks.seconds = written.blockSeconds;
     summary.blocks.retainedEnergy = written.blockRetainedEnergy;
     summary.write = written.summary;
+    summary.ground = writeGroundTransport(job, prepared);
     return finished(std::move(summary), start);
 }
 

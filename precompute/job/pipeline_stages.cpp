@@ -18,6 +18,7 @@
 #include "precompute/job/pass1_file.h"
 #include "precompute/job/pipeline.h"
 #include "common/cell_quadrature.h"
+#include "precompute/passes/diffuse_baseline.h"
 #include "precompute/passes/irradiance_transport.h"
 #include "precompute/passes/multiple_scattering.h"
 #include "precompute/passes/phase_factoring.h"
@@ -40,6 +41,7 @@ JobInputs readInputs(const JobContext& job, bool force) {
         validateSettings(s);
         if (dist.writes() && !s.outputPath.empty()) checkOutputPath(s.outputPath);
         if (dist.writes() && !s.pass1File.empty()) checkOutputPath(s.pass1File);
+        if (dist.writes() && s.ground && !s.outputPath.empty()) checkOutputPath(groundTransportPath(s.outputPath));
         in.mesh = loadMesh(s.meshPath);
         in.fingerprint = MeshFingerprint{in.mesh.vertexCount(), meshFingerprint(in.mesh)};
         in.parameters = settingsParameters(s, in.fingerprint);
@@ -52,6 +54,13 @@ JobInputs readInputs(const JobContext& job, bool force) {
                 same = same && info.parameter(key) == value;
             // A whole file is not up to date for a shard job nor a shard for a whole job.
             same = same && info.hasParameter(kShardParameter) == dist.shard();
+            // With a ground, its file too: made for the same job, and whole.
+            if (same && s.ground) {
+                const std::string groundPath = groundTransportPath(s.outputPath);
+                same = std::filesystem::exists(groundPath) &&
+                       readTransportFileInfo(groundPath).parameter("input_digest") == digest;
+                if (same) loadTransportFile(groundPath);
+            }
             if (same) {
                 loadTransportFile(s.outputPath);  // every checksum
                 in.upToDate = true;
@@ -104,7 +113,14 @@ PreparedJob setUp(const JobContext& job, JobInputs inputs, const Stopwatch& jobS
                                      bounds(p.mesh).diagonal());
         checkMemory(need, s.maxMemoryGb);
         p.summary.estimatedMemoryBytes = need.bytes;
-        if (s.components.multipleScattering) p.scene.emplace(p.mesh);
+        if (s.ground) {
+            p.ground = groundPlaneUnder(bounds(p.mesh), *s.ground);
+            p.derived.push_back({kGroundPlaneParameter, formatGroundPlane(*p.ground)});
+        }
+        if (s.components.multipleScattering) {
+            if (p.ground) p.scene.emplace(withGround(p.mesh, groundMesh(*p.ground)));
+            else p.scene.emplace(p.mesh);
+        }
         p.summary.seconds = jobStart.seconds();
         p.summary.peakMemoryBytes = peakMemoryBytes();
     });
@@ -455,6 +471,31 @@ WriteOutput writeTransport(const JobContext& job, const PreparedJob& prepared,
         out.summary.seconds = writeStart.seconds();
         out.summary.fileBytes = std::filesystem::file_size(s.outputPath);
     });
+    return out;
+}
+
+GroundSummary writeGroundTransport(const JobContext& job, const PreparedJob& prepared) {
+    const PrecomputeSettings& s = job.settings;
+    GroundSummary out;
+    if (!prepared.ground || !job.distribution.writes()) return out;
+    const Stopwatch start;
+    out.path = groundTransportPath(s.outputPath);
+    DiffuseBaselineOptions o;
+    o.albedo = s.ground->albedo;
+    o.cubemapSize = s.cubemapSize;
+    o.shTerms = s.shTerms;
+    o.coefficients = s.vertexCoefficients;
+    o.supersample = s.pass1.supersample;
+    o.sampling = s.pass1.sampling;
+    out.vertices = size_t(prepared.ground->cells + 1) * size_t(prepared.ground->cells + 1);
+    Progress progress("ground: vertices", out.vertices);
+    const TransportFile file =
+        groundTransport(*prepared.ground, *prepared.scene, prepared.fingerprint, o,
+                        {{"input_digest", prepared.parameters.back().second}}, &progress);
+    progress.finish();
+    saveTransportFile(out.path, file);
+    out.rays = std::stoull(file.parameter("rays_traced"));
+    out.seconds = start.seconds();
     return out;
 }
 

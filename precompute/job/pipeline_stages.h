@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "common/ground.h"
 #include "common/haar.h"
 #include "common/mesh.h"
 #include "common/raytrace.h"
@@ -53,7 +54,10 @@ struct PreparedJob {
     std::vector<IndexRange> vertexShares;  // this process's vertices
     size_t myVertices = 0;
     size_t sampleCount = 0;           // 0 without multiple scattering
-    std::optional<RayScene> scene;    // with multiple scattering
+    // With multiple scattering: the object's, and the ground's after it (withGround) when
+    // the job has one.
+    std::optional<RayScene> scene;
+    std::optional<GroundPlane> ground;  // settings.ground placed under the scaled mesh
     SetupSummary summary;
 };
 PreparedJob setUp(const JobContext& job, JobInputs inputs, const Stopwatch& jobStart);
@@ -111,5 +115,10 @@ struct WriteOutput {
 WriteOutput writeTransport(const JobContext& job, const PreparedJob& prepared,
                            std::vector<TransportComponent> components, std::optional<ViewMaps> viewMaps,
                            std::optional<StoredRadialBasis> radialBasis, ParameterList derived);
+
+// 8. On the writing process, with a ground: the ground's transport file
+// (groundTransportPath of the output; diffuse_baseline.h's groundTransport) in the
+// prepared scene, its input_digest the object file's, written atomically.
+GroundSummary writeGroundTransport(const JobContext& job, const PreparedJob& prepared);
 
 }  // namespace prt

@@ -112,6 +112,12 @@ void validateSettings(const PrecomputeSettings& s) {
     if (!s.pass1File.empty() && !s.components.multipleScattering)
         throw Error("--pass1-file", "needs multiple scattering (--components ms or ms,ss): single scattering has no pass 1");
     if (s.pass1Only && s.pass1File.empty()) throw Error("--pass1-only", "needs --pass1-file");
+    if (s.ground) {
+        validateGroundSettings(*s.ground);
+        if (!s.components.multipleScattering)
+            throw Error("--ground", "occludes pass 1 of multiple scattering: select it (--components ms or ms,ss)");
+        if (s.shard) throw Error("--ground", "not with --shard (the ground's file is written by one process)");
+    }
     if (s.editable.enabled) {
         if (!s.components.multipleScattering)
             throw Error("--editable", "edits multiple scattering: select it (--components ms or ms,ss)");
@@ -191,6 +197,13 @@ ParameterList settingsParameters(const PrecomputeSettings& settings, const MeshF
     };
     p.insert(p.end(), passes.begin(), passes.end());
     if (s.blockCoefficients > 0) p.push_back({"block_coefficients", std::to_string(s.blockCoefficients)});
+    // Recorded only with a ground, so files without one keep their parameters and digest.
+    if (s.ground) {
+        p.push_back({"ground_size_diagonals", fmt(s.ground->halfExtentPerDiagonal)});
+        p.push_back({"ground_cells", std::to_string(s.ground->cells)});
+        p.push_back({"ground_albedo", fmt(s.ground->albedo.r) + "," + fmt(s.ground->albedo.g) + "," +
+                                          fmt(s.ground->albedo.b)});
+    }
     // Recorded only for editable jobs, so other files keep their parameters and digest.
     if (s.editable.enabled) {
         std::string materials;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "common/bssrdf.h"
+#include "common/ground.h"
 #include "common/mesh.h"
 #include "common/radial_basis.h"
 #include "common/transport_file.h"
@@ -90,6 +91,9 @@ struct PrecomputeSettings {
     // so the shards of a job compute pass 1 once. pass1Only: stop after writing it.
     std::string pass1File;
     bool pass1Only = false;
+    // A diffuse plane under the object (common/ground.h): it occludes pass 1, and a
+    // second transport file holds its own vertices' vectors (groundTransportPath).
+    std::optional<GroundSettings> ground;
 };
 
 // The settings as the passes take them: cubemapSize, shTerms, vertexCoefficients and

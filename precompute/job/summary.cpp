@@ -37,6 +37,9 @@ std::string PrecomputeSummary::format() const {
         add("output            %s (%.2f MB), %s", outputPath.c_str(), write.fileBytes / 1e6, d.description.c_str());
     else
         add("output            %s (%.2f MB)", outputPath.c_str(), write.fileBytes / 1e6);
+    if (!ground.path.empty())
+        add("ground            %s: %zu vertices, %.3g rays, %s", ground.path.c_str(), ground.vertices,
+            double(ground.rays), formatDuration(ground.seconds).c_str());
     add("mesh              %zu vertices, %zu triangles, %.1f mm^2", setup.vertices, setup.triangles,
         setup.totalAreaMm2);
     if (components.multipleScattering) {

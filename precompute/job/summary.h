@@ -99,6 +99,14 @@ struct WriteSummary {
     size_t fileBytes = 0;
 };
 
+// The ground's transport file (written only by jobs with --ground).
+struct GroundSummary {
+    std::string path;  // empty: no ground
+    size_t vertices = 0;
+    uint64_t rays = 0;
+    double seconds = 0;
+};
+
 struct PrecomputeSummary {
     std::string outputPath;
     bool skipped = false;  // output already up to date
@@ -111,6 +119,7 @@ struct PrecomputeSummary {
     SingleScatteringSummary singleScattering;
     BlocksSummary blocks;
     WriteSummary write;
+    GroundSummary ground;
     double totalSeconds = 0;
     size_t peakMemoryBytes = 0;  // of the process, at the end
 

@@ -26,6 +26,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/ground.h"
 #include "common/mesh.h"
 #include "common/progress.h"
 #include "common/raytrace.h"
@@ -53,5 +54,17 @@ TransportFile diffuseBaselineTransport(const TriangleMesh& mesh, const RayScene&
                                        const DiffuseBaselineOptions& options,
                                        const std::vector<std::pair<std::string, std::string>>& parameters = {},
                                        Progress* progress = nullptr);
+
+// The ground's transport file (common/ground.h; docs/ground.md): the same Lambertian
+// transport at the vertices of groundMesh(plane) (normals +Y), traced in
+// `objectAndGround`, the scene of withGround(object, groundMesh(plane)), so the object
+// shadows the plane. options.albedo is the plane's. Its parameters: receiver = ground,
+// kGroundPlaneParameter, kGroundObjectParameter (the object file's fingerprint, "V:hash"),
+// albedo, eta = 1, then `parameters`. Its fingerprint is the ground mesh's, its
+// mmPerUnit 1 (the plane is made in mm). Throws as diffuseBaselineTransport.
+TransportFile groundTransport(const GroundPlane& plane, const RayScene& objectAndGround,
+                              const MeshFingerprint& objectFingerprint, const DiffuseBaselineOptions& options,
+                              const std::vector<std::pair<std::string, std::string>>& parameters = {},
+                              Progress* progress = nullptr);
 
 }  // namespace prt

@@ -12,7 +12,9 @@ EnvironmentFrameRenderer::EnvironmentFrameRenderer(const RelightObject& object, 
       environment_(std::move(environment)),
       look_(look),
       components_(components),
-      scene_(object.mesh),
+      objectAndGround_(object.ground ? std::optional<TriangleMesh>(withGround(object.mesh, object.ground->mesh))
+                                     : std::nullopt),
+      scene_(tracedMesh()),
       shader_(object.mesh, object.eta,
               components.singleScattering && object.transport.viewMaps ? &*object.transport.viewMaps : nullptr) {
     if (look_.specular)
@@ -36,17 +38,21 @@ Image EnvironmentFrameRenderer::render(const Camera& camera, const glm::dmat3& r
 
     clock.restart();
     relightVertices(object_.transport, light, components_, radiance_);
+    if (object_.ground) relightVertices(object_.ground->transport, light, {true, false}, groundRadiance_);
     t.relight = clock.milliseconds();
 
     clock.restart();
     if (!tracedCamera_ || !(*tracedCamera_ == camera)) {
-        gbuffer_ = traceGBuffer(scene_, object_.mesh, camera);
+        gbuffer_ = traceGBuffer(scene_, tracedMesh(), camera);
         tracedCamera_ = camera;
     }
     t.rays = clock.milliseconds();
 
     clock.restart();
+    const size_t objectTriangles = object_.mesh.triangleCount();
     Image image = compose(gbuffer_, environment_, rotation, [&](const GBufferPixel& p) {
+        if (isGroundTriangle(p.triangle, objectTriangles))
+            return groundRadiance(*object_.ground, p, groundRadiance_, objectTriangles);
         glm::vec3 L = object_.baseColour.at(p) * shader_.shade(p, radiance_);
         if (look_.specular) L += specularReflection(p, object_.eta, prefiltered_, rotation);
         return L;

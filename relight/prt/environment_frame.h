@@ -7,7 +7,8 @@
 //
 // Frames: the object in mm (RelightObject), the environment rotated by `rotation`
 // (envmap.h's convention: the world sees L(R^T d)). The image is RGBA float, linear;
-// object pixels have A = 1, background pixels the environment and A = 0.
+// object pixels have A = 1, background pixels the environment and A = 0. With a ground
+// (RelightObject::ground) its pixels are shaded by ground_receiver.h and have A = 1 too.
 
 #include <glm/glm.hpp>
 
@@ -54,6 +55,8 @@ public:
     LightVector lightVector(const glm::dmat3& rotation) const;
     // The per-vertex radiance of the last frame.
     const VertexRadiance& vertexRadiance() const { return radiance_; }
+    // The ground's per-vertex radiance of the last frame (empty without a ground).
+    const VertexRadiance& groundVertexRadiance() const { return groundRadiance_; }
     const GBuffer& gbuffer() const { return gbuffer_; }
 
 private:
@@ -61,6 +64,10 @@ private:
     Image environment_;
     FrameSettings look_;
     ScatteringComponents components_;
+    // What primary rays see: the object's mesh, or withGround(object, ground) when the
+    // object has a ground (object triangles first, so the shader's indices hold).
+    std::optional<TriangleMesh> objectAndGround_;
+    const TriangleMesh& tracedMesh() const { return objectAndGround_ ? *objectAndGround_ : object_.mesh; }
     RayScene scene_;
     TranslucentShader shader_;
     Image prefiltered_;
@@ -68,6 +75,7 @@ private:
     GBuffer gbuffer_;
     std::optional<Camera> tracedCamera_;
     VertexRadiance radiance_;
+    VertexRadiance groundRadiance_;
 };
 
 }  // namespace prt

@@ -36,6 +36,10 @@ FrameOptions addFrameOptions(CLI::App& app, FrameSettings& s) {
                    "Editable files only: the object's size (bounding-box diagonal, mm); default: the file's")
         ->group("Material");
     addBaseColourOption(app, s.baseColour, "Material");
+    app.add_option("--ground", s.ground,
+                   "The ground's transport file (prt-precompute --ground writes <output>.ground.prt): draws the "
+                   "diffuse plane under the object with the object's shadow (docs/ground.md)")
+        ->group("Scene");
     addDisplayOptions(app, s.display);
     return o;
 }
@@ -64,6 +68,7 @@ std::string renderArguments(const FrameSettings& s) {
         args += buf;
     }
     if (s.baseColour) args += " --base-colour";
+    if (!s.ground.empty()) args += " --ground '" + s.ground + "'";
     return args;
 }
 

@@ -34,6 +34,9 @@ struct FrameSettings {
     // --base-colour: the mesh file's base colour tints the translucent exitance at the
     // exit point (relight/render/base_colour.h); loaded into RelightObject::baseColour.
     bool baseColour = false;
+    // --ground: the ground's transport file (prt-precompute --ground; relight/prt/
+    // ground_receiver.h), loaded into RelightObject::ground; empty: no ground drawn.
+    std::string ground;
 };
 
 // The options addFrameOptions declared that a subcommand may tie together
@@ -58,7 +61,7 @@ void checkFrameSettings(const FrameSettings& s);
 // " --tonemap T" unless T is clamp, " -L N"
 // when N > 0, " --components C" unless C is "all", " --specular" followed by
 // " --specular-blur F" (F > 0) when the layer is on, and " --material 'M'" /
-// " --size-mm=S" when set, " --base-colour" when on.
+// " --size-mm=S" when set, " --base-colour" when on, " --ground 'G'" when set.
 std::string renderArguments(const FrameSettings& s);
 
 }  // namespace prt

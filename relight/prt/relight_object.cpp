@@ -1,5 +1,6 @@
 #include "relight/prt/relight_object.h"
 
+#include <cstdio>
 #include <optional>
 
 #include "common/error.h"
@@ -25,6 +26,21 @@ RelightObject loadRelightObject(const std::string& meshPath, const std::string& 
         o.transport.components.insert(o.transport.components.begin(), o.editable->recombine());
     }
     return o;
+}
+
+std::string attachGround(RelightObject& object, const std::string& groundPath, const std::string& transportPath) {
+    if (groundPath.empty()) {
+        if (!object.transport.hasParameter(kGroundPlaneParameter)) return "";
+        return "note: " + transportPath + " was precomputed with a ground under it; --ground " +
+               groundTransportPath(transportPath) + " draws it";
+    }
+    object.ground = loadGroundReceiver(groundPath, object.transport, transportPath);
+    const GroundPlane& p = object.ground->plane;
+    char line[256];
+    std::snprintf(line, sizeof line, "ground: %s, %.4g mm square at y = %.4g mm, %zu vertices, albedo (%.3g, %.3g, %.3g)",
+                  groundPath.c_str(), 2.0 * p.halfExtent, p.height, object.ground->mesh.vertexCount(),
+                  object.ground->albedo.r, object.ground->albedo.g, object.ground->albedo.b);
+    return line;
 }
 
 double objectSizeMm(const RelightObject& object) { return double(object.box.diagonal()); }

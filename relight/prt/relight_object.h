@@ -11,6 +11,7 @@
 #include "common/mesh.h"
 #include "common/transport_file.h"
 #include "relight/prt/editable_transport.h"
+#include "relight/prt/ground_receiver.h"
 #include "relight/render/base_colour.h"
 
 namespace prt {
@@ -33,8 +34,15 @@ struct RelightObject {
     double sphereRadius = 0.0;     // distance of a vertex from it
     std::optional<EditableTransport> editable;  // the file has a radial basis
     BaseColour baseColour;    // --base-colour: tints the translucent exitance (white when off)
+    std::optional<GroundReceiver> ground;  // --ground: the plane under the object
 };
 RelightObject loadRelightObject(const std::string& meshPath, const std::string& transportPath);
+
+// --ground: loads the ground file `groundPath` into object.ground (loadGroundReceiver's
+// checks against the object's file, transportPath). Returns the line the tools print:
+// what the ground is; with no groundPath, a hint when the object's file was precomputed
+// with a ground (its pass 1 saw the plane, so the object's underside is dark), else "".
+std::string attachGround(RelightObject& object, const std::string& groundPath, const std::string& transportPath);
 
 // The object's size as --size-mm measures it: the scaled mesh's bounding-box diagonal, mm.
 double objectSizeMm(const RelightObject& object);
