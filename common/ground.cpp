@@ -103,6 +103,28 @@ std::string groundObjectText(const MeshFingerprint& object) {
     return text;
 }
 
+GroundDescription readGroundDescription(const std::string& path, const MeshFingerprint& object,
+                                        const std::string& objectGroundPlane, uint32_t cubemapSize,
+                                        uint32_t shTerms, const std::string& objectTransportPath) {
+    const TransportFileInfo info = readTransportFileInfo(path);
+    if (info.parameter("receiver") != "ground")
+        throw Error(path, "not a ground transport file (prt-precompute --ground writes one beside the object's)");
+    GroundDescription g;
+    g.plane = parseGroundPlane(info.parameter(kGroundPlaneParameter), path);
+    if (info.parameter(kGroundObjectParameter) != groundObjectText(object))
+        throw Error(path, "made for another object (" + info.parameter(kGroundObjectParameter) + ") than " +
+                              objectTransportPath + " (" + groundObjectText(object) + ")");
+    if (objectGroundPlane != info.parameter(kGroundPlaneParameter))
+        throw Error(path, objectTransportPath + " was precomputed without this ground occluding it (precompute the "
+                                                "object with --ground)");
+    if (info.cubemapSize != cubemapSize || info.shTerms != shTerms)
+        throw Error(path, "its cubemap or SH part differs from " + objectTransportPath + "'s");
+    const std::vector<double> albedo = parseNumberList(info.parameter("albedo"), path, "albedo");
+    if (albedo.size() != 3) throw Error(path, "its albedo parameter is not R,G,B");
+    g.albedo = {albedo[0], albedo[1], albedo[2]};
+    return g;
+}
+
 std::string groundTransportPath(const std::string& objectTransportPath) {
     std::filesystem::path p(objectTransportPath);
     p.replace_extension(".ground.prt");

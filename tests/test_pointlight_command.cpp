@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <algorithm>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -109,5 +111,139 @@ TEST(PointLightCommand, BaseColourTintsEveryMethod) {
                 }
             EXPECT_GT(objectPixels, 200u) << method << suffix;
         }
+    }
+}
+
+namespace {
+
+// Runs the command and returns the images it wrote, by path.
+std::map<std::string, Image> run(const std::vector<std::string>& args) {
+    test::MemoryImageWriter writer;
+    EXPECT_EQ(runPointLightCommand(parse(args), writer), 0);
+    return writer.images;
+}
+
+// The rows of the lower 40% of the object in a frame (alpha = 1 marks the object).
+std::pair<int, int> lowerObjectRows(const Image& a) {
+    int top = a.height, bottom = -1;
+    for (int y = 0; y < a.height; ++y)
+        for (int x = 0; x < a.width; ++x)
+            if (a.at(x, y, 3) > 0.5f) {
+                top = std::min(top, y);
+                bottom = std::max(bottom, y);
+            }
+    return {bottom - int(0.4 * (bottom - top)), bottom};
+}
+
+}  // namespace
+
+// --specular and --single-scattering are off by default and toggle alone (their other
+// options change nothing while they are off); on, they add to the object only: the
+// background and alpha stay, no pixel darkens, and the specular leaves the lower part
+// of the sphere (facing away from the light above) exactly as it was. The references
+// of --compare-jb get the same terms.
+TEST(PointLightCommand, SurfaceTermsToggleAndAddOnlyWhereTheyShould) {
+    const std::string mesh = sphere();
+    const std::string prefix = (std::filesystem::current_path() / "test_pointlight_command_scratch" / "terms").string();
+    for (const char* method : {"cache", "tsis"}) {
+        SCOPED_TRACE(method);
+        const std::vector<std::string> base{mesh,  "-o", prefix, "--light", "point:0,40,0:0.01", "--size-mm", "20",
+                                            "-W", "40", "-H", "40", "--method", method, "--compare-jb"};
+        auto with = [&](std::vector<std::string> extra) {
+            std::vector<std::string> a = base;
+            a.insert(a.end(), extra.begin(), extra.end());
+            return run(a);
+        };
+        const auto plain = with({});
+        const auto off = with({"--specular-roughness", "0.7", "--single-scattering-samples", "3", "--g", "0"});
+        ASSERT_EQ(plain.size(), off.size());
+        for (const auto& [path, image] : plain) EXPECT_EQ(image.pixels, off.at(path).pixels) << path;
+        const Image& a = plain.at(prefix + ".exr");
+        const auto [lowTop, lowBottom] = lowerObjectRows(a);
+        ASSERT_GT(lowBottom - lowTop, 4);
+
+        for (const char* flag : {"--specular", "--single-scattering"}) {
+            SCOPED_TRACE(flag);
+            const bool specular = std::string(flag) == "--specular";
+            const auto on = with({flag});
+            for (const char* suffix : {".exr", "_jb.exr"}) {
+                const Image& before = plain.at(prefix + suffix);
+                const Image& after = on.at(prefix + suffix);
+                size_t brighter = 0, lowerChanged = 0;
+                for (int y = 0; y < a.height; ++y)
+                    for (int x = 0; x < a.width; ++x) {
+                        EXPECT_EQ(after.at(x, y, 3), before.at(x, y, 3));
+                        const bool object = before.at(x, y, 3) > 0.5f;
+                        for (int c = 0; c < 3; ++c) {
+                            if (!object) {
+                                EXPECT_EQ(after.at(x, y, c), before.at(x, y, c));
+                                continue;
+                            }
+                            EXPECT_GE(after.at(x, y, c), before.at(x, y, c));
+                            if (c == 0 && after.at(x, y, c) > before.at(x, y, c)) ++brighter;
+                            if (y >= lowTop && after.at(x, y, c) != before.at(x, y, c)) ++lowerChanged;
+                        }
+                    }
+                EXPECT_GT(brighter, 100u) << suffix;
+                if (specular) {
+                    EXPECT_EQ(lowerChanged, 0u) << suffix;
+                }
+            }
+            // The same terms on the frame and on its reference.
+            const Image& f0 = plain.at(prefix + ".exr");
+            const Image& f1 = on.at(prefix + ".exr");
+            const Image& j0 = plain.at(prefix + "_jb.exr");
+            const Image& j1 = on.at(prefix + "_jb.exr");
+            for (size_t i = 0; i < f0.pixels.size(); ++i)
+                EXPECT_NEAR(f1.pixels[i] - f0.pixels[i], j1.pixels[i] - j0.pixels[i],
+                            1e-6f * (1.0f + std::abs(f1.pixels[i]) + std::abs(j1.pixels[i])));
+        }
+    }
+}
+
+// Every frame of an animation has the terms: a light path's first frame (a spot light
+// moving) equals the single frame with that light, terms and all.
+TEST(PointLightCommand, SurfaceTermsInAnimationFrames) {
+    const std::string mesh = sphere();
+    const std::string prefix = (std::filesystem::current_path() / "test_pointlight_command_scratch" / "pathterms").string();
+    const std::vector<std::string> common{mesh, "-o", prefix, "--size-mm", "20", "-W", "32", "-H", "32",
+                                          "--method", "jb", "--specular", "--single-scattering"};
+    std::vector<std::string> single = common;
+    for (const char* a : {"--light", "spot:-20,30,10:0.5,-1,-0.2:0.01:20,40"}) single.push_back(a);
+    std::vector<std::string> path = common;
+    for (const char* a : {"--light", "spot:0,0,90:0.5,-1,-0.2:0.01:20,40", "--light-path=-20,30,10:20,30,10",
+                          "--frames", "2"})
+        path.push_back(a);
+    const auto one = run(single);
+    const auto frames = run(path);
+    ASSERT_TRUE(frames.count(prefix + "_0000.exr"));
+    EXPECT_EQ(frames.at(prefix + "_0000.exr").pixels, one.at(prefix + ".exr").pixels);
+    // Without the terms the frame differs.
+    std::vector<std::string> bare(single.begin(), single.end());
+    bare.erase(std::find(bare.begin(), bare.end(), "--specular"));
+    bare.erase(std::find(bare.begin(), bare.end(), "--single-scattering"));
+    EXPECT_NE(run(bare).at(prefix + ".exr").pixels, one.at(prefix + ".exr").pixels);
+}
+
+// A spot whose inner cone holds the whole object is the point light of the same
+// intensity, for every method (pass 1's irradiance, tsis's shadow maps, the terms).
+TEST(PointLightCommand, WideSpotEqualsPointLightInEveryMethod) {
+    const std::string mesh = sphere();
+    const std::string prefix = (std::filesystem::current_path() / "test_pointlight_command_scratch" / "spot").string();
+    for (const char* method : {"cache", "jb", "tsis"}) {
+        const std::vector<std::string> base{mesh, "-o", prefix, "--size-mm", "20", "-W", "32", "-H", "32", "--method",
+                                            method, "--specular", "--single-scattering", "--light"};
+        std::vector<std::string> point = base, spot = base;
+        point.push_back("point:10,40,20:0.01");
+        spot.push_back("spot:10,40,20:-0.25,-1,-0.5:0.01:45,60");
+        EXPECT_EQ(run(point).at(prefix + ".exr").pixels, run(spot).at(prefix + ".exr").pixels) << method;
+        // Aimed away, it lights nothing.
+        std::vector<std::string> away = base;
+        away.push_back("spot:10,40,20:0,1,0:0.01:10,20");
+        const Image dark = run(away).at(prefix + ".exr");
+        float most = 0.0f;
+        for (int y = 0; y < dark.height; ++y)
+            for (int x = 0; x < dark.width; ++x) most = std::max(most, dark.at(x, y, 0));
+        EXPECT_EQ(most, 0.0f) << method;
     }
 }

@@ -102,6 +102,41 @@ PointFrame renderPointFrame(const IrradianceOctree& tree, const GBuffer& g, cons
 }
 
 // ---------------------------------------------------------------------------
+// The surface terms
+// ---------------------------------------------------------------------------
+
+SurfaceTerms renderSurfaceTerms(const GBuffer& g, const TriangleMesh& mesh, const RayScene& scene,
+                                const std::vector<Light>& lights, const Material& material,
+                                const SurfaceTermSettings& settings, const BaseColour* colour) {
+    SurfaceTerms terms;
+    if (!settings.any()) return terms;
+    terms.radiance = Image(g.width, g.height, 3, 0.0f);
+    if (settings.singleScattering) {
+        const Stopwatch t;
+        terms.radiance = singleScatteringImage(g, mesh, scene, lights, material, settings.singleScatteringOptions);
+        if (colour) applyBaseColour(terms.radiance, g, *colour);
+        terms.singleScatteringSeconds = t.seconds();
+    }
+    if (settings.specular) {
+        const Stopwatch t;
+        const Image specular = specularImage(g, mesh, scene, lights, material.eta, settings.specularRoughness);
+        for (size_t i = 0; i < specular.pixels.size(); ++i) terms.radiance.pixels[i] += specular.pixels[i];
+        terms.specularSeconds = t.seconds();
+    }
+    return terms;
+}
+
+void addSurfaceTerms(Image& frame, const SurfaceTerms& terms) {
+    if (terms.radiance.empty()) return;
+    if (frame.width != terms.radiance.width || frame.height != terms.radiance.height || frame.channels < 3)
+        throw Error("surface terms", "the frame and the terms differ in size");
+    const size_t n = size_t(frame.width) * size_t(frame.height);
+    const size_t channels = size_t(frame.channels);
+    for (size_t i = 0; i < n; ++i)
+        for (size_t c = 0; c < 3; ++c) frame.pixels[i * channels + c] += terms.radiance.pixels[3 * i + c];
+}
+
+// ---------------------------------------------------------------------------
 // Animation
 // ---------------------------------------------------------------------------
 
@@ -188,8 +223,8 @@ void validateAnimation(const PointAnimation& a, const std::vector<Light>& lights
         for (int i = 0; i < 3; ++i)
             if (!std::isfinite(a.from[i]) || !std::isfinite(a.to[i]))
                 throw Error("--light-path", "the end points must be finite");
-        if (lights.empty() || lights.front().type != LightType::Point)
-            throw Error("--light-path", "moves the first light, which must be a point light");
+        if (lights.empty() || !hasPosition(lights.front()))
+            throw Error("--light-path", "moves the first light, which must be a point or spot light");
     }
 }
 
@@ -206,7 +241,8 @@ std::vector<Light> animationLights(const PointAnimation& a, const std::vector<Li
     if (a.kind != AnimationKind::LightPath || lights.empty()) return lights;
     std::vector<Light> out = lights;
     const double t = pathT(a, frame);
-    // (1 - t) P0 + t P1: exactly P0 at t = 0 and exactly P1 at t = 1.
+    // (1 - t) P0 + t P1: exactly P0 at t = 0 and exactly P1 at t = 1. A spot keeps
+    // its axis and cone (it is translated, not re-aimed).
     out.front().position = (1.0 - t) * a.from + t * a.to;
     out.front().source = "--light-path (frame " + std::to_string(frame) + ", light 1)";
     return out;
@@ -277,6 +313,10 @@ void renderAnimation(const PointAnimation& a, const TriangleMesh& mesh, const Ra
             info.materialSeconds = m.seconds();
             info.hitPixels = g.objectPixels();
             PointFrame frame = renderer.render(g);
+            const SurfaceTerms terms =
+                renderSurfaceTerms(g, mesh, scene, info.lights, info.material, settings.surface, settings.baseColour);
+            addSurfaceTerms(frame.image, terms);
+            info.surfaceSeconds = terms.seconds();
             sink(info, frame);
         }
         return;
@@ -328,6 +368,10 @@ void renderAnimation(const PointAnimation& a, const TriangleMesh& mesh, const Ra
         info.hitPixels = g->objectPixels();
 
         PointFrame frame = renderPointFrame(*lit->tree, *g, settings, false, cells);
+        const SurfaceTerms terms =
+            renderSurfaceTerms(*g, mesh, scene, info.lights, settings.material, settings.surface, settings.baseColour);
+        addSurfaceTerms(frame.image, terms);
+        info.surfaceSeconds = terms.seconds();
         sink(info, frame);
     }
 }

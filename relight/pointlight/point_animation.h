@@ -22,7 +22,7 @@
 //                 (created in that frame's bottom-up scan order, with validity radii
 //                 measured on that frame's surface points), and each frame sees other
 //                 points.
-//   light path    the FIRST light (a point light) moves linearly from P0 (frame 0) to
+//   light path    the FIRST light (a point or spot light; a spot keeps its axis) moves linearly from P0 (frame 0) to
 //                 P1 (frame N-1): position = (1 - t) P0 + t P1, t = k / (N - 1), so the
 //                 end frames are exactly P0 and P1. Its intensity stays as given; the
 //                 other lights and the camera are fixed.
@@ -72,6 +72,8 @@
 #include "relight/pointlight/irradiance_cache.h"
 #include "relight/pointlight/jensen_buhler.h"
 #include "relight/pointlight/point_lights.h"
+#include "relight/pointlight/point_single_scattering.h"
+#include "relight/pointlight/point_specular.h"
 #include "relight/pointlight/sample_cells.h"
 #include "relight/pointlight/texture_space_sampling.h"
 #include "relight/render/gbuffer.h"
@@ -87,6 +89,17 @@ const char* toString(PointMethod method);  // "cache", "jb", "brute", "tsis"
 // "cache", "jb", "brute" or "tsis" (case-insensitive); prt::Error("--method", ...) otherwise.
 PointMethod parsePointMethod(const std::string& text);
 
+// The terms at the surface beside the translucent (diffusion) radiance, both off by
+// default: the specular reflection (point_specular.h) and single scattering
+// (point_single_scattering.h).
+struct SurfaceTermSettings {
+    bool specular = false;
+    double specularRoughness = kDefaultSpecularRoughness;  // GGX alpha
+    bool singleScattering = false;
+    PointSingleScatteringOptions singleScatteringOptions{};
+    bool any() const { return specular || singleScattering; }
+};
+
 struct PointRenderSettings {
     Material material;
     PointMethod method = PointMethod::Cache;
@@ -98,6 +111,7 @@ struct PointRenderSettings {
     SplitDiskModel splitDisk = SplitDiskModel::Paper;
     NearFieldRule nearField = NearFieldRule::Auto;  // sample_cells.h (JB, brute and the cache's S)
     const BaseColour* baseColour = nullptr;  // tints every frame's object pixels (base_colour.h); null: none
+    SurfaceTermSettings surface{};           // added to every frame (addSurfaceTerms)
 };
 
 // The near field's cells of `placed` on `mesh` for settings.material, or none for the
@@ -149,6 +163,28 @@ private:
 PointFrame renderPointFrame(const IrradianceOctree& tree, const GBuffer& g, const PointRenderSettings& settings,
                             bool wantVisuals = false, const std::optional<SampleCells>& cells = std::nullopt);
 
+// --- the surface terms -----------------------------------------------------------------
+
+// A frame's specular and single-scattering radiance at g's pixels (RGB, W/(m^2 sr)):
+//   radiance = baseColour(x_o) L^(1)(x_o, w_o) + L_s(x_o, w_o)
+// the single scattering tinted by `colour` like the diffusion (when not null), the
+// specular not (point_specular.h, point_single_scattering.h). `material` is the frame's
+// (a material path's frame k: animationMaterial). Empty radiance when `settings` asks
+// for neither; the seconds are each term's time.
+struct SurfaceTerms {
+    Image radiance;
+    double specularSeconds = 0.0, singleScatteringSeconds = 0.0;
+    double seconds() const { return specularSeconds + singleScatteringSeconds; }
+};
+SurfaceTerms renderSurfaceTerms(const GBuffer& g, const TriangleMesh& mesh, const RayScene& scene,
+                                const std::vector<Light>& lights, const Material& material,
+                                const SurfaceTermSettings& settings, const BaseColour* colour);
+// Adds terms.radiance to the RGB of every pixel of `frame` (the translucent frame, its
+// base colour already applied, of the same size): after the translucent radiance and its
+// tint, so the specular stays untinted. Nothing when the radiance is empty, so a frame
+// without the terms is exactly the translucent frame.
+void addSurfaceTerms(Image& frame, const SurfaceTerms& terms);
+
 // --- animation -----------------------------------------------------------------------
 
 enum class AnimationKind { None, Turntable, LightPath, MaterialPath };
@@ -170,9 +206,10 @@ struct PointAnimation {
 void parseLightPath(const std::string& text, glm::dvec3& from, glm::dvec3& to);
 // "S0:S1" (mm, finite and > 0) -> s0, s1; prt::Error("--size-path", ...) otherwise.
 void parseSizePath(const std::string& text, double& s0, double& s1);
-// frames >= 1 (>= 2 for a material path); a light path needs a point light first in
-// `lights`; a material path needs a material or a size path, sizes and the geometry's
-// size finite and > 0, and the same eta at both ends. One-line errors naming
+// frames >= 1 (>= 2 for a material path); a light path needs a point or spot light
+// first in `lights` (a spot moves keeping its axis); a material path needs a material
+// or a size path, sizes and the geometry's size finite and > 0, and the same eta at
+// both ends. One-line errors naming
 // --turntable / --frames / --light-path / --material-path / --size-path.
 void validateAnimation(const PointAnimation& animation, const std::vector<Light>& lights);
 
@@ -201,11 +238,13 @@ struct AnimationFrameInfo {
     double sizeMm = 0.0;         // the frame's object size (animationSizeMm)
     double materialSeconds = 0.0;  // the renderer's setMaterial (material path; includes the cells' rebuild)
     double cellsSeconds = 0.0;     // nearFieldCells (frame 0 only)
+    double surfaceSeconds = 0.0;   // renderSurfaceTerms (0 without --specular / --single-scattering)
 };
 using AnimationSink = std::function<void(const AnimationFrameInfo&, PointFrame&)>;
 
 // Renders frames 0 .. N-1 in order, reusing what the header comment lists and nothing
-// else, and hands each to sink (which writes it). Every frame's lights are checked to
+// else (the surface terms of settings.surface are computed for every frame with its
+// camera, lights and material), and hands each to sink (which writes it). Every frame's lights are checked to
 // be outside the object (checkLightsOutside) before the first frame is rendered.
 void renderAnimation(const PointAnimation& animation, const TriangleMesh& mesh, const RayScene& scene,
                      const IrradianceSamples& placed, const std::vector<Light>& lights, const Camera& baseCamera,

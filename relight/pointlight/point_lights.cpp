@@ -102,13 +102,50 @@ Light directionalLight(const glm::dvec3& towardLight, const glm::dvec3& irradian
     return l;
 }
 
+Light spotLight(const glm::dvec3& positionMm, const glm::dvec3& axis, const glm::dvec3& intensity,
+                double innerDegrees, double outerDegrees, std::string source) {
+    const std::string subject = source.empty() ? "light" : source;
+    Light l = pointLight(positionMm, intensity, source);
+    for (int i = 0; i < 3; ++i)
+        if (!std::isfinite(axis[i])) throw Error(subject, "the spot direction must be finite, got " + formatRgb(axis, 6));
+    const double len = glm::length(axis);
+    if (!(len > 0.0) || !std::isfinite(len)) throw Error(subject, "the spot direction must not be zero");
+    if (!std::isfinite(innerDegrees) || !std::isfinite(outerDegrees) || innerDegrees < 0.0 ||
+        innerDegrees > outerDegrees || !(outerDegrees > 0.0) || outerDegrees > 90.0) {
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "the spot cone needs 0 <= inner <= outer <= 90 degrees and outer > 0, got inner %g, outer %g",
+                      innerDegrees, outerDegrees);
+        throw Error(subject, buf);
+    }
+    l.type = LightType::Spot;
+    l.direction = axis / len;
+    l.innerDegrees = innerDegrees;
+    l.outerDegrees = outerDegrees;
+    l.cosInner = std::cos(innerDegrees * kPi / 180.0);
+    l.cosOuter = std::cos(outerDegrees * kPi / 180.0);
+    return l;
+}
+
 Light parseLight(const std::string& text) {
     const std::string subject = "--light " + text;
     const std::vector<std::string> fields = splitText(text, ':');
+    const std::string type = fields.empty() ? std::string() : toLower(trim(fields[0]));
+    if (type == "spot") {
+        if (fields.size() != 5)
+            throw Error(subject, "expected spot:X,Y,Z:DX,DY,DZ:R,G,B:INNER,OUTER, got " + std::to_string(fields.size()) +
+                                     " ':'-separated fields");
+        const glm::dvec3 p = vectorFrom(parseNumberList(fields[1], subject, "position"), subject, "position");
+        const glm::dvec3 d = vectorFrom(parseNumberList(fields[2], subject, "direction"), subject, "direction");
+        const glm::dvec3 c = colourFrom(parseNumberList(fields[3], subject, "intensity"), subject, "intensity");
+        const std::vector<double> cone = parseNumberList(fields[4], subject, "cone");
+        if (cone.size() != 2)
+            throw Error(subject, "the cone needs 2 values (inner, outer half-angles in degrees), got " +
+                                     std::to_string(cone.size()));
+        return spotLight(p, d, c, cone[0], cone[1], subject);
+    }
     if (fields.size() != 3)
-        throw Error(subject, "expected TYPE:X,Y,Z:R,G,B (TYPE point or dir), got " + std::to_string(fields.size()) +
-                                 " ':'-separated fields");
-    const std::string type = toLower(trim(fields[0]));
+        throw Error(subject, "expected TYPE:X,Y,Z:R,G,B (TYPE point or dir) or spot:X,Y,Z:DX,DY,DZ:R,G,B:INNER,OUTER, got " +
+                                 std::to_string(fields.size()) + " ':'-separated fields");
     if (type == "point") {
         const glm::dvec3 p = vectorFrom(parseNumberList(fields[1], subject, "position"), subject, "position");
         const glm::dvec3 c = colourFrom(parseNumberList(fields[2], subject, "intensity"), subject, "intensity");
@@ -119,7 +156,7 @@ Light parseLight(const std::string& text) {
         const glm::dvec3 c = colourFrom(parseNumberList(fields[2], subject, "irradiance"), subject, "irradiance");
         return directionalLight(d, c, subject);
     }
-    throw Error(subject, "unknown light type '" + trim(fields[0]) + "' (valid: point, dir)");
+    throw Error(subject, "unknown light type '" + trim(fields[0]) + "' (valid: point, dir, spot)");
 }
 
 std::vector<Light> parseLightScene(const std::string& jsonText, const std::string& path) {
@@ -158,20 +195,36 @@ std::vector<Light> parseLightScene(const std::string& jsonText, const std::strin
         const std::string where = path + ": lights[" + std::to_string(i) + "]";
         const nlohmann::json& l = list[i];
         if (!l.is_object()) throw Error(where, "must be an object");
-        if (!l.contains("type") || !l["type"].is_string()) throw Error(where, "needs \"type\": \"point\" or \"directional\"");
+        if (!l.contains("type") || !l["type"].is_string())
+            throw Error(where, "needs \"type\": \"point\", \"directional\" or \"spot\"");
         const std::string type = toLower(l["type"].get<std::string>());
         const bool point = type == "point";
+        const bool spot = type == "spot";
         const bool directional = type == "directional" || type == "dir";
-        if (!point && !directional)
-            throw Error(where, "unknown type \"" + l["type"].get<std::string>() + "\" (valid: point, directional)");
+        if (!point && !directional && !spot)
+            throw Error(where, "unknown type \"" + l["type"].get<std::string>() + "\" (valid: point, directional, spot)");
+        const std::vector<std::string> keys =
+            point ? std::vector<std::string>{"position", "intensity"}
+            : spot ? std::vector<std::string>{"position", "direction", "intensity", "inner", "outer"}
+                   : std::vector<std::string>{"direction", "irradiance"};
+        std::string expected;
+        for (const std::string& k : keys) expected += (expected.empty() ? "\"" : ", \"") + k + "\"";
+        for (auto it = l.begin(); it != l.end(); ++it)
+            if (it.key() != "type" && std::find(keys.begin(), keys.end(), it.key()) == keys.end())
+                throw Error(where, "unknown key \"" + it.key() + "\" for a " + type + " light (expected " + expected + ")");
+        for (const std::string& k : keys)
+            if (!l.contains(k)) throw Error(where, "missing \"" + k + "\"");
+        if (spot) {
+            for (const char* k : {"inner", "outer"})
+                if (!l[k].is_number()) throw Error(where, std::string("\"") + k + "\" must be one number (degrees)");
+            lights.push_back(spotLight(vectorFrom(numbers(l["position"], where, "position", false), where, "position"),
+                                       vectorFrom(numbers(l["direction"], where, "direction", false), where, "direction"),
+                                       colourFrom(numbers(l["intensity"], where, "intensity", true), where, "intensity"),
+                                       l["inner"].get<double>(), l["outer"].get<double>(), where));
+            continue;
+        }
         const char* whereKey = point ? "position" : "direction";
         const char* colourKey = point ? "intensity" : "irradiance";
-        for (auto it = l.begin(); it != l.end(); ++it)
-            if (it.key() != "type" && it.key() != whereKey && it.key() != colourKey)
-                throw Error(where, "unknown key \"" + it.key() + "\" for a " + type + " light (expected \"" + whereKey +
-                                       "\" and \"" + colourKey + "\")");
-        if (!l.contains(whereKey)) throw Error(where, std::string("missing \"") + whereKey + "\"");
-        if (!l.contains(colourKey)) throw Error(where, std::string("missing \"") + colourKey + "\"");
         const glm::dvec3 v = vectorFrom(numbers(l[whereKey], where, whereKey, false), where, whereKey);
         const glm::dvec3 c = colourFrom(numbers(l[colourKey], where, colourKey, true), where, colourKey);
         lights.push_back(point ? pointLight(v, c, where) : directionalLight(v, c, where));
@@ -188,15 +241,78 @@ std::vector<Light> loadLightScene(const std::string& path) {
     return parseLightScene(text.str(), path);
 }
 
+std::string lightSceneJson(const std::vector<Light>& lights) {
+    auto array = [](const glm::dvec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); };
+    nlohmann::json list = nlohmann::json::array();
+    for (const Light& l : lights) {
+        nlohmann::json j;
+        if (l.type == LightType::Point) {
+            j = {{"type", "point"}, {"position", array(l.position)}, {"intensity", array(l.rgb)}};
+        } else if (l.type == LightType::Spot) {
+            j = {{"type", "spot"},           {"position", array(l.position)}, {"direction", array(l.direction)},
+                 {"intensity", array(l.rgb)}, {"inner", l.innerDegrees},       {"outer", l.outerDegrees}};
+        } else {
+            j = {{"type", "directional"}, {"direction", array(l.direction)}, {"irradiance", array(l.rgb)}};
+        }
+        list.push_back(std::move(j));
+    }
+    return nlohmann::json{{"lights", list}}.dump(2) + "\n";
+}
+
 std::string describe(const Light& light) {
-    char buf[256];
+    char buf[320];
     if (light.type == LightType::Point)
         std::snprintf(buf, sizeof buf, "point at (%g, %g, %g) mm, %g %g %g W/sr", light.position.x, light.position.y,
                       light.position.z, light.rgb.x, light.rgb.y, light.rgb.z);
+    else if (light.type == LightType::Spot)
+        std::snprintf(buf, sizeof buf,
+                      "spot at (%g, %g, %g) mm along (%.4g, %.4g, %.4g), cone %g..%g deg, %g %g %g W/sr on the axis",
+                      light.position.x, light.position.y, light.position.z, light.direction.x, light.direction.y,
+                      light.direction.z, light.innerDegrees, light.outerDegrees, light.rgb.x, light.rgb.y,
+                      light.rgb.z);
     else
         std::snprintf(buf, sizeof buf, "directional toward (%.4g, %.4g, %.4g), %g %g %g W/m^2", light.direction.x,
                       light.direction.y, light.direction.z, light.rgb.x, light.rgb.y, light.rgb.z);
     return buf;
+}
+
+// ---------------------------------------------------------------------------
+// What a light delivers at a point
+// ---------------------------------------------------------------------------
+
+double spotFalloff(const Light& light, const glm::dvec3& fromLight) {
+    if (light.type != LightType::Spot) return 1.0;
+    const double c = glm::dot(light.direction, fromLight);
+    if (light.cosInner <= light.cosOuter) return c >= light.cosOuter ? 1.0 : 0.0;  // inner == outer: hard edge
+    const double t = std::clamp((c - light.cosOuter) / (light.cosInner - light.cosOuter), 0.0, 1.0);
+    return t * t * (3.0 - 2.0 * t);
+}
+
+bool incidentLight(const Light& l, const glm::dvec3& x, IncidentLight& out) {
+    if (l.type == LightType::Directional) {
+        out.toLight = l.direction;
+        out.irradiance = l.rgb;
+        out.distance = std::numeric_limits<double>::infinity();
+        return true;
+    }
+    const glm::dvec3 d = l.position - x;
+    const double r2 = glm::dot(d, d);
+    if (!(r2 > 0.0)) return false;  // a light on the point itself: no defined direction
+    const double r = std::sqrt(r2);
+    out.toLight = d / r;
+    out.irradiance = l.rgb * (kSquareMmPerSquareMetre / r2);
+    if (l.type == LightType::Spot) out.irradiance *= spotFalloff(l, -out.toLight);
+    out.distance = r;
+    return true;
+}
+
+bool lightUnoccluded(const RayScene& scene, const glm::vec3& x, const glm::vec3& ng, const IncidentLight& light) {
+    const glm::vec3 wf(light.toLight);
+    const glm::vec3 org = scene.offsetRayOrigin(x, ng, wf);
+    // Stop short of a light with a position so that geometry behind it cannot shadow.
+    const float tfar = std::isfinite(light.distance) ? float(light.distance * (1.0 - 1e-6))
+                                                     : std::numeric_limits<float>::infinity();
+    return !scene.occluded(org, wf, 0.0f, tfar);
 }
 
 // ---------------------------------------------------------------------------
@@ -214,10 +330,10 @@ bool insideClosedSurface(const RayScene& scene, const glm::dvec3& p) {
 void checkLightsOutside(const RayScene& scene, const std::vector<Light>& lights) {
     for (size_t i = 0; i < lights.size(); ++i) {
         const Light& l = lights[i];
-        if (l.type != LightType::Point) continue;
+        if (!hasPosition(l)) continue;
         if (insideClosedSurface(scene, l.position))
             throw Error(l.source.empty() ? "light " + std::to_string(i + 1) : l.source,
-                        "the point light at (" + formatRgb(l.position, 6) +
+                        std::string(l.type == LightType::Spot ? "the spot light" : "the point light") + " at (" + formatRgb(l.position, 6) +
                             ") mm is inside the object; light sources must be outside it");
     }
 }
@@ -252,29 +368,12 @@ glm::dvec3 directIrradiance(const RayScene& scene, const std::vector<Light>& lig
     const glm::dvec3 ng(x.geometricNormal);
     glm::dvec3 sum(0.0);
     for (const Light& l : lights) {
-        glm::dvec3 w;
-        glm::dvec3 e;  // irradiance on a surface facing the light, W/m^2
-        float tfar;
-        if (l.type == LightType::Point) {
-            const glm::dvec3 d = l.position - p;
-            const double r2 = glm::dot(d, d);
-            if (!(r2 > 0.0)) continue;  // a light on the surface point itself: no defined direction
-            const double r = std::sqrt(r2);
-            w = d / r;
-            e = l.rgb * (kSquareMmPerSquareMetre / r2);
-            // Stop short of the light so that geometry behind it cannot shadow.
-            tfar = float(r * (1.0 - 1e-6));
-        } else {
-            w = l.direction;
-            e = l.rgb;
-            tfar = std::numeric_limits<float>::infinity();
-        }
-        const double cosTheta = glm::dot(n, w);
-        if (cosTheta <= 0.0 || glm::dot(ng, w) <= 0.0) continue;
-        const glm::vec3 wf(w);
-        const glm::vec3 org = scene.offsetRayOrigin(x.position, x.geometricNormal, wf);
-        if (scene.occluded(org, wf, 0.0f, tfar)) continue;
-        sum += incidentTransmittance(model, eta, cosTheta) * cosTheta * e;  // Keng Eq. 4: E^ = F E
+        IncidentLight in;
+        if (!incidentLight(l, p, in)) continue;
+        const double cosTheta = glm::dot(n, in.toLight);
+        if (cosTheta <= 0.0 || glm::dot(ng, in.toLight) <= 0.0) continue;
+        if (!lightUnoccluded(scene, x.position, x.geometricNormal, in)) continue;
+        sum += incidentTransmittance(model, eta, cosTheta) * cosTheta * in.irradiance;  // Keng Eq. 4: E^ = F E
     }
     return sum;
 }
@@ -399,31 +498,22 @@ void computeIrradiance(const IrradianceSamples& samples, const RayScene& scene, 
             for (size_t k = 0; k < count; ++k) {
                 const size_t i = r.begin() + k;
                 const glm::dvec3 p(samples.positions[i]), nrm(samples.normals[i]), ng(samples.geometricNormals[i]);
-                glm::dvec3 w, e;
-                double dist = 1.0;
-                if (l.type == LightType::Point) {
-                    const glm::dvec3 d = l.position - p;
-                    const double r2 = glm::dot(d, d);
-                    if (!(r2 > 0.0)) continue;
-                    dist = std::sqrt(r2);
-                    w = d / dist;
-                    e = l.rgb * (kSquareMmPerSquareMetre / r2);
-                } else {
-                    w = l.direction;
-                    e = l.rgb;
-                }
+                IncidentLight in;
+                if (!incidentLight(l, p, in)) continue;
+                const glm::dvec3 w = in.toLight, e = in.irradiance;
+                const double dist = hasPosition(l) ? in.distance : 1.0;
                 const double cosTheta = glm::dot(nrm, w);
                 if (cosTheta <= 0.0 || glm::dot(ng, w) <= 0.0) continue;
                 const glm::vec3 wf(w);
                 const glm::vec3 org = scene.offsetRayOrigin(samples.positions[i], samples.geometricNormals[i], wf);
-                const glm::vec3 dir = l.type == LightType::Point ? wf * float(dist) : wf;
+                const glm::vec3 dir = hasPosition(l) ? wf * float(dist) : wf;
                 ox[m] = org.x; oy[m] = org.y; oz[m] = org.z;
                 dx[m] = dir.x; dy[m] = dir.y; dz[m] = dir.z;
                 index[m] = k;
                 value[m] = incidentTransmittance(model, eta, cosTheta) * cosTheta * e;  // Keng Eq. 4: E^ = F E
                 ++m;
             }
-            const float tfar = l.type == LightType::Point ? float(1.0 - 1e-6) : std::numeric_limits<float>::infinity();
+            const float tfar = hasPosition(l) ? float(1.0 - 1e-6) : std::numeric_limits<float>::infinity();
             scene.occludedBatch(ox, oy, oz, dx, dy, dz, m, 0.0f, tfar, occluded);
             for (size_t j = 0; j < m; ++j)
                 if (!occluded[j]) {

@@ -106,6 +106,16 @@ void writeCacheImages(ImageWriter& writer, const std::string& output, const Imag
     writer.png(output + "_variance.png", spread);
 }
 
+// One line on the surface terms of a single frame (nothing when both are off).
+void printSurfaceTerms(const SurfaceTermSettings& s, const SurfaceTerms& terms) {
+    if (s.specular)
+        std::printf("specular: GGX alpha %g, Fresnel F_r at the material's eta, shadowed, untinted; %.3f s\n",
+                    s.specularRoughness, terms.specularSeconds);
+    if (s.singleScattering)
+        std::printf("single scattering: along the refracted view ray, %d Gauss-Legendre samples, HG phase; %.3f s\n",
+                    s.singleScatteringOptions.pathSamples, terms.singleScatteringSeconds);
+}
+
 // One line on the near field's cells (sample_cells.h), or on the point rule.
 void printCells(const std::optional<SampleCells>& cells) {
     if (!cells) {
@@ -196,6 +206,7 @@ int runAnimation(const PointLightCommand& o, ImageWriter& writer, const PointAni
             std::printf("%s %.3f s (%zu hit pixels, %.1f terms per pixel)", toString(settings.method),
                         frame.renderSeconds, info.hitPixels, frame.jbStats.meanTerms());
         }
+        if (settings.surface.any()) std::printf(", surface terms %.3f s", info.surfaceSeconds);
         std::printf(", write %.3f s -> %s.exr/.png\n", tWrite, base.c_str());
         std::fflush(stdout);
     });
@@ -222,7 +233,9 @@ int runAnimation(const PointLightCommand& o, ImageWriter& writer, const PointAni
 // the local filter) and the sums (renderTextureSpaceAnimation, point_animation.h).
 int runTextureSpaceAnimation(const PointLightCommand& o, ImageWriter& writer, const PointAnimation& animation, TextureSpaceRenderer& renderer,
                              const GBuffer& g, bool perVertex, const Material& base, const BaseColour* colour,
-                             double tGBuffer, const std::string& output, const Stopwatch& start) {
+                             const TriangleMesh& mesh, const RayScene& scene, const std::vector<Light>& lights,
+                             const SurfaceTermSettings& surface, double tGBuffer, const std::string& output,
+                             const Stopwatch& start) {
     const TextureSpaceTimings& tt = renderer.timings();
     std::printf("animation: material / size path (Chang et al. Fig. 11: coefficients and size interpolated linearly; "
                 "lights, camera and irradiance attached to the object), %d frames; reused between frames: the atlas, "
@@ -237,14 +250,18 @@ int runTextureSpaceAnimation(const PointLightCommand& o, ImageWriter& writer, co
                                 [&](const AnimationFrameInfo& info, PointFrame& frame) {
         const std::string name = animationFrameName(output, info.frame);
         if (colour) applyBaseColour(frame.image, g, *colour);
+        // The frame's material: single scattering changes with it, the specular does not.
+        const SurfaceTerms terms = renderSurfaceTerms(g, mesh, scene, lights, info.material, surface, colour);
+        addSurfaceTerms(frame.image, terms);
         const double tWrite = writeAnimationFrame(writer, name, frame.image, o.display, first, last);
         sumMat += info.materialSeconds;
         sumEval += frame.renderSeconds;
         sumWrite += tWrite;
         std::printf("frame %d/%d (%s; size %.4g mm): R_p %.4g mm, material change %.3f ms, evaluation %.4f s, "
-                    "write %.3f s -> %s.exr/.png\n",
+                    "surface terms %.3f s, write %.3f s -> %s.exr/.png\n",
                     info.frame + 1, animation.frames, describeMaterial(info.material).c_str(), info.sizeMm,
-                    renderer.split().rp, 1e3 * info.materialSeconds, frame.renderSeconds, tWrite, name.c_str());
+                    renderer.split().rp, 1e3 * info.materialSeconds, frame.renderSeconds, terms.seconds(), tWrite,
+                    name.c_str());
         std::fflush(stdout);
     });
     const double n = double(animation.frames);
@@ -308,11 +325,14 @@ int runTextureSpace(const PointLightCommand& o, ImageWriter& writer, const Trian
     t.restart();
     if (animation.kind == AnimationKind::MaterialPath)
         return runTextureSpaceAnimation(o, writer, animation, renderer, g, evaluate == "vertex", settings.material,
-                                        settings.baseColour, tGBuffer,
+                                        settings.baseColour, mesh, scene, lights, settings.surface, tGBuffer,
                                         output, start);
     Image image = evaluate == "vertex" ? renderer.renderPerVertex(g) : renderer.render(g);
     if (settings.baseColour) applyBaseColour(image, g, *settings.baseColour);
     const double tEval = t.seconds();
+    const SurfaceTerms terms = renderSurfaceTerms(g, mesh, scene, lights, material, settings.surface, settings.baseColour);
+    addSurfaceTerms(image, terms);
+    printSurfaceTerms(settings.surface, terms);
     std::printf("frame: %d x %d, %zu hit pixels; %zu distinct sample texels of %d draws\n", g.width, g.height,
                 g.objectPixels(), renderer.uniqueSamples(), to.samples);
     std::printf("times: irradiance map %.4f s, shadow maps %.4f s, draws %.4f s, evaluation %.4f s = %.4f s per "
@@ -333,7 +353,8 @@ int runTextureSpace(const PointLightCommand& o, ImageWriter& writer, const Trian
         const double epsilon = o.compareBrute ? 0.0 : o.epsilon;
         const std::optional<SampleCells> cells = nearFieldCells(mesh, placed, reference);
         printCells(cells);
-        const PointFrame frame = renderPointFrame(*lit.tree, g, reference, false, cells);
+        PointFrame frame = renderPointFrame(*lit.tree, g, reference, false, cells);
+        addSurfaceTerms(frame.image, terms);  // the same terms as the tsis frame
         const Image& ref = frame.image;
         const double tRef = frame.renderSeconds;
         const std::string suffix = o.compareBrute ? "_brute" : "_jb";
@@ -376,6 +397,11 @@ int runPointLightCommand(const PointLightCommand& o, ImageWriter& target) {
         throw Error("--sample-count", "applies to --samples poisson only (faces: one sample per face)");
     if (o.sampleCount && *o.sampleCount == 0) throw Error("--sample-count", "must be at least 1");
     const Material material = makeMaterial(o.material);
+    const SurfaceTermSettings surface{.specular = o.specular, .specularRoughness = o.specularRoughness,
+                                      .singleScattering = o.singleScattering,
+                                      .singleScatteringOptions = {.pathSamples = o.singleScatteringSamples}};
+    validateSpecularRoughness(surface.specularRoughness);
+    validatePointSingleScattering(surface.singleScatteringOptions);
     const std::string output = outputPrefix(o.output);
     if (output.empty()) throw Error("--output", "empty prefix");
     const MeshScale scale = makeScale(o.scale);
@@ -494,7 +520,7 @@ int runPointLightCommand(const PointLightCommand& o, ImageWriter& target) {
     const PointRenderSettings settings{.material = material, .method = method, .fresnel = fresnel,
                                        .leafSize = o.leafSize, .epsilon = o.epsilon, .a = o.a,
                                        .radius = o.radius, .splitDisk = splitDisk, .nearField = nearField,
-                                       .baseColour = colour.enabled() ? &colour : nullptr};
+                                       .baseColour = colour.enabled() ? &colour : nullptr, .surface = surface};
     glm::dvec3 centre(box.centre());
     double radius = 0.0;
     for (const glm::vec3& p : mesh.positions) radius = std::max(radius, glm::length(glm::dvec3(p) - centre));
@@ -537,6 +563,11 @@ int runPointLightCommand(const PointLightCommand& o, ImageWriter& target) {
     const double tGBuffer = t.seconds();
 
     PointFrame frame = renderPointFrame(tree, g, settings, o.cacheImage, cells);
+    // The surface terms once: the references below get the same (they compare the
+    // translucent methods; the terms do not depend on the method).
+    const SurfaceTerms terms = renderSurfaceTerms(g, mesh, scene, lights, material, settings.surface, settings.baseColour);
+    addSurfaceTerms(frame.image, terms);
+    printSurfaceTerms(settings.surface, terms);
     const Image& image = frame.image;
     const double tRender = frame.renderSeconds;
     if (method == PointMethod::Cache) {
@@ -573,7 +604,9 @@ int runPointLightCommand(const PointLightCommand& o, ImageWriter& target) {
     auto reference = [&](PointMethod m) {
         PointRenderSettings s = settings;
         s.method = m;
-        return renderPointFrame(tree, g, s, false, cells);
+        PointFrame f = renderPointFrame(tree, g, s, false, cells);
+        addSurfaceTerms(f.image, terms);
+        return f;
     };
     if (o.compareJb && method != PointMethod::JensenBuhler) {
         const PointFrame jb = reference(PointMethod::JensenBuhler);
@@ -610,12 +643,14 @@ void addPointLightOptions(CLI::App& app, PointLightCommand& o) {
                    "Output prefix: writes <prefix>.exr (linear RGBA float, A = 1 on the object) and <prefix>.png")
         ->required();
     app.add_option("--light", o.lights,
-                   "A light, repeatable: point:X,Y,Z:R,G,B (mm, W/sr) or dir:X,Y,Z:R,G,B (toward the light, W/m^2)")
+                   "A light, repeatable: point:X,Y,Z:R,G,B (mm, W/sr), dir:X,Y,Z:R,G,B (toward the light, W/m^2) "
+                   "or spot:X,Y,Z:DX,DY,DZ:R,G,B:INNER,OUTER (mm, the axis it shines along, W/sr on the axis, cone "
+                   "half-angles in degrees: smoothstep falloff from OUTER to INNER)")
         ->group("Lights");
     app.add_option("--lights", o.lightsFile, "JSON scene file with a \"lights\" list (docs/point-lights.md)")
         ->group("Lights");
     addScaleOptions(app, o.scale);
-    addMaterialOptions(app, o.material, /*withG=*/false);
+    addMaterialOptions(app, o.material, /*withG=*/true);
     addBaseColourOption(app, o.baseColour);
     app.add_option("--samples", o.samples,
                    "Irradiance samples: faces (one per face at its centroid with the face area, Keng's choice) "
@@ -692,7 +727,8 @@ void addPointLightOptions(CLI::App& app, PointLightCommand& o) {
                    "not move relative to the object); NOT the caches (they live on each frame's visible points)")
         ->group("Animation");
     app.add_option("--light-path", o.lightPath,
-                   "X0,Y0,Z0:X1,Y1,Z1 (mm): with --frames N, the FIRST light (a point light) moves linearly "
+                   "X0,Y0,Z0:X1,Y1,Z1 (mm): with --frames N, the FIRST light (a point or spot light; a spot keeps its axis) "
+                   "moves linearly "
                    "from P0 (frame 0) to P1 (frame N-1). Reused between frames: only the mesh, its ray scene, "
                    "the sample positions/areas and the G-buffer (fixed camera); irradiance, octree and caches "
                    "are recomputed every frame. Write a negative first value as --light-path=-20,...")
@@ -713,6 +749,22 @@ void addPointLightOptions(CLI::App& app, PointLightCommand& o) {
         ->group("Animation");
     app.add_option("--frames", o.frames, "Frame count of --light-path, --material-path or --size-path")
         ->group("Animation");
+    app.add_flag("--specular", o.specular,
+                 "Add the specular reflection of the lights: a GGX microfacet lobe weighted by the exact dielectric "
+                 "F_r = 1 - F_t at the material's eta, shadowed; added untinted by --base-colour, to every method's "
+                 "frames (docs/point-lights.md, \"Specular\")")
+        ->group("Surface terms");
+    app.add_option("--specular-roughness", o.specularRoughness,
+                   "GGX roughness alpha of --specular, in (0, 1] (used as given, not squared)")
+        ->capture_default_str()->group("Surface terms");
+    app.add_flag("--single-scattering", o.singleScattering,
+                 "Add single scattering (Jensen et al. 2001) along the refracted view ray at every pixel: HG phase "
+                 "with --g, Fresnel in and out, the light shadowed at its entry point; tinted by --base-colour like "
+                 "the diffusion (docs/point-lights.md, \"Single scattering\")")
+        ->group("Surface terms");
+    app.add_option("--single-scattering-samples", o.singleScatteringSamples,
+                   "Gauss-Legendre samples along the refracted view ray of --single-scattering (1..256)")
+        ->capture_default_str()->group("Surface terms");
     addDisplayOptions(app, o.display);
     addThreadsOption(app, o.threads);
     addCameraOptions(app, o.camera);

@@ -1,10 +1,12 @@
 #pragma once
-// prt-pointlight as a library function: offline frames of a translucent object under point and directional
-// lights (docs/point-lights.md): the translucent irradiance cache of Keng et al. 2006
+// prt-pointlight as a library function: offline frames of a translucent object under point, spot and
+// directional lights (docs/point-lights.md): the translucent irradiance cache of Keng et al. 2006
 // (--method cache, the default; irradiance_cache.h), the Jensen-Buhler hierarchical
 // renderer it accelerates (--method jb), the brute-force sum (--method brute) or
 // texture-space importance sampling (--method tsis). Mesh + material + physical size +
-// lights in, linear EXR + sRGB PNG out, with the time of every stage.
+// lights in, linear EXR + sRGB PNG out, with the time of every stage. --specular and
+// --single-scattering add those terms to every frame of every method, references
+// included (point_animation.h, SurfaceTermSettings).
 //
 // Animations (--turntable N; --light-path P0:P1 --frames N) run in
 // point_animation.h, whose header states what is reused between frames: for a
@@ -36,6 +38,8 @@
 #include "common/image.h"
 #include "common/options.h"
 #include "relight/pointlight/irradiance_cache.h"
+#include "relight/pointlight/point_single_scattering.h"
+#include "relight/pointlight/point_specular.h"
 #include "relight/pointlight/texture_space_sampling.h"
 
 namespace prt {
@@ -68,6 +72,13 @@ struct PointLightCommand {
     TextureSpaceOptions tsis;
     std::string split = "hybrid", evaluate = "pixel";
     int atlasSize = 1024;
+    // The surface terms added to every frame of every method (point_animation.h,
+    // SurfaceTermSettings): --specular, --specular-roughness, --single-scattering,
+    // --single-scattering-samples.
+    bool specular = false;
+    double specularRoughness = kDefaultSpecularRoughness;
+    bool singleScattering = false;
+    int singleScatteringSamples = PointSingleScatteringOptions{}.pathSamples;
 };
 
 // Declares every option of prt-pointlight (the mesh positional and -o included) on app.

@@ -119,7 +119,7 @@ TranslucentShadowMap::TranslucentShadowMap(const RayScene& scene, const Triangle
     if (resolution < 16 || resolution > 8192)
         throw Error("--light-map", "resolution must be from 16 to 8192, got " + std::to_string(resolution));
     const double radius = std::max(sphere.radius, 1e-9) * 1.02;
-    if (light.type == LightType::Point) {
+    if (hasPosition(light)) {
         const glm::dvec3 toCentre = sphere.centre - light.position;
         const double d = glm::length(toCentre);
         const double half = d > radius ? std::asin(radius / d) : kPi;
@@ -161,7 +161,7 @@ TranslucentShadowMap::TranslucentShadowMap(const RayScene& scene, const Triangle
                     const double a = ((x + 0.5) / resolution * 2.0 - 1.0) * halfExtent_;
                     const double b = ((y + 0.5) / resolution * 2.0 - 1.0) * halfExtent_;
                     glm::dvec3 org, dir;
-                    if (light_.type == LightType::Point) {
+                    if (hasPosition(light_)) {
                         org = origin_;
                         dir = glm::normalize(forward_ + a * right_ + b * up_);
                     } else {
@@ -198,7 +198,13 @@ TranslucentShadowMap::TranslucentShadowMap(const RayScene& scene, const Triangle
             // directional: E^ / cos_g = F E_perp cos_s / cos_g, flux per mm^2 of beam;
             // both per unit of the light's colour (fluxScale_).
             double perMeasure = std::min(cosS / cosG, kMaxCosineRatio) * incidentTransmittance(fresnel, eta, cosS);
-            if (light_.type == LightType::Point) perMeasure *= kSquareMmPerSquareMetre;
+            if (hasPosition(light_)) perMeasure *= kSquareMmPerSquareMetre;
+            // A spot's flux per steradian along this pixel's ray: I_0 falloff (the map's
+            // rays leave the light, as spotFalloff's direction).
+            if (light_.type == LightType::Spot) {
+                perMeasure *= spotFalloff(light_, glm::normalize(dir));
+                if (!(perMeasure > 0.0)) continue;  // outside the outer cone: not lit
+            }
             const size_t i = size_t(py[k]) * size_t(resolution) + size_t(px[k]);
             texels_[i] = Texel{glm::vec3(p), float(perMeasure)};
             lit[i] = 1;
@@ -209,7 +215,7 @@ TranslucentShadowMap::TranslucentShadowMap(const RayScene& scene, const Triangle
 
 bool TranslucentShadowMap::project(const glm::dvec3& q, double& px, double& py) const {
     double a, b;
-    if (light_.type == LightType::Point) {
+    if (hasPosition(light_)) {
         const glm::dvec3 d = q - origin_;
         const double z = glm::dot(d, forward_);
         if (!(z > 0.0)) return false;
@@ -240,7 +246,7 @@ glm::dvec3 TranslucentShadowMap::localExitance(const glm::dvec3& x, const LocalF
     if (!(filter.rhoMax > 0.0)) return glm::dvec3(0.0);
     glm::dvec3 w;  // the light's ray direction at x
     double measureScale = 1.0;
-    if (light_.type == LightType::Point) {
+    if (hasPosition(light_)) {
         const glm::dvec3 d = x - origin_;
         const double d2 = glm::dot(d, d);
         if (!(d2 > 0.0)) return glm::dvec3(0.0);
@@ -257,7 +263,7 @@ glm::dvec3 TranslucentShadowMap::localExitance(const glm::dvec3& x, const LocalF
     const glm::vec3 X(glm::dot(rel, right_), glm::dot(rel, up_), glm::dot(rel, forward_));
     const glm::vec3 E1(glm::dot(e1, right_), glm::dot(e1, up_), glm::dot(e1, forward_));
     const glm::vec3 E2(glm::dot(e2, right_), glm::dot(e2, up_), glm::dot(e2, forward_));
-    const bool perspective = light_.type == LightType::Point;
+    const bool perspective = hasPosition(light_);
     const float toPixel = float(0.5 * resolution_ / halfExtent_), half = 0.5f * float(resolution_);
     const float res = float(resolution_);
     const glm::vec3 xf(x);

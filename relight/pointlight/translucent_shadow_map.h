@@ -10,6 +10,7 @@
 // and stores
 //     x_p (mm)  and  the transmitted flux per unit MEASURE of the map,
 //     point light:       flux per steradian   = E^(x_p) r^2 / cos_g    (W/m^2 mm^2 sr^-1)
+//                        (a spot light likewise, E^ with its falloff along the pixel's ray)
 //     directional light: flux per mm^2 of beam = E^(x_p) / cos_g        (W/m^2)
 // with E^ the transmitted irradiance of point_lights.h (the same Fresnel model), r the
 // distance to the light and cos_g the geometric cosine (the surface a pixel sees is

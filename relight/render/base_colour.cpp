@@ -20,7 +20,8 @@ BaseColour BaseColour::load(const std::string& meshPath, const TriangleMesh& obj
 }
 
 glm::vec3 BaseColour::at(const GBufferPixel& p) const {
-    if (!asset_ || !p.hit) return glm::vec3(1.0f);
+    // Triangles past the object's belong to another mesh traced with it (the ground).
+    if (!asset_ || !p.hit || p.triangle >= asset_->mesh.triangleCount()) return glm::vec3(1.0f);
     return baseColorAt(*asset_, p.triangle, p.barycentric);
 }
 

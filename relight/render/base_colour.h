@@ -39,7 +39,8 @@ public:
 
     bool enabled() const { return asset_ != nullptr; }
     // Linear RGB at a G-buffer pixel: baseColorAt at its triangle and barycentrics on an
-    // object pixel; 1 on background pixels and when disabled.
+    // object pixel; 1 on background pixels, on triangles past the object's (a mesh traced
+    // with it, common/ground.h's withGround) and when disabled.
     glm::vec3 at(const GBufferPixel& p) const;
     // One line for the tools' output: materials, textures and their sizes.
     std::string describe() const;

@@ -308,14 +308,16 @@ glm::dvec3 lightIrradiance(const std::vector<Light>& lights, const RayScene* sce
     for (const Light& light : lights) {
         glm::dvec3 w;
         double reach, unoccluded;  // tfar of the shadow ray, and E_light
-        if (light.type == LightType::Point) {
+        if (light.type == LightType::Point || light.type == LightType::Spot) {
             const glm::dvec3 toLight = light.position - x;
             const double r2 = glm::dot(toLight, toLight);
             if (!(r2 > 0.0)) continue;
             const double r = std::sqrt(r2);
             w = toLight / r;
             reach = r * (1.0 - 1e-6);
-            unoccluded = kSquareMmPerSquareMetre / r2;
+            // A spot is a point light times its falloff along -w (the light's definition,
+            // point_lights.h).
+            unoccluded = kSquareMmPerSquareMetre / r2 * (light.type == LightType::Spot ? spotFalloff(light, -w) : 1.0);
         } else {
             w = glm::normalize(light.direction);
             reach = std::numeric_limits<double>::infinity();

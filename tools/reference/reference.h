@@ -171,15 +171,16 @@ SampleIrradiance computeSampleIrradiance(const EnvironmentSampler& env, const Ra
 // The transmitted direct irradiance of point and directional lights (units of
 // relight/pointlight/point_lights.h: I in W/sr at a position in mm, E_perp in W/m^2;
 // the result in W/m^2), written here again rather than taken from the point-light
-// renderers' directIrradiance, so that the reference shares only Embree and the Fresnel
-// formula with what it judges:
+// renderers' directIrradiance, so that the reference shares only Embree, the Fresnel
+// formula and the spot falloff (spotFalloff, the light's definition) with what it judges:
 //
 //   E = sum over lights of F_t(eta, n . w) V(x, w) (n . w) E_light,   n . w > 0,
-//   E_light = 1e6 I / r^2 (point light at distance r mm) or E_perp (directional),
+//   E_light = 1e6 I / r^2 (point light at distance r mm), 1e6 I_0 falloff(-w) / r^2
+//   (spot light) or E_perp (directional),
 //
 // exactly (no Monte Carlo: the variance is 0). Visibility is the environment
 // reference's: one ray origin scene->offsetRayOrigin(position, geometricNormal, normal)
-// for every light, tnear 0, tfar = r (1 - 1e-6) toward a point light and infinity
+// for every light, tnear 0, tfar = r (1 - 1e-6) toward a point or spot light and infinity
 // toward a directional one. A light at the shading horizon or below gives nothing.
 // The Fresnel factor is always the exact one (the renderers' Keng model is another
 // physical model, not an approximation a reference could judge). scene may be null
@@ -424,6 +425,23 @@ private:
     const RayScene& scene_;
     glm::dvec3 albedo_;
     IrradianceEstimatorOptions options_;
+};
+
+// `inner` on the hits of triangles [begin, end) of the traced mesh, nothing elsewhere: how
+// the object's components and the ground's share the pixels of one G-buffer traced
+// against withGround (common/ground.h). `inner` must outlive it.
+class TriangleRangeComponent : public ReferenceComponent {
+public:
+    TriangleRangeComponent(const ReferenceComponent& inner, size_t begin, size_t end)
+        : inner_(inner), begin_(begin), end_(end) {}
+    std::string name() const override { return inner_.name(); }
+    RadianceEstimate radiance(const GBufferPixel& p) const override {
+        return p.triangle >= begin_ && p.triangle < end_ ? inner_.radiance(p) : RadianceEstimate{};
+    }
+
+private:
+    const ReferenceComponent& inner_;
+    size_t begin_, end_;
 };
 
 // Shades every object pixel of `g` as the sum of `components` (in parallel, one

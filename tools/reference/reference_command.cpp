@@ -1,5 +1,7 @@
 #include "tools/reference/reference_command.h"
 
+#include "common/ground.h"
+
 
 #include <chrono>
 #include <cmath>
@@ -165,6 +167,17 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
         mmPerUnit = scaleToPhysical(mesh, makeScale(o.scale));
     }
 
+    // --ground: the plane traced with the object, described by its file's header only
+    // (plane and albedo), never by its vectors.
+    std::optional<GroundDescription> ground;
+    if (!o.ground.empty()) {
+        if (lightMode) throw Error("--ground", "the ground is referenced under environments only");
+        if (!info) throw Error("--ground", "needs the object's transport file (-t)");
+        if (info->parameter("baseline") == "diffuse-brdf")
+            throw Error("--ground", "not with a diffuse-baseline file (" + o.transport + ")");
+        ground = readGroundDescription(o.ground, info->mesh, info->parameter(kGroundPlaneParameter),
+                                       info->cubemapSize, info->shTerms, o.transport);
+    }
     if (info && info->parameter("baseline") == "diffuse-brdf") {
         if (lightMode) throw Error(o.transport, "the diffuse baseline is referenced under environments only");
         const std::pair<bool, const char*> scatteringOnly[] = {
@@ -240,12 +253,25 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
                 subpixels > 1 ? " (a regular sub-pixel grid, box filter)" : "");
     for (const Light& l : lights) std::printf("light: %s (exact Fresnel)\n", describe(l).c_str());
     if (colour.enabled()) std::printf("%s\n", colour.describe().c_str());
+    if (ground)
+        std::printf("ground: %s, %.4g mm square at y = %.4g mm, albedo (%.4g, %.4g, %.4g); it occludes the object's "
+                    "irradiance, not its single scattering\n",
+                    o.ground.c_str(), 2.0 * ground->plane.halfExtent, ground->plane.height, ground->albedo.r,
+                    ground->albedo.g, ground->albedo.b);
     std::fflush(stdout);
 
-    const RayScene scene(mesh);
+    // With a ground, rays see the object and the plane (the object's triangles first);
+    // single scattering keeps the object's own scene, as the precompute does.
+    const std::optional<TriangleMesh> objectAndGround =
+        ground ? std::optional<TriangleMesh>(withGround(mesh, groundMesh(ground->plane))) : std::nullopt;
+    const TriangleMesh& traced = objectAndGround ? *objectAndGround : mesh;
+    const size_t objectTriangles = mesh.triangleCount();
+    const RayScene scene(traced);
+    std::optional<RayScene> objectOnly;
+    if (ground && components.singleScattering) objectOnly.emplace(mesh);
     checkLightsOutside(scene, lights);
     const Stopwatch raysStart;
-    const GBuffer fullGBuffer = traceGBuffer(scene, mesh, camera);
+    const GBuffer fullGBuffer = traceGBuffer(scene, traced, camera);
     const double raysSeconds = raysStart.seconds();
     // --pixel-stride: every k-th object pixel only (the others come out as background).
     const GBuffer gbuffer = o.pixelStride > 1 ? subsampleObjectPixels(fullGBuffer, o.pixelStride) : fullGBuffer;
@@ -365,7 +391,8 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
             }
             Progress p(label + (perVertex ? "multiple scattering (interpolated)" : "multiple scattering per pixel"),
                        pixels.objectPixels(), "pixels");
-            run.frame = renderReference(pixels, {&ms}, environment, rotation, &p);
+            const TriangleRangeComponent onObject(ms, 0, objectTriangles);
+            run.frame = renderReference(pixels, {&onObject}, environment, rotation, &p);
             return run;
         };
 
@@ -433,11 +460,12 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
     }
 
     if (components.singleScattering) {
-        SingleScatteringReference ss(material, mesh, scene, *sampler, ssOptions);
+        SingleScatteringReference ss(material, mesh, objectOnly ? *objectOnly : scene, *sampler, ssOptions);
         {
             Progress p(std::string("single scattering (") + toString(ssOptions.path) + " path)",
                        gbuffer.objectPixels(), "pixels");
-            parts.push_back(renderReference(gbuffer, {&ss}, environment, rotation, &p));
+            const TriangleRangeComponent onObject(ss, 0, objectTriangles);
+            parts.push_back(renderReference(gbuffer, {&onObject}, environment, rotation, &p));
             partNames.push_back("ss");
         }
         const ReferenceFrame& frame = parts.back();
@@ -449,6 +477,21 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
                     frame.seconds > 0 ? double(ss.raysTraced()) / frame.seconds : 0.0);
         printNoise("single scattering", frame);
         std::fflush(stdout);
+    }
+
+    if (ground) {
+        // The plane's pixels: its shadowed Lambertian radiance traced per pixel, as the
+        // diffuse baseline's reference (DiffuseBrdfReference) in the object + plane scene.
+        IrradianceEstimatorOptions irradiance = o.irradiance;
+        irradiance.directions = o.envSamples ? o.envSamples : 4096;
+        const DiffuseBrdfReference diffuse(*sampler, scene, ground->albedo, irradiance);
+        const TriangleRangeComponent onGround(diffuse, objectTriangles, traced.triangleCount());
+        Progress p("ground per pixel", gbuffer.objectPixels(), "pixels");
+        parts.push_back(renderReference(gbuffer, {&onGround}, environment, rotation, &p));
+        partNames.push_back("ground");
+        std::printf("ground: %zu irradiance directions per pixel (seed %llu), %.1f s\n", irradiance.directions,
+                    (unsigned long long)irradiance.seed, parts.back().seconds);
+        printNoise("ground", parts.back());
     }
 
     // The base colour tints what leaves at each pixel's surface point, as in every renderer.
@@ -512,6 +555,10 @@ void addReferenceOptions(CLI::App& app, ReferenceCommand& o) {
     const std::string objectGroup = "Object (without -t; with -t a material overrides the file's)";
     addMaterialOptions(app, o.material, false, objectGroup);
     addBaseColourOption(app, o.baseColour, objectGroup);
+    app.add_option("--ground", o.ground,
+                   "The ground's transport file (prt-precompute --ground): traces the plane with the object, its "
+                   "shadowed Lambertian radiance per pixel by Monte Carlo (only its plane and albedo are read)")
+        ->group(objectGroup);
     addScaleOptions(app, o.scale, objectGroup);
     app.add_flag("--same-samples", o.sameSamples,
                  "Use the precomputation's sample set (the file's count and seed): isolates the transport "

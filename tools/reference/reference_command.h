@@ -37,6 +37,7 @@ struct ReferenceCommand {
     double envRotation = 0.0;
     DisplayTransform display;
     bool baseColour = false;  // --base-colour
+    std::string ground;       // --ground: the ground's transport file (common/ground.h)
     MaterialOptions material;
     bool materialGiven = false;  // any of the material options was given
     ScaleOptions scale;

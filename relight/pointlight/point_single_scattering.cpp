@@ -1,0 +1,115 @@
+#include "relight/pointlight/point_single_scattering.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "common/bssrdf.h"
+#include "common/error.h"
+#include "common/scattering_path.h"
+#include "relight/pointlight/point_specular.h"
+
+namespace prt {
+
+namespace {
+
+// n_i at a hit: the vertex normals interpolated with its barycentrics, or the triangle's
+// normal where the mesh has none or they do not face the light (as the precompute).
+glm::dvec3 entryNormal(const TriangleMesh& mesh, const Hit& h, const glm::dvec3& toLight) {
+    const glm::dvec3 ng(h.geometricNormal);
+    if (mesh.normals.size() != mesh.positions.size()) return ng;
+    const glm::uvec3 t = mesh.triangles[h.triangle];
+    const double u = h.u, v = h.v;
+    const glm::dvec3 s = (1.0 - u - v) * glm::dvec3(mesh.normals[t.x]) + u * glm::dvec3(mesh.normals[t.y]) +
+                         v * glm::dvec3(mesh.normals[t.z]);
+    const double len = glm::length(s);
+    if (!(len > 1e-12) || !(glm::dot(s, toLight) > 0.0)) return ng;
+    return s / len;
+}
+
+}  // namespace
+
+void validatePointSingleScattering(const PointSingleScatteringOptions& o) {
+    if (o.pathSamples < 1 || o.pathSamples > 256)
+        throw Error("--single-scattering-samples", "must be from 1 to 256, got " + std::to_string(o.pathSamples));
+    if (!std::isfinite(o.depthCapMeanFreePaths) || !(o.depthCapMeanFreePaths > 0.0))
+        throw Error("single scattering", "the depth cap must be finite and > 0 mean free paths");
+}
+
+glm::dvec3 pointSingleScattering(const RayScene& scene, const TriangleMesh& mesh, const std::vector<Light>& lights,
+                                 const Material& material, const SurfacePoint& xo, const glm::dvec3& toViewer,
+                                 const PointSingleScatteringOptions& options) {
+    const double eta = material.eta;
+    const glm::dvec3 n(xo.normal), ng(xo.geometricNormal);
+    const double cosO = glm::dot(n, toViewer);
+    if (!(cosO > 0.0) || !(glm::dot(ng, toViewer) > 0.0)) return glm::dvec3(0.0);
+    glm::dvec3 woRefracted;
+    if (!refractDirection(toViewer, n, eta, woRefracted)) return glm::dvec3(0.0);
+
+    const glm::dvec3 sigmaS = material.sigmaS(), sigmaT = material.sigmaT();
+    const double sigma = luminance(sigmaT);  // |sigma_t|, the sampling's extinction
+    const ExitDistance far = exitDistance(scene, xo.position, glm::vec3(woRefracted),
+                                          options.depthCapMeanFreePaths / sigma);
+    if (!(far.distance > 0.0)) return glm::dvec3(0.0);
+    // The rule once per thread and count (its Gauss-Legendre nodes come from Newton's
+    // iteration), the samples per pixel.
+    thread_local std::vector<DepthNode> rule;
+    thread_local std::vector<DepthSample> samples;
+    if (rule.size() != size_t(options.pathSamples)) rule = gaussLegendreDepthRule(options.pathSamples);
+    exponentialDepthSamples(sigma, far.distance, rule, samples);
+
+    glm::dvec3 sum(0.0);
+    for (const DepthSample& ps : samples) {
+        const glm::dvec3 xp = glm::dvec3(xo.position) + ps.distance * woRefracted;
+        for (const Light& l : lights) {
+            IncidentLight atP;
+            if (!incidentLight(l, xp, atP)) continue;
+            const glm::vec3 w(atP.toLight);
+            const float tfar = std::isfinite(atP.distance) ? float(atP.distance)
+                                                           : std::numeric_limits<float>::infinity();
+            const Hit h = scene.intersect(glm::vec3(xp), w, 0.0f, tfar);
+            // No surface toward the light (an open mesh), or x_p seen from outside (the
+            // first surface faces the other way): no light enters toward x_p here.
+            if (!h.hit || !(glm::dot(h.geometricNormal, w) > 0.0f)) continue;
+            const glm::dvec3 xi = xp + double(h.t) * atP.toLight;
+            const glm::dvec3 ni = entryNormal(mesh, h, atP.toLight);
+            const double cosI = glm::dot(ni, atP.toLight);
+            const double sPrime = refractedEntryLength(double(h.t), cosI, eta);  // Jensen 2001 Eq. 5
+            if (sPrime < 0.0) continue;
+            IncidentLight atI;
+            if (!incidentLight(l, xi, atI) || !(glm::dot(atI.irradiance, glm::dvec3(1.0)) > 0.0)) continue;
+            glm::dvec3 wiRefracted;
+            if (!refractDirection(atP.toLight, ni, eta, wiRefracted)) continue;
+            if (!lightUnoccluded(scene, glm::vec3(xi), h.geometricNormal, atI)) continue;
+            const double phase = henyeyGreensteinDirections(material.g, wiRefracted, -woRefracted);
+            const double ftIn = fresnelTransmittance(eta, cosI);
+            for (int c = 0; c < 3; ++c)
+                sum[c] += ps.weight * sigmaS[c] * phase * ftIn * atI.irradiance[c] *
+                          std::exp(-sigmaT[c] * (ps.distance + sPrime));
+        }
+    }
+    return fresnelTransmittance(eta, cosO) * sum;
+}
+
+Image singleScatteringImage(const GBuffer& g, const TriangleMesh& mesh, const RayScene& scene,
+                            const std::vector<Light>& lights, const Material& material,
+                            const PointSingleScatteringOptions& options) {
+    validatePointSingleScattering(options);
+    validateMaterial(material);
+    Image out(g.width, g.height, 3, 0.0f);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, g.pixels.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const GBufferPixel& px = g.pixels[i];
+            if (!px.hit) continue;
+            const glm::dvec3 L = pointSingleScattering(scene, mesh, lights, material, surfacePointOf(mesh, px),
+                                                       glm::dvec3(px.toViewer), options);
+            for (int c = 0; c < 3; ++c) out.pixels[3 * i + size_t(c)] = float(L[c]);
+        }
+    });
+    return out;
+}
+
+}  // namespace prt
