@@ -313,7 +313,7 @@ int runView(const ViewOptions& o) {
     setup.object = loadRelightObject(o.mesh, o.transport);
     const std::string materialLine = applyMaterialEdit(setup.object, o.frame.material, o.frame.sizeMm, o.transport);
     if (o.frame.baseColour) setup.object.baseColour = BaseColour::load(o.mesh, setup.object.mesh);
-    if (!o.frame.ground.empty()) throw Error("--ground", "the viewer does not draw the ground yet (prt-relight render does)");
+    const std::string groundLine = attachGround(setup.object, o.frame.ground, o.transport);
     setup.meshPath = o.mesh;
     setup.transportPath = o.transport;
     setup.frame = o.frame;
@@ -324,6 +324,7 @@ int runView(const ViewOptions& o) {
                 double(setup.object.box.diagonal()), setup.object.eta, setup.object.transport.cubemapSize,
                 setup.object.transport.cubemapSize, loadStart.milliseconds());
     if (!materialLine.empty()) std::printf("%s\n", materialLine.c_str());
+    if (!groundLine.empty()) std::printf("%s\n", groundLine.c_str());
     std::fflush(stdout);
     setup.tsis = o.tsis;
     setup.frames = o.frames;

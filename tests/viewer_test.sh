@@ -132,6 +132,17 @@ else
     fail "prt-make-asset"
 fi
 
+# 3b. The ground (prt-precompute --ground): the plane's vertices' radiance after the
+#     object's in the shader's buffers, and a depth range that holds the plane.
+if "$PRECOMPUTE" "$S/torus.ply" --size-mm 20 --cubemap-size 8 --samples 2000 -q --ground --ground-cells 24 \
+    -o "$S/torus_ground.prt" > "$O/ground.log" 2>&1; then
+    F="$S/torus.ply -t $S/torus_ground.prt --ground $S/torus_ground.ground.prt -W 256 -H 192 --elevation 30"
+    matches_render ground 1e-4 "$F -e $S/sky.exr" $F -e "$S/sky.exr"
+else
+    cat "$O/ground.log"
+    fail "prt-precompute --ground"
+fi
+
 # 3. The specular layer, Reinhard's tone mapping.
 C="$S/torus.ply -t $S/synthetic.prt -W 320 -H 240 --azimuth 40 --elevation 35 --env-rotation=-70 --exposure 1.5
    --specular --tonemap reinhard"

@@ -86,6 +86,11 @@ void RelightWorker::compute(const LightRequest& r, LightResult& out) {
         out.coefficients = light.coefficientCount();
         out.relativeL2Error = light.relativeL2Error;
         clock.restart();
+        if (object_.ground) {
+            VertexRadiance ground;
+            relightVertices(object_.ground->transport, light, {true, false}, ground);
+            ground_ = std::move(ground.diffuse);
+        }
         if (!editable) {
             ScatteringComponents c;
             c.multipleScattering = r.multipleScattering;
@@ -126,6 +131,7 @@ void RelightWorker::compute(const LightRequest& r, LightResult& out) {
         }
         combine(out);
     }
+    out.ground = ground_;
     if (materialChanged) out.editMs = editClock.milliseconds();
     if (editable) {
         out.material = object_.editable->material();

@@ -71,6 +71,9 @@ struct LightResult {
     // What the GPU gets: diffuse then each term, one RGBA (A unused) per vertex, so
     // (1 + K) V entries (K = 0 without view-dependent single scattering).
     std::vector<glm::vec4> packed;
+    // The ground's per-vertex radiance under the same light (RelightObject::ground;
+    // empty without a ground).
+    std::vector<glm::vec3> ground;
     size_t keptTerms = 0, coefficients = 0;
     double relativeL2Error = 0.0;
     double lightMs = 0.0, relightMs = 0.0;
@@ -120,6 +123,7 @@ private:
     LightVector light_;
     VertexRadiance ssOnly_;
     std::vector<glm::vec3> msDiffuse_;
+    std::vector<glm::vec3> ground_;  // the ground's radiance under the last light
     bool recombined_ = true;   // the transport's MS component is the editable's material
     bool projected_ = false;   // editable->projectLight(light_) is current
 

@@ -59,11 +59,24 @@ SceneGl::SceneGl(const RelightObject& object, const std::vector<Image>& environm
       prefiltered_(environments.size()),
       specularBlur_(specularBlur),
       fileTerms_(object.transport.viewMaps ? object.transport.viewMaps->terms : 0) {
-    const TriangleMesh& mesh = object_.mesh;
+    {
+        const TriangleMesh& object = object_.mesh;
+        vertexAreas_.assign(object.vertexCount(), 0.0f);
+        for (size_t f = 0; f < object.triangleCount(); ++f)
+            for (int k = 0; k < 3; ++k) vertexAreas_[object.triangles[f][k]] += faceArea(object, f) / 3.0f;
+    }
+    // What is drawn: the object, then the ground's vertices and triangles (withGround).
+    const TriangleMesh mesh = object_.ground ? withGround(object_.mesh, object_.ground->mesh) : object_.mesh;
     const size_t V = mesh.vertexCount(), T = mesh.triangleCount();
-    vertexAreas_.assign(V, 0.0f);
-    for (size_t f = 0; f < T; ++f)
-        for (int k = 0; k < 3; ++k) vertexAreas_[mesh.triangles[f][k]] += faceArea(mesh, f) / 3.0f;
+    drawnVertices_ = V;
+    drawnTriangles_ = T;
+    drawnCentre_ = object_.sphereCentre;
+    drawnRadius_ = object_.sphereRadius;
+    if (object_.ground) {  // a sphere around the plane's box too: the half diagonal of the whole box
+        const Bounds box = bounds(mesh);
+        drawnCentre_ = glm::dvec3(box.centre());
+        drawnRadius_ = 0.5 * double(box.diagonal());
+    }
     GLint maxSize = 0;
     glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxSize);
     rowWidth_ = std::min(4096, int(maxSize));
@@ -251,11 +264,21 @@ void SceneGl::uploadBaseColour(int maxSize) {
     baseWrap_ = glm::ivec2(int(textured->wrapU), int(textured->wrapV));
 }
 
-void SceneGl::uploadRadiance(const std::vector<glm::vec4>& packed, int slots) {
+void SceneGl::uploadRadiance(const std::vector<glm::vec4>& packed, int slots, const std::vector<glm::vec3>& ground) {
     const int back = 1 - radianceFront_;
     const size_t V = object_.mesh.vertexCount();
-    for (int k = 0; k < slots; ++k)
+    for (int k = 0; k < slots; ++k) {
+        if (k == 0 && drawnVertices_ > V) {
+            // Slot 0 holds the ground's vertices after the object's.
+            slot0_.assign(drawnVertices_, glm::vec4(0.0f));
+            std::copy(packed.begin(), packed.begin() + ptrdiff_t(V), slot0_.begin());
+            if (ground.size() == drawnVertices_ - V)
+                for (size_t g = 0; g < ground.size(); ++g) slot0_[V + g] = glm::vec4(ground[g], 0.0f);
+            uploadRows(radiance_[back], rowWidth_, 0, drawnVertices_, GL_RGBA, GL_FLOAT, &slot0_[0].x, 4);
+            continue;
+        }
         uploadRows(radiance_[back], rowWidth_, k * slotRows_, V, GL_RGBA, GL_FLOAT, &packed[size_t(k) * V].x, 4);
+    }
     radianceFront_ = back;
     // Chang's Radiance_avg without reading the frame back: the area-weighted mean
     // luminance of the view-independent radiance (slot 0) over the surface.
@@ -291,8 +314,8 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
     // front face seen at a grazing angle can come out back-facing in float.
     if (!visibilityValid_ || !sameCamera(c, visibilityCamera_)) {
         // Depth range around the bounding sphere (the planes must not clip the object).
-        const double r = std::max(object_.sphereRadius, 1e-6);
-        const double d = glm::length(object_.sphereCentre - c.eye);
+        const double r = std::max(drawnRadius_, 1e-6);
+        const double d = glm::length(drawnCentre_ - c.eye);
         const double zFar = d + 1.01 * r;
         const double zNear = std::max(d - 1.01 * r, 1e-4 * zFar);
         const glm::dmat4 view = glm::lookAt(c.eye, c.target, c.up);
@@ -311,7 +334,7 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
         glUniformMatrix4fv(glGetUniformLocation(visibilityProgram_, "uViewProjection"), 1, GL_FALSE,
                            &viewProjection[0][0]);
         glBindVertexArray(meshVao_);
-        glDrawElements(GL_TRIANGLES, GLsizei(3 * object_.mesh.triangleCount()), GL_UNSIGNED_INT, nullptr);
+        glDrawElements(GL_TRIANGLES, GLsizei(3 * drawnTriangles_), GL_UNSIGNED_INT, nullptr);
         glBindVertexArray(vao_);
         glDisable(GL_DEPTH_TEST);
         visibilityCamera_ = c;
@@ -337,6 +360,7 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
     glUniform1i(glGetUniformLocation(p, "uTermCount"), frame.viewTerms);
     glUniform1i(glGetUniformLocation(p, "uViewMapSize"), std::max(viewMapSize_, 1));
     glUniform1f(glGetUniformLocation(p, "uEta"), float(object_.eta));
+    glUniform1i(glGetUniformLocation(p, "uObjectTriangles"), int(object_.mesh.triangleCount()));
     glUniform1i(glGetUniformLocation(p, "uSpecular"), frame.specular && frame.environmentLight ? 1 : 0);
     glUniform1i(glGetUniformLocation(p, "uBackground"), frame.environmentLight ? 1 : 0);
     glUniform1i(glGetUniformLocation(p, "uHasBaseColour"), triangleColours_ ? 1 : 0);

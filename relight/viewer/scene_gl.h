@@ -9,7 +9,9 @@
 //      formula for any number K of view terms, the optional specular layer
 //      (specularReflection) and, where no triangle is, the environment along the ray
 //      (environmentRadiance), the object's base colour tinting the translucent part
-//      (base_colour.h; one texture at most); the display transform of writePng (common/tonemap.h),
+//      (base_colour.h; one texture at most); the ground (RelightObject::ground) as its
+//      vertices' blended radiance, after the object's triangles in every buffer;
+//      the display transform of writePng (common/tonemap.h),
 //      except that chang's Radiance_avg is the area-weighted mean luminance of the
 //      uploaded per-vertex radiance (no read-back of the frame), not the image's.
 // The frame goes straight to the window, or to an offscreen framebuffer (tone-mapped
@@ -62,10 +64,11 @@ public:
     // New width x height targets (the camera's size changed).
     void resize(int width, int height);
 
-    // Uploads `slots` blocks of V RGBA values (V = the mesh's vertices; the diffuse
-    // radiance, then each view term's sum) into the radiance texture not drawn, which
-    // then becomes the one drawn. Does not check for GL errors.
-    void uploadRadiance(const std::vector<glm::vec4>& packed, int slots);
+    // Uploads `slots` blocks of V RGBA values (V = the object mesh's vertices; the
+    // diffuse radiance, then each view term's sum) and, with a ground, the ground's
+    // vertex radiance (its vertex count, else zeros) into the radiance texture not
+    // drawn, which then becomes the one drawn. Does not check for GL errors.
+    void uploadRadiance(const std::vector<glm::vec4>& packed, int slots, const std::vector<glm::vec3>& ground = {});
 
     // Draws the frame into the window's framebuffer, or into the offscreen targets.
     void draw(const SceneFrame& frame, bool offscreen);
@@ -109,7 +112,11 @@ private:
     void uploadBaseColour(int maxSize);
     GLuint triangleColours_ = 0, cornerUvs_ = 0, baseTexture_ = 0;
     glm::ivec2 baseTextureSize_{1, 1}, baseWrap_{0, 0};
-    std::vector<float> vertexAreas_;  // a third of each adjacent triangle's area, mm^2
+    std::vector<float> vertexAreas_;  // a third of each adjacent triangle's area, mm^2 (object vertices)
+    size_t drawnVertices_ = 0, drawnTriangles_ = 0;  // the object's, plus the ground's
+    glm::dvec3 drawnCentre_{0.0};  // a sphere around what is drawn: the depth range
+    double drawnRadius_ = 0.0;
+    std::vector<glm::vec4> slot0_;    // scratch: slot 0 of the object and the ground
     double radianceAverage_ = 0.0;    // chang's Radiance_avg of the drawn radiance
 };
 

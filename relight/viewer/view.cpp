@@ -332,7 +332,7 @@ void Viewer::uploadCombined() {
     if (env) std::copy(front_.packed.begin(), front_.packed.begin() + ptrdiff_t(size_t(slots) * V), combined_.begin());
     if (point)
         for (size_t v = 0; v < V; ++v) combined_[v] += glm::vec4(pointFront_.radiance[v], 0.0f);
-    scene_->uploadRadiance(combined_, slots);
+    scene_->uploadRadiance(combined_, slots, env ? front_.ground : std::vector<glm::vec3>());
     displayedTerms_ = env ? std::max(slots - 1, 0) : 0;
     lastUploadMs_ = clock.milliseconds();
     checkGl("uploading relit radiance");
@@ -419,6 +419,7 @@ std::string Viewer::renderCommand() const {
     frame.envRotation = state_.rotation;
     frame.display = {double(state_.exposure), ToneMapOperator(state_.toneMap)};
     frame.baseColour = s_.frame.baseColour;
+    frame.ground = s_.frame.ground;
     frame.lightTerms = size_t(std::max(state_.lightTerms, 0));
     const LightRequest r = currentRequest();
     if (r.multipleScattering != available_.multipleScattering || r.singleScattering != available_.singleScattering)

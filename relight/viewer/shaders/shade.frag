@@ -11,6 +11,7 @@ uniform int uTermCount;        // K used (0: no view-dependent single scattering
 uniform sampler2D uViewMaps;   // R32F, N x 6NK: texel (i, (k * 6 + face) * N + j) = h_k
 uniform int uViewMapSize;
 uniform float uEta;
+uniform int uObjectTriangles;  // triangles past these are the ground's (its radiance in slot 0)
 uniform bool uSpecular;
 uniform bool uBackground;      // false: black background (the environment's light is off)
 uniform sampler2D uPrefiltered;
@@ -167,6 +168,10 @@ void main() {
         return;
     }
     findTriangle(int(id - 1u), d);
+    if (int(id - 1u) >= uObjectTriangles) {  // the ground: its vertices' Lambertian radiance (groundRadiance)
+        writeColor(interpolated(0), 1.0);
+        return;
+    }
     vec3 wo = -d;
     vec3 s = gBarycentric.x * texelFetch(uNormals, at(gTriangle.x), 0).xyz +
              gBarycentric.y * texelFetch(uNormals, at(gTriangle.y), 0).xyz +
