@@ -38,7 +38,7 @@ void addCameraOptions(CLI::App& app, CameraOptions& o);
 // exitance (relight/render/base_colour.h).
 void addBaseColourOption(CLI::App& app, bool& on, const std::string& group = "Object");
 
-// Declares --spp (group "Camera") for the offline renderers; the viewer does not take it.
+// Declares --spp (group "Camera") for the offline renderers and the viewer.
 void addSamplesPerPixelOption(CLI::App& app, CameraOptions& o);
 
 // The camera of `o` for an object with this bounding sphere: --eye given -> that

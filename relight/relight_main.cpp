@@ -226,6 +226,7 @@ void addViewOptions(CLI::App& app, ViewOptions& o) {
                    "Lat-long HDR environments (files, or folders of .exr/.hdr), repeatable; the first is "
                    "shown first (default: data/envmaps/, the eight fetched maps)");
     addCameraOptions(app, o.camera);
+    addSamplesPerPixelOption(app, o.camera);
     addFrameOptions(app, o.frame);
     app.add_option("--frames", o.frames,
                    "Scripted run: render N frames once the first relight has landed, write the "
@@ -319,6 +320,7 @@ int runView(const ViewOptions& o) {
     setup.frame = o.frame;
     setup.components = selectComponents(o.frame.components, componentsOf(setup.object.transport), o.transport);
     setup.camera = makeCamera(o.camera, setup.object.sphereCentre, setup.object.sphereRadius);
+    setup.subpixels = subpixelGridSize(o.camera.spp);
     std::printf("object: %zu vertices, %zu triangles, %.4g mm across, eta %.4g; cubemap 6x%ux%u; loaded in %.0f ms\n",
                 setup.object.mesh.vertexCount(), setup.object.mesh.triangleCount(),
                 double(setup.object.box.diagonal()), setup.object.eta, setup.object.transport.cubemapSize,

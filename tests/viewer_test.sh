@@ -133,10 +133,11 @@ else
 fi
 
 # 3b. The ground (prt-precompute --ground): the plane's vertices' radiance after the
-#     object's in the shader's buffers, and a depth range that holds the plane.
+#     object's in the shader's buffers, and a depth range that holds the plane; and
+#     --spp 4: 2 x 2 sub-pixels box-filtered by the resolve pass, as render --spp 4.
 if "$PRECOMPUTE" "$S/torus.ply" --size-mm 20 --cubemap-size 8 --samples 2000 -q --ground --ground-cells 24 \
     -o "$S/torus_ground.prt" > "$O/ground.log" 2>&1; then
-    F="$S/torus.ply -t $S/torus_ground.prt --ground $S/torus_ground.ground.prt -W 256 -H 192 --elevation 30"
+    F="$S/torus.ply -t $S/torus_ground.prt --ground $S/torus_ground.ground.prt -W 256 -H 192 --elevation 30 --spp 4"
     matches_render ground 1e-4 "$F -e $S/sky.exr" $F -e "$S/sky.exr"
 else
     cat "$O/ground.log"

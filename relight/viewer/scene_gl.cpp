@@ -53,12 +53,14 @@ bool sameCamera(const Camera& a, const Camera& b) {
 }  // namespace
 
 SceneGl::SceneGl(const RelightObject& object, const std::vector<Image>& environments, int specularBlur, int width,
-                 int height)
+                 int height, int subpixels)
     : object_(object),
       environments_(environments),
       prefiltered_(environments.size()),
       specularBlur_(specularBlur),
-      fileTerms_(object.transport.viewMaps ? object.transport.viewMaps->terms : 0) {
+      fileTerms_(object.transport.viewMaps ? object.transport.viewMaps->terms : 0),
+      subpixels_(subpixels) {
+    if (subpixels_ < 1) throw Error("--spp", "the sub-pixel grid must be at least 1 x 1");
     {
         const TriangleMesh& object = object_.mesh;
         vertexAreas_.assign(object.vertexCount(), 0.0f);
@@ -137,6 +139,9 @@ SceneGl::SceneGl(const RelightObject& object, const std::vector<Image>& environm
     glGenVertexArrays(1, &vao_);
     visibilityProgram_ = linkProgram({shaders::kVisibilityVert}, {shaders::kVisibilityFrag}, "visibility");
     shadeProgram_ = linkProgram({shaders::kFullscreenVert}, {shaders::kShadeCommon, shaders::kShadeFrag}, "shading");
+    if (subpixels_ > 1)
+        resolveProgram_ =
+            linkProgram({shaders::kFullscreenVert}, {shaders::kShadeCommon, shaders::kResolveFrag}, "resolve");
     checkGl("creating the mesh buffers, textures and shaders");
     createTargets(width, height);
 }
@@ -151,6 +156,7 @@ SceneGl::~SceneGl() {
         glDeleteTextures(GLsizei(prefilteredTextures_.size()), prefilteredTextures_.data());
     glDeleteProgram(visibilityProgram_);
     glDeleteProgram(shadeProgram_);
+    if (resolveProgram_) glDeleteProgram(resolveProgram_);
     glDeleteVertexArrays(1, &vao_);
     glDeleteVertexArrays(1, &meshVao_);
     glDeleteBuffers(2, meshBuffers_);
@@ -162,10 +168,18 @@ void SceneGl::createTargets(int width, int height) {
     destroyTargets();
     targetWidth_ = width;
     targetHeight_ = height;
-    visibility_ = makeTexture(GL_R32UI, width, height, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
+    // Visibility (and, with sub-pixels, shading) at the sub-pixel grid's size.
+    const int n = subpixels_;
+    GLint maxSize = 0;
+    glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &maxSize);
+    if (width * n > maxSize || height * n > maxSize)
+        throw Error("OpenGL", std::to_string(width * n) + " x " + std::to_string(height * n) +
+                                  " sub-pixels exceed this OpenGL's largest framebuffer (" + std::to_string(maxSize) +
+                                  "): use a smaller --spp or window");
+    visibility_ = makeTexture(GL_R32UI, width * n, height * n, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
     glGenRenderbuffers(1, &depth_);
     glBindRenderbuffer(GL_RENDERBUFFER, depth_);
-    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, width, height);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, width * n, height * n);
     glGenFramebuffers(1, &visibilityFbo_);
     glBindFramebuffer(GL_FRAMEBUFFER, visibilityFbo_);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, visibility_, 0);
@@ -184,12 +198,25 @@ void SceneGl::createTargets(int width, int height) {
     glDrawBuffers(2, buffers);
     if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
         throw Error("OpenGL", "the offscreen framebuffer (RGBA8 + RGBA32F) is not supported");
+    if (n > 1) {  // the shading pass writes only its linear output (location 1) here
+        subpixelLinear_ = makeTexture(GL_RGBA32F, width * n, height * n, GL_RGBA, GL_FLOAT, nullptr);
+        glGenFramebuffers(1, &subpixelFbo_);
+        glBindFramebuffer(GL_FRAMEBUFFER, subpixelFbo_);
+        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, subpixelLinear_, 0);
+        const GLenum linearOnly[2] = {GL_NONE, GL_COLOR_ATTACHMENT1};
+        glDrawBuffers(2, linearOnly);
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+            throw Error("OpenGL", "the sub-pixel framebuffer (RGBA32F) is not supported");
+    }
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
     checkGl("creating the framebuffers");
 }
 
 void SceneGl::destroyTargets() {
     if (offscreenFbo_) glDeleteFramebuffers(1, &offscreenFbo_);
+    if (subpixelFbo_) glDeleteFramebuffers(1, &subpixelFbo_);
+    if (subpixelLinear_) glDeleteTextures(1, &subpixelLinear_);
+    subpixelFbo_ = subpixelLinear_ = 0;
     if (visibilityFbo_) glDeleteFramebuffers(1, &visibilityFbo_);
     if (depth_) glDeleteRenderbuffers(1, &depth_);
     GLuint t[] = {displayColor_, linearColor_, visibility_};
@@ -307,7 +334,8 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
     glDisable(GL_CULL_FACE);
     glDisable(GL_SCISSOR_TEST);
     glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-    glViewport(0, 0, c.width, c.height);
+    const int n = subpixels_;
+    glViewport(0, 0, c.width * n, c.height * n);
 
     // 1. Visibility, when the camera changed. No back-face culling: the offline
     // renderer's rays hit back faces (through holes; black there, n . w_o <= 0), and a
@@ -341,8 +369,8 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
         visibilityValid_ = true;
     }
 
-    // 2. Shading, one full-screen triangle.
-    glBindFramebuffer(GL_FRAMEBUFFER, offscreen ? offscreenFbo_ : 0);
+    // 2. Shading, one full-screen triangle (of sub-pixels when n > 1).
+    glBindFramebuffer(GL_FRAMEBUFFER, n > 1 ? subpixelFbo_ : offscreen ? offscreenFbo_ : 0);
     const GLuint p = shadeProgram_;
     glUseProgram(p);
     glUniform3f(glGetUniformLocation(p, "uEye"), float(c.eye.x), float(c.eye.y), float(c.eye.z));
@@ -350,7 +378,7 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
     glUniform3f(glGetUniformLocation(p, "uRight"), float(right.x), float(right.y), float(right.z));
     glUniform3f(glGetUniformLocation(p, "uUp"), float(up.x), float(up.y), float(up.z));
     glUniform1f(glGetUniformLocation(p, "uTanHalf"), float(tanHalf));
-    glUniform2f(glGetUniformLocation(p, "uViewSize"), float(c.width), float(c.height));
+    glUniform2f(glGetUniformLocation(p, "uViewSize"), float(c.width * n), float(c.height * n));
     glUniformMatrix3fv(glGetUniformLocation(p, "uEnvRotationT"), 1, GL_FALSE, &rotationT[0][0]);
     const DisplayMapping mapping = displayMapping(frame.display, radianceAverage_);
     glUniform1f(glGetUniformLocation(p, "uScale"), mapping.scale);
@@ -385,6 +413,21 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
         glUniform1i(glGetUniformLocation(p, textures[unit].first), unit);
     }
     glDrawArrays(GL_TRIANGLES, 0, 3);
+
+    // 3. With sub-pixels: their box filter, then the display transform, per pixel.
+    if (n > 1) {
+        glBindFramebuffer(GL_FRAMEBUFFER, offscreen ? offscreenFbo_ : 0);
+        glViewport(0, 0, c.width, c.height);
+        const GLuint q = resolveProgram_;
+        glUseProgram(q);
+        glUniform1f(glGetUniformLocation(q, "uScale"), mapping.scale);
+        glUniform1i(glGetUniformLocation(q, "uToneMap"), int(mapping.op));
+        glUniform1i(glGetUniformLocation(q, "uSubpixelGrid"), n);
+        glActiveTexture(GL_TEXTURE0);
+        glBindTexture(GL_TEXTURE_2D, subpixelLinear_);
+        glUniform1i(glGetUniformLocation(q, "uSubpixels"), 0);
+        glDrawArrays(GL_TRIANGLES, 0, 3);
+    }
 
     glActiveTexture(GL_TEXTURE0);
     glBindVertexArray(0);

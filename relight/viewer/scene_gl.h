@@ -55,8 +55,12 @@ public:
     // and width x height targets. Environment textures (and the pre-filtered maps of
     // the specular layer, blurred by specularBlur, 0 = automatic: specularBlurFactor)
     // are made on first use.
+    // subpixels: n of --spp n^2 (relight/render/supersample.h): visibility and shading run
+    // on an n width x n height sub-pixel grid (the supersampled camera's rays), and a
+    // resolve pass box-filters each pixel's n x n sub-pixels before the display
+    // transform, as render --spp does; 1 shades each pixel's centre directly.
     SceneGl(const RelightObject& object, const std::vector<Image>& environments, int specularBlur, int width,
-            int height);
+            int height, int subpixels = 1);
     ~SceneGl();
     SceneGl(const SceneGl&) = delete;
     SceneGl& operator=(const SceneGl&) = delete;
@@ -96,7 +100,9 @@ private:
     int specularBlur_ = 0;
     int fileTerms_ = 0;  // K of the file's view maps
 
-    GLuint vao_ = 0, visibilityProgram_ = 0, shadeProgram_ = 0;
+    GLuint vao_ = 0, visibilityProgram_ = 0, shadeProgram_ = 0, resolveProgram_ = 0;
+    int subpixels_ = 1;
+    GLuint subpixelFbo_ = 0, subpixelLinear_ = 0;  // n > 1: the shading pass's linear sub-pixel target
     GLuint meshVao_ = 0, meshBuffers_[2] = {0, 0};
     GLuint positions_ = 0, normals_ = 0, triangles_ = 0, radiance_[2] = {0, 0}, viewMaps_ = 0, dummy_ = 0;
     int radianceFront_ = 0;

@@ -204,7 +204,7 @@ void Viewer::start() {
                                              "prt-relight view - " + fs::path(s_.meshPath).filename().string(),
                                              s_.vsync);
     scene_ = std::make_unique<SceneGl>(s_.object, environments_, s_.frame.specularBlur, s_.camera.width,
-                                       s_.camera.height);
+                                       s_.camera.height, s_.subpixels);
     if (s_.object.editable) {
         state_.material = s_.object.editable->material();
         state_.sizeMm = s_.object.editable->sizeMm();
@@ -415,6 +415,7 @@ std::string Viewer::renderCommand() const {
                       vec(c.target) + " --up=" + vec(c.up);
     std::snprintf(buf, sizeof buf, " --fov %.9g -W %d -H %d", c.fovY, c.width, c.height);
     cmd += buf;
+    if (s_.subpixels > 1) cmd += " --spp " + std::to_string(s_.subpixels * s_.subpixels);
     FrameSettings frame;
     frame.envRotation = state_.rotation;
     frame.display = {double(state_.exposure), ToneMapOperator(state_.toneMap)};

@@ -41,6 +41,7 @@ struct ViewerSetup {
     RelightObject object;              // loaded and checked (loadRelightObject)
     std::string meshPath, transportPath;
     Camera camera;                     // initial camera (also the "reset" camera)
+    int subpixels = 1;                 // --spp n^2: n x n sub-pixels per pixel, box-filtered (SceneGl)
     FrameSettings frame;               // the initial look, as prt-relight render takes it
     ScatteringComponents components;   // frame.components resolved against the file (selectComponents)
     std::vector<std::string> environments;  // lat-long maps, shown in this order
