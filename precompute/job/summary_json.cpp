@@ -60,6 +60,10 @@ Json settingsJson(const PrecomputeSettings& s) {
     j["shard"] = s.shard ? Json(toString(*s.shard)) : Json(nullptr);
     j["pass1_file"] = s.pass1File.empty() ? Json(nullptr) : Json(s.pass1File);
     j["pass1_only"] = s.pass1Only;
+    j["ground"] = s.ground ? Json({{"size_diagonals", s.ground->halfExtentPerDiagonal},
+                                   {"cells", s.ground->cells},
+                                   {"albedo", vec3(s.ground->albedo)}})
+                           : Json(nullptr);
     return j;
 }
 
@@ -84,6 +88,9 @@ Json summaryJson(const PrecomputeSummary& r) {
     j["gather_seconds"] = r.gatherSeconds();
     j["busy_seconds_min"] = r.distribution.busySecondsMin;
     j["busy_seconds_max"] = r.distribution.busySecondsMax;
+    j["ground_file"] = r.ground.path.empty() ? Json(nullptr) : Json(r.ground.path);
+    j["ground_vertices"] = r.ground.path.empty() ? Json(nullptr) : Json(r.ground.vertices);
+    j["ground_seconds"] = r.ground.path.empty() ? Json(nullptr) : Json(r.ground.seconds);
     const bool ms = r.components.multipleScattering, ssOn = r.components.singleScattering;
     const auto msOnly = [&](const Json& v) { return ms ? v : Json(nullptr); };
     const auto ssOnly = [&](const Json& v) { return ssOn ? v : Json(nullptr); };

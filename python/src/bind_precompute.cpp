@@ -175,6 +175,8 @@ void bindPrecompute(py::module_& m) {
                 throw py::type_error("progress: expected a callable (stage, done, total, unit)");
             const PrecomputeSettings settings = parseJob(nlohmann::json::object(), job, "precompute");
             if (settings.pass1Only) throw Error("--pass1-only", "not available from Python (use the command line)");
+            if (settings.ground && !keep)
+                throw Error("ground", "needs output= (the ground's file is written beside it, <output>.ground.prt)");
 
             PrecomputeSummary summary;
             runCancellable([&] { summary = precomputeTransport(settings, force, nullptr); }, progress, quiet, threads);

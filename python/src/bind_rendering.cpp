@@ -343,13 +343,15 @@ void bindRendering(py::module_& m) {
 
     m.def(
         "load_object",
-        [](const std::string& meshPath, const std::string& transportPath, bool baseColour) {
+        [](const std::string& meshPath, const std::string& transportPath, bool baseColour, const py::object& ground) {
             PyObject o;
             o.meshPath = meshPath;
             o.transportPath = transportPath;
+            const std::string groundPath = ground.is_none() ? std::string() : stringArgument(ground, "ground");
             o.object = std::make_shared<RelightObject>(withoutGil([&] {
                 RelightObject object = loadRelightObject(meshPath, transportPath);
                 if (baseColour) object.baseColour = BaseColour::load(meshPath, object.mesh);
+                if (!groundPath.empty()) attachGround(object, groundPath, transportPath);
                 return object;
             }));
             o.transport = std::make_shared<PyTransport>();
@@ -358,10 +360,11 @@ void bindRendering(py::module_& m) {
             o.transport->edited = o.object->editable.has_value();
             return o;
         },
-        py::arg("mesh"), py::arg("transport"), py::arg("base_colour") = false,
+        py::arg("mesh"), py::arg("transport"), py::arg("base_colour") = false, py::arg("ground") = py::none(),
         "The mesh file and its transport file, checked against each other and scaled to mm (prt-relight's object). "
         "base_colour: the mesh file's base colour tints the translucent exitance in render (render's --base-colour; "
-        "docs/assets.md)");
+        "docs/assets.md). ground: the ground's transport file (prt-precompute --ground), drawn by render under the "
+        "object (render's --ground; docs/ground.md)");
 
     m.def(
         "render",

@@ -51,18 +51,20 @@ glm::dvec3 pointSingleScattering(const RayScene& scene, const TriangleMesh& mesh
 
     const glm::dvec3 sigmaS = material.sigmaS(), sigmaT = material.sigmaT();
     const double sigma = luminance(sigmaT);  // |sigma_t|, the sampling's extinction
-    const ExitDistance far = exitDistance(scene, xo.position, glm::vec3(woRefracted),
-                                          options.depthCapMeanFreePaths / sigma);
+    // The path runs along w_o' into the medium: farSideDistance's "normal" is -w_o'.
+    const FarSide far = farSideDistance(scene, xo.position, -glm::vec3(woRefracted),
+                                        options.depthCapMeanFreePaths / sigma);
     if (!(far.distance > 0.0)) return glm::dvec3(0.0);
     // The rule once per thread and count (its Gauss-Legendre nodes come from Newton's
     // iteration), the samples per pixel.
-    thread_local std::vector<DepthNode> rule;
-    thread_local std::vector<DepthSample> samples;
-    if (rule.size() != size_t(options.pathSamples)) rule = gaussLegendreDepthRule(options.pathSamples);
-    exponentialDepthSamples(sigma, far.distance, rule, samples);
+    thread_local std::vector<QuadratureNode> rule;
+    thread_local std::vector<PathSample> samples;
+    if (rule.size() != size_t(options.pathSamples))
+        rule = pathQuadratureRule(PathQuadrature::GaussLegendre, options.pathSamples);
+    makePathSamples(sigma, far.distance, rule, PathQuadrature::GaussLegendre, samples);
 
     glm::dvec3 sum(0.0);
-    for (const DepthSample& ps : samples) {
+    for (const PathSample& ps : samples) {
         const glm::dvec3 xp = glm::dvec3(xo.position) + ps.distance * woRefracted;
         for (const Light& l : lights) {
             IncidentLight atP;
@@ -77,7 +79,7 @@ glm::dvec3 pointSingleScattering(const RayScene& scene, const TriangleMesh& mesh
             const glm::dvec3 xi = xp + double(h.t) * atP.toLight;
             const glm::dvec3 ni = entryNormal(mesh, h, atP.toLight);
             const double cosI = glm::dot(ni, atP.toLight);
-            const double sPrime = refractedEntryLength(double(h.t), cosI, eta);  // Jensen 2001 Eq. 5
+            const double sPrime = refractedPathLength(double(h.t), cosI, eta);  // Jensen 2001 Eq. 5
             if (sPrime < 0.0) continue;
             IncidentLight atI;
             if (!incidentLight(l, xi, atI) || !(glm::dot(atI.irradiance, glm::dvec3(1.0)) > 0.0)) continue;

@@ -9,7 +9,7 @@
 //   w_o'    refractDirection(w_o, n_o, eta) (common/bssrdf.h): the refracted view ray
 //           x_p = x_o + s w_o' into the medium (Jensen 2001; NOT the precompute's inward
 //           normal, which is Wang's view-independent approximation);
-//   d_m     where that ray leaves the object (exitDistance, common/scattering_path.h),
+//   d_m     where that ray leaves the object (farSideDistance, common/scattering_path.h),
 //           or depthCapMeanFreePaths / |sigma_t| when it leaves nothing;
 //   x_i     the light's entry point, approximated as the precompute does for environment
 //           light (precompute/passes/single_scattering.h): the first surface point on
@@ -18,8 +18,9 @@
 //           interpolated there (the triangle normal where they do not face w); the
 //           light's refracted path inside is taken as Jensen's Eq. 5 estimate
 //           s_i' = s_i |w . n_i| / sqrt(1 - (1/eta)^2 (1 - |w . n_i|^2))
-//           (refractedEntryLength, common/scattering_path.h). A first hit on a triangle facing against w means x_p
-//           lies outside the object (a concavity): that sample adds nothing;
+//           (refractedPathLength, common/scattering_path.h). A first hit on a
+//           triangle facing against w means x_p lies outside the object (a
+//           concavity): that sample adds nothing;
 //   w_i'    refractDirection(w, n_i, eta), the light's propagation direction inside;
 //   p       the Henyey-Greenstein phase function with the material's g,
 //           henyeyGreensteinDirections(g, w_i', -w_o') (the product's convention);
@@ -28,10 +29,10 @@
 //   V       the shadow ray of lightUnoccluded from x_i (offset along its triangle
 //           normal) toward the light: the light shadowed at its entry point;
 //   sigma_s = sigma_s' / (1 - g), sigma_t = sigma_a + sigma_s per channel (materials.h).
-// The integral over s uses the precompute's path sampling (exponentialDepthSamples,
-// common/scattering_path.h): N Gauss-Legendre nodes in the sampled mass of the
-// exponential pdf of |sigma_t| (luminance), s = -ln(1 - lambda xi) / |sigma_t|,
-// lambda = 1 - e^(-|sigma_t| d_m).
+// The integral over s uses the precompute's path sampling (makePathSamples with
+// PathQuadrature::GaussLegendre, common/scattering_path.h): N Gauss-Legendre nodes in
+// the sampled mass of the exponential pdf of |sigma_t| (luminance),
+// s = -ln(1 - lambda xi) / |sigma_t|, lambda = 1 - e^(-|sigma_t| d_m).
 //
 // Nothing where n_o . w_o <= 0 or n_g . w_o <= 0. Like the diffusion, it is light that
 // left the medium at x_o, so the frame's --base-colour tints it (base_colour.h: the

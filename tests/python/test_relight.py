@@ -196,3 +196,29 @@ def test_base_colour_and_spp_follow_the_command_line(scene, tmp_path):
     run_tool("prt-relight", "render", glb, "-t", scene / "torus.prt", "-e", scene / "sky.exr",
              "-W", "48", "-H", "40", "--spp", "4", "--base-colour", "-o", cli)
     assert np.array_equal(prt.read_image(str(cli) + ".exr"), b)
+
+
+def test_ground_follows_the_command_line(scene, tmp_path):
+    # precompute(ground=True) writes the ground's file beside the output; an object loaded
+    # with it renders the plane exactly as prt-relight render --ground does.
+    out = tmp_path / "torus.prt"
+    t = prt.precompute(str(scene / "torus.ply"), str(out), size_mm=20, cubemap_size=8, samples=1500,
+                       ground=True, ground_cells=12, ground_albedo=[0.2, 0.4, 0.6])
+    ground = tmp_path / "torus.ground.prt"
+    assert ground.exists()
+    assert t.summary["ground_file"] == str(ground)
+    assert t.summary["ground_vertices"] == 13 * 13
+    assert t.settings["ground"]["cells"] == 12
+    with pytest.raises(ValueError, match="needs output="):
+        prt.precompute(str(scene / "torus.ply"), size_mm=20, cubemap_size=8, samples=1500, ground=True)
+    obj = prt.load_object(str(scene / "torus.ply"), str(out), ground=str(ground))
+    env = prt.load_environment(str(scene / "sky.exr"))
+    image = prt.render(obj, env, width=48, height=40, elevation=30)
+    plain = prt.render(prt.load_object(str(scene / "torus.ply"), str(out)), env, width=48, height=40, elevation=30)
+    assert (image[..., 3] == 1).sum() > (plain[..., 3] == 1).sum()  # the plane's pixels
+    cli = tmp_path / "cli"
+    run_tool("prt-relight", "render", scene / "torus.ply", "-t", out, "--ground", ground, "-e", scene / "sky.exr",
+             "-W", "48", "-H", "40", "--elevation", "30", "-o", cli)
+    assert np.array_equal(prt.read_image(str(cli) + ".exr"), image)
+    with pytest.raises(ValueError, match="not a ground transport file"):
+        prt.load_object(str(scene / "torus.ply"), str(out), ground=str(out))
