@@ -104,8 +104,9 @@ std::string groundObjectText(const MeshFingerprint& object) {
 }
 
 GroundDescription readGroundDescription(const std::string& path, const MeshFingerprint& object,
-                                        const std::string& objectGroundPlane, uint32_t cubemapSize,
-                                        uint32_t shTerms, const std::string& objectTransportPath) {
+                                        const std::string& objectGroundPlane, const std::string& objectDigest,
+                                        uint32_t cubemapSize, uint32_t shTerms,
+                                        const std::string& objectTransportPath) {
     const TransportFileInfo info = readTransportFileInfo(path);
     if (info.parameter("receiver") != "ground")
         throw Error(path, "not a ground transport file (prt-precompute --ground writes one beside the object's)");
@@ -117,6 +118,9 @@ GroundDescription readGroundDescription(const std::string& path, const MeshFinge
     if (objectGroundPlane != info.parameter(kGroundPlaneParameter))
         throw Error(path, objectTransportPath + " was precomputed without this ground occluding it (precompute the "
                                                 "object with --ground)");
+    if (info.parameter("input_digest") != objectDigest)
+        throw Error(path, "made by another precompute job than " + objectTransportPath +
+                              " (their input digests differ): run prt-precompute --ground again");
     if (info.cubemapSize != cubemapSize || info.shTerms != shTerms)
         throw Error(path, "its cubemap or SH part differs from " + objectTransportPath + "'s");
     const std::vector<double> albedo = parseNumberList(info.parameter("albedo"), path, "albedo");

@@ -90,17 +90,20 @@ std::string groundObjectText(const MeshFingerprint& object);
 
 // What a ground transport file describes, read from its header (no vectors): the plane
 // and the albedo, after the checks that tie it to the object's file, whose fingerprint,
-// "ground_plane" parameter (empty when absent), cubemap size and SH terms are given.
-// Throws prt::Error(path, one line) for a file that is not a ground file, one made for
-// another object, another cubemap or SH part, or when the object's file was precomputed
-// without this plane occluding it; and readTransportFileInfo's errors.
+// "ground_plane" and "input_digest" parameters (empty when absent), cubemap size and SH
+// terms are given. Throws prt::Error(path, one line) for a file that is not a ground
+// file, one made for another object, by another job (another input digest: a stale
+// file, or one of other settings), with another cubemap or SH part, or when the
+// object's file was precomputed without this plane occluding it; and
+// readTransportFileInfo's errors.
 struct GroundDescription {
     GroundPlane plane;
     glm::dvec3 albedo{0.0};
 };
 GroundDescription readGroundDescription(const std::string& path, const MeshFingerprint& object,
-                                        const std::string& objectGroundPlane, uint32_t cubemapSize,
-                                        uint32_t shTerms, const std::string& objectTransportPath);
+                                        const std::string& objectGroundPlane, const std::string& objectDigest,
+                                        uint32_t cubemapSize, uint32_t shTerms,
+                                        const std::string& objectTransportPath);
 
 // Where a precompute writes the ground's transport file: the object's output path
 // with its extension replaced by ".ground.prt" ("out/bunny.prt" -> "out/bunny.ground.prt").

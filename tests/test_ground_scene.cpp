@@ -243,6 +243,49 @@ TEST(GroundScene, PrecomputeWritesBothFilesAndTheRendererDrawsThePlane) {
     EXPECT_THROW(attachGround(other, groundTransportPath(bigger.outputPath), s.outputPath), Error);
     EXPECT_THROW(attachGround(other, s.outputPath, s.outputPath), Error);
     EXPECT_THROW(attachGround(other, (dir / "missing.ground.prt").string(), s.outputPath), Error);
+    // A stale ground: the same object precomputed again with another albedo replaces
+    // both files; the old ground file no longer belongs to the new object file.
+    fs::copy_file(groundPath, dir / "old.ground.prt");
+    PrecomputeSettings repainted = s;
+    repainted.ground->albedo = {0.9, 0.9, 0.9};
+    precomputeTransport(repainted, true);
+    RelightObject fresh = loadRelightObject(s.meshPath, s.outputPath);
+    try {
+        attachGround(fresh, (dir / "old.ground.prt").string(), s.outputPath);
+        ADD_FAILURE() << "a ground file of another job was accepted";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("input digests differ"), std::string::npos) << e.what();
+    }
+    EXPECT_NO_THROW(attachGround(fresh, groundPath, s.outputPath));
+    // Seen from below, the plane's back is black.
+    {
+        Camera below = camera;
+        below.eye = {0.0, -30.0, 0.1};
+        EnvironmentFrameRenderer under(fresh, constantEnvironment(64, L), look, ScatteringComponents{true, false});
+        const Image dark = under.render(below, glm::dmat3(1.0));
+        size_t back = 0;
+        for (int y = 0; y < dark.height; ++y)
+            for (int x = 0; x < dark.width; ++x) {
+                const GBufferPixel& p = under.gbuffer().at(x, y);
+                if (!p.hit || !isGroundTriangle(p.triangle, fresh.mesh.triangleCount())) continue;
+                ++back;
+                const float* px = &dark.pixels[(size_t(y) * size_t(dark.width) + size_t(x)) * size_t(dark.channels)];
+                ASSERT_EQ(px[0] + px[1] + px[2], 0.0f);
+            }
+        EXPECT_GT(back, 500u);
+    }
+    // A pass-1 file made without the plane is refused by a job with it (its key differs).
+    PrecomputeSettings cached = plain;
+    cached.pass1File = (dir / "pass1.bin").string();
+    precomputeTransport(cached, true);
+    PrecomputeSettings cachedGround = s;
+    cachedGround.pass1File = cached.pass1File;
+    try {
+        precomputeTransport(cachedGround, true);
+        ADD_FAILURE() << "a pass-1 file made without the ground was reused";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("other pass-1 inputs"), std::string::npos) << e.what();
+    }
     // Settings the ground cannot honour.
     PrecomputeSettings shard = s;
     shard.shard = ShardSpec{0, 2};

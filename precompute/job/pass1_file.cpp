@@ -53,7 +53,8 @@ std::string pass1Key(const std::vector<std::pair<std::string, std::string>>& par
     std::string key;
     for (const auto& [k, v] : parameters)
         if (k == "mesh_vertices" || k == "mesh_hash" || k == "seed" || k == "cubemap_size" || k == "supersample" || k == "pass1_visibility" ||
-            k == "sample_coefficients" || (k == "sh_terms" && v != "0") || k == "eta")
+            k == "sample_coefficients" || (k == "sh_terms" && v != "0") || k == "eta" ||
+            k == "ground_size_diagonals" || k == "ground_cells")  // the plane occludes pass 1
             key += k + "=" + v + "\n";
     key += "mm_per_unit=" + formatParameter(mmPerUnit) + "\n";
     key += "samples=" + std::to_string(samples) + "\n";

@@ -8,7 +8,8 @@ GroundReceiver loadGroundReceiver(const std::string& path, const TransportFile& 
                                   const std::string& objectTransportPath) {
     const GroundDescription d =
         readGroundDescription(path, objectTransport.mesh, objectTransport.parameter(kGroundPlaneParameter),
-                              objectTransport.cubemapSize, objectTransport.shTerms, objectTransportPath);
+                              objectTransport.parameter("input_digest"), objectTransport.cubemapSize,
+                              objectTransport.shTerms, objectTransportPath);
     GroundReceiver g;
     g.plane = d.plane;
     g.albedo = d.albedo;
@@ -21,6 +22,9 @@ GroundReceiver loadGroundReceiver(const std::string& path, const TransportFile& 
 
 glm::vec3 groundRadiance(const GroundReceiver& ground, const GBufferPixel& p, const VertexRadiance& radiance,
                          size_t objectTriangles) {
+    // Seen from below, the plane shows its unlit back: black, as the renderers show a
+    // surface whose normal faces away from the viewer.
+    if (!(p.toViewer.y > 0.0f)) return glm::vec3(0.0f);
     const glm::uvec3 t = ground.mesh.triangles[p.triangle - objectTriangles];
     return p.barycentric.x * radiance.diffuse[t.x] + p.barycentric.y * radiance.diffuse[t.y] +
            p.barycentric.z * radiance.diffuse[t.z];

@@ -29,8 +29,8 @@ struct GroundReceiver {
 
 // Loads the ground transport file `path` written beside `objectTransport` (the object's
 // file, loaded, from objectTransportPath). Throws prt::Error(path, one line) for a file
-// that is not a ground file, one made for another object (fingerprint), another
-// cubemap or SH part, or when the object's file was precomputed without this plane
+// that is not a ground file, one made for another object (fingerprint) or by another
+// job (input digest), another cubemap or SH part, or when the object's file was precomputed without this plane
 // occluding it (its "ground_plane" differs or is absent); and loadTransportFile's
 // errors.
 GroundReceiver loadGroundReceiver(const std::string& path, const TransportFile& objectTransport,
@@ -39,7 +39,8 @@ GroundReceiver loadGroundReceiver(const std::string& path, const TransportFile& 
 // The ground's radiance at pixel `p` of a G-buffer traced against withGround(object,
 // ground.mesh): the barycentric blend of `radiance` (relightVertices of
 // ground.transport) at the hit triangle's vertices. p.triangle must be a ground
-// triangle (isGroundTriangle(p.triangle, objectTriangles)).
+// triangle (isGroundTriangle(p.triangle, objectTriangles)). Black when seen from below
+// (p.toViewer.y <= 0): the plane's back receives nothing.
 glm::vec3 groundRadiance(const GroundReceiver& ground, const GBufferPixel& p, const VertexRadiance& radiance,
                          size_t objectTriangles);
 

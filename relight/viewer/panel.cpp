@@ -162,12 +162,27 @@ void drawPointLightPanel(const PanelInputs& in, ViewState& state, PointLightWork
     for (int i = 0; i < int(state.lights.size()); ++i) {
         Light& l = state.lights[size_t(i)];
         ImGui::PushID(i);
-        ImGui::Text("light %d (%s)", i + 1, l.type == LightType::Point ? "point, W/sr" : "directional, W/m^2");
-        if (l.type == LightType::Point) {
+        ImGui::Text("light %d (%s)", i + 1,
+                    l.type == LightType::Point  ? "point, W/sr"
+                    : l.type == LightType::Spot ? "spot, W/sr on its axis"
+                                                : "directional, W/m^2");
+        if (hasPosition(l)) {
             float p[3] = {float(l.position.x), float(l.position.y), float(l.position.z)};
             if (ImGui::DragFloat3("position (mm)", p, 0.01f * radius, 0.0f, 0.0f, "%.2f"))
                 l.position = glm::dvec3(p[0], p[1], p[2]);
-        } else {
+        }
+        if (l.type == LightType::Spot) {
+            // Through spotLight, so the cone's cosines follow its angles and stay valid.
+            float a[3] = {float(l.direction.x), float(l.direction.y), float(l.direction.z)};
+            float cone[2] = {float(l.innerDegrees), float(l.outerDegrees)};
+            bool edited = ImGui::DragFloat3("axis", a, 0.01f, -1.0f, 1.0f, "%.3f");
+            edited |= ImGui::DragFloat2("cone (inner, outer deg)", cone, 0.2f, 0.0f, 90.0f, "%.1f");
+            const glm::dvec3 axis(a[0], a[1], a[2]);
+            if (edited && glm::length(axis) > 1e-6 && cone[1] > 0.0f) {
+                const double outer = std::min(double(cone[1]), 90.0), inner = std::min(double(cone[0]), outer);
+                l = spotLight(l.position, axis, l.rgb, std::max(inner, 0.0), outer, l.source);
+            }
+        } else if (l.type == LightType::Directional) {
             float d[3] = {float(l.direction.x), float(l.direction.y), float(l.direction.z)};
             if (ImGui::DragFloat3("toward", d, 0.01f, -1.0f, 1.0f, "%.3f")) {
                 const glm::dvec3 v(d[0], d[1], d[2]);
@@ -284,7 +299,7 @@ void drawLightMarkers(const ViewState& state, bool shown) {
     ImDrawList* draw = ImGui::GetBackgroundDrawList();
     for (size_t i = 0; i < state.lights.size(); ++i) {
         const Light& l = state.lights[i];
-        if (l.type != LightType::Point) continue;
+        if (!hasPosition(l)) continue;
         const glm::dvec3 d = l.position - c.eye;
         const double z = glm::dot(d, forward);
         if (!(z > 0.0)) continue;

@@ -293,8 +293,8 @@ void ScriptedMotion::step(ViewState& s, bool lightShown) {
     if (lightOrbit_ != 0.0) {
         const glm::dmat3 turn = rotationAxisAngle(glm::dvec3(0.0, 1.0, 0.0), lightOrbit_);
         for (Light& light : s.lights) {
-            if (light.type == LightType::Point) light.position = lightPivot_ + turn * (light.position - lightPivot_);
-            else light.direction = turn * light.direction;
+            if (hasPosition(light)) light.position = lightPivot_ + turn * (light.position - lightPivot_);
+            if (light.type != LightType::Point) light.direction = turn * light.direction;  // a spot's axis turns too
         }
     }
     ++steps_;

@@ -176,7 +176,8 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
         if (info->parameter("baseline") == "diffuse-brdf")
             throw Error("--ground", "not with a diffuse-baseline file (" + o.transport + ")");
         ground = readGroundDescription(o.ground, info->mesh, info->parameter(kGroundPlaneParameter),
-                                       info->cubemapSize, info->shTerms, o.transport);
+                                       info->parameter("input_digest"), info->cubemapSize, info->shTerms,
+                                       o.transport);
     }
     if (info && info->parameter("baseline") == "diffuse-brdf") {
         if (lightMode) throw Error(o.transport, "the diffuse baseline is referenced under environments only");
@@ -205,7 +206,7 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
         warn("--g overrides the phase asymmetry (sigma_s' kept): single scattering no longer matches the file");
     }
     // Default: multiple scattering, plus single scattering when the file has it (and the
-    // light is an environment: no point-light renderer has single scattering).
+    // light is an environment: under lights the reference has no single scattering).
     const ScatteringComponents components =
         !o.components.empty() ? parseScatteringComponents(o.components)
         : lightMode           ? ScatteringComponents{true, false}
@@ -213,8 +214,8 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
                                                                params.components.value_or(ScatteringComponents::none())
                                                                    .singleScattering};
     if (lightMode && components.singleScattering)
-        throw Error("--components", "single scattering is referenced under environments only (the point-light "
-                                    "renderers have none)");
+        throw Error("--components", "single scattering is referenced under environments only (under lights "
+                                    "prt-pointlight's --single-scattering is checked by its own tests)");
     if (o.perVertex && !components.multipleScattering) warn("--per-vertex applies to multiple scattering only; ignored");
     SingleScatteringReferenceOptions ssOptions = o.ss;
     ssOptions.path = parsePath(o.ssPath);

@@ -169,7 +169,7 @@ void main() {
     }
     findTriangle(int(id - 1u), d);
     if (int(id - 1u) >= uObjectTriangles) {  // the ground: its vertices' Lambertian radiance (groundRadiance)
-        writeColor(interpolated(0), 1.0);
+        writeColor(d.y < 0.0 ? interpolated(0) : vec3(0.0), 1.0);  // its back, seen from below, is black
         return;
     }
     vec3 wo = -d;
