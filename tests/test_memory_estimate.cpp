@@ -107,6 +107,13 @@ TEST(MemoryEstimate, GrowsWithSamplesAndCoefficients) {
     const MemoryEstimate huge = estimatePrecomputeMemory(s, 10000, 20000, 100000, 2, 1e6);
     EXPECT_GT(huge.bytes, 24'000'000'000ull);
     EXPECT_NE(huge.largest.find("cell sub-points"), std::string::npos) << huge.largest;
+    // A ground adds its (cells + 1)^2 vertices' vectors: the largest grid is named.
+    PrecomputeSettings ground = s;
+    ground.ground = GroundSettings{};
+    ground.ground->cells = kMaxGroundCells;
+    const MemoryEstimate withGround = estimatePrecomputeMemory(ground, 10000, 20000, 100000, 2);
+    EXPECT_GT(withGround.bytes, a + 1'000'000'000ull);
+    EXPECT_NE(withGround.largest.find("ground"), std::string::npos) << withGround.largest;
     EXPECT_EQ(formatBytes(41'200'000'000ull), "41.2 GB");
     EXPECT_EQ(formatBytes(830'000'000ull), "830 MB");
 }

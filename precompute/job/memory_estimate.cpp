@@ -40,6 +40,11 @@ MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vert
             ? estimateCellSubPoints(totalAreaMm2, triangles, narrowest, widest, spacing, cellOptions)
             : 0.0;
     const bool graded = editable && cellOptions.gradedPiecesPerDistance > 0.0;
+    // The ground (--ground): its (cells + 1)^2 vertices' RGB vectors, its 2 cells^2
+    // triangles in the scene, and the object + plane mesh copy the scene is built from.
+    const double groundCells = s.ground ? double(s.ground->cells) : 0.0;
+    const double groundVertices = s.ground ? (groundCells + 1.0) * (groundCells + 1.0) : 0.0;
+    const double groundTriangles = 2.0 * groundCells * groundCells;
     const std::vector<std::pair<const char*, double>> parts = {
         // + 36 bytes per triangle of single scattering's corner normals
         {"mesh and ray scene", (s.components.singleScattering ? 286.0 : 250.0) * double(triangles)},
@@ -50,6 +55,8 @@ MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vert
         {"per-vertex results",
          double(vertices) * double(s.vertexCoefficients) * (16.0 * (ms ? channels / 3.0 : 0.0) + 8.0 * terms)},
         {"per-thread workspaces", double(std::max(threads, 1)) * texels * 64.0 * std::max(1.0, channels / 3.0)},
+        {"ground", groundTriangles * 250.0 + groundVertices * (double(s.vertexCoefficients) * 16.0 + 64.0) +
+                       (s.ground ? 40.0 * double(vertices) + 12.0 * double(triangles) : 0.0)},
     };
     MemoryEstimate e;
     double total = 0.0, largest = -1.0;
