@@ -172,10 +172,12 @@ fi
 matches_render orbit 1e-4 "$S/torus.ply -t $S/torus.prt -e $S/sky.exr -W 200 -H 160 --azimuth 40 --elevation 25" \
     "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" -W 200 -H 160 --azimuth 15 --elevation 25 --orbit 5
 
-# 6. Point lights alone (texture-space importance sampling, hybrid, two lights), against
-#    prt-pointlight's per-vertex frame of the same estimator. The file was made at
-#    --size-mm 20 with the default material (Marble).
-P="-W 200 -H 160 --azimuth 30 --elevation 20 --light point:30,40,-25:0.01 --light point:-35,10,30:0,0.004,0.008
+# 6. Point lights alone (texture-space importance sampling, hybrid, a point light and a
+#    spot light whose cone's edge crosses the torus), against prt-pointlight's per-vertex
+#    frame of the same estimator. The file was made at --size-mm 20 with the default
+#    material (Marble).
+P="-W 200 -H 160 --azimuth 30 --elevation 20 --light point:30,40,-25:0.01
+   --light spot:-35,10,30:0.74,-0.21,-0.64:0,0.004,0.008:4,12
    --tsis-samples 300 --tsis-seed 4 --atlas-size 256 --light-map 256"
 echo "--- point lights"
 # shellcheck disable=SC2086
