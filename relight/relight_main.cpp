@@ -103,6 +103,8 @@ int runRender(const RenderOptions& o) {
     const std::string materialLine = applyMaterialEdit(object, look.material, look.sizeMm, o.transport);
     if (look.baseColour) object.baseColour = BaseColour::load(o.mesh, object.mesh);
     const std::string groundLine = attachGround(object, look.ground, o.transport);
+    if (!look.materialMap.empty())
+        object.materialMap = loadMaterialMap(object, o.mesh, look.materialMap, look.mapMaterial, o.transport);
     const ScatteringComponents components =
         selectComponents(look.components, componentsOf(object.transport), o.transport);
     const Camera camera = makeCamera(o.camera, object.sphereCentre, object.sphereRadius);
@@ -125,6 +127,7 @@ int runRender(const RenderOptions& o) {
     if (!materialLine.empty()) std::printf("%s\n", materialLine.c_str());
     if (object.baseColour.enabled()) std::printf("%s\n", object.baseColour.describe().c_str());
     if (!groundLine.empty()) std::printf("%s\n", groundLine.c_str());
+    if (object.materialMap) std::printf("%s\n", describe(*object.materialMap).c_str());
     std::printf("camera: eye (%.4g, %.4g, %.4g) target (%.4g, %.4g, %.4g) fov %.4g, %dx%d, %d spp%s\n",
                 camera.eye.x, camera.eye.y, camera.eye.z, camera.target.x, camera.target.y,
                 camera.target.z, camera.fovY, camera.width, camera.height, o.camera.spp,
@@ -315,6 +318,8 @@ int runView(const ViewOptions& o) {
     const std::string materialLine = applyMaterialEdit(setup.object, o.frame.material, o.frame.sizeMm, o.transport);
     if (o.frame.baseColour) setup.object.baseColour = BaseColour::load(o.mesh, setup.object.mesh);
     const std::string groundLine = attachGround(setup.object, o.frame.ground, o.transport);
+    if (!o.frame.materialMap.empty())
+        throw Error("--material-map", "the viewer does not draw material maps yet (prt-relight render does)");
     setup.meshPath = o.mesh;
     setup.transportPath = o.transport;
     setup.frame = o.frame;

@@ -37,7 +37,15 @@ Image EnvironmentFrameRenderer::render(const Camera& camera, const glm::dmat3& r
     t.lightRelativeL2 = light.relativeL2Error;
 
     clock.restart();
-    relightVertices(object_.transport, light, components_, radiance_);
+    if (object_.materialMap && components_.multipleScattering) {
+        // Everything but multiple scattering, then A's and B's blended per vertex.
+        relightVertices(object_.transport, light, {false, components_.singleScattering}, radiance_);
+        relightVertices(object_.transport, light, {true, false}, first_);
+        relightVertices(object_.materialMap->secondTransport, light, {true, false}, second_);
+        blendMaterialMap(*object_.materialMap, first_.diffuse, second_.diffuse, radiance_);
+    } else {
+        relightVertices(object_.transport, light, components_, radiance_);
+    }
     if (object_.ground) relightVertices(object_.ground->transport, light, {true, false}, groundRadiance_);
     t.relight = clock.milliseconds();
 

@@ -76,6 +76,7 @@ private:
     std::optional<Camera> tracedCamera_;
     VertexRadiance radiance_;
     VertexRadiance groundRadiance_;
+    VertexRadiance first_, second_;  // with a material map: A's and B's multiple scattering
 };
 
 }  // namespace prt

@@ -40,6 +40,16 @@ FrameOptions addFrameOptions(CLI::App& app, FrameSettings& s) {
                    "The ground's transport file (prt-precompute --ground writes <output>.ground.prt): draws the "
                    "diffuse plane under the object with the object's shadow (docs/ground.md)")
         ->group("Scene");
+    CLI::Option* map =
+        app.add_option("--material-map", s.materialMap,
+                       "Editable files only: a texture (PNG or EXR, first channel in [0, 1]) in the asset's texture "
+                       "coordinates; where it is t, --map-material replaces the object's material by t, blended "
+                       "per vertex at the exit point (docs/editable-transport.md, \"Material maps\")")
+            ->group("Material");
+    app.add_option("--map-material", s.mapMaterial, "The material where --material-map is 1 (as --material reads it)")
+        ->group("Material")
+        ->needs(map);
+    map->needs("--map-material");
     addDisplayOptions(app, s.display);
     return o;
 }
@@ -69,6 +79,7 @@ std::string renderArguments(const FrameSettings& s) {
     }
     if (s.baseColour) args += " --base-colour";
     if (!s.ground.empty()) args += " --ground '" + s.ground + "'";
+    if (!s.materialMap.empty()) args += " --material-map '" + s.materialMap + "' --map-material '" + s.mapMaterial + "'";
     return args;
 }
 

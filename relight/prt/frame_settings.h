@@ -37,6 +37,9 @@ struct FrameSettings {
     // --ground: the ground's transport file (prt-precompute --ground; relight/prt/
     // ground_receiver.h), loaded into RelightObject::ground; empty: no ground drawn.
     std::string ground;
+    // --material-map / --map-material: a texture in the asset's texture coordinates and
+    // the material where it is 1 (relight/prt/material_map.h); editable files only.
+    std::string materialMap, mapMaterial;
 };
 
 // The options addFrameOptions declared that a subcommand may tie together

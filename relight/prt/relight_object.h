@@ -12,6 +12,7 @@
 #include "common/transport_file.h"
 #include "relight/prt/editable_transport.h"
 #include "relight/prt/ground_receiver.h"
+#include "relight/prt/material_map.h"
 #include "relight/render/base_colour.h"
 
 namespace prt {
@@ -35,6 +36,7 @@ struct RelightObject {
     std::optional<EditableTransport> editable;  // the file has a radial basis
     BaseColour baseColour;    // --base-colour: tints the translucent exitance (white when off)
     std::optional<GroundReceiver> ground;  // --ground: the plane under the object
+    std::optional<MaterialMap> materialMap;  // --material-map: a second material where the map says
 };
 RelightObject loadRelightObject(const std::string& meshPath, const std::string& transportPath);
 

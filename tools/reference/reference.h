@@ -34,6 +34,8 @@
 
 #include <glm/glm.hpp>
 
+#include <functional>
+
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
@@ -442,6 +444,33 @@ public:
 private:
     const ReferenceComponent& inner_;
     size_t begin_, end_;
+};
+
+// A material map's blend at the exit point (relight/prt/material_map.h, the model the
+// renderers approximate per vertex): (1 - t) first + t second with t = blend(p) in
+// [0, 1] at the pixel's own surface point. The variance is bounded by
+// ((1 - t) sigma_first + t sigma_second)^2 (the two share their irradiance samples, so
+// they are correlated). Both components and the function must outlive it.
+class MaterialBlendComponent : public ReferenceComponent {
+public:
+    MaterialBlendComponent(const ReferenceComponent& first, const ReferenceComponent& second,
+                           std::function<float(const GBufferPixel&)> blend)
+        : first_(first), second_(second), blend_(std::move(blend)) {}
+    std::string name() const override { return first_.name(); }
+    RadianceEstimate radiance(const GBufferPixel& p) const override {
+        const double t = blend_(p);
+        const RadianceEstimate a = first_.radiance(p), b = second_.radiance(p);
+        RadianceEstimate r;
+        r.value = (1.0 - t) * a.value + t * b.value;
+        const glm::dvec3 sigma = (1.0 - t) * glm::sqrt(a.variance) + t * glm::sqrt(b.variance);
+        r.variance = sigma * sigma;
+        return r;
+    }
+
+private:
+    const ReferenceComponent& first_;
+    const ReferenceComponent& second_;
+    std::function<float(const GBufferPixel&)> blend_;
 };
 
 // Shades every object pixel of `g` as the sum of `components` (in parallel, one

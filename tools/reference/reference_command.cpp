@@ -3,6 +3,7 @@
 #include "common/ground.h"
 
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -13,7 +14,9 @@
 #include <string>
 #include <vector>
 
+#include "common/asset_io.h"
 #include "common/bssrdf.h"
+#include "common/material_edit.h"
 #include "common/camera.h"
 #include "common/envmap.h"
 #include "common/error.h"
@@ -230,6 +233,33 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
     // At --spp N the frame is traced N times larger and box-downsampled (supersample.h).
     const Camera camera = supersampledCamera(makeCamera(o.camera, sphere.centre, sphere.radius), subpixels);
     const BaseColour colour = o.baseColour ? BaseColour::load(o.mesh, mesh) : BaseColour();
+    // --material-map: the blend at each pixel's own texture coordinate, written here again
+    // (the renderers blend per vertex; relight/prt/material_map.h).
+    std::optional<Material> mapSecond;
+    std::shared_ptr<const Asset> mapAsset;
+    Image mapImage;
+    if (!o.materialMap.empty()) {
+        if (o.mapMaterial.empty()) throw Error("--material-map", "needs --map-material");
+        if (o.perVertex) throw Error("--material-map", "not with --per-vertex (the blend is per pixel)");
+        if (!components.multipleScattering) throw Error("--material-map", "blends multiple scattering: select it");
+        mapSecond = parseMaterial(o.mapMaterial, material.eta, material.g);
+        mapAsset = std::make_shared<const Asset>(loadAsset(o.mesh));
+        if (mapAsset->uvs.empty()) throw Error(o.mesh, "has no texture coordinates for --material-map");
+        mapImage = readImage(o.materialMap);
+        for (size_t k = 0; k < mapImage.pixels.size(); k += size_t(mapImage.channels))
+            if (!(mapImage.pixels[k] >= 0.0f && mapImage.pixels[k] <= 1.0f))
+                throw Error(o.materialMap, "material map values must lie in [0, 1]");
+        std::printf("material map: %s (%d x %d), %s where it is 1, blended per pixel at the exit point\n",
+                    o.materialMap.c_str(), mapImage.width, mapImage.height, describeMaterial(*mapSecond).c_str());
+    } else if (!o.mapMaterial.empty()) {
+        throw Error("--map-material", "needs --material-map");
+    }
+    const auto mapAt = [&](const GBufferPixel& p) -> float {
+        const glm::vec2* uv = &mapAsset->uvs[3 * size_t(p.triangle)];
+        const glm::vec2 at = p.barycentric.x * uv[0] + p.barycentric.y * uv[1] + p.barycentric.z * uv[2];
+        if (std::isnan(at.x) || std::isnan(at.y)) return 0.0f;
+        return std::clamp(sampleTexture(mapImage, at, TextureWrap::Repeat, TextureWrap::Repeat).r, 0.0f, 1.0f);
+    };
     const Image environment =
         lightMode ? Image() : loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
     const glm::dmat3 rotation = rotationY(o.envRotation);
@@ -381,6 +411,10 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
             std::vector<glm::vec3> positions;
             positions.reserve(run.samples.samples.size());
             for (const SurfaceSample& s : run.samples.samples) positions.push_back(s.position);
+            // With a material map, B's sum over the same samples and irradiance.
+            std::optional<MultipleScatteringReference> second;
+            if (mapSecond)
+                second.emplace(*mapSecond, positions, run.samples.areaPerSample, irradiance);
             MultipleScatteringReference ms(material, std::move(positions), run.samples.areaPerSample,
                                            std::move(irradiance));
             run.litSamples = ms.contributingSamples();
@@ -392,7 +426,10 @@ int runReferenceCommand(const ReferenceCommand& o, ImageWriter& writer) {
             }
             Progress p(label + (perVertex ? "multiple scattering (interpolated)" : "multiple scattering per pixel"),
                        pixels.objectPixels(), "pixels");
-            const TriangleRangeComponent onObject(ms, 0, objectTriangles);
+            std::optional<MaterialBlendComponent> blended;
+            if (second) blended.emplace(ms, *second, mapAt);
+            const TriangleRangeComponent onObject(blended ? static_cast<const ReferenceComponent&>(*blended) : ms, 0,
+                                                  objectTriangles);
             run.frame = renderReference(pixels, {&onObject}, environment, rotation, &p);
             return run;
         };
@@ -556,6 +593,11 @@ void addReferenceOptions(CLI::App& app, ReferenceCommand& o) {
     const std::string objectGroup = "Object (without -t; with -t a material overrides the file's)";
     addMaterialOptions(app, o.material, false, objectGroup);
     addBaseColourOption(app, o.baseColour, objectGroup);
+    app.add_option("--material-map", o.materialMap,
+                   "A texture in the asset's texture coordinates (first channel in [0, 1]): where it is t, "
+                   "--map-material replaces the material by t, blended per pixel at the exit point")
+        ->group(objectGroup);
+    app.add_option("--map-material", o.mapMaterial, "The material where --material-map is 1")->group(objectGroup);
     app.add_option("--ground", o.ground,
                    "The ground's transport file (prt-precompute --ground): traces the plane with the object, its "
                    "shadowed Lambertian radiance per pixel by Monte Carlo (only its plane and albedo are read)")

@@ -38,6 +38,7 @@ struct ReferenceCommand {
     DisplayTransform display;
     bool baseColour = false;  // --base-colour
     std::string ground;       // --ground: the ground's transport file (common/ground.h)
+    std::string materialMap, mapMaterial;  // --material-map, --map-material
     MaterialOptions material;
     bool materialGiven = false;  // any of the material options was given
     ScaleOptions scale;
