@@ -319,7 +319,8 @@ int runView(const ViewOptions& o) {
     if (o.frame.baseColour) setup.object.baseColour = BaseColour::load(o.mesh, setup.object.mesh);
     const std::string groundLine = attachGround(setup.object, o.frame.ground, o.transport);
     if (!o.frame.materialMap.empty())
-        throw Error("--material-map", "the viewer does not draw material maps yet (prt-relight render does)");
+        setup.object.materialMap =
+            loadMaterialMap(setup.object, o.mesh, o.frame.materialMap, o.frame.mapMaterial, o.transport);
     setup.meshPath = o.mesh;
     setup.transportPath = o.transport;
     setup.frame = o.frame;
@@ -332,6 +333,7 @@ int runView(const ViewOptions& o) {
                 setup.object.transport.cubemapSize, loadStart.milliseconds());
     if (!materialLine.empty()) std::printf("%s\n", materialLine.c_str());
     if (!groundLine.empty()) std::printf("%s\n", groundLine.c_str());
+    if (setup.object.materialMap) std::printf("%s\n", describe(*setup.object.materialMap).c_str());
     std::fflush(stdout);
     setup.tsis = o.tsis;
     setup.frames = o.frames;

@@ -312,6 +312,17 @@ if "$PRECOMPUTE" "$S/torus.ply" --size-mm 20 --cubemap-size 8 --samples 2000 --c
         cat "$O/live-edit.view.log"
         fail "live edit: the viewer failed"
     fi
+    # 7b. A material map on the editable file: the torus as a .gltf whose generated
+    #     checker texture (first channel in [0, 1]) is the map, Ketchup where it is 1; the
+    #     relight worker blends per vertex as render does.
+    if "$MAKE_ASSET" "$S/torus.ply" --cells 3 --texture-size 32 -o "$S/torus_map.gltf" > "$O/map.log" 2>&1; then
+        M="$S/torus_map.gltf -t $S/editable.prt -W 256 -H 192 --azimuth 20 --elevation 15
+           --material-map $S/torus_map_basecolor.png --map-material Ketchup"
+        matches_render material_map 1e-4 "$M -e $S/sky.exr" $M -e "$S/sky.exr"
+    else
+        cat "$O/map.log"
+        fail "prt-make-asset (.gltf)"
+    fi
 else
     cat "$O/editable.log"
     fail "material: prt-precompute --editable"

@@ -28,8 +28,11 @@ RelightWorker::RelightWorker(RelightObject& object, const std::vector<Image>& en
 void RelightWorker::combine(LightResult& out) const {
     const size_t V = ssOnly_.diffuse.size();
     if (msDiffuse_.size() != V) throw Error("relight", "inconsistent vertex counts");
-    out.radiance.diffuse.resize(V);
-    for (size_t v = 0; v < V; ++v) out.radiance.diffuse[v] = ssOnly_.diffuse[v] + msDiffuse_[v];
+    out.radiance.diffuse = ssOnly_.diffuse;
+    if (object_.materialMap && mapSecond_.size() == V)
+        blendMaterialMap(*object_.materialMap, msDiffuse_, mapSecond_, out.radiance);
+    else
+        for (size_t v = 0; v < V; ++v) out.radiance.diffuse[v] += msDiffuse_[v];
     out.radiance.terms = ssOnly_.terms;
 }
 
@@ -106,6 +109,12 @@ void RelightWorker::compute(const LightRequest& r, LightResult& out) {
                 relightMs(light);
             else
                 msDiffuse_.assign(ssOnly_.diffuse.size(), glm::vec3(0.0f));
+            mapSecond_.clear();
+            if (object_.materialMap && r.multipleScattering) {  // B's multiple scattering under this light
+                VertexRadiance second;
+                relightVertices(object_.materialMap->secondTransport, light, {true, false}, second);
+                mapSecond_ = std::move(second.diffuse);
+            }
             combine(out);
             light_ = std::move(light);
             lastLight_ = r;

@@ -18,7 +18,9 @@
 //     deferred to the next change of light, so a slider drag pays for one projection
 //     and then only for the weights.
 // Both paths give the same radiance up to the 16-bit quantization of the recombined
-// component (editable_transport.h). A material the basis does not cover (or an invalid
+// component (editable_transport.h). With a material map (RelightObject::materialMap) the
+// multiple scattering is blended per vertex with the map's material B, relit once per
+// light; B keeps the size it was loaded at when the size is edited live. A material the basis does not cover (or an invalid
 // one) is not applied: the result carries the one-line message and the previous
 // material's radiance.
 //
@@ -124,6 +126,7 @@ private:
     VertexRadiance ssOnly_;
     std::vector<glm::vec3> msDiffuse_;
     std::vector<glm::vec3> ground_;  // the ground's radiance under the last light
+    std::vector<glm::vec3> mapSecond_;  // with a material map: B's multiple scattering under it
     bool recombined_ = true;   // the transport's MS component is the editable's material
     bool projected_ = false;   // editable->projectLight(light_) is current
 

@@ -421,6 +421,8 @@ std::string Viewer::renderCommand() const {
     frame.display = {double(state_.exposure), ToneMapOperator(state_.toneMap)};
     frame.baseColour = s_.frame.baseColour;
     frame.ground = s_.frame.ground;
+    frame.materialMap = s_.frame.materialMap;
+    frame.mapMaterial = s_.frame.mapMaterial;
     frame.lightTerms = size_t(std::max(state_.lightTerms, 0));
     const LightRequest r = currentRequest();
     if (r.multipleScattering != available_.multipleScattering || r.singleScattering != available_.singleScattering)
