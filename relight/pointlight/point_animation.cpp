@@ -12,6 +12,7 @@
 #include "common/error.h"
 #include "common/material_edit.h"
 #include "common/util.h"
+#include "relight/pointlight/vertex_surface_terms.h"
 
 namespace prt {
 
@@ -113,13 +114,23 @@ SurfaceTerms renderSurfaceTerms(const GBuffer& g, const TriangleMesh& mesh, cons
     terms.radiance = Image(g.width, g.height, 3, 0.0f);
     if (settings.singleScattering) {
         const Stopwatch t;
-        terms.radiance = singleScatteringImage(g, mesh, scene, lights, material, settings.singleScatteringOptions);
+        terms.radiance =
+            settings.perVertex
+                ? vertexSingleScatteringImage(g, mesh,
+                                              vertexSingleScattering(scene, mesh, lights, material, settings.eye,
+                                                                     settings.singleScatteringOptions),
+                                              material.eta)
+                : singleScatteringImage(g, mesh, scene, lights, material, settings.singleScatteringOptions);
         if (colour) applyBaseColour(terms.radiance, g, *colour);
         terms.singleScatteringSeconds = t.seconds();
     }
     if (settings.specular) {
         const Stopwatch t;
-        const Image specular = specularImage(g, mesh, scene, lights, material.eta, settings.specularRoughness);
+        const Image specular =
+            settings.perVertex
+                ? vertexSpecularImage(g, mesh, lights, vertexLightIrradiance(scene, mesh, lights), material.eta,
+                                      settings.specularRoughness)
+                : specularImage(g, mesh, scene, lights, material.eta, settings.specularRoughness);
         for (size_t i = 0; i < specular.pixels.size(); ++i) terms.radiance.pixels[i] += specular.pixels[i];
         terms.specularSeconds = t.seconds();
     }

@@ -97,6 +97,10 @@ struct SurfaceTermSettings {
     double specularRoughness = kDefaultSpecularRoughness;  // GGX alpha
     bool singleScattering = false;
     PointSingleScatteringOptions singleScatteringOptions{};
+    // Rays at the vertices, interpolated (vertex_surface_terms.h): what the viewer draws,
+    // for prt-pointlight --evaluate vertex; single scattering then is seen from `eye` (mm).
+    bool perVertex = false;
+    glm::dvec3 eye{0.0};
     bool any() const { return specular || singleScattering; }
 };
 

@@ -39,24 +39,17 @@ void validatePointSingleScattering(const PointSingleScatteringOptions& o) {
         throw Error("single scattering", "the depth cap must be finite and > 0 mean free paths");
 }
 
-glm::dvec3 pointSingleScattering(const RayScene& scene, const TriangleMesh& mesh, const std::vector<Light>& lights,
-                                 const Material& material, const SurfacePoint& xo, const glm::dvec3& toViewer,
-                                 const PointSingleScatteringOptions& options) {
+glm::dvec3 singleScatteringAlongRay(const RayScene& scene, const TriangleMesh& mesh, const std::vector<Light>& lights,
+                                    const Material& material, const glm::vec3& xo, const glm::dvec3& woRefracted,
+                                    const PointSingleScatteringOptions& options) {
     const double eta = material.eta;
-    const glm::dvec3 n(xo.normal), ng(xo.geometricNormal);
-    const double cosO = glm::dot(n, toViewer);
-    if (!(cosO > 0.0) || !(glm::dot(ng, toViewer) > 0.0)) return glm::dvec3(0.0);
-    glm::dvec3 woRefracted;
-    if (!refractDirection(toViewer, n, eta, woRefracted)) return glm::dvec3(0.0);
-
     const glm::dvec3 sigmaS = material.sigmaS(), sigmaT = material.sigmaT();
     const double sigma = luminance(sigmaT);  // |sigma_t|, the sampling's extinction
     // The path runs along w_o' into the medium: farSideDistance's "normal" is -w_o'.
-    const FarSide far = farSideDistance(scene, xo.position, -glm::vec3(woRefracted),
-                                        options.depthCapMeanFreePaths / sigma);
+    const FarSide far = farSideDistance(scene, xo, -glm::vec3(woRefracted), options.depthCapMeanFreePaths / sigma);
     if (!(far.distance > 0.0)) return glm::dvec3(0.0);
     // The rule once per thread and count (its Gauss-Legendre nodes come from Newton's
-    // iteration), the samples per pixel.
+    // iteration), the samples per point.
     thread_local std::vector<QuadratureNode> rule;
     thread_local std::vector<PathSample> samples;
     if (rule.size() != size_t(options.pathSamples))
@@ -65,7 +58,7 @@ glm::dvec3 pointSingleScattering(const RayScene& scene, const TriangleMesh& mesh
 
     glm::dvec3 sum(0.0);
     for (const PathSample& ps : samples) {
-        const glm::dvec3 xp = glm::dvec3(xo.position) + ps.distance * woRefracted;
+        const glm::dvec3 xp = glm::dvec3(xo) + ps.distance * woRefracted;
         for (const Light& l : lights) {
             IncidentLight atP;
             if (!incidentLight(l, xp, atP)) continue;
@@ -93,7 +86,20 @@ glm::dvec3 pointSingleScattering(const RayScene& scene, const TriangleMesh& mesh
                           std::exp(-sigmaT[c] * (ps.distance + sPrime));
         }
     }
-    return fresnelTransmittance(eta, cosO) * sum;
+    return sum;
+}
+
+glm::dvec3 pointSingleScattering(const RayScene& scene, const TriangleMesh& mesh, const std::vector<Light>& lights,
+                                 const Material& material, const SurfacePoint& xo, const glm::dvec3& toViewer,
+                                 const PointSingleScatteringOptions& options) {
+    const double eta = material.eta;
+    const glm::dvec3 n(xo.normal), ng(xo.geometricNormal);
+    const double cosO = glm::dot(n, toViewer);
+    if (!(cosO > 0.0) || !(glm::dot(ng, toViewer) > 0.0)) return glm::dvec3(0.0);
+    glm::dvec3 woRefracted;
+    if (!refractDirection(toViewer, n, eta, woRefracted)) return glm::dvec3(0.0);
+    return fresnelTransmittance(eta, cosO) *
+           singleScatteringAlongRay(scene, mesh, lights, material, xo.position, woRefracted, options);
 }
 
 Image singleScatteringImage(const GBuffer& g, const TriangleMesh& mesh, const RayScene& scene,

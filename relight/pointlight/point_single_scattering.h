@@ -62,6 +62,13 @@ struct PointSingleScatteringOptions {
 // and prt::Error("single scattering", ...) for a cap that is not finite and > 0.
 void validatePointSingleScattering(const PointSingleScatteringOptions& options);
 
+// The sum of the formula above (everything after F_t(eta, n_o . w_o)) along the refracted
+// view ray from x_o in the unit direction woRefracted (into the medium). No test on
+// the normals: the caller has made them.
+glm::dvec3 singleScatteringAlongRay(const RayScene& scene, const TriangleMesh& mesh, const std::vector<Light>& lights,
+                                    const Material& material, const glm::vec3& xo, const glm::dvec3& woRefracted,
+                                    const PointSingleScatteringOptions& options = {});
+
 // L^(1) at x_o seen from toViewer (unit, outside), W/(m^2 sr), RGB. The mesh is the
 // scene's (its vertex normals give n_i; the triangle normal without them).
 glm::dvec3 pointSingleScattering(const RayScene& scene, const TriangleMesh& mesh, const std::vector<Light>& lights,

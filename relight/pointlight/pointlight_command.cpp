@@ -108,12 +108,14 @@ void writeCacheImages(ImageWriter& writer, const std::string& output, const Imag
 
 // One line on the surface terms of a single frame (nothing when both are off).
 void printSurfaceTerms(const SurfaceTermSettings& s, const SurfaceTerms& terms) {
+    const char* where = s.perVertex ? "rays at the vertices, interpolated" : "rays per pixel";
     if (s.specular)
-        std::printf("specular: GGX alpha %g, Fresnel F_r at the material's eta, shadowed, untinted; %.3f s\n",
-                    s.specularRoughness, terms.specularSeconds);
+        std::printf("specular: GGX alpha %g, Fresnel F_r at the material's eta, shadowed (%s), untinted; %.3f s\n",
+                    s.specularRoughness, where, terms.specularSeconds);
     if (s.singleScattering)
-        std::printf("single scattering: along the refracted view ray, %d Gauss-Legendre samples, HG phase; %.3f s\n",
-                    s.singleScatteringOptions.pathSamples, terms.singleScatteringSeconds);
+        std::printf("single scattering: along the refracted view ray (%s), %d Gauss-Legendre samples, HG phase; "
+                    "%.3f s\n",
+                    where, s.singleScatteringOptions.pathSamples, terms.singleScatteringSeconds);
 }
 
 // One line on the near field's cells (sample_cells.h), or on the point rule.
@@ -297,6 +299,10 @@ int runTextureSpace(const PointLightCommand& o, ImageWriter& writer, const Trian
     const Material material = animationMaterial(animation, settings.material, 0);
     const TextureSpaceOptions to = textureSpaceOptions(o, settings.fresnel);
     const std::string evaluate = toLower(o.evaluate);
+    // --evaluate vertex: the surface terms as the viewer draws them too (vertex_surface_terms.h).
+    SurfaceTermSettings surface = settings.surface;
+    surface.perVertex = evaluate == "vertex";
+    surface.eye = camera.eye;
 
     const SurfaceAtlas atlas = buildSurfaceAtlas(mesh, o.atlasSize);
     const SurfaceAtlasStats& as = atlas.stats;
@@ -325,14 +331,14 @@ int runTextureSpace(const PointLightCommand& o, ImageWriter& writer, const Trian
     t.restart();
     if (animation.kind == AnimationKind::MaterialPath)
         return runTextureSpaceAnimation(o, writer, animation, renderer, g, evaluate == "vertex", settings.material,
-                                        settings.baseColour, mesh, scene, lights, settings.surface, tGBuffer,
+                                        settings.baseColour, mesh, scene, lights, surface, tGBuffer,
                                         output, start);
     Image image = evaluate == "vertex" ? renderer.renderPerVertex(g) : renderer.render(g);
     if (settings.baseColour) applyBaseColour(image, g, *settings.baseColour);
     const double tEval = t.seconds();
-    const SurfaceTerms terms = renderSurfaceTerms(g, mesh, scene, lights, material, settings.surface, settings.baseColour);
+    const SurfaceTerms terms = renderSurfaceTerms(g, mesh, scene, lights, material, surface, settings.baseColour);
     addSurfaceTerms(image, terms);
-    printSurfaceTerms(settings.surface, terms);
+    printSurfaceTerms(surface, terms);
     std::printf("frame: %d x %d, %zu hit pixels; %zu distinct sample texels of %d draws\n", g.width, g.height,
                 g.objectPixels(), renderer.uniqueSamples(), to.samples);
     std::printf("times: irradiance map %.4f s, shadow maps %.4f s, draws %.4f s, evaluation %.4f s = %.4f s per "
@@ -718,7 +724,8 @@ void addPointLightOptions(CLI::App& app, PointLightCommand& o) {
     app.add_option("--ring-samples", o.tsis.ringSamples, "C, taps per ring of the local filter")
         ->capture_default_str()->group("Texture-space sampling");
     app.add_option("--evaluate", o.evaluate,
-                   "pixel (the sums at every visible point) or vertex (at mesh vertices, interpolated)")
+                   "pixel (the sums at every visible point) or vertex (at mesh vertices, interpolated, and so are "
+                   "the rays of --specular and --single-scattering: what prt-relight view draws)")
         ->capture_default_str()->group("Texture-space sampling");
     app.add_option("--turntable", o.turntable,
                    "Render N frames <prefix>_0000 ... of the object turning 360 degrees about the vertical axis "
