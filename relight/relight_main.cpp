@@ -31,6 +31,8 @@
 #include "common/transport_params.h"
 #include "common/util.h"
 #include "relight/pointlight/point_lights.h"
+#include "relight/pointlight/point_single_scattering.h"
+#include "relight/pointlight/point_specular.h"
 #include "relight/pointlight/surface_atlas.h"
 #include "relight/pointlight/texture_space_sampling.h"
 #include "relight/prt/environment_frame.h"
@@ -219,6 +221,9 @@ struct ViewOptions {
     TextureSpaceOptions tsis;
     int atlasSize = 1024;
     bool noEnvironmentLight = false;
+    bool pointSpecular = false, pointSingleScattering = false;
+    double pointSpecularRoughness = kDefaultSpecularRoughness;
+    int pointSingleScatteringSamples = PointSingleScatteringOptions{}.pathSamples;
 };
 
 void addViewOptions(CLI::App& app, ViewOptions& o) {
@@ -290,6 +295,20 @@ void addViewOptions(CLI::App& app, ViewOptions& o) {
     app.add_option("--importance-bound", o.tsis.importanceBound, "c in mm^-1 (R_p: R_d(r) 2 pi r = c)")
         ->capture_default_str()->group(group);
     app.add_option("--split-sharpness", o.tsis.sharpness, "K in mm^-1")->capture_default_str()->group(group);
+    app.add_flag("--point-specular", o.pointSpecular,
+                 "Start with the point lights' specular on: prt-pointlight's GGX lobe per pixel, each light's "
+                 "shadow traced at the vertices and interpolated (--specular is the environment's layer)")
+        ->group(group);
+    app.add_option("--point-specular-roughness", o.pointSpecularRoughness,
+                   "GGX roughness alpha of the point lights' specular, in (0, 1] (used as given, not squared)")
+        ->capture_default_str()->group(group);
+    app.add_flag("--point-single-scattering", o.pointSingleScattering,
+                 "Start with the point lights' single scattering on: Jensen et al. 2001's term along the refracted "
+                 "view ray, traced at the vertices from the current eye (again when the camera moves)")
+        ->group(group);
+    app.add_option("--point-single-scattering-samples", o.pointSingleScatteringSamples,
+                   "Gauss-Legendre samples along each vertex's refracted view ray, 1 to 256")
+        ->capture_default_str()->group(group);
 }
 
 int runView(const ViewOptions& o) {
@@ -306,6 +325,15 @@ int runView(const ViewOptions& o) {
     if (!std::isfinite(o.lightOrbit)) throw Error("--light-orbit", "must be finite");
     if (o.lightOrbit != 0.0 && o.lights.empty() && o.lightsFile.empty())
         throw Error("--light-orbit", "needs point or directional lights (--light / --lights)");
+    try {
+        validateSpecularRoughness(o.pointSpecularRoughness);
+    } catch (const Error&) {
+        throw Error("--point-specular-roughness",
+                    "the GGX roughness alpha must be in (0, 1], got " + formatParameter(o.pointSpecularRoughness));
+    }
+    if (o.pointSingleScatteringSamples < 1 || o.pointSingleScatteringSamples > 256)
+        throw Error("--point-single-scattering-samples",
+                    "must be from 1 to 256, got " + std::to_string(o.pointSingleScatteringSamples));
     for (const std::string& path : o.screenshots)
         if (path.empty()) throw Error("--screenshot", "empty path");
     // Cheap checks first: the display, the environments' paths.
@@ -360,6 +388,10 @@ int runView(const ViewOptions& o) {
     setup.atlasSize = o.atlasSize;
     validateTextureSpaceOptions(setup.tsis);
     validateAtlasResolution(o.atlasSize);
+    setup.pointSpecular = o.pointSpecular;
+    setup.pointSpecularRoughness = o.pointSpecularRoughness;
+    setup.pointSingleScattering = o.pointSingleScattering;
+    setup.pointSingleScatteringSamples = o.pointSingleScatteringSamples;
     setup.environmentLight = !o.noEnvironmentLight;
     return runViewer(std::move(setup));
 #endif

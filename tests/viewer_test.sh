@@ -22,7 +22,10 @@
 # `prt-pointlight --method tsis --evaluate vertex` of the same lights, N and seed in the
 # same way (the same estimator at the vertices, the same shading per pixel), and after
 # --light-orbit steps must match prt-pointlight with the lights turned by hand (the
-# unturned lights are 68% off).
+# unturned lights are 68% off). With their surface terms (--point-specular,
+# --point-single-scattering) and a camera orbit, they must match prt-pointlight
+# --evaluate vertex --specular --single-scattering seen from the orbit's end (the terms'
+# rays at the vertices in both; single scattering follows the eye).
 # An editable file (prt-precompute --editable) shown with --material and --size-mm must
 # match the render of the command the viewer prints for its final state (which must
 # carry the edit), in the same way; its point lights must match prt-pointlight of the
@@ -212,6 +215,36 @@ else
     cat "$O/orbit.view.log"
     fail "light orbit: the viewer failed"
 fi
+# The point lights' surface terms (GGX specular at alpha 0.5, single scattering), their
+# rays at the vertices, while the camera orbits: three steps of 10 degrees from azimuth
+# 10 end at azimuth 40, so single scattering must have followed the eye to match
+# prt-pointlight --evaluate vertex seen from there.
+PS="-W 200 -H 160 --elevation 20 --light point:30,40,-25:0.01 --light spot:-35,10,30:0.74,-0.21,-0.64:0,0.004,0.008:4,12
+    --tsis-samples 300 --tsis-seed 4 --atlas-size 256 --light-map 256"
+# shellcheck disable=SC2086
+if view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" $PS --azimuth 10 --orbit 10 --point-specular \
+    --point-specular-roughness 0.5 --point-single-scattering --no-environment-light --frames 3 \
+    --screenshot "$O/surface.view.exr" --screenshot "$O/surface.view.png" > "$O/surface.view.log" 2>&1; then
+    grep -E "^point-light" "$O/surface.view.log"
+    # shellcheck disable=SC2086
+    "$POINTLIGHT" "$S/torus.ply" --size-mm 20 -m Marble $PS --azimuth 40 --method tsis --evaluate vertex --specular \
+        --specular-roughness 0.5 --single-scattering -o "$O/surface.render" > "$O/surface.render.log" 2>&1 \
+        || { cat "$O/surface.render.log"; fail "surface terms: prt-pointlight failed"; }
+    agree "surface terms" "$O/surface.view" "$O/surface.render"
+    compare "surface terms: EXR, common object pixels" "$O/surface.view.exr" "$O/surface.render.masked.exr" 1e-4
+    # The terms are there: without them prt-pointlight's frame is another image.
+    # shellcheck disable=SC2086
+    "$POINTLIGHT" "$S/torus.ply" --size-mm 20 -m Marble $PS --azimuth 40 --method tsis --evaluate vertex \
+        -o "$O/surface.none" > /dev/null 2>&1
+    if "$COMPARE" "$O/surface.view.exr" "$O/surface.none.exr" --max-rel-rmse 0.05 > /dev/null 2>&1; then
+        fail "surface terms: the frame looks like the diffusion alone"
+    else
+        pass "surface terms: the frame differs from the diffusion alone"
+    fi
+else
+    cat "$O/surface.view.log"
+    fail "surface terms: the viewer failed"
+fi
 # Both sources together: the environment's light is still there (a different image).
 if view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" $P --frames 2 --screenshot "$O/both.view.exr" \
     > "$O/both.view.log" 2>&1; then
@@ -367,6 +400,10 @@ expect_error "scripted edit after the last frame" "--edit-after: must be" \
     inx "$RELIGHT" view "$S/torus.ply" -t "$S/editable.prt" -e "$S/sky.exr" --frames 5 --edit-after 5 --edit-material Ketchup
 expect_error "light orbit without lights" "--light-orbit: needs point or directional lights" \
     "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --frames 5 --light-orbit 5
+expect_error "point specular roughness out of range" "--point-specular-roughness: the GGX roughness" \
+    "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --frames 1 --point-specular-roughness 0
+expect_error "point single-scattering samples out of range" "--point-single-scattering-samples: must be" \
+    "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --frames 1 --point-single-scattering-samples 0
 expect_error "screenshot without --frames" "needs --frames" \
     "$RELIGHT" view "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --screenshot "$O/x.png"
 

@@ -157,6 +157,13 @@ void drawPointLightPanel(const PanelInputs& in, ViewState& state, PointLightWork
     static const char* kModes[] = {"sampling", "hybrid", "local", "global"};  // TextureSpaceMode order
     ImGui::Combo("R_d by", &state.splitMode, kModes, int(std::size(kModes)));
     ImGui::SliderInt("samples N", &state.pointSamples, 16, 20000, "%d", ImGuiSliderFlags_Logarithmic);
+    // The surface terms, their rays at the vertices (vertex_surface_terms.h).
+    ImGui::Checkbox("specular##point", &state.pointSpecular);
+    ImGui::SameLine();
+    ImGui::Checkbox("single scattering##point", &state.pointSingleScattering);
+    if (state.pointSpecular)
+        ImGui::SliderFloat("GGX alpha", &state.pointSpecularRoughness, 0.01f, 1.0f, "%.3f",
+                           ImGuiSliderFlags_Logarithmic | ImGuiSliderFlags_AlwaysClamp);
     const float radius = float(std::max(in.setup.object.sphereRadius, 1e-3));
     int remove = -1;
     for (int i = 0; i < int(state.lights.size()); ++i) {
@@ -221,6 +228,9 @@ void drawPointLightPanel(const PanelInputs& in, ViewState& state, PointLightWork
                     1e3 * t.irradianceSeconds, 1e3 * t.shadowMapSeconds, 1e3 * t.samplingSeconds, r.evaluationMs);
         ImGui::Text("%zu updates, mean %.1f ms; %zu distinct samples, R_p %.3g mm", in.pointUpdates.count,
                     in.pointUpdates.mean(), r.uniqueSamples, r.rp);
+        if (r.request.specular || r.request.singleScattering)
+            ImGui::Text("rays at the vertices: specular %.1f ms, single scattering %.1f ms (0: kept)", r.specularMs,
+                        r.singleScatteringMs);
     }
     ImGui::BeginDisabled(comparison.running || state.lights.empty() || !state.pointLights);
     if (ImGui::Button("RMSE vs Jensen-Buhler")) {

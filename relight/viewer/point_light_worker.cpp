@@ -9,6 +9,7 @@
 #include "common/image_compare.h"
 #include "common/util.h"
 #include "relight/pointlight/jensen_buhler.h"
+#include "relight/pointlight/vertex_surface_terms.h"
 #include "relight/render/gbuffer.h"
 
 namespace prt {
@@ -17,9 +18,16 @@ bool PointLightRequest::sameLighting(const PointLightRequest& o) const {
     if (lights.size() != o.lights.size()) return false;
     for (size_t i = 0; i < lights.size(); ++i) {
         const Light &a = lights[i], &b = o.lights[i];
-        if (a.type != b.type || a.position != b.position || a.direction != b.direction || a.rgb != b.rgb) return false;
+        if (a.type != b.type || a.position != b.position || a.direction != b.direction || a.rgb != b.rgb ||
+            a.innerDegrees != b.innerDegrees || a.outerDegrees != b.outerDegrees)
+            return false;
     }
     return true;
+}
+
+bool PointLightRequest::sameSurfaceTerms(const PointLightRequest& o) const {
+    if (specular != o.specular || singleScattering != o.singleScattering) return false;
+    return !singleScattering || (singleScatteringSamples == o.singleScatteringSamples && eye == o.eye);
 }
 
 namespace {
@@ -87,6 +95,8 @@ void PointLightWorker::compute(const PointLightRequest& r, PointLightResult& out
     const Material material = r.material.value_or(material_);
     out.material = material;
     // No light, or lights that give nothing: black, and the next request starts afresh.
+    out.lightIrradiance.clear();
+    out.specularMs = out.singleScatteringMs = 0.0;
     auto nothing = [&] {
         out.radiance.assign(mesh_.vertexCount(), glm::vec3(0.0f));
         out.timings = {};
@@ -94,13 +104,19 @@ void PointLightWorker::compute(const PointLightRequest& r, PointLightResult& out
         out.uniqueSamples = 0;
         renderer_.reset();
         current_.reset();
+        diffusion_.clear();
+        lightIrradiance_.clear();
+        singleScattering_.clear();
+        singleScatteringFor_.reset();
         out.totalMs = total.milliseconds();
     };
     if (r.lights.empty()) return nothing();
     ensureAtlas();  // on the first light: a viewer without point lights never pays for it
     bool redrawn = true;  // the draws were redone (a new renderer, new lights, N or seed)
+    const bool newLights = !current_ || !current_->sameLighting(r);
     try {
         validateMaterial(material);
+        if (r.singleScattering) validatePointSingleScattering({.pathSamples = r.singleScatteringSamples});
         checkLightsOutside(*scene_, r.lights);
         // A new eta changes the transmitted irradiance: a new renderer, as a new mode.
         if (!renderer_ || !current_ || current_->mode != r.mode || renderer_->material().eta != material.eta) {
@@ -141,12 +157,41 @@ void PointLightWorker::compute(const PointLightRequest& r, PointLightResult& out
     out.timings = renderer_->timings();
     if (!out.lightsRecomputed) out.timings.irradianceSeconds = out.timings.shadowMapSeconds = 0.0;
     if (!redrawn) out.timings.samplingSeconds = 0.0;
-    const Stopwatch eval;
-    std::vector<glm::vec3> m = renderer_->vertexExitance();
-    const float invPi = float(1.0 / kPi);
-    for (glm::vec3& v : m) v *= invPi;
-    out.radiance = std::move(m);
-    out.evaluationMs = eval.milliseconds();
+    // The sums again only when the diffusion changed (not for a camera move that only
+    // single scattering sees).
+    out.evaluationMs = 0.0;
+    if (redrawn || out.lightsRecomputed || out.materialChanged || diffusion_.size() != mesh_.vertexCount()) {
+        const Stopwatch eval;
+        diffusion_ = renderer_->vertexExitance();
+        const float invPi = float(1.0 / kPi);
+        for (glm::vec3& v : diffusion_) v *= invPi;
+        out.evaluationMs = eval.milliseconds();
+    }
+    out.radiance = diffusion_;
+    if (r.specular) {
+        if (newLights || lightIrradiance_.size() != r.lights.size() * mesh_.vertexCount()) {
+            const Stopwatch t;
+            lightIrradiance_ = vertexLightIrradiance(*scene_, mesh_, r.lights);
+            out.specularMs = t.milliseconds();
+        }
+        out.lightIrradiance = lightIrradiance_;
+    } else {
+        lightIrradiance_.clear();  // made for lights that may change before it is asked for again
+    }
+    if (r.singleScattering) {
+        const bool stale = !singleScatteringFor_ || !singleScatteringFor_->sameLighting(r) ||
+                           !sameCoefficients(singleScatteringFor_->material.value_or(material_), material) ||
+                           singleScatteringFor_->singleScatteringSamples != r.singleScatteringSamples ||
+                           singleScatteringFor_->eye != r.eye;
+        if (stale) {
+            const Stopwatch t;
+            singleScattering_ = vertexSingleScattering(*scene_, mesh_, r.lights, material, r.eye,
+                                                       {.pathSamples = r.singleScatteringSamples});
+            singleScatteringFor_ = r;
+            out.singleScatteringMs = t.milliseconds();
+        }
+        for (size_t v = 0; v < out.radiance.size(); ++v) out.radiance[v] += singleScattering_[v];
+    }
     out.uniqueSamples = renderer_->uniqueSamples();
     out.rp = renderer_->split().rp;
     out.totalMs = total.milliseconds();

@@ -9,6 +9,11 @@
 // F_t(eta, n . w_o), so a pixel shows exactly TextureSpaceRenderer::renderPerVertex's
 // value plus the environment's (both are F_t times per-vertex radiance interpolated
 // barycentrically).
+// The surface terms, when asked for (vertex_surface_terms.h, prt-pointlight --evaluate
+// vertex): single scattering's per-vertex term T, seen from the request's eye, is added
+// to that radiance (the shader's F_t is its outgoing Fresnel factor; the base colour
+// tints it with the diffusion); for the specular the worker hands over each light's
+// shadowed irradiance at the vertices, and the shader evaluates the GGX lobe per pixel.
 //
 // Reuse: a request that changes only N or the seed redraws from the current irradiance
 // map (no shadow rays); a new split mode rebuilds the renderer; new lights recompute
@@ -18,9 +23,12 @@
 // on the existing renderer: R_p, the R_d tables and the local filter are rebuilt, the
 // irradiance map, the draws and the shadow maps are kept, then the per-vertex sums run
 // again. A material with another eta rebuilds the renderer (the transmitted irradiance
-// depends on eta), as a new split mode does.
+// depends on eta), as a new split mode does. The sums run again only when the
+// diffusion changed; the lights' vertex irradiance is traced again for new lights, and
+// single scattering for new lights, a new material, a new eye or sample count (a camera
+// move with single scattering on costs its rays, nothing else).
 //
-// On demand (compare()): the error of the point-light part of the frame a camera sees,
+// On demand (compare()): the error of the point lights' diffusion in the frame a camera sees,
 // with the current material (the last request's), against Jensen-Buhler (face-centroid samples, epsilon 0.05; docs/viewer.md, "Controls"):
 // the per-vertex TSIS frame and the reference are rendered on this thread, after any
 // pending request, and the RMSE of the displayed images (exposure and tone mapping as given) and the
@@ -47,6 +55,7 @@
 #include "common/mesh.h"
 #include "common/tonemap.h"
 #include "relight/pointlight/point_lights.h"
+#include "relight/pointlight/point_single_scattering.h"
 #include "relight/pointlight/texture_space_sampling.h"
 #include "relight/viewer/latest_request_worker.h"
 
@@ -61,19 +70,33 @@ struct PointLightRequest {
     // size edit); nullopt: the material the worker was constructed with. An invalid
     // material makes the result carry the message, with no point-light radiance.
     std::optional<Material> material;
+    // The surface terms, with their rays at the vertices (vertex_surface_terms.h): the
+    // specular's per-light vertex irradiance (the shader evaluates the lobe per pixel)
+    // and single scattering seen from `eye` (mm), added to the per-vertex radiance.
+    bool specular = false;
+    bool singleScattering = false;
+    int singleScatteringSamples = PointSingleScatteringOptions{}.pathSamples;
+    glm::dvec3 eye{0.0};
     uint64_t id = 0;
 
-    bool sameLighting(const PointLightRequest& o) const;  // lights equal (type, position, direction, colour)
+    bool sameLighting(const PointLightRequest& o) const;  // lights equal (type, position, direction, colour, cone)
     // Coefficients, eta and g equal (the name is ignored); both nullopt is the same.
     bool sameMaterial(const PointLightRequest& o) const;
+    // The surface terms asked for alike (the eye only matters to single scattering).
+    bool sameSurfaceTerms(const PointLightRequest& o) const;
     bool sameAs(const PointLightRequest& o) const {
-        return sameLighting(o) && sameMaterial(o) && mode == o.mode && samples == o.samples && seed == o.seed;
+        return sameLighting(o) && sameMaterial(o) && sameSurfaceTerms(o) && mode == o.mode && samples == o.samples &&
+               seed == o.seed;
     }
 };
 
 struct PointLightResult {
     PointLightRequest request;
-    std::vector<glm::vec3> radiance;  // per vertex, M / pi
+    std::vector<glm::vec3> radiance;  // per vertex, M / pi, plus single scattering's T when asked for
+    // With the specular: each light's shadowed irradiance at the vertices, light l's
+    // vertex v at l * V + v (vertexLightIrradiance); empty without it.
+    std::vector<glm::vec3> lightIrradiance;
+    double specularMs = 0.0, singleScatteringMs = 0.0;  // their rays, when this request ran them
     TextureSpaceTimings timings;      // of the last setLights (or redraw)
     double evaluationMs = 0.0;        // the per-vertex sums
     double totalMs = 0.0;             // everything this request needed
@@ -124,6 +147,10 @@ private:
     std::unique_ptr<SurfaceAtlas> atlas_;
     std::unique_ptr<TextureSpaceRenderer> renderer_;
     std::optional<PointLightRequest> current_;  // what renderer_ holds
+    // What the last request computed, kept while its inputs stand: the per-vertex
+    // diffusion M / pi, the lights' vertex irradiance and single scattering (empty: none).
+    std::vector<glm::vec3> diffusion_, lightIrradiance_, singleScattering_;
+    std::optional<PointLightRequest> singleScatteringFor_;  // the request singleScattering_ was made for
 
     mutable std::mutex textMutex_;  // guards the two texts below (written on the worker's thread)
     bool haveComparison_ = false;

@@ -148,8 +148,8 @@ SceneGl::SceneGl(const RelightObject& object, const std::vector<Image>& environm
 
 SceneGl::~SceneGl() {
     destroyTargets();
-    GLuint textures[] = {positions_,      normals_,         triangles_, radiance_[0], radiance_[1], viewMaps_, dummy_,
-                         triangleColours_, cornerUvs_, baseTexture_};
+    GLuint textures[] = {positions_,       normals_,   triangles_,   radiance_[0], radiance_[1],   viewMaps_, dummy_,
+                         triangleColours_, cornerUvs_, baseTexture_, pointLights_, pointIrradiance_};
     glDeleteTextures(GLsizei(std::size(textures)), textures);
     if (!envTextures_.empty()) glDeleteTextures(GLsizei(envTextures_.size()), envTextures_.data());
     if (!prefilteredTextures_.empty())
@@ -319,6 +319,39 @@ void SceneGl::uploadRadiance(const std::vector<glm::vec4>& packed, int slots, co
     radianceAverage_ = area > 0.0 ? sum / area : 0.0;
 }
 
+void SceneGl::uploadPointSpecular(const std::vector<Light>& lights, const std::vector<glm::vec3>& irradiance) {
+    const size_t V = object_.mesh.vertexCount();
+    const int L = int(lights.size());
+    if (irradiance.size() != lights.size() * V)
+        throw Error("point lights", "the lights' vertex irradiance is of another mesh or light count");
+    pointLightCount_ = 0;
+    if (L == 0) return;
+    if (L > pointTextureLights_) {
+        GLint maxSize = 0;
+        glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxSize);
+        if (L > maxSize || int64_t(L) * slotRows_ > maxSize)
+            throw Error("OpenGL", std::to_string(L) + " point lights' specular exceeds this OpenGL's textures");
+        const GLuint old[2] = {pointLights_, pointIrradiance_};
+        glDeleteTextures(2, old);
+        pointLights_ = makeTexture(GL_RGBA32F, L, 1, GL_RGBA, GL_FLOAT, nullptr);
+        pointIrradiance_ = makeTexture(GL_RGBA32F, rowWidth_, L * slotRows_, GL_RGBA, GL_FLOAT, nullptr);
+        pointTextureLights_ = L;
+    }
+    std::vector<glm::vec4> texels(static_cast<size_t>(L));
+    for (int l = 0; l < L; ++l) {
+        const Light& light = lights[size_t(l)];
+        texels[size_t(l)] = hasPosition(light) ? glm::vec4(glm::vec3(light.position), 0.0f)
+                                               : glm::vec4(glm::vec3(light.direction), 1.0f);
+    }
+    uploadRows(pointLights_, L, 0, size_t(L), GL_RGBA, GL_FLOAT, &texels[0].x, 4);
+    std::vector<glm::vec4> rows(V);
+    for (int l = 0; l < L; ++l) {
+        for (size_t v = 0; v < V; ++v) rows[v] = glm::vec4(irradiance[size_t(l) * V + v], 0.0f);
+        uploadRows(pointIrradiance_, rowWidth_, l * slotRows_, V, GL_RGBA, GL_FLOAT, &rows[0].x, 4);
+    }
+    pointLightCount_ = L;
+}
+
 void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
     const Camera& c = frame.camera;
     const glm::dvec3 forward = glm::normalize(c.target - c.eye);
@@ -394,6 +427,9 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
     glUniform1i(glGetUniformLocation(p, "uHasBaseColour"), triangleColours_ ? 1 : 0);
     glUniform2i(glGetUniformLocation(p, "uBaseSize"), baseTextureSize_.x, baseTextureSize_.y);
     glUniform2i(glGetUniformLocation(p, "uBaseWrap"), baseWrap_.x, baseWrap_.y);
+    glUniform1i(glGetUniformLocation(p, "uPointLightCount"), frame.pointSpecular ? pointLightCount_ : 0);
+    glUniform1f(glGetUniformLocation(p, "uPointRoughness"), float(frame.pointSpecularRoughness));
+    glUniform1f(glGetUniformLocation(p, "uPointEta"), float(frame.pointEta));
     const std::pair<const char*, GLuint> textures[] = {
         {"uVisibility", visibility_},
         {"uEnvironment", environmentTexture(env, false)},
@@ -406,6 +442,8 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
         {"uTriangleColours", triangleColours_ ? triangleColours_ : dummy_},
         {"uCornerUvs", cornerUvs_ ? cornerUvs_ : dummy_},
         {"uBaseTexture", baseTexture_ ? baseTexture_ : dummy_},
+        {"uPointLights", pointLights_ ? pointLights_ : dummy_},
+        {"uPointIrradiance", pointIrradiance_ ? pointIrradiance_ : dummy_},
     };
     for (int unit = 0; unit < int(std::size(textures)); ++unit) {
         glActiveTexture(GLenum(GL_TEXTURE0 + unit));

@@ -34,6 +34,7 @@
 #include "common/camera.h"
 #include "common/image.h"
 #include "common/tonemap.h"
+#include "relight/pointlight/point_lights.h"
 #include "relight/prt/relight_object.h"
 
 namespace prt {
@@ -47,6 +48,11 @@ struct SceneFrame {
     int viewTerms = 0;             // K of the uploaded radiance (0: diffuse only)
     bool specular = false;         // the specular layer asked for (its pre-filtered map is bound)
     bool environmentLight = true;  // background and specular layer shown
+    // The point lights' specular (uploadPointSpecular's lights and vertex irradiance):
+    // the GGX lobe of point_specular.h with this alpha and eta, per pixel.
+    bool pointSpecular = false;
+    double pointSpecularRoughness = 0.3;
+    double pointEta = 1.3;
 };
 
 class SceneGl {
@@ -73,6 +79,12 @@ public:
     // vertex radiance (its vertex count, else zeros) into the radiance texture not
     // drawn, which then becomes the one drawn. Does not check for GL errors.
     void uploadRadiance(const std::vector<glm::vec4>& packed, int slots, const std::vector<glm::vec3>& ground = {});
+    // Uploads the point lights of the specular (their positions, or directions toward
+    // them) and each light's shadowed irradiance at the object's vertices, light l's
+    // vertex v at l * V + v (vertexLightIrradiance, vertex_surface_terms.h); no lights:
+    // no point-light specular is drawn. Throws prt::Error("OpenGL", ...) for more lights
+    // than this OpenGL's textures hold, prt::Error("point lights", ...) for a size mismatch.
+    void uploadPointSpecular(const std::vector<Light>& lights, const std::vector<glm::vec3>& irradiance);
 
     // Draws the frame into the window's framebuffer, or into the offscreen targets.
     void draw(const SceneFrame& frame, bool offscreen);
@@ -124,6 +136,10 @@ private:
     double drawnRadius_ = 0.0;
     std::vector<glm::vec4> slot0_;    // scratch: slot 0 of the object and the ground
     double radianceAverage_ = 0.0;    // chang's Radiance_avg of the drawn radiance
+    // The point lights' specular: one texel per light, and their vertex irradiance in
+    // slots of slotRows_ rows as the radiance's.
+    GLuint pointLights_ = 0, pointIrradiance_ = 0;
+    int pointLightCount_ = 0, pointTextureLights_ = 0;
 };
 
 }  // namespace prt

@@ -216,6 +216,9 @@ void Viewer::start() {
     state_.lights = s_.pointLights;
     state_.splitMode = int(s_.tsis.mode);
     state_.pointSamples = s_.tsis.samples;
+    state_.pointSpecular = s_.pointSpecular;
+    state_.pointSpecularRoughness = float(s_.pointSpecularRoughness);
+    state_.pointSingleScattering = s_.pointSingleScattering;
     if (s_.material)
         pointWorker_ = std::make_unique<PointLightWorker>(s_.object.mesh, *s_.material, s_.tsis, s_.atlasSize);
 }
@@ -259,6 +262,10 @@ PointLightRequest Viewer::currentPointRequest() const {
     r.mode = TextureSpaceMode(state_.splitMode);
     r.samples = state_.pointSamples;
     r.seed = s_.tsis.seed;
+    r.specular = state_.pointSpecular;
+    r.singleScattering = state_.pointSingleScattering;
+    r.singleScatteringSamples = s_.pointSingleScatteringSamples;
+    r.eye = state_.camera.eye;
     // A size edit is a material edit at the file's geometry (material_edit.h), as the
     // relight worker applies it.
     if (s_.object.editable)
@@ -333,6 +340,11 @@ void Viewer::uploadCombined() {
     if (point)
         for (size_t v = 0; v < V; ++v) combined_[v] += glm::vec4(pointFront_.radiance[v], 0.0f);
     scene_->uploadRadiance(combined_, slots, env ? front_.ground : std::vector<glm::vec3>());
+    // The specular's lights with the radiance they go with: the screen never mixes two.
+    if (point && !pointFront_.lightIrradiance.empty())
+        scene_->uploadPointSpecular(pointFront_.request.lights, pointFront_.lightIrradiance);
+    else
+        scene_->uploadPointSpecular({}, {});
     displayedTerms_ = env ? std::max(slots - 1, 0) : 0;
     lastUploadMs_ = clock.milliseconds();
     checkGl("uploading relit radiance");
@@ -347,6 +359,9 @@ SceneFrame Viewer::sceneFrame() const {
     f.viewTerms = haveLight_ ? displayedTerms_ : 0;
     f.specular = state_.specular;
     f.environmentLight = state_.environmentLight;
+    f.pointSpecular = state_.pointLights && havePoint_ && pointFront_.request.specular;
+    f.pointSpecularRoughness = state_.pointSpecularRoughness;
+    f.pointEta = pointFront_.material.eta;
     return f;
 }
 
@@ -483,6 +498,13 @@ void Viewer::printSummary(double seconds) const {
                     "last: %.1f ms, N = %d, %s), min %.1f, max %.1f ms\n",
                     pointStats_.count, pointStats_.mean(), pointFront_.totalMs, pointFront_.request.samples,
                     toString(pointFront_.request.mode), pointStats_.min, pointStats_.max);
+    if (pointStats_.count && (state_.pointSpecular || state_.pointSingleScattering))
+        std::printf("point-light surface terms (rays at the vertices): specular %s (GGX alpha %.3g), single "
+                    "scattering %s (%d samples, seen from the eye of the last update); last update's rays: "
+                    "specular %.1f ms, single scattering %.1f ms (0: kept)\n",
+                    state_.pointSpecular ? "on" : "off", double(state_.pointSpecularRoughness),
+                    state_.pointSingleScattering ? "on" : "off", s_.pointSingleScatteringSamples,
+                    pointFront_.specularMs, pointFront_.singleScatteringMs);
     std::fflush(stdout);
 }
 

@@ -53,6 +53,12 @@ struct ViewerSetup {
     std::vector<Light> pointLights;    // initial lights (mm, the object's frame)
     TextureSpaceOptions tsis;          // split mode, N, seed, shadow map, filter
     int atlasSize = 1024;              // irradiance map resolution
+    // Their surface terms at start (vertex_surface_terms.h; prt-pointlight --specular,
+    // --specular-roughness, --single-scattering, --single-scattering-samples).
+    bool pointSpecular = false;
+    double pointSpecularRoughness = 0.3;
+    bool pointSingleScattering = false;
+    int pointSingleScatteringSamples = 8;
     bool environmentLight = true;      // the environment's light (and background) on at start
 
     // Scripting. frames > 0: render this many frames once the first relight has landed

@@ -32,6 +32,11 @@ struct ViewState {
     std::vector<Light> lights;          // point lights, mm in the object's frame
     int splitMode = int(TextureSpaceMode::Hybrid);  // TextureSpaceMode
     int pointSamples = 900;             // N of texture-space importance sampling
+    // The point lights' surface terms (vertex_surface_terms.h): the GGX specular with
+    // its roughness alpha, and single scattering (recomputed when the camera moves).
+    bool pointSpecular = false;
+    float pointSpecularRoughness = 0.3f;
+    bool pointSingleScattering = false;
     // The object's material and size (files made with prt-precompute --editable; the
     // panel's "material" section). Only edits the basis covers get here: eta is the
     // file's, sizeMm > 0. Both the environment's relight and the point lights use them.

@@ -21,6 +21,11 @@ uniform sampler2D uCornerUvs;        // RGBA32F, corner k of triangle t at index
 uniform sampler2D uBaseTexture;      // RGBA32F, linear, row 0 the top of the image (v = 1)
 uniform ivec2 uBaseSize;             // its width, height
 uniform ivec2 uBaseWrap;             // TextureWrap per axis: 0 repeat, 1 clamp to edge, 2 mirrored repeat
+uniform int uPointLightCount;        // the point lights' specular: its lights (0: none)
+uniform sampler2D uPointLights;      // RGBA32F, light l at (l, 0): position mm (w = 0) or direction toward it (w = 1)
+uniform sampler2D uPointIrradiance;  // RGBA32F, light l's shadowed irradiance at vertex v in slot l (uSlotRows rows)
+uniform float uPointRoughness;       // GGX alpha
+uniform float uPointEta;
 
 ivec3 gTriangle;
 vec3 gBarycentric;
@@ -110,6 +115,55 @@ bool refractDirection(vec3 w, vec3 n, float eta, out vec3 wt) {
     return true;
 }
 
+// specularBrdf (point_specular.cpp): GGX with the exact Fresnel reflectance at w_i . h.
+float ggxMasking(float a2, float c) { return 2.0 * c / (c + sqrt(a2 + (1.0 - a2) * c * c)); }
+float specularBrdf(vec3 n, vec3 wi, vec3 wo) {
+    float cosI = dot(n, wi), cosO = dot(n, wo);
+    if (!(cosI > 0.0) || !(cosO > 0.0)) return 0.0;
+    vec3 sum = wi + wo;
+    float len = length(sum);
+    if (!(len > 0.0)) return 0.0;
+    vec3 h = sum / len;
+    float cosH = dot(n, h);
+    if (!(cosH > 0.0)) return 0.0;
+    float a2 = uPointRoughness * uPointRoughness;
+    float d = cosH * cosH * (a2 - 1.0) + 1.0;
+    float D = a2 / (kPi * d * d);
+    return fresnelReflectance(uPointEta, dot(wi, h)) * D * ggxMasking(a2, cosI) * ggxMasking(a2, cosO) /
+           (4.0 * cosI * cosO);
+}
+
+// vertexSpecular (vertex_surface_terms.cpp): the lobe per pixel, each light's shadowed
+// irradiance interpolated from the triangle's vertices.
+vec3 pointSpecular(vec3 n, vec3 wo) {
+    vec3 p0 = texelFetch(uPositions, at(gTriangle.x), 0).xyz;
+    vec3 p1 = texelFetch(uPositions, at(gTriangle.y), 0).xyz;
+    vec3 p2 = texelFetch(uPositions, at(gTriangle.z), 0).xyz;
+    vec3 x = gBarycentric.x * p0 + gBarycentric.y * p1 + gBarycentric.z * p2;
+    vec3 c = cross(p1 - p0, p2 - p0);
+    float cl = length(c);
+    vec3 ng = cl > 0.0 ? c / cl : vec3(0.0);
+    vec3 sum = vec3(0.0);
+    for (int l = 0; l < uPointLightCount; ++l) {
+        vec4 light = texelFetch(uPointLights, ivec2(l, 0), 0);
+        vec3 wi = light.xyz;
+        if (light.w < 0.5) {
+            vec3 dl = light.xyz - x;
+            float len = length(dl);
+            if (!(len > 0.0)) continue;
+            wi = dl / len;
+        }
+        float cosI = dot(n, wi);
+        if (!(cosI > 0.0) || !(dot(ng, wi) > 0.0)) continue;
+        int row = l * uSlotRows;
+        vec3 e = gBarycentric.x * texelFetch(uPointIrradiance, ivec2(gTriangle.x % uRowWidth, row + gTriangle.x / uRowWidth), 0).rgb +
+                 gBarycentric.y * texelFetch(uPointIrradiance, ivec2(gTriangle.y % uRowWidth, row + gTriangle.y / uRowWidth), 0).rgb +
+                 gBarycentric.z * texelFetch(uPointIrradiance, ivec2(gTriangle.z % uRowWidth, row + gTriangle.z / uRowWidth), 0).rgb;
+        sum += specularBrdf(n, wi, wo) * cosI * e;
+    }
+    return sum;
+}
+
 // directionToFaceUV (cubemap.cpp), ties to X before Y before Z.
 void faceUV(vec3 d, out int face, out float s, out float t) {
     float ax = abs(d.x), ay = abs(d.y), az = abs(d.z);
@@ -159,7 +213,8 @@ vec3 background(vec3 d) {
     return texture(uEnvironment, vec2(u, v)).rgb;
 }
 
-// TranslucentShader::shade (+ specularReflection when uSpecular) on object pixels.
+// TranslucentShader::shade (+ specularReflection when uSpecular, + the point lights'
+// specular when uPointLightCount > 0) on object pixels.
 void main() {
     vec3 d = rayDirection();
     uint id = texelFetch(uVisibility, ivec2(gl_FragCoord.xy), 0).r;
@@ -194,6 +249,7 @@ void main() {
         L = (1.0 - fr) * max(sum, vec3(0.0));
         if (uHasBaseColour) L *= baseColour(int(id - 1u));
         if (uSpecular) L += fr * latLongRadiance(uPrefiltered, 2.0 * cosO * n - wo);
+        if (uPointLightCount > 0) L += pointSpecular(n, wo);
     }
     writeColor(L, 1.0);
 }
