@@ -8,6 +8,7 @@
 #include <cctype>
 #include <charconv>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 
@@ -94,6 +95,16 @@ bool cpuHasAvx512() {
 #else
     return false;
 #endif
+}
+
+std::string shellQuote(const std::string& s) {
+    const auto safe = [](unsigned char c) {
+        return std::isalnum(c) || std::strchr("_./:=,+-@%", c) != nullptr;
+    };
+    if (!s.empty() && std::all_of(s.begin(), s.end(), [&](char c) { return c != '\0' && safe(c); })) return s;
+    std::string out = "'";
+    for (const char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return out + "'";
 }
 
 std::string formatBytes(uint64_t bytes) {

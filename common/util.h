@@ -1,6 +1,6 @@
 #pragma once
 // Small helpers that several modules need, in one place: the constant pi, ASCII
-// lowercasing, trimming, splitting and number lists, memory sizes (available memory, "41.2 GB"), RGB triples as text, the
+// lowercasing, trimming, splitting and number lists, shell quoting, memory sizes (available memory, "41.2 GB"), RGB triples as text, the
 // median, the CPU's AVX2 + FMA support, and a wall-clock stopwatch for the per-stage
 // times the tools report.
 
@@ -36,6 +36,11 @@ uint64_t availableMemoryBytes();
 
 // "41.2 GB", "830 MB", "12 kB" (decimal units).
 std::string formatBytes(uint64_t bytes);
+
+// s as one word of a POSIX shell command line (the commands the tools print for a user
+// to paste): unchanged when it is non-empty and holds only letters, digits and
+// _ . / : = , + - @ %; otherwise in single quotes, each ' written as '\''.
+std::string shellQuote(const std::string& s);
 
 // An RGB triple (or any 3-vector) as the tools print it: each component as printf's
 // %.<significantDigits>g, joined by `separator`; formatRgb({0.5, 1, 2}) is "0.5, 1, 2".

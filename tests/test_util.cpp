@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -48,4 +49,23 @@ TEST(Util, CpuAvx2FmaAgreesWithTheKernelsFlags) {
     }
     EXPECT_EQ(prt::cpuHasAvx2Fma(), avx2 && fma);
     EXPECT_EQ(prt::cpuHasAvx512(), avx2 && fma && f512 && bw && vl);
+}
+
+// Round trip through a real shell: the quoted word comes back as the string itself.
+TEST(Util, ShellQuoteRoundTripsThroughTheShell) {
+    EXPECT_EQ(prt::shellQuote("data/meshes/bunny.off"), "data/meshes/bunny.off");
+    EXPECT_EQ(prt::shellQuote("sigma:0.1,0.2,0.3:1,2,3"), "sigma:0.1,0.2,0.3:1,2,3");
+    EXPECT_EQ(prt::shellQuote(""), "''");
+    EXPECT_EQ(prt::shellQuote("it's"), "'it'\\''s'");
+    for (const std::string s : {std::string("a b"), std::string("it's here"), std::string("$HOME `x` \"q\" \\ *"),
+                                std::string("''"), std::string("semi;colon|pipe&amp"), std::string("")}) {
+        const std::string command = "printf '%s' " + prt::shellQuote(s);
+        FILE* p = popen(command.c_str(), "r");
+        ASSERT_NE(p, nullptr);
+        std::string out;
+        char buf[256];
+        for (size_t n; (n = fread(buf, 1, sizeof buf, p)) > 0;) out.append(buf, n);
+        EXPECT_EQ(pclose(p), 0);
+        EXPECT_EQ(out, s) << command;
+    }
 }

@@ -52,7 +52,8 @@ namespace prt {
 std::vector<glm::vec3> vertexLightIrradiance(const RayScene& scene, const TriangleMesh& mesh,
                                              const std::vector<Light>& lights);
 
-// L_s at a G-buffer pixel (a hit) from vertexLightIrradiance's values.
+// L_s at a G-buffer pixel (a hit) from vertexLightIrradiance's values, which must hold
+// lights.size() * mesh.vertexCount() entries (vertexSpecularImage checks it).
 glm::dvec3 vertexSpecular(const TriangleMesh& mesh, const std::vector<Light>& lights,
                           const std::vector<glm::vec3>& lightIrradiance, const GBufferPixel& pixel, double eta,
                           double alpha);

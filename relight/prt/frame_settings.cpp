@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "common/error.h"
+#include "common/util.h"
 #include "common/options.h"
 
 namespace prt {
@@ -72,14 +73,15 @@ std::string renderArguments(const FrameSettings& s) {
         args += " --specular";
         if (s.specularBlur > 0) args += " --specular-blur " + std::to_string(s.specularBlur);
     }
-    if (!s.material.empty()) args += " --material '" + s.material + "'";
+    if (!s.material.empty()) args += " --material " + shellQuote(s.material);
     if (s.sizeMm > 0.0) {
         std::snprintf(buf, sizeof buf, " --size-mm=%.9g", s.sizeMm);
         args += buf;
     }
     if (s.baseColour) args += " --base-colour";
-    if (!s.ground.empty()) args += " --ground '" + s.ground + "'";
-    if (!s.materialMap.empty()) args += " --material-map '" + s.materialMap + "' --map-material '" + s.mapMaterial + "'";
+    if (!s.ground.empty()) args += " --ground " + shellQuote(s.ground);
+    if (!s.materialMap.empty())
+        args += " --material-map " + shellQuote(s.materialMap) + " --map-material " + shellQuote(s.mapMaterial);
     return args;
 }
 

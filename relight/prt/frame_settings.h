@@ -63,8 +63,10 @@ void checkFrameSettings(const FrameSettings& s);
 // " --env-rotation=R --exposure=E" (%.9g; '=' so negative values parse), then
 // " --tonemap T" unless T is clamp, " -L N"
 // when N > 0, " --components C" unless C is "all", " --specular" followed by
-// " --specular-blur F" (F > 0) when the layer is on, and " --material 'M'" /
-// " --size-mm=S" when set, " --base-colour" when on, " --ground 'G'" when set.
+// " --specular-blur F" (F > 0) when the layer is on, and " --material M" /
+// " --size-mm=S" when set, " --base-colour" when on, " --ground G" and
+// " --material-map MAP --map-material B" when set; M, G, MAP and B as shellQuote
+// writes them (common/util.h), so the text pastes into a shell as it is.
 std::string renderArguments(const FrameSettings& s);
 
 }  // namespace prt

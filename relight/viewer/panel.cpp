@@ -162,7 +162,7 @@ void drawPointLightPanel(const PanelInputs& in, ViewState& state, PointLightWork
     ImGui::SameLine();
     ImGui::Checkbox("single scattering##point", &state.pointSingleScattering);
     if (state.pointSpecular)
-        ImGui::SliderFloat("GGX alpha", &state.pointSpecularRoughness, 0.01f, 1.0f, "%.3f",
+        ImGui::SliderFloat("GGX alpha", &state.pointSpecularRoughness, 0.001f, 1.0f, "%.3f",
                            ImGuiSliderFlags_Logarithmic | ImGuiSliderFlags_AlwaysClamp);
     const float radius = float(std::max(in.setup.object.sphereRadius, 1e-3));
     int remove = -1;

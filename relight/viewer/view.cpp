@@ -141,6 +141,7 @@ private:
     PointLightComparison comparison_;
     RunningStats pointStats_;
     bool uploadDirty_ = false, uploadedEnvOn_ = true, uploadedPointOn_ = true;
+    uint64_t uploadedSpecularId_ = 0;  // the point-light result whose specular is uploaded (0: none)
     std::vector<glm::vec4> combined_;
 
     // The window first: the scene's GL objects go before its context.
@@ -340,11 +341,23 @@ void Viewer::uploadCombined() {
     if (point)
         for (size_t v = 0; v < V; ++v) combined_[v] += glm::vec4(pointFront_.radiance[v], 0.0f);
     scene_->uploadRadiance(combined_, slots, env ? front_.ground : std::vector<glm::vec3>());
-    // The specular's lights with the radiance they go with: the screen never mixes two.
-    if (point && !pointFront_.lightIrradiance.empty())
-        scene_->uploadPointSpecular(pointFront_.request.lights, pointFront_.lightIrradiance);
-    else
-        scene_->uploadPointSpecular({}, {});
+    // The specular's lights with the radiance they go with (the screen never mixes two),
+    // uploaded once per point-light result.
+    const uint64_t specularId = point && !pointFront_.lightIrradiance.empty() ? pointFront_.request.id : 0;
+    if (specularId != uploadedSpecularId_) {
+        uploadedSpecularId_ = specularId;
+        try {
+            if (specularId)
+                scene_->uploadPointSpecular(pointFront_.request.lights, pointFront_.lightIrradiance);
+            else
+                scene_->uploadPointSpecular({}, {});
+        } catch (const Error& e) {  // more lights than this OpenGL's textures hold: the specular goes off
+            scene_->uploadPointSpecular({}, {});
+            state_.pointSpecular = false;
+            status_ = std::string("point-light specular off: ") + e.what();
+            warn(status_);
+        }
+    }
     displayedTerms_ = env ? std::max(slots - 1, 0) : 0;
     lastUploadMs_ = clock.milliseconds();
     checkGl("uploading relit radiance");
@@ -425,9 +438,9 @@ std::string Viewer::renderCommand() const {
         return std::string(buf);
     };
     char buf[128];
-    std::string cmd = "prt-relight render " + s_.meshPath + " -t " + s_.transportPath + " -e " +
-                      s_.environments[size_t(state_.environment)] + " --eye=" + vec(c.eye) + " --target=" +
-                      vec(c.target) + " --up=" + vec(c.up);
+    std::string cmd = "prt-relight render " + shellQuote(s_.meshPath) + " -t " + shellQuote(s_.transportPath) +
+                      " -e " + shellQuote(s_.environments[size_t(state_.environment)]) + " --eye=" + vec(c.eye) +
+                      " --target=" + vec(c.target) + " --up=" + vec(c.up);
     std::snprintf(buf, sizeof buf, " --fov %.9g -W %d -H %d", c.fovY, c.width, c.height);
     cmd += buf;
     if (s_.subpixels > 1) cmd += " --spp " + std::to_string(s_.subpixels * s_.subpixels);
@@ -498,12 +511,13 @@ void Viewer::printSummary(double seconds) const {
                     "last: %.1f ms, N = %d, %s), min %.1f, max %.1f ms\n",
                     pointStats_.count, pointStats_.mean(), pointFront_.totalMs, pointFront_.request.samples,
                     toString(pointFront_.request.mode), pointStats_.min, pointStats_.max);
-    if (pointStats_.count && (state_.pointSpecular || state_.pointSingleScattering))
+    const PointLightRequest& shown = pointFront_.request;
+    if (pointStats_.count && (shown.specular || shown.singleScattering))
         std::printf("point-light surface terms (rays at the vertices): specular %s (GGX alpha %.3g), single "
                     "scattering %s (%d samples, seen from the eye of the last update); last update's rays: "
                     "specular %.1f ms, single scattering %.1f ms (0: kept)\n",
-                    state_.pointSpecular ? "on" : "off", double(state_.pointSpecularRoughness),
-                    state_.pointSingleScattering ? "on" : "off", s_.pointSingleScatteringSamples,
+                    shown.specular ? "on" : "off", double(state_.pointSpecularRoughness),
+                    shown.singleScattering ? "on" : "off", shown.singleScatteringSamples,
                     pointFront_.specularMs, pointFront_.singleScatteringMs);
     std::fflush(stdout);
 }
