@@ -1,5 +1,7 @@
 #include "common/options.h"
 
+#include <CLI/CLI.hpp>
+
 #include <tbb/global_control.h>
 
 #include <algorithm>

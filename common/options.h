@@ -7,7 +7,7 @@
 // - the object: its material and physical scale (prt-precompute, prt-pointlight);
 // and the one way every tool parses its command line (parseCommandLine).
 
-#include <CLI/CLI.hpp>
+#include "common/cli_fwd.h"
 #include <tbb/global_control.h>
 #include <glm/glm.hpp>
 

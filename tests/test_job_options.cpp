@@ -1,6 +1,8 @@
 // Job options: a JSON job parses exactly like the same options on the command line.
 #include <gtest/gtest.h>
 
+#include <CLI/CLI.hpp>
+
 #include <unistd.h>
 
 #include <filesystem>

@@ -13,6 +13,7 @@
 #include "common/image_compare.h"
 #include "common/mesh_io.h"
 #include "common/shapes.h"
+#include "tests/command_line_support.h"
 #include "tests/test_support.h"
 
 using namespace prt;

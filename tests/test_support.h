@@ -3,8 +3,6 @@
 
 #include <gtest/gtest.h>
 
-#include <CLI/CLI.hpp>
-
 #include <functional>
 #include <map>
 #include <new>
@@ -84,15 +82,5 @@ struct MemoryImageWriter : ImageWriter {
     void exr(const std::string& path, const Image& image) override { images[path] = image; }
     void png(const std::string& path, const Image& image, const DisplayTransform*) override { images[path] = image; }
 };
-
-// A command's options parsed from `args` (no program name) by its declarations.
-template <typename Command>
-Command parseCommand(void (*declare)(CLI::App&, Command&), const std::vector<std::string>& args) {
-    CLI::App app;
-    Command command;
-    declare(app, command);
-    app.parse(std::vector<std::string>(args.rbegin(), args.rend()));
-    return command;
-}
 
 }  // namespace prt::test

@@ -1,5 +1,7 @@
 #include "precompute/job/job_options.h"
 
+#include <CLI/CLI.hpp>
+
 #include <algorithm>
 #include <fstream>
 

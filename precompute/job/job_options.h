@@ -6,7 +6,7 @@
 // values strings, numbers, arrays of numbers, or true / false for a flag ("editable": true);
 // job keys override the defaults.
 
-#include <CLI/CLI.hpp>
+#include "common/cli_fwd.h"
 #include <nlohmann/json.hpp>
 
 #include <optional>

@@ -2,6 +2,8 @@
 // options (parsed by the same declarations, so names, defaults, checks and messages are
 // the tool's), and the images the tool would write come back as arrays.
 
+#include <CLI/CLI.hpp>
+
 #include <cmath>
 #include <map>
 

@@ -1,6 +1,8 @@
 #include "relight/pointlight/pointlight_command.h"
 
 
+#include <CLI/CLI.hpp>
+
 #include <algorithm>
 
 #include <chrono>

@@ -28,7 +28,7 @@
 // the tool's summary lines on stdout and hands every image to an ImageWriter: files for
 // prt-pointlight, memory for the Python module, the same images either way.
 
-#include <CLI/CLI.hpp>
+#include "common/cli_fwd.h"
 
 #include <cstdint>
 #include <optional>

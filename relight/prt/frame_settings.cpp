@@ -2,6 +2,8 @@
 
 #include "relight/prt/frame_settings.h"
 
+#include <CLI/CLI.hpp>
+
 #include <cmath>
 #include <cstdio>
 

@@ -9,7 +9,7 @@
 // option), validate it with checkFrameSettings, and the viewer writes its state back as
 // render options with renderArguments.
 
-#include <CLI/CLI.hpp>
+#include "common/cli_fwd.h"
 
 #include <cstddef>
 #include <string>

@@ -3,6 +3,8 @@
 #include "common/ground.h"
 
 
+#include <CLI/CLI.hpp>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
