@@ -1,6 +1,7 @@
 // Fuzz target: the command-line parsers of every executable, through their real main
-// functions (compiled a second time with main renamed: prt-precompute, prt-relight,
-// prt-pointlight, prt-reference, prt-compare, prt-envcheck, prt-merge). The first input byte picks
+// functions, renamed prt_<program>_main (prt_executable's MAIN objects: prt-precompute,
+// prt-pointlight, prt-reference, prt-compare, prt-envcheck, prt-merge; prt-relight's
+// compiled again without the viewer). The first input byte picks
 // the program ('0'..'5' in the text seeds), the rest are its arguments, one per line.
 //
 // Run it in an empty directory (tools/fuzz.sh does): no argument list the fuzzer can
