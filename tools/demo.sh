@@ -18,7 +18,8 @@ timed() {
 }
 
 step "installing packages";  timed "$root/tools/setup.sh"
-step "building";             timed "$root/tools/build.sh"
+step "building (the four programs the demo runs)"
+timed "$root/tools/build.sh" prt-precompute prt-relight prt-reference prt-compare
 step "fetching data";        timed "$root/tools/fetch-data.sh"
 mkdir -p "$out" "$out/compare"
 
