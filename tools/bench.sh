@@ -7,7 +7,11 @@
 #   3. prt-precompute: multiple + isotropic single scattering of dragon res4 with
 #      --summary-json (pass 2 and single-scattering time per vertex, kd-tree nodes
 #      visited per vertex, peak memory after each pass, file size per vertex);
-#   4. prt-bench-relight-file: light vector and relight time per frame of that file.
+#   4. prt-bench-relight-file: light vector and relight time per frame of that file;
+#   5. prt-bench-tsis: point lights by texture-space importance sampling (Chang et al.
+#      2008's goal row: dragon res4, hybrid, N = 900, 512 x 512, per vertex as the
+#      viewer): the time per new light position split into its stages, and a material
+#      change (setMaterial) with the sums after it.
 # Prints one Markdown table (with the command of each row) and writes it to
 # out/bench/summary.md; raw outputs are kept in out/bench/*.log and *.json.
 set -euo pipefail
@@ -18,7 +22,7 @@ Usage: tools/bench.sh [--no-build] [--out DIR]
 
 Builds (Release, into $BUILD_DIR, default build/) the benchmark tools, runs every
 benchmark of SPEC section 8 and prints one Markdown table of the results, also
-written to DIR/summary.md (DIR default out/bench). Takes about 3 minutes on 2 cores
+written to DIR/summary.md (DIR default out/bench). Takes about 4 minutes on 2 cores
 plus the build. Needs the fetched data (tools/fetch-data.sh) and python3.
 
   --no-build   use the binaries already in $BUILD_DIR
@@ -56,7 +60,7 @@ fi
 command -v python3 >/dev/null 2>&1 || { echo "bench: python3 is needed for the report (apt-get install python3)" >&2; exit 1; }
 
 # --- build ------------------------------------------------------------------
-targets=(bench_relight prt-bench-pass1 prt-precompute prt-bench-relight-file)
+targets=(bench_relight prt-bench-pass1 prt-precompute prt-bench-relight-file prt-bench-tsis)
 if [ "$do_build" = 1 ]; then
   echo "bench: building ${targets[*]} (Release) in $build"
   cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
@@ -68,7 +72,8 @@ bench_relight=$b/bin/bench_relight
 bench_pass1=$b/bin/prt-bench-pass1
 precompute=$b/bin/prt-precompute
 bench_file=$b/bin/prt-bench-relight-file
-for exe in "$bench_relight" "$bench_pass1" "$precompute" "$bench_file"; do
+bench_tsis=$b/bin/prt-bench-tsis
+for exe in "$bench_relight" "$bench_pass1" "$precompute" "$bench_file" "$bench_tsis"; do
   [ -x "$exe" ] || { echo "bench: $exe not built (run without --no-build, or tools/build.sh)" >&2; exit 1; }
 done
 
@@ -106,6 +111,8 @@ rm -f "$out/precompute.json"
 run precompute "$precompute" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 --material Marble \
   --components ms,ss -f -q --summary-json "$o/precompute.json" -o "$o/dragon4_ms_ss.prt"
 run relight_file "$bench_file" "$o/dragon4_ms_ss.prt" -e data/envmaps/forest.exr --json "$o/relight_file.json"
+run tsis "$bench_tsis" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 -m Skin2 --light point:-20,40,-60:0.04 \
+  -W 512 -H 512 --split hybrid --samples 900 --repeat 7 --material-change Skin1 --json "$o/tsis.json"
 echo "load_end=$(cut -d' ' -f1-3 /proc/loadavg)" >>"$out/meta.txt"
 rm -f "$out/dragon4_ms_ss.prt"
 

@@ -4,7 +4,7 @@
 Usage: tools/bench_report.py OUT_DIR
 
 Reads OUT_DIR/{meta.txt, commands.tsv, relight.json, pass1.log, precompute.json,
-relight_file.json}, prints one Markdown table with the command of each row and writes
+relight_file.json, tsis.json}, prints one Markdown table with the command of each row and writes
 it to OUT_DIR/summary.md.
 """
 
@@ -177,6 +177,27 @@ def main():
             f"{fmt(rf['light_ms_median'])} / {fmt(rf['light_ms_median_from_image'])} ms "
             f"({rf['light_ms_median'] / rf['light_ms_median_from_image']:.2f}); preparing the environment "
             f"{fmt(rf['environment_prepare_ms'])} ms once", "", "relight_file")
+
+    tsis_path = os.path.join(out, "tsis.json")
+    if os.path.exists(tsis_path):
+        t = load_json(tsis_path)
+        r = t["rows"][0]
+        where = (f"{os.path.basename(t['mesh'])}, {t['triangles']:,} triangles, {t['material']}, {t['split']}, "
+                 f"N = {r['samples']}, {t['width']} x {t['height']}, per {t['evaluate']}")
+        row(f"point light by texture-space sampling ({where}): time per new light position (irradiance map + "
+            "shadow maps + draws + per-vertex sums; median of the runs), light positions per second",
+            f"{fmt(r['frame_ms'])} ms ({fmt(r['irradiance_ms'])} + {fmt(r['shadow_maps_ms'])} + "
+            f"{fmt(r['draws_ms'])} + {fmt(r['sums_ms'])}); {fmt(1e3 / r['frame_ms'])} per second",
+            ">= 30 per second (Chang et al.'s goal row)", "tsis")
+        change = t.get("material_change", {})
+        key = f"tsis {t['split']} setMaterial"
+        if key in change:
+            sums = next((v for k, v in change.items() if k.startswith(f"tsis {t['split']} per-vertex sums")), None)
+            row("point lights: a material change (setMaterial: R_d tables, R_p, local filter) and the per-vertex "
+                "sums after it, median (min .. max)",
+                f"{fmt(change[key]['median_ms'])} ms ({fmt(change[key]['min_ms'])} .. {fmt(change[key]['max_ms'])})"
+                + (f" + {fmt(sums['median_ms'])} ms" if sums else ""),
+                "<= 20 ms before the next frame", "tsis")
 
     lines = [
         f"Measured {meta.get('date', '?')} on {meta.get('cpu', '?')} ({meta.get('threads', '?')} threads, "
