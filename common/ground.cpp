@@ -131,8 +131,12 @@ GroundDescription readGroundDescription(const std::string& path, const MeshFinge
 
 std::string groundTransportPath(const std::string& objectTransportPath) {
     std::filesystem::path p(objectTransportPath);
-    p.replace_extension(".ground.prt");
-    return p.string();
+    // Only ".prt" is replaced: "x.v1" and "x.v2" must not share "x.ground.prt".
+    if (toLower(p.extension().string()) == ".prt") {
+        p.replace_extension(".ground.prt");
+        return p.string();
+    }
+    return objectTransportPath + ".ground.prt";
 }
 
 }  // namespace prt

@@ -105,8 +105,10 @@ GroundDescription readGroundDescription(const std::string& path, const MeshFinge
                                         uint32_t cubemapSize, uint32_t shTerms,
                                         const std::string& objectTransportPath);
 
-// Where a precompute writes the ground's transport file: the object's output path
-// with its extension replaced by ".ground.prt" ("out/bunny.prt" -> "out/bunny.ground.prt").
+// Where a precompute writes the ground's transport file: the object's output path with
+// its ".prt" extension replaced by ".ground.prt" ("out/bunny.prt" -> "out/bunny.ground.prt"),
+// or ".ground.prt" appended to any other ("out/bunny.v2" -> "out/bunny.v2.ground.prt"), so
+// outputs that differ only in another extension get different ground files.
 std::string groundTransportPath(const std::string& objectTransportPath);
 
 }  // namespace prt

@@ -96,6 +96,9 @@ TEST(Ground, CombinedMeshKeepsTheObjectFirstAndTellsTheGroundsTriangles) {
     EXPECT_NEAR(5.0 - beside.t, plane.height, 1e-5);
     EXPECT_EQ(groundTransportPath("out/bunny.prt"), "out/bunny.ground.prt");
     EXPECT_EQ(groundTransportPath("x"), "x.ground.prt");
+    EXPECT_EQ(groundTransportPath("out/Bunny.PRT"), "out/Bunny.ground.prt");
+    EXPECT_EQ(groundTransportPath("out/bunny.v1"), "out/bunny.v1.ground.prt");
+    EXPECT_NE(groundTransportPath("out/bunny.v1"), groundTransportPath("out/bunny.v2"));
 }
 
 }  // namespace
