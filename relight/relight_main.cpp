@@ -325,15 +325,8 @@ int runView(const ViewOptions& o) {
     if (!std::isfinite(o.lightOrbit)) throw Error("--light-orbit", "must be finite");
     if (o.lightOrbit != 0.0 && o.lights.empty() && o.lightsFile.empty())
         throw Error("--light-orbit", "needs point or directional lights (--light / --lights)");
-    try {
-        validateSpecularRoughness(o.pointSpecularRoughness);
-    } catch (const Error&) {
-        throw Error("--point-specular-roughness",
-                    "the GGX roughness alpha must be in (0, 1], got " + formatParameter(o.pointSpecularRoughness));
-    }
-    if (o.pointSingleScatteringSamples < 1 || o.pointSingleScatteringSamples > 256)
-        throw Error("--point-single-scattering-samples",
-                    "must be from 1 to 256, got " + std::to_string(o.pointSingleScatteringSamples));
+    validateSpecularRoughness(o.pointSpecularRoughness, "--point-specular-roughness");
+    validatePointSingleScattering({.pathSamples = o.pointSingleScatteringSamples}, "--point-single-scattering-samples");
     for (const std::string& path : o.screenshots)
         if (path.empty()) throw Error("--screenshot", "empty path");
     // Cheap checks first: the display, the environments' paths.

@@ -72,7 +72,9 @@ TEST(VertexSurfaceTerms, SpecularIsThePerPixelOneWhereEveryVertexIsLit) {
     EXPECT_LT(worst, 1e-5);
     // A vertex facing away from the light is shadowed by its own sphere.
     for (size_t v = 0; v < sphere.vertexCount(); ++v)
-        if (glm::dot(glm::dvec3(sphere.normals[v]), lights[0].direction) < -0.05) EXPECT_EQ(s[v], glm::vec3(0.0f));
+        if (glm::dot(glm::dvec3(sphere.normals[v]), lights[0].direction) < -0.05) {
+            EXPECT_EQ(s[v], glm::vec3(0.0f));
+        }
 }
 
 // At a vertex the term is pointSingleScattering there (its outgoing Fresnel factor

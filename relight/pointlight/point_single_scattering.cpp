@@ -32,9 +32,9 @@ glm::dvec3 entryNormal(const TriangleMesh& mesh, const Hit& h, const glm::dvec3&
 
 }  // namespace
 
-void validatePointSingleScattering(const PointSingleScatteringOptions& o) {
+void validatePointSingleScattering(const PointSingleScatteringOptions& o, const char* samplesOption) {
     if (o.pathSamples < 1 || o.pathSamples > 256)
-        throw Error("--single-scattering-samples", "must be from 1 to 256, got " + std::to_string(o.pathSamples));
+        throw Error(samplesOption, "must be from 1 to 256, got " + std::to_string(o.pathSamples));
     if (!std::isfinite(o.depthCapMeanFreePaths) || !(o.depthCapMeanFreePaths > 0.0))
         throw Error("single scattering", "the depth cap must be finite and > 0 mean free paths");
 }

@@ -58,9 +58,11 @@ struct PointSingleScatteringOptions {
     int pathSamples = 8;                // N Gauss-Legendre nodes along the refracted view ray
     double depthCapMeanFreePaths = 16.0;  // d_m when the ray leaves nothing (open mesh), in 1 / |sigma_t|
 };
-// Throws prt::Error("--single-scattering-samples", ...) unless 1 <= pathSamples <= 256,
+// Throws prt::Error(samplesOption, ...) unless 1 <= pathSamples <= 256 (samplesOption
+// names the setting: prt-relight view's is --point-single-scattering-samples),
 // and prt::Error("single scattering", ...) for a cap that is not finite and > 0.
-void validatePointSingleScattering(const PointSingleScatteringOptions& options);
+void validatePointSingleScattering(const PointSingleScatteringOptions& options,
+                                   const char* samplesOption = "--single-scattering-samples");
 
 // The sum of the formula above (everything after F_t(eta, n_o . w_o)) along the refracted
 // view ray from x_o in the unit direction woRefracted (into the medium). No test on

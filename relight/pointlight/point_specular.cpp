@@ -12,11 +12,11 @@
 
 namespace prt {
 
-void validateSpecularRoughness(double alpha) {
+void validateSpecularRoughness(double alpha, const char* option) {
     if (std::isfinite(alpha) && alpha > 0.0 && alpha <= 1.0) return;
     char buf[120];
     std::snprintf(buf, sizeof buf, "the GGX roughness alpha must be in (0, 1], got %g", alpha);
-    throw Error("--specular-roughness", buf);
+    throw Error(option, buf);
 }
 
 double ggxDistribution(double alpha, double cosH) {

@@ -44,9 +44,10 @@ namespace prt {
 // --specular-roughness's default (a satin-like highlight).
 inline constexpr double kDefaultSpecularRoughness = 0.3;
 
-// Throws prt::Error("--specular-roughness", ...) unless 0 < alpha <= 1 (finite). Below
+// Throws prt::Error(option, ...) unless 0 < alpha <= 1 (finite); option names the
+// setting in the message (prt-relight view's is --point-specular-roughness). Below
 // ~0.01 the lobe is a near-mirror that a point light turns into a sub-pixel highlight.
-void validateSpecularRoughness(double alpha);
+void validateSpecularRoughness(double alpha, const char* option = "--specular-roughness");
 
 // The lobe's factors (cosines as above; 0 for a non-positive cosine).
 double ggxDistribution(double alpha, double cosH);

@@ -16,20 +16,6 @@ void requireVertexNormals(const TriangleMesh& mesh) {
         throw Error("per-vertex surface terms", "the mesh has no vertex normals");
 }
 
-// The unit direction from x toward the light (a directional light's own); false for a
-// light at x.
-bool towardLight(const Light& l, const glm::dvec3& x, glm::dvec3& w) {
-    if (!hasPosition(l)) {
-        w = l.direction;
-        return true;
-    }
-    const glm::dvec3 d = l.position - x;
-    const double len = glm::length(d);
-    if (!(len > 0.0)) return false;
-    w = d / len;
-    return true;
-}
-
 }  // namespace
 
 std::vector<glm::vec3> vertexLightIrradiance(const RayScene& scene, const TriangleMesh& mesh,
@@ -61,8 +47,9 @@ glm::dvec3 vertexSpecular(const TriangleMesh& mesh, const std::vector<Light>& li
     const glm::dvec3 b(px.barycentric);
     glm::dvec3 sum(0.0);
     for (size_t l = 0; l < lights.size(); ++l) {
-        glm::dvec3 wi;
-        if (!towardLight(lights[l], x, wi)) continue;
+        IncidentLight in;  // its direction from the pixel; the irradiance is the vertices'
+        if (!incidentLight(lights[l], x, in)) continue;
+        const glm::dvec3& wi = in.toLight;
         const double cosI = glm::dot(n, wi);
         if (!(cosI > 0.0) || !(glm::dot(ng, wi) > 0.0)) continue;
         const glm::vec3* s = &lightIrradiance[l * V];
