@@ -185,6 +185,43 @@ TEST(Shards, MergedShardsAreTheSingleProcessFileByteForByte) {
     fs::remove_all(dir);
 }
 
+// Editable shards (radial profiles, one shared index list per vertex) merge like any
+// other: the basis is each shard's own and must agree.
+TEST(Shards, EditableShardsMergeToTheSingleProcessFileByteForByte) {
+    Progress::setQuiet(true);
+    const fs::path dir = tempDir() / "editable";
+    fs::create_directories(dir);
+    PrecomputeSettings whole = smallJob(dir);
+    whole.components = parseScatteringComponents("ms");
+    whole.editable.enabled = true;
+    whole.editable.materials = {"Skin1", "Marble"};
+    whole.outputPath = (dir / "whole.prt").string();
+    precomputeTransport(whole, true);
+    ASSERT_TRUE(loadTransportFile(whole.outputPath).radialBasis);
+
+    std::vector<std::string> parts;
+    for (int i = 0; i < 3; ++i) {
+        PrecomputeSettings s = whole;
+        s.shard = ShardSpec{i, 3};
+        s.outputPath = (dir / ("part" + std::to_string(i) + ".prt")).string();
+        precomputeTransport(s, true);
+        parts.push_back(s.outputPath);
+    }
+    const fs::path merged = dir / "merged.prt";
+    saveTransportFile(merged.string(), mergeShards(parts));
+    EXPECT_EQ(bytesOf(merged), bytesOf(whole.outputPath));
+
+    // A shard whose basis differs (another material range, same everything else the
+    // check reads first) is refused by name.
+    TransportFile foreign = loadTransportFile(parts[2]);
+    foreign.radialBasis->range.zrMax *= 1.5;
+    const std::string foreignPath = (dir / "foreign.prt").string();
+    saveTransportFile(foreignPath, foreign);
+    EXPECT_EQ(errorOf([&] { mergeShards({parts[0], parts[1], foreignPath}); }),
+              foreignPath + ": does not belong with " + parts[0] + ": different radial basis (editable profiles)");
+    fs::remove_all(dir);
+}
+
 TEST(Shards, UpToDateCheckTellsShardsFromWholeFiles) {
     Progress::setQuiet(true);
     const fs::path dir = tempDir() / "uptodate";

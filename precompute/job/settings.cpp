@@ -130,7 +130,6 @@ void validateSettings(const PrecomputeSettings& s) {
             throw Error("--editable-grading", "must be 0 (off) or between 2 and 64, got " + fmt(g));
         if (s.blockCoefficients > 0)
             throw Error("--editable", "blocked components (--block-coefficients) are not editable yet");
-        if (s.shard) throw Error("--editable", "shard files are not editable yet (prt-merge does not join them)");
         const double lo = s.editable.sizeMinMm, hi = s.editable.sizeMaxMm;
         if (!(lo == 0.0 && hi == 0.0) && !(lo > 0.0 && hi >= lo && std::isfinite(hi)))
             throw Error("--editable-sizes", "needs 0 < S0 <= S1 mm, got " + fmt(lo) + ":" + fmt(hi));

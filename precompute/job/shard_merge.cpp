@@ -72,6 +72,9 @@ void checkSameJob(const TransportFile& first, const std::string& firstPath, cons
         if (f.components[c].kind != first.components[c].kind || f.components[c].term != first.components[c].term)
             differ("components");
     if (f.viewMaps != first.viewMaps) differ("view maps");
+    // Every shard builds the job's radial basis itself (deterministic), so editable
+    // shards of one job carry the same one.
+    if (f.radialBasis != first.radialBasis) differ("radial basis (editable profiles)");
 }
 
 }  // namespace
@@ -109,6 +112,7 @@ TransportFile mergeShards(const std::vector<std::string>& paths) {
             whole.mmPerUnit = f.mmPerUnit;
             whole.parameters = withoutShardParameters(f.parameters);
             whole.viewMaps = f.viewMaps;
+            whole.radialBasis = f.radialBasis;
             for (const TransportComponent& c : f.components) {
                 TransportComponent empty;
                 empty.kind = c.kind;

@@ -4,7 +4,9 @@
 // byte (tests/test_distribution.cpp).
 //
 // The shards must belong together: the same mesh fingerprint, cubemap size, scale,
-// components, view maps and parameters (input_digest included) apart from the shard's
+// components, view maps, radial basis (editable files: the profiles' components are
+// joined like any other, their shared index lists stay shared) and parameters
+// (input_digest included) apart from the shard's
 // own two; one shard count n; every index 0..n-1 exactly once; each shard's vertex
 // range the one evenRange gives for its index, with no coefficients outside it. A
 // missing, duplicated or foreign shard is a prt::Error naming the file (or the
