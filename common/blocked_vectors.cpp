@@ -26,6 +26,35 @@ const char* kSubject = "blocked transport vectors";
 
 }  // namespace
 
+void quantizeBlock(const float* rgb, size_t count, size_t split, uint32_t lanes, int8_t* values, float* scales,
+                   float* shScales) {
+    const auto scaleOf = [&](uint32_t lane, int c, size_t begin, size_t end) {
+        float maxAbs = 0.0f;
+        for (size_t n = begin; n < end; ++n) maxAbs = std::max(maxAbs, std::fabs(rgb[(n * lanes + lane) * 3 + c]));
+        // A maximum below 127 * FLT_MIN (subnormal scale) is stored as zero.
+        return double(maxAbs) < kInt8Max * double(std::numeric_limits<float>::min())
+                   ? 0.0f
+                   : float(double(maxAbs) / kInt8Max);
+    };
+    for (int c = 0; c < 3; ++c)
+        for (uint32_t lane = 0; lane < kVertexBlock; ++lane) {
+            const bool used = lane < lanes;
+            scales[16 * c + lane] = used ? scaleOf(lane, c, 0, split) : 0.0f;
+            shScales[16 * c + lane] = used ? scaleOf(lane, c, split, count) : 0.0f;
+        }
+    for (size_t n = 0; n < count; ++n)
+        for (uint32_t lane = 0; lane < kVertexBlock; ++lane)
+            for (int c = 0; c < 3; ++c) {
+                int q = 0;
+                const float s = n < split ? scales[16 * c + lane] : shScales[16 * c + lane];
+                if (lane < lanes && s > 0.0f) {
+                    const double r = std::nearbyint(double(rgb[(n * lanes + lane) * 3 + c]) / double(s));
+                    q = int(std::clamp(r, -kInt8Max, kInt8Max));
+                }
+                values[n * kBlockValuesPerIndex + 16 * size_t(c) + lane] = int8_t(q);
+            }
+}
+
 void BlockedRgbVectors::appendBlock(const std::vector<uint32_t>& idx, const std::vector<float>& rgb,
                                     const std::vector<uint32_t>& laneVertices) {
     const uint32_t lanes = uint32_t(laneVertices.size());
@@ -52,41 +81,15 @@ void BlockedRgbVectors::appendBlock(const std::vector<uint32_t>& idx, const std:
 
     // The SH indices (>= shFrom) are the last ones: [split, idx.size()).
     const size_t split = size_t(std::lower_bound(idx.begin(), idx.end(), shFrom) - idx.begin());
-    float scale[3][kVertexBlock] = {}, shScale[3][kVertexBlock] = {};
-    const auto scaleOf = [&](uint32_t lane, int c, size_t begin, size_t end) {
-        float maxAbs = 0.0f;
-        for (size_t n = begin; n < end; ++n) maxAbs = std::max(maxAbs, std::fabs(rgb[(n * lanes + lane) * 3 + c]));
-        // A maximum below 127 * FLT_MIN (subnormal scale) is stored as zero.
-        return double(maxAbs) < kInt8Max * double(std::numeric_limits<float>::min())
-                   ? 0.0f
-                   : float(double(maxAbs) / kInt8Max);
-    };
-    for (uint32_t lane = 0; lane < lanes; ++lane)
-        for (int c = 0; c < 3; ++c) {
-            scale[c][lane] = scaleOf(lane, c, 0, split);
-            shScale[c][lane] = scaleOf(lane, c, split, idx.size());
-        }
+    float scale[kBlockValuesPerIndex], shScale[kBlockValuesPerIndex];
     const size_t base = indices.size();
     indices.insert(indices.end(), idx.begin(), idx.end());
     values.resize((base + idx.size()) * kBlockValuesPerIndex, 0);
-    for (size_t n = 0; n < idx.size(); ++n)
-        for (uint32_t lane = 0; lane < lanes; ++lane)
-            for (int c = 0; c < 3; ++c) {
-                int q = 0;
-                const float s = n < split ? scale[c][lane] : shScale[c][lane];
-                if (s > 0.0f) {
-                    const double r = std::nearbyint(double(rgb[(n * lanes + lane) * 3 + c]) / double(s));
-                    q = int(std::clamp(r, -kInt8Max, kInt8Max));
-                }
-                values[(base + n) * kBlockValuesPerIndex + 16 * size_t(c) + lane] = int8_t(q);
-            }
+    quantizeBlock(rgb.data(), idx.size(), split, lanes, &values[base * kBlockValuesPerIndex], scale, shScale);
     if (offsets.empty()) offsets.push_back(0);
     offsets.push_back(uint32_t(indices.size()));
-    for (int c = 0; c < 3; ++c)
-        for (uint32_t lane = 0; lane < kVertexBlock; ++lane) scales.push_back(scale[c][lane]);
-    if (shFrom != UINT32_MAX)
-        for (int c = 0; c < 3; ++c)
-            for (uint32_t lane = 0; lane < kVertexBlock; ++lane) shScales.push_back(shScale[c][lane]);
+    scales.insert(scales.end(), scale, scale + kBlockValuesPerIndex);
+    if (shFrom != UINT32_MAX) shScales.insert(shScales.end(), shScale, shScale + kBlockValuesPerIndex);
     for (uint32_t lane = 0; lane < lanes; ++lane) {
         const uint32_t v = laneVertices[lane];
         if (v >= slotOf.size()) slotOf.resize(size_t(v) + 1, UINT32_MAX);
@@ -133,37 +136,46 @@ size_t BlockedRgbVectors::byteSize() const {
 
 namespace {
 
-// One block of the joint truncation: its chosen indices and the lanes' values there.
+// One block of the joint truncation: its chosen indices and, per component, the lanes'
+// values there.
 struct Block {
     std::vector<uint32_t> idx;
-    std::vector<float> rgb;  // (n * lanes + lane) * 3 + c
+    std::vector<std::vector<float>> rgb;  // per component: (n * lanes + lane) * 3 + c
     std::vector<uint32_t> lanes;  // the block's vertices
 };
 
-Block chooseBlock(const SparseRgbVectors& src, const uint32_t* laneVertices, uint32_t lanes, size_t keep,
-                  uint32_t forcedFrom) {
+Block chooseBlock(const std::vector<const SparseRgbVectors*>& src, const uint32_t* laneVertices, uint32_t lanes,
+                  size_t keep, uint32_t forcedFrom) {
+    const size_t C = src.size();
     Block out;
     out.lanes.assign(laneVertices, laneVertices + lanes);
-    std::vector<uint32_t> idx[kVertexBlock];
-    std::vector<float> rgb[kVertexBlock];
+    // [component * 16 + lane]
+    std::vector<std::vector<uint32_t>> idx(C * kVertexBlock);
+    std::vector<std::vector<float>> rgb(C * kVertexBlock);
     // Union of the supports, each vertex's energy-normalised contribution per index.
     std::vector<uint32_t> all;
-    for (uint32_t lane = 0; lane < lanes; ++lane) {
-        src.dequantizeVertex(laneVertices[lane], idx[lane], rgb[lane]);
-        all.insert(all.end(), idx[lane].begin(), idx[lane].end());
-    }
+    for (size_t k = 0; k < C; ++k)
+        for (uint32_t lane = 0; lane < lanes; ++lane) {
+            src[k]->dequantizeVertex(laneVertices[lane], idx[k * kVertexBlock + lane], rgb[k * kVertexBlock + lane]);
+            all.insert(all.end(), idx[k * kVertexBlock + lane].begin(), idx[k * kVertexBlock + lane].end());
+        }
     std::sort(all.begin(), all.end());
     all.erase(std::unique(all.begin(), all.end()), all.end());
     std::vector<double> score(all.size(), 0.0);
     for (uint32_t lane = 0; lane < lanes; ++lane) {
         double energy = 0.0;
-        for (float x : rgb[lane]) energy += double(x) * x;
+        for (size_t k = 0; k < C; ++k)
+            for (float x : rgb[k * kVertexBlock + lane]) energy += double(x) * x;
         if (energy <= 0.0) continue;
-        for (size_t n = 0; n < idx[lane].size(); ++n) {
-            const size_t at = size_t(std::lower_bound(all.begin(), all.end(), idx[lane][n]) - all.begin());
-            double e = 0.0;
-            for (int c = 0; c < 3; ++c) e += double(rgb[lane][3 * n + c]) * rgb[lane][3 * n + c];
-            score[at] += e / energy;
+        for (size_t k = 0; k < C; ++k) {
+            const std::vector<uint32_t>& li = idx[k * kVertexBlock + lane];
+            const std::vector<float>& lv = rgb[k * kVertexBlock + lane];
+            for (size_t n = 0; n < li.size(); ++n) {
+                const size_t at = size_t(std::lower_bound(all.begin(), all.end(), li[n]) - all.begin());
+                double e = 0.0;
+                for (int c = 0; c < 3; ++c) e += double(lv[3 * n + c]) * lv[3 * n + c];
+                score[at] += e / energy;
+            }
         }
     }
     // Indices >= forcedFrom (SH terms) come first whatever their score.
@@ -180,17 +192,20 @@ Block chooseBlock(const SparseRgbVectors& src, const uint32_t* laneVertices, uin
                 order.end());
     std::sort(order.begin(), order.end());
     out.idx.resize(order.size());
-    out.rgb.assign(order.size() * lanes * 3, 0.0f);
     for (size_t n = 0; n < order.size(); ++n) out.idx[n] = all[order[n]];
-    for (uint32_t lane = 0; lane < lanes; ++lane) {
-        // Both lists are sorted: one merge.
-        size_t n = 0;
-        for (size_t m = 0; m < idx[lane].size() && n < out.idx.size(); ++m) {
-            while (n < out.idx.size() && out.idx[n] < idx[lane][m]) ++n;
-            if (n < out.idx.size() && out.idx[n] == idx[lane][m])
-                for (int c = 0; c < 3; ++c) out.rgb[(n * lanes + lane) * 3 + c] = rgb[lane][3 * m + c];
+    out.rgb.assign(C, std::vector<float>(order.size() * lanes * 3, 0.0f));
+    for (size_t k = 0; k < C; ++k)
+        for (uint32_t lane = 0; lane < lanes; ++lane) {
+            const std::vector<uint32_t>& li = idx[k * kVertexBlock + lane];
+            const std::vector<float>& lv = rgb[k * kVertexBlock + lane];
+            // Both lists are sorted: one merge.
+            size_t n = 0;
+            for (size_t m = 0; m < li.size() && n < out.idx.size(); ++m) {
+                while (n < out.idx.size() && out.idx[n] < li[m]) ++n;
+                if (n < out.idx.size() && out.idx[n] == li[m])
+                    for (int c = 0; c < 3; ++c) out.rgb[k][(n * lanes + lane) * 3 + c] = lv[3 * m + c];
+            }
         }
-    }
     return out;
 }
 
@@ -198,8 +213,19 @@ Block chooseBlock(const SparseRgbVectors& src, const uint32_t* laneVertices, uin
 
 BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
                                 const std::vector<uint32_t>& order, uint32_t forcedFrom) {
+    return std::move(jointTruncateShared({&perVertex}, keep, order, forcedFrom).front());
+}
+
+std::vector<BlockedRgbVectors> jointTruncateShared(const std::vector<const SparseRgbVectors*>& components,
+                                                   size_t keep, const std::vector<uint32_t>& order,
+                                                   uint32_t forcedFrom) {
     if (keep < 1) throw Error(kSubject, "a block must keep at least one coefficient");
-    const size_t vertices = perVertex.vertexCount();
+    if (components.empty()) throw Error(kSubject, "no components to truncate jointly");
+    const size_t vertices = components.front()->vertexCount();
+    for (const SparseRgbVectors* c : components)
+        if (c->vertexCount() != vertices)
+            throw Error(kSubject, "components of " + std::to_string(c->vertexCount()) + " and " +
+                                      std::to_string(vertices) + " vertices cannot share blocks");
     if (order.size() != vertices) throw Error(kSubject, "block order of " + std::to_string(order.size()) +
                                                             " vertices for " + std::to_string(vertices));
     {
@@ -215,23 +241,27 @@ BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
         for (size_t b = r.begin(); b != r.end(); ++b) {
             const size_t first = b * kVertexBlock;
             const uint32_t lanes = uint32_t(std::min<size_t>(kVertexBlock, vertices - first));
-            chosen[b] = chooseBlock(perVertex, order.data() + first, lanes, keep, forcedFrom);
+            chosen[b] = chooseBlock(components, order.data() + first, lanes, keep, forcedFrom);
         }
     });
-    BlockedRgbVectors out;
     size_t total = 0;
+    uint32_t shFrom = UINT32_MAX;
     for (const Block& b : chosen) {
         total += b.idx.size();
         // SH scales only where there is an SH part (not for single-scattering components).
-        if (!b.idx.empty() && b.idx.back() >= forcedFrom) out.shFrom = forcedFrom;
+        if (!b.idx.empty() && b.idx.back() >= forcedFrom) shFrom = forcedFrom;
     }
-    out.offsets.reserve(blocks + 1);
-    out.indices.reserve(total);
-    out.values.reserve(total * kBlockValuesPerIndex);
-    out.scales.reserve(blocks * kBlockValuesPerIndex);
-    if (out.shFrom != UINT32_MAX) out.shScales.reserve(blocks * kBlockValuesPerIndex);
+    std::vector<BlockedRgbVectors> out(components.size());
+    for (BlockedRgbVectors& o : out) {
+        o.shFrom = shFrom;
+        o.offsets.reserve(blocks + 1);
+        o.indices.reserve(total);
+        o.values.reserve(total * kBlockValuesPerIndex);
+        o.scales.reserve(blocks * kBlockValuesPerIndex);
+        if (shFrom != UINT32_MAX) o.shScales.reserve(blocks * kBlockValuesPerIndex);
+    }
     for (Block& b : chosen) {
-        out.appendBlock(b.idx, b.rgb, b.lanes);
+        for (size_t k = 0; k < out.size(); ++k) out[k].appendBlock(b.idx, b.rgb[k], b.lanes);
         b = Block();
     }
     return out;

@@ -51,6 +51,15 @@ struct SparseRgbVectors;
 inline constexpr uint32_t kVertexBlock = 16;  // vertices per block (lanes)
 inline constexpr size_t kBlockValuesPerIndex = 3 * kVertexBlock;  // 48 int8 per index
 
+// The quantization of one block (QUANTIZATION above; appendBlock's): its `count`
+// indices' values rgb[(n * lanes + lane) * 3 + c] for `lanes` (1..16) vertices, the
+// indices from `split` on being the SH part (split = count without one), into
+// values[48 n + 16 c + lane] (48 per index), scales and shScales (48 each: [16 c +
+// lane]); padding lanes get zero values and scales. For writers that fill the arrays of
+// many blocks in parallel; the values must be finite (appendBlock checks).
+void quantizeBlock(const float* rgb, size_t count, size_t split, uint32_t lanes, int8_t* values, float* scales,
+                   float* shScales);
+
 // Bound of |v - dequantized v| / max_n |v_nc| for blocked values.
 inline constexpr double kBlockQuantizationMaxRelativeError = 0.5 / 127.0 + 1.0 / 8388608.0;
 
@@ -132,6 +141,17 @@ std::vector<uint32_t> spatialBlockOrder(const std::vector<glm::vec3>& positions)
 BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
                                 const std::vector<uint32_t>& order,
                                 uint32_t forcedFrom = UINT32_MAX);
+
+// jointTruncate of several components of the same vertices with ONE index list per
+// block for all of them (an editable file's radial profiles: transport_file.h): the
+// scores add over the components, a lane's energy is its sum over the components, and
+// each result holds that block's indices with its own values and scales (the results'
+// order, offsets, indices and shFrom are equal). jointTruncate(v, ...) is
+// jointTruncateShared({&v}, ...)[0]. Throws prt::Error when the components' vertex
+// counts differ or the list is empty, besides jointTruncate's errors.
+std::vector<BlockedRgbVectors> jointTruncateShared(const std::vector<const SparseRgbVectors*>& components,
+                                                   size_t keep, const std::vector<uint32_t>& order,
+                                                   uint32_t forcedFrom = UINT32_MAX);
 
 // The on-disk form of a blocked component's indices (format version 4,
 // docs/transport-format.md, "BLKC payload"): per block, the first index and then each

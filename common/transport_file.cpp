@@ -50,11 +50,21 @@ std::string checkSharedIndices(const std::vector<const TransportComponent*>& pro
     const TransportComponent& first = *profiles.front();
     const SparseRgbVectors& a = first.vectors;
     for (size_t i = 1; i < profiles.size(); ++i) {
-        const SparseRgbVectors& b = profiles[i]->vectors;
-        if (a.offsets == b.offsets && a.indices == b.indices) continue;
         const std::string names = "'" + componentName(profiles[i]->kind, profiles[i]->term) + "' and '" +
                                   componentName(first.kind, first.term) + "'";
         const std::string why = " (the profile components share one index list)";
+        if (profiles[i]->blocked() != first.blocked())
+            return names + " are not both blocked" + why;
+        if (first.blocked()) {
+            // Blocks: one lane order and one index list per block for all of them.
+            const BlockedRgbVectors &x = first.blocks, &y = profiles[i]->blocks;
+            if (x.order != y.order) return names + " have different block orders" + why;
+            if (x.offsets != y.offsets || x.indices != y.indices) return names + " have different block index lists" + why;
+            if (x.shFrom != y.shFrom) return names + " differ in SH scales" + why;
+            continue;
+        }
+        const SparseRgbVectors& b = profiles[i]->vectors;
+        if (a.offsets == b.offsets && a.indices == b.indices) continue;
         // Both passed checkVectors for the same vertex count: offsets are monotone.
         for (size_t v = 0; v + 1 < a.offsets.size(); ++v) {
             const uint32_t countA = a.offsets[v + 1] - a.offsets[v], countB = b.offsets[v + 1] - b.offsets[v];
@@ -205,10 +215,6 @@ std::string checkFile(const TransportFile& f) {
         if (!seen.insert({uint32_t(c.kind), c.term}).second) return name + ": appears twice";
         if (c.kind == ComponentKind::SingleScatteringTerm) terms.insert(c.term);
         if (c.kind == ComponentKind::MultipleScatteringProfiles) {
-            // The relight walks one index list for all profiles (TransportComponent's
-            // blocks would give each component its own).
-            if (c.blocked())
-                return name + ": a blocked multiple-scattering profile component is not supported in version 5";
             profileTerms.push_back(c.term);
             profiles.push_back(&c);
         }

@@ -390,9 +390,6 @@ void checkComponentHeader(FileReader& r, const OpenSection& s, const HeadFields&
         if (h.version < kRadialFormatVersion)
             r.fail(where + "component kind 4 (multiple scattering profiles) in a format version " +
                    u64(h.version) + " file (it needs version " + u64(kRadialFormatVersion) + ")");
-        if (s.kind == Section::BlockedComponent)
-            r.fail(where + "a blocked multiple-scattering profile component is not supported in version " +
-                   u64(kRadialFormatVersion));
     }
     if (!hasTerms(ComponentKind(kind)) && term != 0)
         r.fail(where + "term " + u64(term) + " on a component that has no terms");

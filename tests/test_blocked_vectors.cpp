@@ -241,6 +241,69 @@ TEST(BlockedVectors, JointChoiceMatchesBruteForceScores) {
     EXPECT_EQ(std::vector<uint32_t>(b.indices.begin(), b.indices.end()), expected);
 }
 
+// Several components sharing blocks (an editable file's radial profiles): one index
+// list per block for all, chosen by the scores summed over the components with each
+// lane's energy summed over them too (brute force), each component keeping its own
+// values; one component alone is jointTruncate.
+TEST(BlockedVectors, SharedChoiceSumsTheComponentsScores) {
+    const SparseRgbVectors a = randomVectors(16, 12, 64, 5), b = randomVectors(16, 12, 64, 6);
+    const size_t keep = 10;
+    const std::vector<BlockedRgbVectors> shared = jointTruncateShared({&a, &b}, keep, identityOrder(16));
+    ASSERT_EQ(shared.size(), 2u);
+    EXPECT_EQ(shared[0].order, shared[1].order);
+    EXPECT_EQ(shared[0].offsets, shared[1].offsets);
+    EXPECT_EQ(shared[0].indices, shared[1].indices);
+    EXPECT_NE(shared[0].values, shared[1].values);
+    std::map<uint32_t, double> score;
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    for (size_t v = 0; v < 16; ++v) {
+        double e = 0;
+        for (const SparseRgbVectors* src : {&a, &b}) {
+            src->dequantizeVertex(v, idx, rgb);
+            for (float x : rgb) e += double(x) * x;
+        }
+        for (const SparseRgbVectors* src : {&a, &b}) {
+            src->dequantizeVertex(v, idx, rgb);
+            for (size_t n = 0; n < idx.size(); ++n) {
+                double s = 0;
+                for (int c = 0; c < 3; ++c) s += double(rgb[3 * n + c]) * rgb[3 * n + c];
+                score[idx[n]] += s / e;
+            }
+        }
+    }
+    std::vector<std::pair<double, uint32_t>> ranked;
+    for (auto [i, s] : score) ranked.push_back({-s, i});
+    std::sort(ranked.begin(), ranked.end());
+    std::vector<uint32_t> expected;
+    for (size_t k = 0; k < keep; ++k) expected.push_back(ranked[k].second);
+    std::sort(expected.begin(), expected.end());
+    EXPECT_EQ(std::vector<uint32_t>(shared[0].indices.begin(), shared[0].indices.end()), expected);
+    // Each component's values are its own at the shared indices (within int8 steps).
+    for (size_t k = 0; k < 2; ++k) {
+        const SparseRgbVectors& src = k == 0 ? a : b;
+        std::vector<uint32_t> bi, si;
+        std::vector<float> brgb, srgb;
+        for (size_t v = 0; v < 16; ++v) {
+            shared[k].dequantizeVertex(v, bi, brgb);
+            src.dequantizeVertex(v, si, srgb);
+            float maxAbs = 0.0f;
+            for (float x : srgb) maxAbs = std::max(maxAbs, std::fabs(x));
+            for (size_t n = 0; n < bi.size(); ++n) {
+                const auto at = std::find(si.begin(), si.end(), bi[n]);
+                for (int c = 0; c < 3; ++c) {
+                    const float want = at == si.end() ? 0.0f : srgb[3 * size_t(at - si.begin()) + size_t(c)];
+                    EXPECT_NEAR(brgb[3 * n + size_t(c)], want, maxAbs * kBlockQuantizationMaxRelativeError * 1.01f);
+                }
+            }
+        }
+    }
+    EXPECT_EQ(jointTruncateShared({&a}, keep, identityOrder(16)).front(), jointTruncate(a, keep, identityOrder(16)));
+    const SparseRgbVectors small = randomVectors(15, 12, 64, 7);
+    EXPECT_THROW(jointTruncateShared({&a, &small}, keep, identityOrder(16)), Error);
+    EXPECT_THROW(jointTruncateShared({}, keep, identityOrder(16)), Error);
+}
+
 TEST(BlockedVectors, JointTruncationKeepsAtLeastTheEnergyOfTheBestShare) {
     // The joint choice maximises the summed retained fraction over the block, so it keeps
     // at least what every vertex keeping its own top keep/16 would (a feasible choice).

@@ -7,6 +7,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <random>
+#include <tuple>
 #include <unistd.h>
 
 #include "common/util.h"
@@ -292,8 +295,8 @@ std::vector<glm::dvec3> constantLightRadiance(const TransportFile& file, const s
     std::vector<glm::dvec3> out;
     if (!m) {
         const TransportComponent* ms = file.find(ComponentKind::MultipleScattering);
-        for (size_t v = 0; v < ms->vectors.vertexCount(); ++v) {
-            ms->vectors.dequantizeVertex(v, idx, rgb);
+        for (size_t v = 0; v < ms->vertexCount(); ++v) {
+            ms->dequantizeVertex(v, idx, rgb);
             glm::dvec3 r(0.0);
             for (size_t k = 0; k < idx.size(); ++k)
                 for (int c = 0; c < 3; ++c) r[c] += rgb[3 * k + c] * light[idx[k]];
@@ -306,8 +309,8 @@ std::vector<glm::dvec3> constantLightRadiance(const TransportFile& file, const s
     out.assign(size_t(file.mesh.vertexCount), glm::dvec3(0.0));
     for (const TransportComponent& c : file.components) {
         if (c.kind != ComponentKind::MultipleScatteringProfiles) continue;
-        for (size_t v = 0; v < c.vectors.vertexCount(); ++v) {
-            c.vectors.dequantizeVertex(v, idx, rgb);
+        for (size_t v = 0; v < c.vertexCount(); ++v) {
+            c.dequantizeVertex(v, idx, rgb);
             for (size_t k = 0; k < idx.size(); ++k)
                 for (int ch = 0; ch < 3; ++ch)
                     for (int col = 0; col < 3; ++col)
@@ -318,6 +321,76 @@ std::vector<glm::dvec3> constantLightRadiance(const TransportFile& file, const s
 }
 
 }  // namespace
+
+// Blocked editable files (--editable --block-coefficients M): the profiles share one
+// index list per block (format version 5, kind-4 BLKC sections). Keeping every index of
+// the union (M = 100 = 6 x 4^2 + 4 here), a blocked file differs from its per-vertex
+// file by the int8 values alone, for the editable and the full precompute alike; and
+// the blocked editable file relit as Skin1 is as close to the blocked full Skin1
+// precompute as the per-vertex files are to each other (EditableMatchesFullPrecomputes),
+// up to those int8 steps. Under a random positive light, so every coefficient counts.
+TEST(Precompute, BlockedEditableFilesMatchTheirPerVertexFilesAndTheFullPrecompute) {
+    Progress::setEnabled(false);
+    const fs::path dir = tempDir();
+    const std::string meshPath = (dir / "sphere.ply").string();
+    saveMesh(makeIcosphere(3, 10.0f), meshPath);
+    const Material skin = materialByName("Skin1");
+    auto settings = [&](bool editable, int blockCoefficients, const std::string& out) {
+        PrecomputeSettings s;
+        s.meshPath = meshPath;
+        s.outputPath = (dir / out).string();
+        s.scale.mmPerUnit = 1.0;
+        s.material = skin;
+        s.cubemapSize = 4;
+        s.shTerms = 4;
+        s.samples.count = 3000;
+        s.pass1.sampleCoefficients = 48;
+        s.pass2.nodeCoefficients = 48;
+        s.vertexCoefficients = 48;
+        s.blockCoefficients = blockCoefficients;
+        s.editable.enabled = editable;
+        s.editable.materials = {"Skin1", "Marble"};
+        return s;
+    };
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> unit(0.2f, 1.0f);
+    std::vector<float> light(6 * 4 * 4 + 4);
+    for (float& x : light) x = unit(rng);
+    std::map<std::string, std::vector<glm::dvec3>> radiance;
+    for (const auto& [name, editable, blocks] :
+         {std::tuple{"editable", true, 0}, std::tuple{"editable_blocked", true, 100}, std::tuple{"full", false, 0},
+          std::tuple{"full_blocked", false, 100}}) {
+        const PrecomputeSettings s = settings(editable, blocks, std::string(name) + ".prt");
+        precomputeTransport(s, true);
+        const TransportFile f = loadTransportFile(s.outputPath);
+        for (const TransportComponent& c : f.components) EXPECT_EQ(c.blocked(), blocks > 0) << name;
+        if (editable) EXPECT_TRUE(f.find(ComponentKind::MultipleScatteringProfiles)) << name;
+        radiance[name] = constantLightRadiance(f, light, editable ? &skin : nullptr);
+    }
+    auto relRms = [](const std::vector<glm::dvec3>& a, const std::vector<glm::dvec3>& b) {
+        double diff = 0.0, norm = 0.0;
+        for (size_t v = 0; v < a.size(); ++v)
+            for (int c = 0; c < 3; ++c) {
+                diff += (a[v][c] - b[v][c]) * (a[v][c] - b[v][c]);
+                norm += b[v][c] * b[v][c];
+            }
+        return std::sqrt(diff / norm);
+    };
+    const double blockedVsPerVertex = relRms(radiance["editable_blocked"], radiance["editable"]);
+    const double fullBlockedVsPerVertex = relRms(radiance["full_blocked"], radiance["full"]);
+    const double editableVsFull = relRms(radiance["editable_blocked"], radiance["full_blocked"]);
+    const double editableVsFullPerVertex = relRms(radiance["editable"], radiance["full"]);
+    std::printf("blocked vs per-vertex: editable %.5f, full %.5f; editable vs full: blocked %.5f, per vertex %.5f\n",
+                blockedVsPerVertex, fullBlockedVsPerVertex, editableVsFull, editableVsFullPerVertex);
+    // int8 steps (1/254 of a lane's maximum) over ~50 positive terms: well under 1%.
+    EXPECT_LT(blockedVsPerVertex, 0.01);
+    EXPECT_LT(fullBlockedVsPerVertex, 0.01);
+    EXPECT_GT(blockedVsPerVertex, 0.0);
+    // The basis and the editable job's cells (EditableMatchesFullPrecomputes), plus the
+    // two files' int8 steps, which add roughly in quadrature.
+    EXPECT_LT(editableVsFull, std::hypot(editableVsFullPerVertex, blockedVsPerVertex, fullBlockedVsPerVertex) * 1.2);
+    fs::remove_all(dir);
+}
 
 // An editable file (pass 2 against the radial basis) relit with material M against the
 // full precompute with M and the same samples (seed, count), under constant light.

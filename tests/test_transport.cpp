@@ -22,6 +22,7 @@
 #include <limits>
 #include <map>
 #include <new>
+#include <numeric>
 #include <random>
 #include <set>
 #include <string>
@@ -1820,6 +1821,26 @@ TransportFile makeProfileFile(std::mt19937& rng, size_t vertices, uint32_t n, ui
     return f;
 }
 
+// The profile components of f blocked together (one order and one index list per block
+// for all of them, as prt-precompute --editable --block-coefficients writes them).
+void blockProfilesJointly(TransportFile& f, size_t keep) {
+    std::vector<TransportComponent*> profiles;
+    std::vector<const SparseRgbVectors*> sources;
+    for (TransportComponent& c : f.components)
+        if (c.kind == ComponentKind::MultipleScatteringProfiles) {
+            profiles.push_back(&c);
+            sources.push_back(&c.vectors);
+        }
+    std::vector<uint32_t> order(f.mesh.vertexCount);
+    std::iota(order.rbegin(), order.rend(), 0u);  // not the identity
+    const uint32_t shFrom = f.shTerms > 0 ? 6 * f.cubemapSize * f.cubemapSize : UINT32_MAX;
+    std::vector<BlockedRgbVectors> blocks = jointTruncateShared(sources, keep, order, shFrom);
+    for (size_t k = 0; k < profiles.size(); ++k) {
+        profiles[k]->blocks = std::move(blocks[k]);
+        profiles[k]->vectors = SparseRgbVectors();
+    }
+}
+
 // Copies the section `s` of `from` (header, payload, checksum) into `to` at its end,
 // with the padding the format requires there.
 void appendSection(Bytes& to, const Bytes& from, const Sec& s) {
@@ -1985,6 +2006,26 @@ TEST_F(TransportFileV5, TruncatedOrFlippedIsRefusedNamingTheSection) {
     EXPECT_EQ(loadTransportFile(p), f);
 }
 
+// Blocked profile components (BLKC sections of kind 4 sharing one order and index list
+// per block) round-trip, with the SH part's scales, beside a blocked kind-2 component.
+TEST_F(TransportFileV5, BlockedProfilesRoundTrip) {
+    std::mt19937 rng(57);
+    TransportFile f = makeProfileFile(rng, 40, 4, 3, 9, false, true);
+    blockProfilesJointly(f, 12);
+    makeBlocked(rng, f, 3, 16);  // the isotropic single scattering, blocked on its own
+    ASSERT_TRUE(f.components[0].blocked());
+    EXPECT_NE(f.components[0].blocks.shFrom, UINT32_MAX);
+    const std::string p = path("blocked_profiles");
+    saveTransportFile(p, f);
+    const TransportFile back = loadTransportFile(p);
+    EXPECT_EQ(back, f);
+    const Bytes b = readBytes(p);
+    size_t kind4 = 0;
+    for (const Sec& s : walk(b))
+        if (s.tag == "BLKC" && le32(&b[s.payload]) == 4u) ++kind4;
+    EXPECT_EQ(kind4, 3u);
+}
+
 TEST_F(TransportFileV5, InvalidDataIsRefusedOnSave) {
     std::mt19937 rng(55);
     const TransportFile good = makeProfileFile(rng, 12, 4, 3, 9, true, false);
@@ -2023,11 +2064,24 @@ TEST_F(TransportFileV5, InvalidDataIsRefusedOnSave) {
          [](TransportFile& f) { f.radialBasis = smallBasis(4); }},
         {"multiple-scattering profile components must be terms 0..2, found 3 distinct with largest term 3",
          [](TransportFile& f) { f.components[2].term = 3; }},
-        {"component 3 (multiple scattering profiles 3-5): a blocked multiple-scattering profile component is not "
-         "supported in version 5",
+        {"'multiple scattering profiles 3-5' and 'multiple scattering profiles 0-2' are not both blocked (the "
+         "profile components share one index list)",
          [&](TransportFile& f) {
              std::mt19937 r(1);
              makeBlocked(r, f, 2, 8);
+         }},
+        {"'multiple scattering profiles 3-5' and 'multiple scattering profiles 0-2' have different block orders",
+         [&](TransportFile& f) {  // each blocked on its own: orders (and index lists) of their own
+             std::mt19937 r(1);
+             for (size_t i : {size_t(1), size_t(2), size_t(3)}) makeBlocked(r, f, i, 8);
+         }},
+        {"'multiple scattering profiles 6-8' and 'multiple scattering profiles 0-2' have different block index "
+         "lists",
+         [&](TransportFile& f) {  // the last one's blocks keep fewer indices
+             TransportFile fewer = f;
+             blockProfilesJointly(f, 8);
+             blockProfilesJointly(fewer, 6);
+             f.components[3].blocks = fewer.components[3].blocks;
          }},
         {"radial basis: table holds a non-finite value",
          [](TransportFile& f) { f.radialBasis->tables.values[7] = std::numeric_limits<float>::infinity(); }},

@@ -450,12 +450,30 @@ WriteOutput writeTransport(const JobContext& job, const PreparedJob& prepared,
             const Stopwatch blockStart;
             const std::vector<uint32_t> order = spatialBlockOrder(prepared.mesh.positions);
             const size_t texelCount = size_t(6) * s.cubemapSize * s.cubemapSize;
+            const uint32_t forcedFrom = s.shTerms > 0 ? uint32_t(texelCount) : UINT32_MAX;
             double retained = 0.0;
+            // The radial profiles keep one index list per block for all of them (the
+            // relight walks it once); every other component chooses its own.
+            std::vector<TransportComponent*> profiles;
             for (TransportComponent& c : file.components) {
-                c.blocks = jointTruncate(c.vectors, s.blockCoefficients, order,
-                                         s.shTerms > 0 ? uint32_t(texelCount) : UINT32_MAX);
+                if (c.kind == ComponentKind::MultipleScatteringProfiles) {
+                    profiles.push_back(&c);
+                    continue;
+                }
+                c.blocks = jointTruncate(c.vectors, s.blockCoefficients, order, forcedFrom);
                 retained += retainedEnergyFraction(c.vectors, c.blocks);
                 c.vectors = SparseRgbVectors();  // frees the per-vertex arrays
+            }
+            if (!profiles.empty()) {
+                std::vector<const SparseRgbVectors*> sources;
+                for (const TransportComponent* c : profiles) sources.push_back(&c->vectors);
+                std::vector<BlockedRgbVectors> blocks =
+                    jointTruncateShared(sources, s.blockCoefficients, order, forcedFrom);
+                for (size_t k = 0; k < profiles.size(); ++k) {
+                    profiles[k]->blocks = std::move(blocks[k]);
+                    retained += retainedEnergyFraction(profiles[k]->vectors, profiles[k]->blocks);
+                    profiles[k]->vectors = SparseRgbVectors();
+                }
             }
             out.blockSeconds = blockStart.seconds();
             out.blockRetainedEnergy = file.components.empty() ? 1.0 : retained / double(file.components.size());

@@ -128,8 +128,6 @@ void validateSettings(const PrecomputeSettings& s) {
         const double g = s.editable.cellGrading;
         if (!(g == 0.0 || (g >= 2.0 && g <= 64.0)))
             throw Error("--editable-grading", "must be 0 (off) or between 2 and 64, got " + fmt(g));
-        if (s.blockCoefficients > 0)
-            throw Error("--editable", "blocked components (--block-coefficients) are not editable yet");
         const double lo = s.editable.sizeMinMm, hi = s.editable.sizeMaxMm;
         if (!(lo == 0.0 && hi == 0.0) && !(lo > 0.0 && hi >= lo && std::isfinite(hi)))
             throw Error("--editable-sizes", "needs 0 < S0 <= S1 mm, got " + fmt(lo) + ":" + fmt(hi));

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "common/blocked_vectors.h"
 #include "common/error.h"
 #include "common/material_edit.h"
 #include "common/transport_params.h"
@@ -67,7 +68,7 @@ EditableTransport::EditableTransport(TransportFile& file, double objectSizeMm, c
     }
 }
 
-size_t EditableTransport::vertexCount() const { return profiles_.front().vectors.vertexCount(); }
+size_t EditableTransport::vertexCount() const { return profiles_.front().vertexCount(); }
 
 bool EditableTransport::setMaterial(const Material& material, double sizeMm) {
     if (!(sizeMm > 0.0) || !std::isfinite(sizeMm))
@@ -89,6 +90,7 @@ bool EditableTransport::isFileMaterial() const {
 }
 
 TransportComponent EditableTransport::recombine() const {
+    if (profiles_.front().blocked()) return recombineBlocked();
     const size_t P = profiles_.size(), V = vertexCount();
     const SparseRgbVectors& shared = profiles_.front().vectors;
     TransportComponent out;
@@ -134,6 +136,55 @@ TransportComponent EditableTransport::recombine() const {
                     v.values[3 * size_t(n) + size_t(c)] = int16_t(q);
                 }
             }
+        }
+    });
+    return out;
+}
+
+TransportComponent EditableTransport::recombineBlocked() const {
+    const size_t P = profiles_.size();
+    const BlockedRgbVectors& shared = profiles_.front().blocks;
+    const size_t blocks = shared.blockCount();
+    TransportComponent out;
+    out.kind = ComponentKind::MultipleScattering;
+    BlockedRgbVectors& b = out.blocks;
+    b.vertices = shared.vertices;
+    b.order = shared.order;
+    b.offsets = shared.offsets;
+    b.indices = shared.indices;
+    b.shFrom = shared.shFrom;
+    b.slotOf = shared.slotOf;
+    b.values.assign(shared.values.size(), 0);
+    b.scales.assign(shared.scales.size(), 0.0f);
+    b.shScales.assign(shared.shScales.size(), 0.0f);
+    // Per block: the recombined values in quantizeBlock's layout, (n * lanes + lane) * 3
+    // + c, then quantized into the block's own slots (deterministic on any thread count).
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 16), [&](const tbb::blocked_range<size_t>& r) {
+        std::vector<float> rgb;
+        float noShScales[kBlockValuesPerIndex];
+        for (size_t k = r.begin(); k < r.end(); ++k) {
+            const uint32_t begin = shared.offsets[k], end = shared.offsets[k + 1], shBegin = shared.shBegin(k);
+            const uint32_t lanes = uint32_t(std::min<size_t>(kVertexBlock, shared.vertexCount() - k * kVertexBlock));
+            rgb.assign(size_t(end - begin) * lanes * 3, 0.0f);
+            for (size_t p = 0; p < P; ++p) {
+                const BlockedRgbVectors& u = profiles_[p].blocks;
+                for (size_t ch = 0; ch < 3; ++ch) {
+                    const float w[3] = {float(weights_[0][3 * p + ch]), float(weights_[1][3 * p + ch]),
+                                        float(weights_[2][3 * p + ch])};
+                    for (uint32_t n = begin; n < end; ++n) {
+                        const float* scales = &(n < shBegin ? u.scales : u.shScales)[k * kBlockValuesPerIndex + 16 * ch];
+                        const int8_t* q = &u.values[n * kBlockValuesPerIndex + 16 * ch];
+                        float* dst = &rgb[size_t(n - begin) * lanes * 3];
+                        for (uint32_t lane = 0; lane < lanes; ++lane) {
+                            const float x = float(q[lane]) * scales[lane];
+                            for (size_t c = 0; c < 3; ++c) dst[3 * lane + c] += x * w[c];
+                        }
+                    }
+                }
+            }
+            quantizeBlock(rgb.data(), end - begin, shBegin - begin, lanes, &b.values[begin * kBlockValuesPerIndex],
+                          &b.scales[k * kBlockValuesPerIndex],
+                          b.shScales.empty() ? noShScales : &b.shScales[k * kBlockValuesPerIndex]);
         }
     });
     return out;

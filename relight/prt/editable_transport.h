@@ -25,8 +25,13 @@
 //   - The light stands still, the material moves: projectLight() once per light gives
 //     D_vjc = U_j(v) . L_c for every vertex, profile and light channel; then an edit is
 //     relightProjected(): J multiply-adds per vertex and channel.
-// Both give the same radiance up to float rounding (and the 16-bit quantization of the
-// recombined component, kQuantizationMaxRelativeError of each vertex's maximum).
+// Both give the same radiance up to float rounding (and the quantization of the
+// recombined component: kQuantizationMaxRelativeError of each vertex's maximum per
+// vertex, kBlockQuantizationMaxRelativeError blocked).
+//
+// BLOCKED FILES (prt-precompute --editable --block-coefficients K): the profile
+// components share one block order and one index list per block (jointTruncateShared),
+// and recombine() keeps that layout: its component relights through the blocked kernel.
 //
 // WHAT IS NOT EDITED. Single scattering stays the file's material's (its components
 // are not touched); the index of refraction stays the file's (pass 1 bakes the
@@ -81,8 +86,10 @@ public:
     // w_cj of the current material (3 x J).
     const std::array<std::vector<double>, 3>& weights() const { return weights_; }
 
-    // V_c = sum_j w_cj U_j per vertex, quantized like any per-vertex component
-    // (kind MultipleScattering, the profiles' shared index lists).
+    // V_c = sum_j w_cj U_j per vertex, quantized like any component of the profiles'
+    // encoding (kind MultipleScattering, the profiles' shared index lists): per vertex,
+    // or blocked (the profiles' block order and per-block index lists, 8-bit values with
+    // new per-lane scales, blocked_vectors.h) when the file's profiles are blocked.
     TransportComponent recombine() const;
 
     // D_vjc = U_j(v) . L_c for every vertex v, profile j, light channel c (the SH part
@@ -94,6 +101,8 @@ public:
     void relightProjected(std::vector<glm::vec3>& diffuse) const;
 
 private:
+    TransportComponent recombineBlocked() const;
+
     std::vector<TransportComponent> profiles_;  // P = J / 3, profiles 3p .. 3p + 2
     uint32_t cubemapSize_ = 0, shTerms_ = 0;
     RadialBasis basis_;
