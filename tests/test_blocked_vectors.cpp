@@ -46,6 +46,37 @@ std::vector<uint32_t> identityOrder(size_t n) {
     return o;
 }
 
+// The brute-force joint choice of one block of 16 vertices (0..15) over `sources`: each
+// index scores the sum over vertices of its energy share, summed over the sources, of
+// the vertex's energy over all of them; the `keep` highest, sorted.
+std::vector<uint32_t> bruteForceChoice(const std::vector<const SparseRgbVectors*>& sources, size_t keep) {
+    std::map<uint32_t, double> score;
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    for (size_t v = 0; v < 16; ++v) {
+        double e = 0;
+        for (const SparseRgbVectors* src : sources) {
+            src->dequantizeVertex(v, idx, rgb);
+            for (float x : rgb) e += double(x) * x;
+        }
+        for (const SparseRgbVectors* src : sources) {
+            src->dequantizeVertex(v, idx, rgb);
+            for (size_t n = 0; n < idx.size(); ++n) {
+                double s = 0;
+                for (int c = 0; c < 3; ++c) s += double(rgb[3 * n + c]) * rgb[3 * n + c];
+                score[idx[n]] += s / e;
+            }
+        }
+    }
+    std::vector<std::pair<double, uint32_t>> ranked;
+    for (auto [i, s] : score) ranked.push_back({-s, i});
+    std::sort(ranked.begin(), ranked.end());
+    std::vector<uint32_t> expected;
+    for (size_t k = 0; k < keep; ++k) expected.push_back(ranked[k].second);
+    std::sort(expected.begin(), expected.end());
+    return expected;
+}
+
 TEST(BlockedVectors, KeepingTheUnionIsLosslessUpToTheInt8Bound) {
     const SparseRgbVectors src = randomVectors(37, 20, 384, 1);  // last block partial (5 lanes)
     std::vector<uint32_t> order = identityOrder(37);
@@ -219,25 +250,7 @@ TEST(BlockedVectors, JointChoiceMatchesBruteForceScores) {
     const size_t keep = 10;
     const BlockedRgbVectors b = jointTruncate(src, keep, identityOrder(16));
     // Brute force: energy-normalised score per index over the 16 vertices.
-    std::map<uint32_t, double> score;
-    std::vector<uint32_t> idx;
-    std::vector<float> rgb;
-    for (size_t v = 0; v < 16; ++v) {
-        src.dequantizeVertex(v, idx, rgb);
-        double e = 0;
-        for (float x : rgb) e += double(x) * x;
-        for (size_t n = 0; n < idx.size(); ++n) {
-            double s = 0;
-            for (int c = 0; c < 3; ++c) s += double(rgb[3 * n + c]) * rgb[3 * n + c];
-            score[idx[n]] += s / e;
-        }
-    }
-    std::vector<std::pair<double, uint32_t>> ranked;
-    for (auto [i, s] : score) ranked.push_back({-s, i});
-    std::sort(ranked.begin(), ranked.end());
-    std::vector<uint32_t> expected;
-    for (size_t k = 0; k < keep; ++k) expected.push_back(ranked[k].second);
-    std::sort(expected.begin(), expected.end());
+    const std::vector<uint32_t> expected = bruteForceChoice({&src}, keep);
     EXPECT_EQ(std::vector<uint32_t>(b.indices.begin(), b.indices.end()), expected);
 }
 
@@ -254,30 +267,7 @@ TEST(BlockedVectors, SharedChoiceSumsTheComponentsScores) {
     EXPECT_EQ(shared[0].offsets, shared[1].offsets);
     EXPECT_EQ(shared[0].indices, shared[1].indices);
     EXPECT_NE(shared[0].values, shared[1].values);
-    std::map<uint32_t, double> score;
-    std::vector<uint32_t> idx;
-    std::vector<float> rgb;
-    for (size_t v = 0; v < 16; ++v) {
-        double e = 0;
-        for (const SparseRgbVectors* src : {&a, &b}) {
-            src->dequantizeVertex(v, idx, rgb);
-            for (float x : rgb) e += double(x) * x;
-        }
-        for (const SparseRgbVectors* src : {&a, &b}) {
-            src->dequantizeVertex(v, idx, rgb);
-            for (size_t n = 0; n < idx.size(); ++n) {
-                double s = 0;
-                for (int c = 0; c < 3; ++c) s += double(rgb[3 * n + c]) * rgb[3 * n + c];
-                score[idx[n]] += s / e;
-            }
-        }
-    }
-    std::vector<std::pair<double, uint32_t>> ranked;
-    for (auto [i, s] : score) ranked.push_back({-s, i});
-    std::sort(ranked.begin(), ranked.end());
-    std::vector<uint32_t> expected;
-    for (size_t k = 0; k < keep; ++k) expected.push_back(ranked[k].second);
-    std::sort(expected.begin(), expected.end());
+    const std::vector<uint32_t> expected = bruteForceChoice({&a, &b}, keep);
     EXPECT_EQ(std::vector<uint32_t>(shared[0].indices.begin(), shared[0].indices.end()), expected);
     // Each component's values are its own at the shared indices (within int8 steps).
     for (size_t k = 0; k < 2; ++k) {

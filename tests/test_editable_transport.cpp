@@ -82,6 +82,27 @@ TransportFile blockedFile(uint64_t seed) {
     return file;
 }
 
+// sum_j w_cj U_j(v) from the profiles' dequantized values at vertex v, whose index list
+// must be `idx` (the recombination's): 3 per index, or empty (a failure) if it is not.
+std::vector<double> weightedProfileSum(const std::vector<TransportComponent>& profiles, const EditableTransport& e,
+                                       size_t v, const std::vector<uint32_t>& idx) {
+    std::vector<double> sum(3 * idx.size(), 0.0);
+    std::vector<uint32_t> idxU;
+    std::vector<float> u;
+    for (size_t p = 0; p < profiles.size(); ++p) {
+        profiles[p].dequantizeVertex(v, idxU, u);
+        if (idxU != idx) {
+            ADD_FAILURE() << "profile component " << p << " has another index list at vertex " << v;
+            return {};
+        }
+        for (size_t n = 0; n < idx.size(); ++n)
+            for (int ch = 0; ch < 3; ++ch)
+                for (int c = 0; c < 3; ++c)
+                    sum[3 * n + size_t(c)] += e.weights()[size_t(c)][3 * p + size_t(ch)] * u[3 * n + size_t(ch)];
+    }
+    return sum;
+}
+
 LightVector randomLight(uint64_t seed) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<float> value(-0.5f, 1.0f);
@@ -125,22 +146,15 @@ TEST(EditableTransport, RecombinationIsTheWeightedSumOfTheProfiles) {
     e.setMaterial(materialByName("Skin1"), 31.0);
     const TransportComponent ms = e.recombine();
     EXPECT_EQ(ms.kind, ComponentKind::MultipleScattering);
-    std::vector<uint32_t> idx, idxU;
-    std::vector<float> rgb, u;
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
     double absWeights[3] = {0.0, 0.0, 0.0};
     for (int c = 0; c < 3; ++c)
         for (double w : e.weights()[size_t(c)]) absWeights[c] += std::abs(w);
     for (size_t v = 0; v < kVertices; ++v) {
         ms.dequantizeVertex(v, idx, rgb);
-        std::vector<double> expected(rgb.size(), 0.0);
-        for (size_t p = 0; p < 2; ++p) {
-            profiles[p].dequantizeVertex(v, idxU, u);
-            ASSERT_EQ(idxU, idx);
-            for (size_t n = 0; n < idx.size(); ++n)
-                for (int ch = 0; ch < 3; ++ch)
-                    for (int c = 0; c < 3; ++c)
-                        expected[3 * n + size_t(c)] += e.weights()[size_t(c)][3 * p + size_t(ch)] * u[3 * n + size_t(ch)];
-        }
+        const std::vector<double> expected = weightedProfileSum(profiles, e, v, idx);
+        ASSERT_EQ(expected.size(), rgb.size()) << v;
         for (int c = 0; c < 3; ++c) {
             double maxAbs = 0.0;
             for (size_t n = 0; n < idx.size(); ++n) maxAbs = std::max(maxAbs, std::abs(expected[3 * n + size_t(c)]));
@@ -237,20 +251,13 @@ TEST(EditableTransport, BlockedRecombinationIsTheWeightedSumOfTheProfiles) {
     EXPECT_EQ(ms.blocks.offsets, profiles[0].blocks.offsets);
     EXPECT_EQ(ms.blocks.indices, profiles[0].blocks.indices);
     EXPECT_EQ(checkBlockedVectors(ms.blocks, uint32_t(kTexels)), "");
-    std::vector<uint32_t> idx, idxU;
-    std::vector<float> rgb, u;
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
     double worst = 0.0;
     for (size_t v = 0; v < kVertices; ++v) {
         ms.dequantizeVertex(v, idx, rgb);
-        std::vector<double> expected(rgb.size(), 0.0);
-        for (size_t p = 0; p < 2; ++p) {
-            profiles[p].dequantizeVertex(v, idxU, u);
-            ASSERT_EQ(idxU, idx);
-            for (size_t n = 0; n < idx.size(); ++n)
-                for (int ch = 0; ch < 3; ++ch)
-                    for (int c = 0; c < 3; ++c)
-                        expected[3 * n + size_t(c)] += e.weights()[size_t(c)][3 * p + size_t(ch)] * u[3 * n + size_t(ch)];
-        }
+        const std::vector<double> expected = weightedProfileSum(profiles, e, v, idx);
+        ASSERT_EQ(expected.size(), rgb.size()) << v;
         for (int c = 0; c < 3; ++c) {
             double maxAbs = 0.0;
             for (size_t n = 0; n < idx.size(); ++n) maxAbs = std::max(maxAbs, std::abs(expected[3 * n + size_t(c)]));

@@ -284,6 +284,23 @@ TEST(Precompute, ShardSummaryCountsItsOwnVertices) {
 
 namespace {
 
+// The editable tests' small job: a sphere in mm, a 6 x 4 x 4 cubemap with 4 SH terms,
+// 3000 samples, 48 terms everywhere.
+PrecomputeSettings smallSphereJob(const std::string& meshPath, const std::string& outputPath, const Material& m) {
+    PrecomputeSettings s;
+    s.meshPath = meshPath;
+    s.outputPath = outputPath;
+    s.scale.mmPerUnit = 1.0;
+    s.material = m;
+    s.cubemapSize = 4;
+    s.shTerms = 4;
+    s.samples.count = 3000;
+    s.pass1.sampleCoefficients = 48;
+    s.pass2.nodeCoefficients = 48;
+    s.vertexCoefficients = 48;
+    return s;
+}
+
 // Per vertex and channel, the radiance per unit F_t(w_o) under the constant light: the
 // file's multiple-scattering vectors, or an editable file's profile vectors recombined
 // with the basis weights of `m` (V_c = sum_j w_cj U_j, editable_transport.h) -- here by
@@ -336,17 +353,7 @@ TEST(Precompute, BlockedEditableFilesMatchTheirPerVertexFilesAndTheFullPrecomput
     saveMesh(makeIcosphere(3, 10.0f), meshPath);
     const Material skin = materialByName("Skin1");
     auto settings = [&](bool editable, int blockCoefficients, const std::string& out) {
-        PrecomputeSettings s;
-        s.meshPath = meshPath;
-        s.outputPath = (dir / out).string();
-        s.scale.mmPerUnit = 1.0;
-        s.material = skin;
-        s.cubemapSize = 4;
-        s.shTerms = 4;
-        s.samples.count = 3000;
-        s.pass1.sampleCoefficients = 48;
-        s.pass2.nodeCoefficients = 48;
-        s.vertexCoefficients = 48;
+        PrecomputeSettings s = smallSphereJob(meshPath, (dir / out).string(), skin);
         s.blockCoefficients = blockCoefficients;
         s.editable.enabled = editable;
         s.editable.materials = {"Skin1", "Marble"};
@@ -364,7 +371,9 @@ TEST(Precompute, BlockedEditableFilesMatchTheirPerVertexFilesAndTheFullPrecomput
         precomputeTransport(s, true);
         const TransportFile f = loadTransportFile(s.outputPath);
         for (const TransportComponent& c : f.components) EXPECT_EQ(c.blocked(), blocks > 0) << name;
-        if (editable) EXPECT_TRUE(f.find(ComponentKind::MultipleScatteringProfiles)) << name;
+        if (editable) {
+            EXPECT_TRUE(f.find(ComponentKind::MultipleScatteringProfiles)) << name;
+        }
         radiance[name] = constantLightRadiance(f, light, editable ? &skin : nullptr);
     }
     auto relRms = [](const std::vector<glm::dvec3>& a, const std::vector<glm::dvec3>& b) {
@@ -413,18 +422,7 @@ TEST(Precompute, EditableMatchesFullPrecomputes) {
     const std::string meshPath = (dir / "sphere.ply").string();
     saveMesh(makeIcosphere(3, float(radius)), meshPath);
     auto settings = [&](const Material& m, const std::string& out) {
-        PrecomputeSettings s;
-        s.meshPath = meshPath;
-        s.outputPath = (dir / out).string();
-        s.scale.mmPerUnit = 1.0;
-        s.material = m;
-        s.cubemapSize = 4;
-        s.shTerms = 4;
-        s.samples.count = 3000;
-        s.pass1.sampleCoefficients = 48;
-        s.pass2.nodeCoefficients = 48;
-        s.vertexCoefficients = 48;
-        return s;
+        return smallSphereJob(meshPath, (dir / out).string(), m);
     };
     PrecomputeSettings editable = settings(absorbing, "editable.prt");
     editable.editable.enabled = true;
