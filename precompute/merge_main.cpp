@@ -30,21 +30,16 @@ int main(int argc, char** argv) {
         std::string output, meshPath;
         app.add_option("shards", shards, "Shard files, in any order")->required();
         app.add_option("-o,--output", output, "Transport file to write (atomically)")->required();
-        app.add_option("--mesh", meshPath, "Also check that the shards were made for this mesh file");
+        app.add_option("--mesh", meshPath,
+                       "The shards' mesh file: checked against them, and needed to form the blocks of a blocked "
+                       "job (prt-precompute's default)");
         if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-merge")) return *exitCode;
         checkOutputPath(output);
         for (const std::string& s : shards)
             if (std::filesystem::exists(output) && std::filesystem::equivalent(s, output))
                 throw Error(output, "the output is one of the shards");
         const Stopwatch start;
-        const TransportFile whole = mergeShards(shards);
-        if (!meshPath.empty()) {
-            const TriangleMesh mesh = loadMesh(meshPath);
-            const MeshFingerprint fingerprint{mesh.vertexCount(), meshFingerprint(mesh)};
-            if (fingerprint != whole.mesh)
-                throw Error(meshPath, "is not the mesh the shards were computed for (vertex count or position hash "
-                                      "differs)");
-        }
+        const TransportFile whole = mergeShards(shards, meshPath);
         saveTransportFile(output, whole);
         std::printf("%s: %zu shards joined, %llu vertices, %.2f MB, %s\n", output.c_str(), shards.size(),
                     (unsigned long long)whole.mesh.vertexCount, double(std::filesystem::file_size(output)) / 1e6,

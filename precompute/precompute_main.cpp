@@ -140,6 +140,7 @@ int main(int argc, char** argv) {
         if (!jobFile.empty()) return runJobFile(jobFile, force, summaryJsonPath, command, dist);
         if (raw.mesh.empty()) throw Error("prt-precompute", "no mesh given (see --help)");
         if (raw.output.empty() && !settings.pass1Only) throw Error("--output", "no output path given (see --help)");
+        if (!baseline.empty() && !raw.blockCoefficients) raw.blockCoefficients = 0;  // per-vertex vectors
         const PrecomputeSettings job = settingsFromOptions(raw, settings);
         if (!baseline.empty()) {
             if (albedo.size() == 2) throw Error("--albedo", "give one value or three (R,G,B)");

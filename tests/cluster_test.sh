@@ -10,7 +10,9 @@
 #     (--pass1-file, written once by --pass1-only), and as 2 shards from a job file;
 #   - under mpirun with 1, 2 and 4 ranks (--oversubscribe: this machine has 2 cores),
 #     and a job file under 2 ranks;
-# and every output must equal the single-process file byte for byte. Then failures: a
+# and every output must equal the single-process file byte for byte (blocked, the
+# default: shards are per vertex and prt-merge --mesh forms the blocks; and 2 shards of a
+# per-vertex job, --block-coefficients 0, against that job in one process). Then failures: a
 # rank that fails (PRT_MPI_FAIL fault injection) must stop the whole job with exit 1 and
 # the failing rank named on one line of prt-precompute's, leaving no output; a missing
 # or duplicated shard and a shard handed to the renderer are one-line errors.
@@ -34,11 +36,13 @@ job=(sphere.obj --size-mm 20 -m Skin1 --components ms,ss --g 0.3 --phase-terms 2
      --cubemap-size 16 --samples 2000 --path-samples 8 -q)
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
-same() {  # same FILE WHAT
-    if cmp -s "$1" whole.prt; then echo "ok: $2 = one process, byte for byte"; else fail "$2 differs from one process"; fi
+same() {  # same FILE WHAT [ONE_PROCESS_FILE]
+    if cmp -s "$1" "${3:-whole.prt}"; then echo "ok: $2 = one process, byte for byte"; else fail "$2 differs from one process"; fi
 }
 
 "$PRE" "${job[@]}" -o whole.prt > whole.log || { cat whole.log; echo "FAIL: single-process run"; exit 1; }
+"$PRE" "${job[@]}" --block-coefficients 0 -o vertexwise.prt > /dev/null || { echo "FAIL: single-process run per vertex"; exit 1; }
+"$BUILD/bin/prt-relight" info whole.prt | grep -q "blocked: " || fail "the default single-process file is not blocked"
 
 # Shards, in any order, joined.
 for i in 3 1 0 2; do "$PRE" "${job[@]}" --shard $i/4 -o part$i.prt > /dev/null || fail "shard $i/4"; done
@@ -51,7 +55,7 @@ for i in 0 1 2; do
     "$PRE" "${job[@]}" --pass1-file job.pass1 --shard $i/3 -o p1part$i.prt > p1part$i.log || fail "shard $i/3 with --pass1-file"
 done
 grep -q "loaded from job.pass1" p1part1.log || fail "shard 1/3 did not load pass 1: $(grep 'pass 1' p1part1.log)"
-"$MERGE" -o p1merged.prt p1part0.prt p1part1.prt p1part2.prt > /dev/null || fail "prt-merge of the pass-1 shards"
+"$MERGE" -o p1merged.prt p1part0.prt p1part1.prt p1part2.prt --mesh sphere.obj > /dev/null || fail "prt-merge of the pass-1 shards"
 same p1merged.prt "3 shards loading one pass-1 file, merged"
 
 # A job file targets shards too.
@@ -61,10 +65,16 @@ cat > shards.json <<JSON
  "jobs": [{"shard": "0/2", "output": "job0.prt"}, {"shard": "1/2", "output": "job1.prt"}]}
 JSON
 "$PRE" --jobs shards.json -q > /dev/null || fail "job file of shards"
-"$MERGE" -o jobmerged.prt job1.prt job0.prt > /dev/null || fail "prt-merge of the job file's shards"
+"$MERGE" -o jobmerged.prt job1.prt job0.prt --mesh sphere.obj > /dev/null || fail "prt-merge of the job file's shards"
 same jobmerged.prt "job file of 2 shards merged"
 
+# A per-vertex job's shards need no mesh to join.
+for i in 0 1; do "$PRE" "${job[@]}" --block-coefficients 0 --shard $i/2 -o vpart$i.prt > /dev/null || fail "per-vertex shard $i/2"; done
+"$MERGE" -o vmerged.prt vpart1.prt vpart0.prt > /dev/null || fail "prt-merge of per-vertex shards"
+same vmerged.prt "2 shards of a per-vertex job merged" vertexwise.prt
+
 # Errors: one line each, naming the problem.
+one_line "^prt-merge: error: shards: .*blocks of 160 .*--mesh" "$MERGE" -o bad.prt part0.prt part1.prt part2.prt part3.prt
 one_line() {  # one_line PATTERN COMMAND...: exit 1 and exactly one stderr line matching PATTERN
     local pattern=$1; shift
     "$@" > /dev/null 2> err.txt; local code=$?

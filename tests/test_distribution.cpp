@@ -156,6 +156,23 @@ TEST(ShardDistribution, PadsItsRangeWithEmptyVertices) {
     EXPECT_EQ(params[1], (std::pair<std::string, std::string>{kShardVerticesParameter, "17-34"}));
 }
 
+namespace {
+
+// The n shards of `whole`'s job, written to dir/part<i>.prt; their paths.
+std::vector<std::string> runShards(const PrecomputeSettings& whole, int n, const fs::path& dir) {
+    std::vector<std::string> parts;
+    for (int i = 0; i < n; ++i) {
+        PrecomputeSettings s = whole;
+        s.shard = ShardSpec{i, n};
+        s.outputPath = (dir / ("part" + std::to_string(i) + ".prt")).string();
+        precomputeTransport(s, true);
+        parts.push_back(s.outputPath);
+    }
+    return parts;
+}
+
+}  // namespace
+
 TEST(Shards, MergedShardsAreTheSingleProcessFileByteForByte) {
     Progress::setQuiet(true);
     const fs::path dir = tempDir() / "merge";
@@ -185,6 +202,37 @@ TEST(Shards, MergedShardsAreTheSingleProcessFileByteForByte) {
     fs::remove_all(dir);
 }
 
+// A blocked job's shards are per vertex; the merge forms the blocks from the mesh as
+// the single process does (scaled by the file's own factor), to the same bytes, and
+// without the mesh it says what is missing.
+TEST(Shards, BlockedJobsShardsMergeToTheSingleProcessFileByteForByte) {
+    Progress::setQuiet(true);
+    const fs::path dir = tempDir() / "blocked";
+    fs::create_directories(dir);
+    PrecomputeSettings whole = smallJob(dir);
+    whole.blockCoefficients = 24;
+    whole.outputPath = (dir / "whole.prt").string();
+    precomputeTransport(whole, true);
+    const TransportFile wholeFile = loadTransportFile(whole.outputPath);
+    ASSERT_FALSE(wholeFile.components.empty());
+    for (const TransportComponent& c : wholeFile.components) EXPECT_TRUE(c.blocked());
+
+    const std::vector<std::string> parts = runShards(whole, 3, dir);
+    for (const std::string& part : parts)
+        for (const TransportComponent& c : loadTransportFile(part).components) EXPECT_FALSE(c.blocked());
+    const fs::path merged = dir / "merged.prt";
+    saveTransportFile(merged.string(), mergeShards(parts, whole.meshPath));
+    EXPECT_EQ(bytesOf(merged), bytesOf(whole.outputPath));
+    EXPECT_EQ(errorOf([&] { mergeShards(parts); }),
+              "shards: their job stores blocks of 24 terms (--block-coefficients), formed from the mesh: give it "
+              "with --mesh");
+    // Another mesh is refused before any block is formed.
+    const fs::path other = dir / "other.obj";
+    saveMesh(makeIcosphere(1, 1.0f), other.string());
+    EXPECT_NE(errorOf([&] { mergeShards(parts, other.string()); }).find("is not the mesh"), std::string::npos);
+    fs::remove_all(dir);
+}
+
 // Editable shards (radial profiles, one shared index list per vertex) merge like any
 // other: the basis is each shard's own and must agree.
 TEST(Shards, EditableShardsMergeToTheSingleProcessFileByteForByte) {
@@ -199,14 +247,7 @@ TEST(Shards, EditableShardsMergeToTheSingleProcessFileByteForByte) {
     precomputeTransport(whole, true);
     ASSERT_TRUE(loadTransportFile(whole.outputPath).radialBasis);
 
-    std::vector<std::string> parts;
-    for (int i = 0; i < 3; ++i) {
-        PrecomputeSettings s = whole;
-        s.shard = ShardSpec{i, 3};
-        s.outputPath = (dir / ("part" + std::to_string(i) + ".prt")).string();
-        precomputeTransport(s, true);
-        parts.push_back(s.outputPath);
-    }
+    const std::vector<std::string> parts = runShards(whole, 3, dir);
     const fs::path merged = dir / "merged.prt";
     saveTransportFile(merged.string(), mergeShards(parts));
     EXPECT_EQ(bytesOf(merged), bytesOf(whole.outputPath));

@@ -166,3 +166,34 @@ TEST(JobOptions, SingleScatteringVisibility) {
     const std::string bad = errorOf([] { fromCommandLine({"m.obj", "-o", "o", "--ss-visibility", "both"}); });
     EXPECT_NE(bad.find("--ss-visibility"), std::string::npos) << bad;
 }
+
+// Blocked files are the default (their accuracy, bytes and speed: docs/precompute.md);
+// a per-vertex count, an editable job or a 0 asks for per-vertex vectors, and the
+// defaults shrink to what a small cubemap holds.
+TEST(JobOptions, BlocksAreTheDefault) {
+    const std::vector<std::string> base = {"m.obj", "-o", "o.prt"};
+    auto with = [&](std::vector<std::string> extra) {
+        std::vector<std::string> args = base;
+        args.insert(args.end(), extra.begin(), extra.end());
+        return fromCommandLine(args);
+    };
+    const PrecomputeSettings d = with({});
+    EXPECT_EQ(d.blockCoefficients, kDefaultBlockCoefficients);
+    EXPECT_EQ(d.vertexCoefficients, kDefaultPreBlockCoefficients);
+    EXPECT_EQ(with({"-k", "64"}).blockCoefficients, 0u);
+    EXPECT_EQ(with({"-k", "64"}).vertexCoefficients, 64u);
+    EXPECT_EQ(with({"--editable"}).blockCoefficients, 0u);
+    EXPECT_EQ(with({"--editable"}).vertexCoefficients, 128u);
+    EXPECT_EQ(with({"--block-coefficients", "0"}).vertexCoefficients, 128u);
+    EXPECT_EQ(with({"--block-coefficients", "200", "-k", "300"}).blockCoefficients, 200u);
+    EXPECT_EQ(with({"--block-coefficients", "200", "-k", "300"}).vertexCoefficients, 300u);
+    EXPECT_EQ(with({"--shard", "1/2"}).blockCoefficients, kDefaultBlockCoefficients);
+    // 6 x 4 x 4 + 9 SH terms = 105: every default fits.
+    const PrecomputeSettings small = with({"--cubemap-size", "4"});
+    EXPECT_EQ(small.blockCoefficients, 105u);
+    EXPECT_EQ(small.vertexCoefficients, 105u);
+    EXPECT_EQ(with({"--cubemap-size", "8"}).vertexCoefficients, 256u);  // 393 hold 256
+    // A job file resolves the same way.
+    EXPECT_EQ(parseJob({}, {{"mesh", "m.obj"}, {"output", "o"}}, "j").blockCoefficients, kDefaultBlockCoefficients);
+    EXPECT_EQ(parseJob({}, {{"mesh", "m.obj"}, {"output", "o"}, {"coefficients", 64}}, "j").blockCoefficients, 0u);
+}

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The main job on the built-in default scene: set up, build, fetch the real data,
-# precompute the Stanford bunny (30 mm, Marble, 6x32x32, 128 coefficients) and
+# precompute the Stanford bunny (30 mm, Marble, 6x32x32, the default blocks of 16
+# vertices sharing 160 coefficients) and
 # render it under real environments into out/, next to the brute-force reference.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -23,9 +24,9 @@ timed "$root/tools/build.sh" prt-precompute prt-relight prt-reference prt-compar
 step "fetching data";        timed "$root/tools/fetch-data.sh"
 mkdir -p "$out" "$out/compare"
 
-step "precomputing the bunny (30 mm, Marble, 6x32x32, 128 coefficients)"
+step "precomputing the bunny (30 mm, Marble, 6x32x32, blocks of 16 vertices sharing 160 coefficients)"
 timed "$build/bin/prt-precompute" "$mesh" --size-mm 30 --material Marble \
-    --cubemap-size 32 --coefficients 128 -o "$out/bunny_marble.prt"
+    --cubemap-size 32 --block-coefficients 160 -o "$out/bunny_marble.prt"
 
 for env in "${envs[@]}"; do
     step "rendering under $env"

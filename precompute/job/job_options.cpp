@@ -48,18 +48,20 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     app.add_option("--node-coefficients", s.pass2.nodeCoefficients, "Terms kept per kd-tree node (pass 2), the SH terms included")
         ->capture_default_str();
     app.add_option("-k,--coefficients", raw.coefficients,
-                   "Terms kept per vertex, the SH terms included (with --block-coefficients: before the joint choice)")
-        ->default_str("128; 512 with --block-coefficients");
+                   "Terms kept per vertex, the SH terms included (in a blocked file: before the joint choice); "
+                   "given alone, it makes a per-vertex file")
+        ->default_str(std::to_string(kDefaultPreBlockCoefficients) + " before blocking; 128 per vertex");
     app.add_option("--sh-terms", s.shTerms,
                    "Of the terms kept per sample, node and vertex, this many (0, 1, 4 or 9) are a fit by "
                    "spherical harmonics of bands 0..2 whose residual no band-0..2 light sees, the rest the "
                    "largest Haar terms of that residual (9: the smooth shape kept whole; 0: Haar only; "
                    "docs/precompute.md)")
         ->capture_default_str();
-    app.add_option("--block-coefficients", s.blockCoefficients,
-                   "0: each vertex keeps its own terms. M > 0: blocks of 16 nearby vertices share M terms "
-                   "chosen jointly, 8-bit values (a smaller file that relights faster; docs/precompute.md)")
-        ->capture_default_str();
+    app.add_option("--block-coefficients", raw.blockCoefficients,
+                   "M > 0: blocks of 16 nearby vertices share M terms chosen jointly, 8-bit values (half the "
+                   "file of 128 per vertex, relights faster, as accurate; docs/precompute.md). 0: each vertex "
+                   "keeps its own terms")
+        ->default_str(std::to_string(kDefaultBlockCoefficients) + "; 0 with -k, --editable or --baseline");
     app.add_option("--epsilon", s.pass2.epsilon, "kd-tree threshold on A_node / r^2 (0 = exact sum)")
         ->capture_default_str();
     app.add_option("--samples", s.samples.count, "Number of surface samples (default: from the spacing)");
@@ -184,7 +186,18 @@ PrecomputeSettings settingsFromOptions(const JobOptions& raw, PrecomputeSettings
         else if (!raw.groundAlbedo.empty()) throw Error("--ground-albedo", "one value or R,G,B");
         validateGroundSettings(*s.ground);
     }
-    s.vertexCoefficients = raw.coefficients ? *raw.coefficients : s.blockCoefficients ? 512 : 128;
+    // Blocked by default; per vertex when the job asks for a per-vertex count (-k) or is
+    // editable (its recombination is faster per vertex: docs/editable-transport.md).
+    // The defaults never ask for more terms than a small cubemap has.
+    const size_t space = size_t(6) * size_t(std::max(s.cubemapSize, 0)) * size_t(std::max(s.cubemapSize, 0)) +
+                         size_t(std::max(s.shTerms, 0));
+    s.blockCoefficients = raw.blockCoefficients ? *raw.blockCoefficients
+                          : raw.coefficients || s.editable.enabled
+                              ? 0
+                              : std::min(kDefaultBlockCoefficients, space);
+    s.vertexCoefficients = raw.coefficients      ? *raw.coefficients
+                           : s.blockCoefficients ? std::min(kDefaultPreBlockCoefficients, space)
+                                                 : size_t(128);
     s.singleScattering.pathSamples =
         raw.pathSamples ? *raw.pathSamples : defaultPathSamples(s.singleScattering.pathQuadrature);
     return s;

@@ -26,7 +26,10 @@ struct JobOptions {
     MaterialOptions material;
     std::string components = "ms";
     std::string shard;  // "i/n" or empty
-    std::optional<size_t> coefficients;  // -k; absent: 128, or 512 with --block-coefficients
+    std::optional<size_t> coefficients;  // -k; absent: 128 per vertex, or kDefaultPreBlockCoefficients before blocking
+    // --block-coefficients; absent: kDefaultBlockCoefficients, or 0 (per-vertex vectors)
+    // with -k or --editable (and --baseline, which prt-precompute's main sets).
+    std::optional<size_t> blockCoefficients;
     std::optional<int> pathSamples;      // --path-samples; absent: defaultPathSamples(--path-quadrature)
     std::string editableMaterials;       // --editable-materials "A;B;...": parseMaterial texts
     std::string editableSizes;           // --editable-sizes S0:S1 (mm)

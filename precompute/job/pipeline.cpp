@@ -32,6 +32,7 @@ PrecomputeSummary plannedSummary(const PrecomputeSettings& s, const Distribution
     summary.blocks.sourceCoefficients = s.vertexCoefficients;
     summary.distribution.description = dist.describe();
     summary.distribution.ranks = dist.ranks();
+    summary.distribution.shard = s.shard.has_value();
     return summary;
 }
 

@@ -7,7 +7,6 @@
 #include <utility>
 
 #include "common/atomic_file.h"
-#include "common/blocked_vectors.h"
 #include "common/bssrdf.h"
 #include "common/error.h"
 #include "common/material_edit.h"
@@ -17,6 +16,7 @@
 #include "precompute/job/memory_estimate.h"
 #include "precompute/job/pass1_file.h"
 #include "precompute/job/pipeline.h"
+#include "precompute/job/transport_blocking.h"
 #include "common/cell_quadrature.h"
 #include "precompute/passes/diffuse_baseline.h"
 #include "precompute/passes/irradiance_transport.h"
@@ -445,39 +445,14 @@ WriteOutput writeTransport(const JobContext& job, const PreparedJob& prepared,
         file.components = std::move(components);
         file.viewMaps = std::move(viewMaps);
         file.radialBasis = std::move(radialBasis);
-        if (s.blockCoefficients > 0) {
+        // A shard stays per vertex: prt-merge blocks the whole file (the same bytes).
+        if (s.blockCoefficients > 0 && !s.shard) {
             // The joint choice needs every vertex's vectors: after the gather, on the writer.
             const Stopwatch blockStart;
-            const std::vector<uint32_t> order = spatialBlockOrder(prepared.mesh.positions);
-            const size_t texelCount = size_t(6) * s.cubemapSize * s.cubemapSize;
-            const uint32_t forcedFrom = s.shTerms > 0 ? uint32_t(texelCount) : UINT32_MAX;
-            double retained = 0.0;
-            // The radial profiles keep one index list per block for all of them (the
-            // relight walks it once); every other component chooses its own.
-            std::vector<TransportComponent*> profiles;
-            for (TransportComponent& c : file.components) {
-                if (c.kind == ComponentKind::MultipleScatteringProfiles) {
-                    profiles.push_back(&c);
-                    continue;
-                }
-                c.blocks = jointTruncate(c.vectors, s.blockCoefficients, order, forcedFrom);
-                retained += retainedEnergyFraction(c.vectors, c.blocks);
-                c.vectors = SparseRgbVectors();  // frees the per-vertex arrays
-            }
-            if (!profiles.empty()) {
-                std::vector<const SparseRgbVectors*> sources;
-                for (const TransportComponent* c : profiles) sources.push_back(&c->vectors);
-                std::vector<BlockedRgbVectors> blocks =
-                    jointTruncateShared(sources, s.blockCoefficients, order, forcedFrom);
-                for (size_t k = 0; k < profiles.size(); ++k) {
-                    profiles[k]->blocks = std::move(blocks[k]);
-                    retained += retainedEnergyFraction(profiles[k]->vectors, profiles[k]->blocks);
-                    profiles[k]->vectors = SparseRgbVectors();
-                }
-            }
+            out.blockRetainedEnergy =
+                blockTransportComponents(file, s.blockCoefficients, prepared.mesh.positions);
             out.blockSeconds = blockStart.seconds();
-            out.blockRetainedEnergy = file.components.empty() ? 1.0 : retained / double(file.components.size());
-            derived.push_back({"block_retained_energy", fmt(out.blockRetainedEnergy)});
+            derived.push_back({kBlockRetainedEnergyParameter, fmt(out.blockRetainedEnergy)});
         }
         const ParameterList shard = dist.outputParameters(prepared.mesh.vertexCount());
         derived.insert(derived.end(), shard.begin(), shard.end());

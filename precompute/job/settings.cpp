@@ -81,8 +81,6 @@ void validateSettings(const PrecomputeSettings& s) {
     checkTerms("--coefficients", s.vertexCoefficients);
     if (s.blockCoefficients > 0) {
         checkTerms("--block-coefficients", s.blockCoefficients);
-        if (s.shard)
-            throw Error("--block-coefficients", "shard files are per vertex (prt-merge does not join blocked shards yet)");
     }
     if (!(s.pass2.epsilon >= 0) || !std::isfinite(s.pass2.epsilon))
         throw Error("--epsilon", "must be a finite number >= 0, got " + fmt(s.pass2.epsilon));

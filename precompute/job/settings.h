@@ -53,6 +53,12 @@ struct EditableSettings {
     double cellGrading = 8.0;
 };
 
+// prt-precompute's shared terms per block of 16 vertices when a job does not choose
+// (JobOptions::blockCoefficients).
+inline constexpr size_t kDefaultBlockCoefficients = 160;
+// The terms per vertex the joint choice picks from when a blocked job does not set -k.
+inline constexpr size_t kDefaultPreBlockCoefficients = 256;
+
 struct PrecomputeSettings {
     std::string meshPath;
     std::string outputPath;           // empty only with pass1Only
@@ -67,6 +73,8 @@ struct PrecomputeSettings {
     size_t vertexCoefficients = 128;  // terms kept per vertex and component, the SH terms included
     // > 0: the file stores blocks of 16 nearby vertices sharing this many jointly chosen
     // terms, picked from each vertex's vertexCoefficients (common/blocked_vectors.h).
+    // 0: per-vertex vectors. The command line's default is kDefaultBlockCoefficients
+    // (JobOptions); a PrecomputeSettings made in code is per vertex unless it says so.
     size_t blockCoefficients = 0;
 
     SamplePlacement samples;

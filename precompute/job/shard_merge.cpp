@@ -2,9 +2,14 @@
 
 #include <algorithm>
 #include <map>
+#include <optional>
 
 #include "common/error.h"
+#include "common/mesh.h"
+#include "common/mesh_io.h"
+#include "common/transport_params.h"
 #include "precompute/job/distribution.h"
+#include "precompute/job/transport_blocking.h"
 
 namespace prt {
 
@@ -25,11 +30,10 @@ struct ShardInfo {
     IndexRange range;
 };
 
-// The merge slices and appends per-vertex vectors (one CSR range per shard); blocks
-// of 16 vertices would need the blocks re-formed across shard boundaries.
+// The merge slices and appends per-vertex vectors (one CSR range per shard) and forms
+// the blocks of the whole file afterwards; prt-precompute writes shards per vertex.
 [[noreturn]] void refuseBlocked(const std::string& path, ComponentKind kind, uint32_t term) {
-    throw Error(path, "has a blocked " + componentName(kind, term) +
-                          " component; merging blocked shards is not supported yet (shards are per vertex)");
+    throw Error(path, "has a blocked " + componentName(kind, term) + " component; shards are per vertex");
 }
 
 ShardInfo readShardInfo(const std::string& path) {
@@ -79,7 +83,7 @@ void checkSameJob(const TransportFile& first, const std::string& firstPath, cons
 
 }  // namespace
 
-TransportFile mergeShards(const std::vector<std::string>& paths) {
+TransportFile mergeShards(const std::vector<std::string>& paths, const std::string& meshPath) {
     if (paths.empty()) throw Error("shards", "no shard files given");
     // Cheap look at every shard first: membership errors before any large read.
     std::map<int, ShardInfo> byIndex;
@@ -131,6 +135,31 @@ TransportFile mergeShards(const std::vector<std::string>& paths) {
                                         "-" + std::to_string(s.range.end));
             appendVertices(whole.components[c].vectors, sliceVertices(v, s.range.begin, s.range.end));
         }
+    }
+
+    std::optional<TriangleMesh> mesh;
+    if (!meshPath.empty()) {
+        mesh = loadMesh(meshPath);
+        if (MeshFingerprint{mesh->vertexCount(), meshFingerprint(*mesh)} != whole.mesh)
+            throw Error(meshPath, "is not the mesh the shards were computed for (vertex count or position hash differs)");
+    }
+    const std::string blocks = whole.hasParameter("block_coefficients") ? whole.parameter("block_coefficients") : "0";
+    size_t keep = 0;
+    try {
+        keep = size_t(std::stoull(blocks));
+    } catch (const std::exception&) {
+        throw Error(firstPath, "bad 'block_coefficients' parameter '" + blocks + "'");
+    }
+    if (keep > 0) {
+        if (!mesh)
+            throw Error("shards", "their job stores blocks of " + blocks +
+                                      " terms (--block-coefficients), formed from the mesh: give it with --mesh");
+        // The positions in mm exactly as the precompute scaled them (the file's factor).
+        scaleToPhysical(*mesh, MeshScale{.sizeMm = std::nullopt, .mmPerUnit = whole.mmPerUnit});
+        const double retained = blockTransportComponents(whole, keep, mesh->positions);
+        // Where the single process writes it: after the derived parameters, before
+        // input_digest (the last).
+        whole.parameters.insert(whole.parameters.end() - 1, {kBlockRetainedEnergyParameter, formatParameter(retained)});
     }
     return whole;
 }

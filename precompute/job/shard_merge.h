@@ -19,8 +19,12 @@
 
 namespace prt {
 
-// Reads the shards (any order) and returns the whole file. Peak memory: the result
-// plus one shard.
-TransportFile mergeShards(const std::vector<std::string>& paths);
+// Reads the shards (any order) and returns the whole file. Shards are per vertex; when
+// their job asked for blocks (a block_coefficients parameter above 0, prt-precompute's
+// default) the whole file is blocked here as one process blocks it
+// (transport_blocking.h), from the mesh at meshPath (loaded and scaled as the
+// precompute did); without meshPath that is a prt::Error. A given meshPath must be the
+// shards' mesh (its fingerprint). Peak memory: the result plus one shard.
+TransportFile mergeShards(const std::vector<std::string>& paths, const std::string& meshPath = "");
 
 }  // namespace prt

@@ -58,7 +58,10 @@ std::string PrecomputeSummary::format() const {
                 formatDuration(pass2.cellSeconds).c_str());
         }
     }
-    if (blocks.coefficients > 0 && !outputPath.empty())
+    if (blocks.coefficients > 0 && !outputPath.empty() && d.shard)
+        add("blocks            %zu shared terms per 16 vertices, formed by prt-merge (the shard keeps %zu per vertex)",
+            blocks.coefficients, blocks.sourceCoefficients);
+    else if (blocks.coefficients > 0 && !outputPath.empty())
         add("blocks            16 nearby vertices share %zu terms chosen jointly from %zu per vertex, "
             "8-bit values: %s, retained energy %.4f",
             blocks.coefficients, blocks.sourceCoefficients, formatDuration(blocks.seconds).c_str(),

@@ -17,6 +17,7 @@ namespace prt {
 struct DistributionSummary {
     std::string description = "1 process";  // Distribution::describe() of this process
     int ranks = 1;
+    bool shard = false;  // --shard i/n: a per-vertex shard file (prt-merge blocks the whole)
     // Seconds each process spent computing its shares (pass 1 + pass 2 + single
     // scattering, without the exchanges), smallest and largest over the processes: their
     // ratio is the balance of the even split.

@@ -5,6 +5,7 @@
 
 #include "common/mesh.h"
 #include "common/mesh_io.h"
+#include "common/blocked_vectors.h"
 #include "common/transport_file.h"
 #include "common/transport_params.h"
 #include "python/src/bindings.h"
@@ -111,34 +112,49 @@ void bindTransport(py::module_& m) {
                 PyTransport& t = self.cast<PyTransport&>();
                 py::dict d;
                 auto arrays = [&](const SparseRgbVectors& v, py::handle owner) {
+                    d["blocked"] = false;
                     d["offsets"] = view(v.offsets.data(), {py::ssize_t(v.offsets.size())}, owner);
                     d["indices"] = view(v.indices.data(), {py::ssize_t(v.indices.size())}, owner);
                     d["values"] = view(v.values.data(), {py::ssize_t(v.indices.size()), 3}, owner);
                     d["scales"] = view(v.scales.data(), {py::ssize_t(v.vertexCount()), 3}, owner);
                 };
+                auto blockArrays = [&](const BlockedRgbVectors& b, py::handle owner) {
+                    const py::ssize_t lanes = py::ssize_t(kVertexBlock), blocks = py::ssize_t(b.blockCount());
+                    d["blocked"] = true;
+                    d["order"] = view(b.order.data(), {py::ssize_t(b.order.size())}, owner);
+                    d["offsets"] = view(b.offsets.data(), {py::ssize_t(b.offsets.size())}, owner);
+                    d["indices"] = view(b.indices.data(), {py::ssize_t(b.indices.size())}, owner);
+                    d["values"] = view(b.values.data(), {py::ssize_t(b.indices.size()), 3, lanes}, owner);
+                    d["scales"] = view(b.scales.data(), {blocks, 3, lanes}, owner);
+                    d["sh_from"] = b.shFrom == UINT32_MAX ? py::object(py::none()) : py::object(py::int_(b.shFrom));
+                    if (b.shFrom != UINT32_MAX) d["sh_scales"] = view(b.shScales.data(), {blocks, 3, lanes}, owner);
+                };
                 if (!t.edited) {
                     const TransportComponent& c = findComponent(*t.file, component);
                     if (c.blocked())
-                        throw Error(component, "is stored in blocks (--block-coefficients): read it with vertex_vector(v)");
-                    arrays(c.vectors, self);
+                        blockArrays(c.blocks, self);
+                    else
+                        arrays(c.vectors, self);
                     return d;
                 }
                 // An edited object's vectors change with its material: a copy, which its
                 // arrays keep alive.
-                auto* copy = new SparseRgbVectors(locked(t, [&] {
-                    const TransportComponent& c = findComponent(*t.file, component);
-                    if (c.blocked())
-                        throw Error(component, "is stored in blocks (--block-coefficients): read it with vertex_vector(v)");
-                    return c.vectors;
-                }));
-                py::capsule owner(copy, [](void* p) { delete static_cast<SparseRgbVectors*>(p); });
-                arrays(*copy, owner);
+                auto* copy = new TransportComponent(locked(t, [&] { return findComponent(*t.file, component); }));
+                py::capsule owner(copy, [](void* p) { delete static_cast<TransportComponent*>(p); });
+                if (copy->blocked())
+                    blockArrays(copy->blocks, owner);
+                else
+                    arrays(copy->vectors, owner);
                 return d;
             },
             py::arg("component") = "ms",
-            "The component's stored arrays: vertex v owns indices[offsets[v]:offsets[v+1]] and the int16 values "
-            "of the same rows; value = q * scales[v] per channel. Views of a loaded file; copies for an editable "
-            "Object's transport, whose multiple scattering changes with set_material")
+            "The component's stored arrays, d['blocked'] telling the layout. Per vertex: vertex v owns "
+            "indices[offsets[v]:offsets[v+1]] and the int16 values of the same rows; value = q * scales[v] per "
+            "channel. Blocked (blocks of 16 vertices sharing indices): block b holds the vertices "
+            "order[16 b:16 b + 16] (lanes) and the indices[offsets[b]:offsets[b+1]]; values[n, c, lane] is int8, "
+            "value = q * scales[b, c, lane], or q * sh_scales[b, c, lane] for indices >= sh_from. Views of a "
+            "loaded file; copies for an editable Object's transport, whose multiple scattering changes with "
+            "set_material")
         .def(
             "vertex_vector",
             [](PyTransport& t, size_t v, const std::string& component) {

@@ -33,12 +33,15 @@ def tool_error(*args, cwd=None):
 
 @pytest.fixture(scope="session")
 def scene(tmp_path_factory):
-    """The viewer test's generated scene (torus, sphere, sky.exr, dusk.exr) and three
-    small transport files of the torus: multiple scattering, + single scattering, editable."""
+    """The viewer test's generated scene (torus, sphere, sky.exr, dusk.exr) and four
+    small transport files of the torus: multiple scattering (blocked, the default, and per
+    vertex), + single scattering, editable."""
     root = tmp_path_factory.mktemp("scene")
     run_tool("prt-make-test-scene", "scene", root)
     common = ["--size-mm", 20, "--cubemap-size", 8, "--samples", 2000, "-q"]
     run_tool("prt-precompute", root / "torus.ply", *common, "-o", root / "torus.prt")
+    run_tool("prt-precompute", root / "torus.ply", *common, "--block-coefficients", 0, "-o",
+             root / "torus_vertexwise.prt")
     run_tool("prt-precompute", root / "torus.ply", *common, "--components", "ms,ss", "-o", root / "torus_ss.prt")
     run_tool("prt-precompute", root / "torus.ply", *common, "--editable", "-o", root / "torus_edit.prt")
     return root

@@ -117,8 +117,6 @@ CASES = [
      R + ["-t", "torus.prt", "-e", "sky.exr", "--material", "Skin1"], ValueError),
     ("block coefficients beyond 6 N^2", lambda: prt.precompute("torus.ply", block_coefficients=7000),
      P + ["torus.ply", "--block-coefficients", "7000", "-o", "o.prt"], ValueError),
-    ("blocks in a shard job", lambda: prt.precompute("torus.ply", block_coefficients=160, shard="0/2"),
-     P + ["torus.ply", "--block-coefficients", "160", "--shard", "0/2", "-o", "o.prt"], ValueError),
     ("absurd sample count", lambda: prt.precompute("torus.ply", "o.prt", samples=800000000),
      P + ["torus.ply", "--samples", "800000000", "-o", "o.prt"], ValueError),
     ("over --max-memory", lambda: prt.precompute("torus.ply", "o.prt", samples=100000, max_memory=0.01),

@@ -9,15 +9,32 @@ from conftest import run_tool
 
 
 def dense_vectors(transport, component="ms"):
-    """(V, 6 N^2 + T, 3) dense float64 vectors from the stored arrays (the slow path)."""
+    """(V, 6 N^2 + T, 3) dense float64 vectors from the stored arrays (the slow path),
+    per-vertex or blocked (the layouts of docs/transport-format.md, read here by numpy
+    alone)."""
     arrays = transport.vectors(component)
     offsets, indices = arrays["offsets"], arrays["indices"]
-    values, scales = arrays["values"].astype(np.float64), arrays["scales"].astype(np.float64)
     n = transport.cubemap_size
     dense = np.zeros((transport.vertex_count, 6 * n * n + transport.sh_terms, 3))
-    for v in range(transport.vertex_count):
-        rows = slice(offsets[v], offsets[v + 1])
-        dense[v, indices[rows]] = values[rows] * scales[v]
+    values = arrays["values"].astype(np.float64)
+    if not arrays["blocked"]:
+        scales = arrays["scales"].astype(np.float64)
+        for v in range(transport.vertex_count):
+            rows = slice(offsets[v], offsets[v + 1])
+            dense[v, indices[rows]] = values[rows] * scales[v]
+        return dense
+    order = arrays["order"]
+    for b in range(len(offsets) - 1):
+        rows = slice(offsets[b], offsets[b + 1])
+        idx = indices[rows].astype(np.int64)
+        sh = idx >= (arrays["sh_from"] if arrays["sh_from"] is not None else np.iinfo(np.int64).max)
+        for lane in range(16):
+            slot = 16 * b + lane
+            if slot >= transport.vertex_count:
+                break
+            scale = np.where(sh[:, None], arrays["sh_scales"][b, :, lane] if sh.any() else 0.0,
+                             arrays["scales"][b, :, lane])
+            dense[order[slot], idx] = values[rows, :, lane] * scale
     return dense
 
 
@@ -34,12 +51,18 @@ def test_transport_round_trip_and_info(scene, tmp_path):
     assert [c["name"] for c in info["components"]] == ["ms", "ss"]
     assert info["text"] in run_tool("prt-relight", "info", scene / "torus_ss.prt").stdout
     # The stored arrays and the dequantized vector of a vertex agree.
-    arrays = t.vectors("ms")
     v = 17
     idx, rgb = t.vertex_vector(v, "ms")
-    rows = slice(arrays["offsets"][v], arrays["offsets"][v + 1])
-    assert np.array_equal(idx, arrays["indices"][rows])
-    assert np.allclose(rgb, arrays["values"][rows] * arrays["scales"][v], rtol=1e-6)
+    assert t.vectors("ms")["blocked"]  # prt-precompute's default layout
+    dense = dense_vectors(t, "ms")[v]
+    assert set(np.flatnonzero(np.any(dense != 0, axis=1))) <= set(idx.tolist())
+    assert np.allclose(rgb, dense[idx], rtol=1e-6, atol=0)
+    per_vertex = prt.load_transport(str(scene / "torus_vertexwise.prt"))
+    assert not per_vertex.vectors("ms")["blocked"]
+    idx, rgb = per_vertex.vertex_vector(v, "ms")
+    dense = dense_vectors(per_vertex, "ms")[v]
+    assert set(np.flatnonzero(np.any(dense != 0, axis=1))) <= set(idx.tolist())
+    assert np.allclose(rgb, dense[idx], rtol=1e-6, atol=0)
     with pytest.raises(IndexError):
         t.vertex_vector(1152)
     with pytest.raises(ValueError, match="'xs' is not in the file"):

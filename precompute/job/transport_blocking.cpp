@@ -1,0 +1,43 @@
+#include "precompute/job/transport_blocking.h"
+
+#include "common/blocked_vectors.h"
+#include "common/error.h"
+#include "common/transport_file.h"
+
+namespace prt {
+
+double blockTransportComponents(TransportFile& file, size_t keep, const std::vector<glm::vec3>& positions) {
+    if (keep < 1) throw Error("--block-coefficients", "must be at least 1");
+    if (positions.size() != file.mesh.vertexCount)
+        throw Error("blocks", "the mesh has " + std::to_string(positions.size()) + " vertices, the file " +
+                                  std::to_string(file.mesh.vertexCount));
+    for (const TransportComponent& c : file.components)
+        if (c.blocked()) throw Error("blocks", "the " + componentName(c.kind, c.term) + " component is already blocked");
+    const std::vector<uint32_t> order = spatialBlockOrder(positions);
+    const size_t texelCount = size_t(6) * file.cubemapSize * file.cubemapSize;
+    const uint32_t forcedFrom = file.shTerms > 0 ? uint32_t(texelCount) : UINT32_MAX;
+    double retained = 0.0;
+    std::vector<TransportComponent*> profiles;
+    for (TransportComponent& c : file.components) {
+        if (c.kind == ComponentKind::MultipleScatteringProfiles) {
+            profiles.push_back(&c);
+            continue;
+        }
+        c.blocks = jointTruncate(c.vectors, keep, order, forcedFrom);
+        retained += retainedEnergyFraction(c.vectors, c.blocks);
+        c.vectors = SparseRgbVectors();
+    }
+    if (!profiles.empty()) {
+        std::vector<const SparseRgbVectors*> sources;
+        for (const TransportComponent* c : profiles) sources.push_back(&c->vectors);
+        std::vector<BlockedRgbVectors> blocks = jointTruncateShared(sources, keep, order, forcedFrom);
+        for (size_t k = 0; k < profiles.size(); ++k) {
+            profiles[k]->blocks = std::move(blocks[k]);
+            retained += retainedEnergyFraction(profiles[k]->vectors, profiles[k]->blocks);
+            profiles[k]->vectors = SparseRgbVectors();
+        }
+    }
+    return file.components.empty() ? 1.0 : retained / double(file.components.size());
+}
+
+}  // namespace prt
