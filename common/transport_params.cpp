@@ -76,13 +76,29 @@ std::string toString(const ScatteringComponents& c) {
     return "";
 }
 
+namespace {
+
+// A folded file's multiple-scattering vectors hold its single scattering too.
+ScatteringComponents withFolding(ScatteringComponents c, bool folded) {
+    if (folded && c.multipleScattering) c.singleScattering = c.folded = true;
+    return c;
+}
+
+bool foldedParameter(const std::vector<std::pair<std::string, std::string>>& parameters) {
+    for (const auto& [key, value] : parameters)
+        if (key == kFoldedSingleScatteringParameter) return value == "1";
+    return false;
+}
+
+}  // namespace
+
 ScatteringComponents componentsOf(const TransportFile& file) {
     ScatteringComponents c = ScatteringComponents::none();
     for (const TransportComponent& t : file.components)
         (t.kind == ComponentKind::MultipleScattering || t.kind == ComponentKind::MultipleScatteringProfiles
              ? c.multipleScattering
              : c.singleScattering) = true;
-    return c;
+    return withFolding(c, foldedParameter(file.parameters));
 }
 
 ScatteringComponents componentsOf(const TransportFileInfo& info) {
@@ -91,7 +107,7 @@ ScatteringComponents componentsOf(const TransportFileInfo& info) {
         (t.kind == ComponentKind::MultipleScattering || t.kind == ComponentKind::MultipleScatteringProfiles
              ? c.multipleScattering
              : c.singleScattering) = true;
-    return c;
+    return withFolding(c, foldedParameter(info.parameters));
 }
 
 ScatteringComponents selectComponents(const std::string& request, const ScatteringComponents& available,
@@ -105,6 +121,9 @@ ScatteringComponents selectComponents(const std::string& request, const Scatteri
     }
     const ScatteringComponents s = asked & available;
     if (!s.any()) throw Error(transportPath, "has none of the requested components");
+    if (available.folded && !(s.multipleScattering && s.singleScattering))
+        throw Error(transportPath, "has its single scattering folded into the multiple-scattering vectors "
+                                   "(prt-precompute --fold-ss): the two show only together (--components all)");
     return s;
 }
 

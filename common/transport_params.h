@@ -27,6 +27,10 @@ using ParameterList = std::vector<std::pair<std::string, std::string>>;
 struct ScatteringComponents {
     bool multipleScattering = true;
     bool singleScattering = false;
+    // What a file holds (componentsOf): its single scattering is inside its
+    // multiple-scattering vectors (prt-precompute --fold-ss), so the two can only be
+    // shown together. Never set in a request; operator& drops it.
+    bool folded = false;
 
     static constexpr ScatteringComponents all() { return {true, true}; }
     static constexpr ScatteringComponents none() { return {false, false}; }
@@ -44,13 +48,18 @@ ScatteringComponents parseScatteringComponents(const std::string& text);
 // "ms", "ss", "ms,ss" (or "" for none): what parseScatteringComponents reads back.
 std::string toString(const ScatteringComponents& c);
 
-// What a file holds, from its component sections.
+// The parameter of a file whose isotropic single scattering was added into its
+// multiple-scattering vectors (value "1"; precompute/job/fold_single_scattering.h).
+inline constexpr const char* kFoldedSingleScatteringParameter = "ss_folded_into_ms";
+
+// What a file holds, from its component sections (and kFoldedSingleScatteringParameter:
+// both components, folded).
 ScatteringComponents componentsOf(const TransportFile& file);
 ScatteringComponents componentsOf(const TransportFileInfo& info);
 
 // The components to render for a --components request: "all" = whatever the file
 // has; an explicit request for a component the file lacks is an error, and so is
-// selecting nothing. Errors name `transportPath`.
+// selecting nothing, and one component alone of a folded file. Errors name `transportPath`.
 ScatteringComponents selectComponents(const std::string& request, const ScatteringComponents& available,
                                       const std::string& transportPath);
 

@@ -17,14 +17,19 @@
 #include "common/error.h"
 #include "common/haar.h"
 #include "precompute/job/distribution.h"
+#include "precompute/job/fold_single_scattering.h"
 #include "precompute/job/summary_json.h"
 #include "common/sh_part.h"
 #include "common/progress.h"
 #include "common/shapes.h"
 #include "common/mesh_io.h"
 #include "common/radial_basis.h"
+#include "common/blocked_vectors.h"
+#include "common/transport_params.h"
+#include "tests/test_support.h"
 
 using namespace prt;
+using prt::test::errorOf;
 namespace fs = std::filesystem;
 
 namespace {
@@ -244,6 +249,52 @@ TEST(Precompute, BlockedOutputIsTheJointTruncationOfThePerVertexVectors) {
     // tests/test_distribution.cpp, Shards.BlockedJobsShardsMergeToTheSingleProcessFileByteForByte).
     s.shard = ShardSpec{0, 2};
     EXPECT_NO_THROW(validateSettings(s));
+    fs::remove_all(dir);
+}
+
+// --fold-ss is the unfolded job's two per-vertex components folded (foldVectors, tested
+// against the sum on its own), written as one multiple-scattering component that the
+// renderers show only whole; blocked, the fold comes before the blocks.
+TEST(Precompute, FoldedSingleScatteringIsTheSumOfTheTwoComponents) {
+    Progress::setEnabled(false);
+    const fs::path dir = tempDir();
+    PrecomputeSettings s;
+    s.meshPath = (dir / "box.obj").string();
+    saveMesh(makeBox({10, 6, 4}, glm::ivec3(5, 4, 3)), s.meshPath);
+    s.scale.mmPerUnit = 1.0;
+    s.material = materialByName("Skin1");
+    s.components = ScatteringComponents::all();
+    s.singleScattering.pathSamples = 4;
+    s.cubemapSize = 4;
+    s.samples.count = 200;
+    s.pass1.sampleCoefficients = s.pass2.nodeCoefficients = 32;
+    s.vertexCoefficients = 40;
+    s.outputPath = (dir / "two.prt").string();
+    precomputeTransport(s, /*force=*/true);
+    s.foldSingleScattering = true;
+    s.outputPath = (dir / "folded.prt").string();
+    precomputeTransport(s, /*force=*/true);
+    const TransportFile two = loadTransportFile((dir / "two.prt").string());
+    const TransportFile folded = loadTransportFile(s.outputPath);
+    ASSERT_EQ(two.components.size(), 2u);
+    ASSERT_EQ(folded.components.size(), 1u);
+    EXPECT_EQ(folded.components[0].kind, ComponentKind::MultipleScattering);
+    EXPECT_EQ(folded.components[0].vectors, foldVectors(two.components[0].vectors, two.components[1].vectors, 40,
+                                                        uint32_t(6 * 4 * 4)));
+    EXPECT_EQ(folded.parameter(kFoldedSingleScatteringParameter), "1");
+    EXPECT_TRUE(componentsOf(folded).folded);
+    // Blocked: the folded vectors' joint truncation.
+    s.blockCoefficients = 24;
+    s.outputPath = (dir / "folded_blocked.prt").string();
+    precomputeTransport(s, /*force=*/true);
+    const TransportFile blocked = loadTransportFile(s.outputPath);
+    ASSERT_EQ(blocked.components.size(), 1u);
+    EXPECT_EQ(blocked.components[0].blocks,
+              jointTruncate(folded.components[0].vectors, 24, spatialBlockOrder(loadMesh(s.meshPath).positions),
+                            uint32_t(6 * 4 * 4)));
+    // Only isotropic single scattering folds.
+    s.material.g = 0.3;
+    EXPECT_NE(errorOf([&] { validateSettings(s); }).find("--fold-ss"), std::string::npos);
     fs::remove_all(dir);
 }
 

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "common/error.h"
+#include "common/transport_file.h"
 #include "common/transport_params.h"
 #include "tests/test_support.h"
 
@@ -71,6 +72,25 @@ TEST(ScatteringComponents, WhatAFileHasAndWhatToRender) {
     EXPECT_EQ(e.rfind("f.prt: has no single-scattering component", 0), 0u) << e;
     EXPECT_NE(errorOf([&] { selectComponents("all", ScatteringComponents::none(), "f.prt"); }).find("none"),
               std::string::npos);
+}
+
+// A folded file (prt-precompute --fold-ss) has both components in one vector: shown
+// together or refused, never one silently with the other in it.
+TEST(ScatteringComponents, AFoldedFileShowsBothOrRefuses) {
+    TransportFile f;
+    TransportComponent ms;
+    ms.kind = ComponentKind::MultipleScattering;
+    f.components.push_back(ms);
+    EXPECT_EQ(componentsOf(f), (ScatteringComponents{true, false}));
+    f.parameters.push_back({kFoldedSingleScatteringParameter, "1"});
+    const ScatteringComponents folded = componentsOf(f);
+    EXPECT_TRUE(folded.multipleScattering && folded.singleScattering && folded.folded);
+    EXPECT_EQ(selectComponents("all", folded, "f.prt"), ScatteringComponents::all());
+    EXPECT_EQ(selectComponents("ss,ms", folded, "f.prt"), ScatteringComponents::all());
+    for (const char* alone : {"ms", "ss"}) {
+        const std::string e = errorOf([&] { selectComponents(alone, folded, "f.prt"); });
+        EXPECT_EQ(e.rfind("f.prt: has its single scattering folded", 0), 0u) << e;
+    }
 }
 
 TEST(TransportParameters, MaterialRoundTripsExactlyToStoredPrecision) {

@@ -117,6 +117,10 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
                    "pass-1 inputs), else compute and save them there: the shards of a job then compute "
                    "pass 1 once (docs/cluster.md)");
     app.add_flag("--pass1-only", s.pass1Only, "Stop after writing --pass1-file (no transport file)");
+    app.add_flag("--fold-ss", s.foldSingleScattering,
+                 "Add isotropic single scattering into the multiple-scattering vectors (one vector per vertex: "
+                 "relit at the cost of multiple scattering alone; the renderers then show the two only "
+                 "together; docs/precompute.md)");
     app.add_flag("--editable", s.editable.enabled,
                  "Editable transport: pass 2 against a radial basis, so prt-relight can change the material "
                  "and the size without a new precompute (docs/editable-transport.md)")

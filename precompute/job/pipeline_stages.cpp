@@ -15,6 +15,7 @@
 #include "common/progress.h"
 #include "precompute/job/memory_estimate.h"
 #include "precompute/job/pass1_file.h"
+#include "precompute/job/fold_single_scattering.h"
 #include "precompute/job/pipeline.h"
 #include "precompute/job/transport_blocking.h"
 #include "common/cell_quadrature.h"
@@ -445,6 +446,10 @@ WriteOutput writeTransport(const JobContext& job, const PreparedJob& prepared,
         file.components = std::move(components);
         file.viewMaps = std::move(viewMaps);
         file.radialBasis = std::move(radialBasis);
+        if (s.foldSingleScattering) {
+            const uint32_t shFrom = s.shTerms > 0 ? uint32_t(6 * s.cubemapSize * s.cubemapSize) : UINT32_MAX;
+            foldSingleScattering(file.components, s.vertexCoefficients, shFrom);
+        }
         // A shard stays per vertex: prt-merge blocks the whole file (the same bytes).
         if (s.blockCoefficients > 0 && !s.shard) {
             // The joint choice needs every vertex's vectors: after the gather, on the writer.

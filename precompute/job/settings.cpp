@@ -116,6 +116,13 @@ void validateSettings(const PrecomputeSettings& s) {
             throw Error("--ground", "occludes pass 1 of multiple scattering: select it (--components ms or ms,ss)");
         if (s.shard) throw Error("--ground", "not with --shard (the ground's file is written by one process)");
     }
+    if (s.foldSingleScattering) {
+        if (!s.components.multipleScattering || !s.components.singleScattering)
+            throw Error("--fold-ss", "folds single scattering into multiple scattering: select both (--components ms,ss)");
+        if (s.material.g != 0.0)
+            throw Error("--fold-ss", "needs isotropic single scattering (g = 0): an anisotropic phase has view maps");
+        if (s.editable.enabled) throw Error("--fold-ss", "not with --editable (its multiple scattering is recombined)");
+    }
     if (s.editable.enabled) {
         if (!s.components.multipleScattering)
             throw Error("--editable", "edits multiple scattering: select it (--components ms or ms,ss)");
@@ -192,6 +199,8 @@ ParameterList settingsParameters(const PrecomputeSettings& settings, const MeshF
     };
     p.insert(p.end(), passes.begin(), passes.end());
     if (s.blockCoefficients > 0) p.push_back({"block_coefficients", std::to_string(s.blockCoefficients)});
+    // Recorded only when folded, so other files keep their parameters and digest.
+    if (s.foldSingleScattering) p.push_back({kFoldedSingleScatteringParameter, "1"});
     // Recorded only with a ground, so files without one keep their parameters and digest.
     if (s.ground) {
         p.push_back({"ground_size_diagonals", fmt(s.ground->halfExtentPerDiagonal)});

@@ -76,6 +76,11 @@ struct PrecomputeSettings {
     // 0: per-vertex vectors. The command line's default is kDefaultBlockCoefficients
     // (JobOptions); a PrecomputeSettings made in code is per vertex unless it says so.
     size_t blockCoefficients = 0;
+    // Isotropic single scattering added into the multiple-scattering vectors (both are
+    // dotted with the same light and scaled by F_t(w_o); Wang et al. 2005 Sec. 5), each
+    // vertex's sum truncated to vertexCoefficients: one vector per vertex to relight, the
+    // two components no longer shown apart (precompute/job/fold_single_scattering.h).
+    bool foldSingleScattering = false;
 
     SamplePlacement samples;
     IrradianceTransportOptions pass1;  // its supersample, sampleCoefficients, sampling

@@ -27,6 +27,7 @@
 #include "common/error.h"
 #include "common/image.h"
 #include "common/material_edit.h"
+#include "common/transport_params.h"
 #include "common/util.h"
 #include "relight/viewer/gl_util.h"
 #include "relight/viewer/panel.h"
@@ -195,6 +196,12 @@ void Viewer::start() {
     state_.lightTerms = int(std::min<size_t>(s_.frame.lightTerms, size_t(6) * file.cubemapSize * file.cubemapSize));
     state_.multipleScattering = s_.components.multipleScattering;
     state_.singleScattering = s_.components.singleScattering;
+    if (componentsOf(file).folded) {
+        // No toggle of its own: the multiple-scattering vectors carry it.
+        std::printf("single scattering: folded into the multiple-scattering vectors (prt-precompute --fold-ss); "
+                    "the ms toggle shows both\n");
+        std::fflush(stdout);
+    }
     state_.specular = s_.frame.specular;
     state_.showPanel = s_.showPanel;
     script_ = ScriptedMotion(s_.frames, s_.spinDegreesPerFrame, s_.orbitDegreesPerFrame,
