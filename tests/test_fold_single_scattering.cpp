@@ -17,19 +17,7 @@ constexpr uint32_t kSpace = 40;  // 32 "Haar" indices + 8 "SH" ones from kShFrom
 constexpr uint32_t kShFrom = 32;
 
 SparseRgbVectors randomComponent(size_t vertices, uint32_t seed) {
-    std::mt19937 rng(seed);
-    SparseRgbVectors v;
-    for (size_t i = 0; i < vertices; ++i) {
-        std::vector<uint32_t> idx;
-        std::vector<float> rgb;
-        for (uint32_t k = 0; k < kSpace; ++k) {
-            if (rng() % 2) continue;
-            idx.push_back(k);
-            for (int c = 0; c < 3; ++c) rgb.push_back(float(int(rng() % 2001) - 1000) / 100.0f);
-        }
-        v.appendVertex(idx, rgb);
-    }
-    return v;
+    return prt::test::randomSparseVectors(vertices, seed, kSpace, 2);
 }
 
 // dot(vertex v's vector, light) per channel, from the dequantized values.

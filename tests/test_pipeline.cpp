@@ -199,6 +199,27 @@ TEST(Precompute, AnUnwritableOutputIsRefusedBeforeAnyWork) {
     EXPECT_FALSE(fs::exists(tempDir() / "no"));
 }
 
+namespace {
+
+// A 10 x 6 x 4 mm box (a vertex count that is not a multiple of 16), Skin1, ms + isotropic
+// ss, 6 x 4 x 4 cubemaps, 40 terms per vertex: a whole job in a fraction of a second.
+PrecomputeSettings smallBoxJob(const fs::path& dir) {
+    PrecomputeSettings s;
+    s.meshPath = (dir / "box.obj").string();
+    saveMesh(makeBox({10, 6, 4}, glm::ivec3(5, 4, 3)), s.meshPath);
+    s.scale.mmPerUnit = 1.0;
+    s.material = materialByName("Skin1");
+    s.components = ScatteringComponents::all();
+    s.singleScattering.pathSamples = 4;
+    s.cubemapSize = 4;
+    s.samples.count = 200;
+    s.pass1.sampleCoefficients = s.pass2.nodeCoefficients = 32;
+    s.vertexCoefficients = 40;
+    return s;
+}
+
+}  // namespace
+
 TEST(Precompute, BlockedOutputIsTheJointTruncationOfThePerVertexVectors) {
     // --block-coefficients M is the per-vertex job (same -k) followed by jointTruncate
     // over spatialBlockOrder of the mesh: every component, exactly, so the blocked file
@@ -206,21 +227,10 @@ TEST(Precompute, BlockedOutputIsTheJointTruncationOfThePerVertexVectors) {
     // vertices (not a multiple of 16), so the last block is partial.
     Progress::setEnabled(false);
     const fs::path dir = tempDir();
-    PrecomputeSettings s;
-    s.meshPath = (dir / "box.obj").string();
-    const TriangleMesh box = makeBox({10, 6, 4}, glm::ivec3(5, 4, 3));
-    saveMesh(box, s.meshPath);
-    s.scale.mmPerUnit = 1.0;
-    s.material = materialByName("Skin1");
+    PrecomputeSettings s = smallBoxJob(dir);
     s.material.g = 0.3;  // single scattering with K = 2 term components
-    s.components = ScatteringComponents::all();
     s.phase.terms = 2;
     s.phase.mapSize = 4;
-    s.singleScattering.pathSamples = 4;
-    s.cubemapSize = 4;
-    s.samples.count = 200;
-    s.pass1.sampleCoefficients = s.pass2.nodeCoefficients = 32;
-    s.vertexCoefficients = 40;
     s.outputPath = (dir / "per_vertex.prt").string();
     precomputeTransport(s, /*force=*/true);
     s.blockCoefficients = 24;
@@ -258,17 +268,7 @@ TEST(Precompute, BlockedOutputIsTheJointTruncationOfThePerVertexVectors) {
 TEST(Precompute, FoldedSingleScatteringIsTheSumOfTheTwoComponents) {
     Progress::setEnabled(false);
     const fs::path dir = tempDir();
-    PrecomputeSettings s;
-    s.meshPath = (dir / "box.obj").string();
-    saveMesh(makeBox({10, 6, 4}, glm::ivec3(5, 4, 3)), s.meshPath);
-    s.scale.mmPerUnit = 1.0;
-    s.material = materialByName("Skin1");
-    s.components = ScatteringComponents::all();
-    s.singleScattering.pathSamples = 4;
-    s.cubemapSize = 4;
-    s.samples.count = 200;
-    s.pass1.sampleCoefficients = s.pass2.nodeCoefficients = 32;
-    s.vertexCoefficients = 40;
+    PrecomputeSettings s = smallBoxJob(dir);
     s.outputPath = (dir / "two.prt").string();
     precomputeTransport(s, /*force=*/true);
     s.foldSingleScattering = true;

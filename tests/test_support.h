@@ -6,6 +6,7 @@
 #include <functional>
 #include <map>
 #include <new>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -18,6 +19,24 @@
 namespace prt::test {
 
 inline constexpr const char* kNoError = "<no error>";
+
+// Per-vertex vectors with random supports in [0, space) (each index present with
+// probability 1 / keepOneIn) and values in [-10, 10] (steps of 0.01): deterministic per seed.
+inline SparseRgbVectors randomSparseVectors(size_t vertices, uint32_t seed, uint32_t space, uint32_t keepOneIn) {
+    std::mt19937 rng(seed);
+    SparseRgbVectors v;
+    for (size_t i = 0; i < vertices; ++i) {
+        std::vector<uint32_t> idx;
+        std::vector<float> rgb;
+        for (uint32_t k = 0; k < space; ++k) {
+            if (rng() % keepOneIn) continue;
+            idx.push_back(k);
+            for (int c = 0; c < 3; ++c) rgb.push_back(float(int(rng() % 2001) - 1000) / 100.0f);
+        }
+        v.appendVertex(idx, rgb);
+    }
+    return v;
+}
 
 // what() of the prt::Error that f throws, or kNoError when it throws none; any other
 // exception (std::bad_alloc included) is a test failure: every user error must be a

@@ -14,22 +14,6 @@ using prt::test::errorOf;
 
 namespace {
 
-SparseRgbVectors randomComponent(size_t vertices, uint32_t seed, uint32_t space) {
-    std::mt19937 rng(seed);
-    SparseRgbVectors v;
-    for (size_t i = 0; i < vertices; ++i) {
-        std::vector<uint32_t> idx;
-        std::vector<float> rgb;
-        for (uint32_t k = 0; k < space; ++k) {
-            if (rng() % 3) continue;
-            idx.push_back(k);
-            for (int c = 0; c < 3; ++c) rgb.push_back(float(int(rng() % 2001) - 1000) / 100.0f);
-        }
-        v.appendVertex(idx, rgb);
-    }
-    return v;
-}
-
 // 37 vertices (two full blocks and a partial one), cubemap 2 (24 texels) + 4 SH terms.
 TransportFile smallFile(bool profiles) {
     TransportFile f;
@@ -41,7 +25,7 @@ TransportFile smallFile(bool profiles) {
         c.kind = profiles ? ComponentKind::MultipleScatteringProfiles
                           : (k == 0 ? ComponentKind::MultipleScattering : ComponentKind::SingleScatteringIsotropic);
         c.term = profiles ? k : 0;
-        c.vectors = randomComponent(37, 11 + k, 28);
+        c.vectors = prt::test::randomSparseVectors(37, 11 + k, 28, 3);
         f.components.push_back(std::move(c));
     }
     return f;
