@@ -192,7 +192,7 @@ TEST(JobOptions, BlocksAreTheDefault) {
     const PrecomputeSettings small = with({"--cubemap-size", "4"});
     EXPECT_EQ(small.blockCoefficients, 105u);
     EXPECT_EQ(small.vertexCoefficients, 105u);
-    EXPECT_EQ(with({"--cubemap-size", "8"}).vertexCoefficients, 256u);  // 393 hold 256
+    EXPECT_EQ(with({"--cubemap-size", "8"}).vertexCoefficients, 192u);  // 393 hold 192
     // A job file resolves the same way.
     EXPECT_EQ(parseJob({}, {{"mesh", "m.obj"}, {"output", "o"}}, "j").blockCoefficients, kDefaultBlockCoefficients);
     EXPECT_EQ(parseJob({}, {{"mesh", "m.obj"}, {"output", "o"}, {"coefficients", 64}}, "j").blockCoefficients, 0u);

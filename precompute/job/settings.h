@@ -57,7 +57,7 @@ struct EditableSettings {
 // (JobOptions::blockCoefficients).
 inline constexpr size_t kDefaultBlockCoefficients = 160;
 // The terms per vertex the joint choice picks from when a blocked job does not set -k.
-inline constexpr size_t kDefaultPreBlockCoefficients = 256;
+inline constexpr size_t kDefaultPreBlockCoefficients = 192;
 
 struct PrecomputeSettings {
     std::string meshPath;
