@@ -7,7 +7,8 @@
 #   3. prt-precompute: multiple + isotropic single scattering of dragon res4 with
 #      --summary-json (pass 2 and single-scattering time per vertex, kd-tree nodes
 #      visited per vertex, peak memory after each pass, file size per vertex);
-#   4. prt-bench-relight-file: light vector and relight time per frame of that file;
+#   4. prt-bench-relight-file: light vector and relight time per frame of that file, and
+#      of the same job with --fold-ss (single scattering folded into one vector);
 #   5. prt-bench-tsis: point lights by texture-space importance sampling (Chang et al.
 #      2008's goal row: dragon res4, hybrid, N = 900, 512 x 512, per vertex as the
 #      viewer): the time per new light position split into its stages, and a material
@@ -111,9 +112,13 @@ rm -f "$out/precompute.json"
 run precompute "$precompute" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 --material Marble \
   --components ms,ss -f -q --summary-json "$o/precompute.json" -o "$o/dragon4_ms_ss.prt"
 run relight_file "$bench_file" "$o/dragon4_ms_ss.prt" -e data/envmaps/forest.exr --json "$o/relight_file.json"
+run precompute_folded "$precompute" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 --material Marble \
+  --components ms,ss --fold-ss -f -q -o "$o/dragon4_folded.prt"
+run relight_file_folded "$bench_file" "$o/dragon4_folded.prt" -e data/envmaps/forest.exr \
+  --json "$o/relight_file_folded.json"
 run tsis "$bench_tsis" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 -m Skin2 --light point:-20,40,-60:0.04 \
   -W 512 -H 512 --split hybrid --samples 900 --repeat 7 --material-change Skin1 --json "$o/tsis.json"
 echo "load_end=$(cut -d' ' -f1-3 /proc/loadavg)" >>"$out/meta.txt"
-rm -f "$out/dragon4_ms_ss.prt"
+rm -f "$out/dragon4_ms_ss.prt" "$out/dragon4_folded.prt"
 
 python3 "$root/tools/bench_report.py" "$out"

@@ -45,6 +45,8 @@ Json settingsJson(const PrecomputeSettings& s) {
     j["sample_coefficients"] = s.pass1.sampleCoefficients;
     j["node_coefficients"] = s.pass2.nodeCoefficients;
     j["coefficients"] = s.vertexCoefficients;
+    j["block_coefficients"] = s.blockCoefficients;  // 0: per-vertex vectors
+    j["fold_ss"] = s.foldSingleScattering;
     j["sh_terms"] = s.shTerms;
     j["epsilon"] = s.pass2.epsilon;
     j["samples_requested"] = s.samples.count;               // 0: from the spacing
