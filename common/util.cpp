@@ -116,6 +116,18 @@ std::string formatBytes(uint64_t bytes) {
     return buf;
 }
 
+uint64_t residentMemoryBytes() {
+    std::ifstream in("/proc/self/status");
+    std::string line;
+    while (std::getline(in, line)) {
+        std::istringstream ss(line);
+        std::string key;
+        uint64_t kb = 0;
+        if (ss >> key >> kb && key == "VmRSS:") return kb * 1024;
+    }
+    return 0;
+}
+
 uint64_t availableMemoryBytes() {
     std::ifstream in("/proc/meminfo");
     std::string line;

@@ -34,6 +34,9 @@ std::vector<double> parseNumberList(const std::string& text, const std::string& 
 // physical memory when that is not readable; 0 when neither is known.
 uint64_t availableMemoryBytes();
 
+// VmRSS of /proc/self/status: the process's resident memory now; 0 when not readable.
+uint64_t residentMemoryBytes();
+
 // "41.2 GB", "830 MB", "12 kB" (decimal units).
 std::string formatBytes(uint64_t bytes);
 

@@ -75,6 +75,11 @@ MeasuredJob measureJob(PrecomputeSettings s, const TriangleMesh& mesh) {
     const PrecomputeSummary summary = precomputeTransport(s, /*force=*/true);
     m.peak = procStatusBytes("VmHWM") - before;
     m.estimate = summary.setup.estimatedMemoryBytes;
+    // What the summary prints beside the estimate: the process's resident set at the
+    // job's start, below its peak, and within 16 MB of the resident set measured here.
+    EXPECT_GT(summary.startMemoryBytes, 0u);
+    EXPECT_LE(summary.startMemoryBytes, summary.peakMemoryBytes);
+    EXPECT_NEAR(double(summary.startMemoryBytes), double(before), double(16u << 20));
     m.largest = estimatePrecomputeMemory(withSharedValues(s), summary.setup.vertices, summary.setup.triangles,
                                          summary.samples.count, tbb::this_task_arena::max_concurrency(),
                                          summary.setup.totalAreaMm2)

@@ -101,6 +101,7 @@ PrecomputeSummary precomputeTransport(const PrecomputeSettings& requested, bool 
     Distribution& dist = shardOfJob ? *shardOfJob : distribution ? *distribution : single;
     const JobContext job{settings, dist, dist.partial() ? " [" + dist.describe() + "]" : ""};
     PrecomputeSummary summary = plannedSummary(settings, dist);
+    summary.startMemoryBytes = residentMemoryBytes();
 
     JobInputs inputs = readInputs(job, force);
     if (dist.agree(inputs.upToDate)) {

@@ -98,9 +98,10 @@ std::string PrecomputeSummary::format() const {
             s.meanDepthMm, (unsigned long long)s.cappedDepths, (unsigned long long)s.flippedNormals,
             (unsigned long long)s.outsideSamples);
     }
-    add("total             %s, peak memory %.0f MB, estimated %.0f MB (setup %s, write %s)",
+    add("total             %s, peak memory %.0f MB, estimated %.0f MB for the job's data above the %.0f MB "
+        "resident at its start (setup %s, write %s)",
         formatDuration(totalSeconds).c_str(), peakMemoryBytes / 1e6, setup.estimatedMemoryBytes / 1e6,
-        formatDuration(setup.seconds).c_str(), formatDuration(write.seconds).c_str());
+        startMemoryBytes / 1e6, formatDuration(setup.seconds).c_str(), formatDuration(write.seconds).c_str());
     // ru_maxrss only grows: each figure is the process's peak up to the end of that stage.
     std::string peaks = "peak memory so far after setup " + megabytes(setup.peakMemoryBytes);
     if (components.multipleScattering)

@@ -123,6 +123,9 @@ struct PrecomputeSummary {
     GroundSummary ground;
     double totalSeconds = 0;
     size_t peakMemoryBytes = 0;  // of the process, at the end
+    // Resident before the job read its mesh: the libraries and the caller's own data,
+    // which the memory estimate (the job's data) leaves out.
+    size_t startMemoryBytes = 0;
 
     // Pass 2's and single scattering's gathers.
     double gatherSeconds() const { return pass2.gatherSeconds + singleScattering.gatherSeconds; }

@@ -148,6 +148,7 @@ Json summaryJson(const PrecomputeSummary& r) {
     // Output and memory.
     j["file_bytes"] = r.write.fileBytes;
     j["peak_memory_bytes"] = r.peakMemoryBytes;
+    j["start_resident_bytes"] = r.startMemoryBytes;
     j["peak_memory_after_setup_bytes"] = setup.peakMemoryBytes;
     j["peak_memory_after_samples_bytes"] = msOnly(r.samples.peakMemoryBytes);
     j["peak_memory_after_pass1_bytes"] = msOnly(pass1.peakMemoryBytes);
