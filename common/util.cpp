@@ -116,27 +116,27 @@ std::string formatBytes(uint64_t bytes) {
     return buf;
 }
 
-uint64_t residentMemoryBytes() {
-    std::ifstream in("/proc/self/status");
+namespace {
+
+// The "Key:  N kB" line of a /proc file, in bytes; 0 when absent or unreadable.
+uint64_t procKilobytesLine(const char* path, const std::string& key) {
+    std::ifstream in(path);
     std::string line;
     while (std::getline(in, line)) {
         std::istringstream ss(line);
-        std::string key;
+        std::string name;
         uint64_t kb = 0;
-        if (ss >> key >> kb && key == "VmRSS:") return kb * 1024;
+        if (ss >> name >> kb && name == key) return kb * 1024;
     }
     return 0;
 }
 
+}  // namespace
+
+uint64_t residentMemoryBytes() { return procKilobytesLine("/proc/self/status", "VmRSS:"); }
+
 uint64_t availableMemoryBytes() {
-    std::ifstream in("/proc/meminfo");
-    std::string line;
-    while (std::getline(in, line)) {
-        std::istringstream ss(line);
-        std::string key;
-        uint64_t kb = 0;
-        if (ss >> key >> kb && key == "MemAvailable:") return kb * 1024;
-    }
+    if (const uint64_t available = procKilobytesLine("/proc/meminfo", "MemAvailable:")) return available;
     const long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGE_SIZE);
     return pages > 0 && size > 0 ? uint64_t(pages) * uint64_t(size) : 0;
 }
