@@ -163,6 +163,10 @@ struct TransportFile {
     // Present iff MultipleScatteringProfiles components exist (format version 5).
     std::optional<StoredRadialBasis> radialBasis;
 
+    // The first SH index, 6 N^2, or UINT32_MAX when the vectors have no SH part: where
+    // truncations keep terms first (jointTruncate's forcedFrom, foldVectors').
+    uint32_t shIndexBegin() const { return shTerms > 0 ? 6 * cubemapSize * cubemapSize : UINT32_MAX; }
+
     // The component of that kind (and term), or nullptr.
     const TransportComponent* find(ComponentKind kind, uint32_t term = 0) const;
     // The value of a parameter, or "" when absent.

@@ -446,10 +446,7 @@ WriteOutput writeTransport(const JobContext& job, const PreparedJob& prepared,
         file.components = std::move(components);
         file.viewMaps = std::move(viewMaps);
         file.radialBasis = std::move(radialBasis);
-        if (s.foldSingleScattering) {
-            const uint32_t shFrom = s.shTerms > 0 ? uint32_t(6 * s.cubemapSize * s.cubemapSize) : UINT32_MAX;
-            foldSingleScattering(file.components, s.vertexCoefficients, shFrom);
-        }
+        if (s.foldSingleScattering) foldSingleScattering(file.components, s.vertexCoefficients, file.shIndexBegin());
         // A shard stays per vertex: prt-merge blocks the whole file (the same bytes).
         if (s.blockCoefficients > 0 && !s.shard) {
             // The joint choice needs every vertex's vectors: after the gather, on the writer.

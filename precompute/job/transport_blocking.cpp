@@ -14,8 +14,7 @@ double blockTransportComponents(TransportFile& file, size_t keep, const std::vec
     for (const TransportComponent& c : file.components)
         if (c.blocked()) throw Error("blocks", "the " + componentName(c.kind, c.term) + " component is already blocked");
     const std::vector<uint32_t> order = spatialBlockOrder(positions);
-    const size_t texelCount = size_t(6) * file.cubemapSize * file.cubemapSize;
-    const uint32_t forcedFrom = file.shTerms > 0 ? uint32_t(texelCount) : UINT32_MAX;
+    const uint32_t forcedFrom = file.shIndexBegin();
     double retained = 0.0;
     std::vector<TransportComponent*> profiles;
     for (TransportComponent& c : file.components) {
