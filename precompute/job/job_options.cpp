@@ -58,9 +58,8 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
                    "docs/precompute.md)")
         ->capture_default_str();
     app.add_option("--block-coefficients", raw.blockCoefficients,
-                   "M > 0: blocks of 16 nearby vertices share M terms chosen jointly, 8-bit values (half the "
-                   "file of 128 per vertex, relights faster, as accurate; docs/precompute.md). 0: each vertex "
-                   "keeps its own terms")
+                   "M > 0: blocks of 16 nearby vertices share M terms chosen jointly, 8-bit values (a smaller "
+                   "file that relights faster; docs/precompute.md). 0: each vertex keeps its own terms")
         ->default_str(std::to_string(kDefaultBlockCoefficients) + "; 0 with -k, --editable or --baseline");
     app.add_option("--epsilon", s.pass2.epsilon, "kd-tree threshold on A_node / r^2 (0 = exact sum)")
         ->capture_default_str();
