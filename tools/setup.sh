@@ -18,7 +18,7 @@ for arg in "$@"; do
 done
 
 packages=(
-  build-essential cmake pkg-config git ca-certificates
+  build-essential cmake ninja-build pkg-config git ca-certificates
   libembree-dev
   libopenexr-dev libimath-dev
   libopenimageio-dev openimageio-tools

@@ -348,70 +348,38 @@ SampleIrradiance computeLightIrradiance(const std::vector<Light>& lights, const 
 // Multiple scattering
 // ---------------------------------------------------------------------------
 
-namespace {
-// Samples per block of the vectorised dipole sum; the arrays are padded to a multiple
-// with samples of zero irradiance and variance, which add exactly nothing.
-constexpr size_t kSumBlock = 64;
-}  // namespace
-
 MultipleScatteringReference::MultipleScatteringReference(const Material& material,
                                                          std::vector<glm::vec3> positions,
                                                          double areaPerSample, SampleIrradiance irradiance)
-    : material_(material), sampleCount_(positions.size()), area_(areaPerSample) {
+    : material_(material), sampleCount_(positions.size()), area_(areaPerSample), isa_(bestDipoleSumIsa()) {
     validateMaterial(material_);
     if (irradiance.value.size() != positions.size() || irradiance.variance.size() != positions.size())
         throw Error("reference", "one irradiance value per sample is needed");
     if (!(area_ > 0.0) || !std::isfinite(area_)) throw Error("reference", "sample area must be positive");
-    for (int c = 0; c < 3; ++c) dipole_[c] = makeDipoleChannel(material_, c);
+    for (int c = 0; c < 3; ++c) {
+        dipole_[c] = makeDipoleChannel(material_, c);
+        channels_[c] = dipoleSumChannel(dipole_[c]);
+    }
     for (size_t i = 0; i < positions.size(); ++i) {
         const glm::dvec3 &e = irradiance.value[i], &v = irradiance.variance[i];
         if (e == glm::dvec3(0.0) && v == glm::dvec3(0.0)) continue;
-        x_.push_back(positions[i].x);
-        y_.push_back(positions[i].y);
-        z_.push_back(positions[i].z);
-        for (int c = 0; c < 3; ++c) {
-            value_[c].push_back(float(e[c]));
-            variance_[c].push_back(float(v[c]));
-        }
+        samples_.add(positions[i], glm::vec3(e), glm::vec3(v));
     }
-    contributing_ = x_.size();
-    const size_t padded = (x_.size() + kSumBlock - 1) / kSumBlock * kSumBlock;
-    for (std::vector<float>* a : {&x_, &y_, &z_, &value_[0], &value_[1], &value_[2], &variance_[0],
-                                   &variance_[1], &variance_[2]})
-        a->resize(padded, 0.0f);
+    contributing_ = samples_.size();
+    samples_.pad();
+}
+
+void MultipleScatteringReference::setDipoleSumIsa(DipoleSumIsa isa) {
+    isa_ = isa == DipoleSumIsa::Portable ? isa : bestDipoleSumIsa();
 }
 
 RadianceEstimate MultipleScatteringReference::diffuse(const glm::vec3& x) const {
-    // Single precision within a block (Eigen's float sqrt and exp run twice as many
-    // lanes as double's), double across blocks: each term is within ~1e-6 of dipoleRd's.
-    using Block = Eigen::Array<float, kSumBlock, 1>;
-    using Column = Eigen::Map<const Block>;
-    float zr2[3], zv2[3], zr[3], zv[3], sigma[3];
-    double coefficient[3];
-    for (int c = 0; c < 3; ++c) {
-        const DipoleChannel& d = dipole_[c];
-        zr[c] = float(d.zr), zv[c] = float(d.zv), sigma[c] = float(d.sigmaTr);
-        zr2[c] = float(d.zr * d.zr), zv2[c] = float(d.zv * d.zv);
-        coefficient[c] = area_ / kPi * d.alphaPrime / (4.0 * kPi);
-    }
-    double value[3] = {0, 0, 0}, variance[3] = {0, 0, 0};
-    for (size_t b = 0; b < x_.size(); b += kSumBlock) {
-        const Block dx = Column(&x_[b]) - x.x, dy = Column(&y_[b]) - x.y, dz = Column(&z_[b]) - x.z;
-        const Block r2 = dx * dx + dy * dy + dz * dz;
-        for (int c = 0; c < 3; ++c) {
-            // dipoleRd's two terms, z (1 + sigma_tr d) e^(-sigma_tr d) / d^3, per source.
-            const Block dr = (r2 + zr2[c]).sqrt(), dv = (r2 + zv2[c]).sqrt();
-            const Block real = zr[c] * (1.0f + sigma[c] * dr) * (-sigma[c] * dr).exp() / (dr * dr * dr);
-            const Block virt = zv[c] * (1.0f + sigma[c] * dv) * (-sigma[c] * dv).exp() / (dv * dv * dv);
-            const Block w = real + virt;
-            value[c] += coefficient[c] * double((w * Column(&value_[c][b])).sum());
-            variance[c] += coefficient[c] * coefficient[c] * double((w * w * Column(&variance_[c][b])).sum());
-        }
-    }
+    const DipoleSumResult sum = dipoleSum(samples_, channels_, x, isa_);
     RadianceEstimate out;
     for (int c = 0; c < 3; ++c) {
-        out.value[c] = value[c];
-        out.variance[c] = variance[c];
+        const double coefficient = area_ / kPi * dipole_[c].alphaPrime / (4.0 * kPi);
+        out.value[c] = coefficient * sum.value[c];
+        out.variance[c] = coefficient * coefficient * sum.variance[c];
     }
     return out;
 }
@@ -420,12 +388,13 @@ RadianceEstimate MultipleScatteringReference::diffuseScalar(const glm::vec3& x) 
     const glm::dvec3 xo(x);
     const double scale = area_ / kPi;
     RadianceEstimate out;
-    for (size_t i = 0; i < x_.size(); ++i) {
-        const double r = glm::length(glm::dvec3(x_[i], y_[i], z_[i]) - xo);
+    const DipoleSumSamples& s = samples_;
+    for (size_t i = 0; i < s.size(); ++i) {
+        const double r = glm::length(glm::dvec3(s.x[i], s.y[i], s.z[i]) - xo);
         for (int c = 0; c < 3; ++c) {
             const double w = scale * dipoleRd(dipole_[c], r);
-            out.value[c] += w * double(value_[c][i]);
-            out.variance[c] += w * w * double(variance_[c][i]);
+            out.value[c] += w * double(s.value[c][i]);
+            out.variance[c] += w * w * double(s.variance[c][i]);
         }
     }
     return out;

@@ -50,6 +50,7 @@
 #include "common/raytrace.h"
 #include "relight/render/gbuffer.h"
 #include "relight/pointlight/point_lights.h"
+#include "tools/reference/dipole_sum.h"
 #include "common/sampling.h"
 
 namespace prt {
@@ -228,13 +229,16 @@ public:
     // sum_i (A_i R_d / pi)^2 Var(E_i). The outgoing radiance is F_t(eta, n . w_o) times
     // this (radiance()). Samples whose E_i and Var(E_i) are zero in every channel (in
     // shadow, or facing away from every light) add exactly nothing and are left out at
-    // construction. The sum runs over blocks of samples with R_d evaluated by Eigen's
-    // vectorised single-precision sqrt and exp (the same formula as dipoleRd, bssrdf.h;
-    // each term within ~1e-6 of it, far below any quadrature error the reference
-    // reports), the blocks added in double; diffuseScalar is the plain double loop over
+    // construction. The sum is dipoleSum (tools/reference/dipole_sum.h: the same
+    // formula as dipoleRd, each term in single precision within ~1e-6 of it, far below
+    // any quadrature error the reference reports; blocks added in double) on the
+    // fastest instruction set of the CPU; diffuseScalar is the plain double loop over
     // dipoleRd that tests hold it to.
     RadianceEstimate diffuse(const glm::vec3& x) const;
     RadianceEstimate diffuseScalar(const glm::vec3& x) const;
+    // The instruction set of diffuse(): Portable, or the CPU's best (tests, benchmarks).
+    void setDipoleSumIsa(DipoleSumIsa isa);
+    DipoleSumIsa dipoleSumIsa() const { return isa_; }
 
     // Per-vertex mode: evaluates diffuse() at every vertex of `mesh` (in parallel);
     // radiance() then interpolates the vertex values with the pixel's barycentric
@@ -258,8 +262,9 @@ private:
     DipoleChannel dipole_[3];
     size_t sampleCount_ = 0, contributing_ = 0;
     double area_ = 0.0;
-    // The contributing samples, structure of arrays: positions (mm) and E, Var(E) per channel.
-    std::vector<float> x_, y_, z_, value_[3], variance_[3];
+    DipoleSumChannel channels_[3];
+    DipoleSumIsa isa_ = DipoleSumIsa::Portable;
+    DipoleSumSamples samples_;  // the contributing samples: positions (mm), E and Var(E)
     std::vector<glm::uvec3> triangles_;  // per-vertex mode: the mesh's triangles
     std::vector<glm::dvec3> vertexValue_, vertexSigma_;
 };
