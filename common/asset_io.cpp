@@ -33,13 +33,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string oneLine(std::string text) {
-    for (char& c : text)
-        if (c == '\n' || c == '\r') c = ' ';
-    while (!text.empty() && text.back() == ' ') text.pop_back();
-    return text;
-}
-
 std::string readWholeFile(const std::string& subject, const std::string& file) {
     std::ifstream in(file, std::ios::binary);
     if (!in) throw Error(subject, "cannot open " + file);

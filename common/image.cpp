@@ -45,11 +45,10 @@ float srgbToLinear(float encoded) {
 
 namespace {
 
-// Trims OpenImageIO's (sometimes multi-line) error text to one line.
-std::string oneLine(std::string text) {
-    while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
-    std::replace(text.begin(), text.end(), '\n', ' ');
-    return text.empty() ? "unknown OpenImageIO error" : text;
+// OpenImageIO's error text on one line.
+std::string oiioMessage(const std::string& text) {
+    const std::string line = oneLine(text);
+    return line.empty() ? "unknown OpenImageIO error" : line;
 }
 
 void checkWritable(const std::string& path, const Image& image) {
@@ -76,16 +75,16 @@ void writeImageAtomically(const std::string& path, const char* formatName, const
     std::vector<unsigned char> bytes;
     OIIO::Filesystem::IOVecOutput proxy(bytes);
     auto out = OIIO::ImageOutput::create(formatName);
-    if (!out) throw Error(path, "no " + std::string(formatName) + " writer: " + oneLine(OIIO::geterror()));
+    if (!out) throw Error(path, "no " + std::string(formatName) + " writer: " + oiioMessage(OIIO::geterror()));
     if (!out->supports("ioproxy")) throw Error(path, std::string(formatName) + " writer cannot encode to memory");
-    if (!out->set_ioproxy(&proxy)) throw Error(path, "cannot encode: " + oneLine(out->geterror()));
-    if (!out->open(path, spec)) throw Error(path, "cannot encode: " + oneLine(out->geterror()));
+    if (!out->set_ioproxy(&proxy)) throw Error(path, "cannot encode: " + oiioMessage(out->geterror()));
+    if (!out->open(path, spec)) throw Error(path, "cannot encode: " + oiioMessage(out->geterror()));
     if (!out->write_image(dataType, data)) {
-        const std::string why = oneLine(out->geterror());
+        const std::string why = oiioMessage(out->geterror());
         out->close();
         throw Error(path, "cannot encode: " + why);
     }
-    if (!out->close()) throw Error(path, "cannot encode: " + oneLine(out->geterror()));
+    if (!out->close()) throw Error(path, "cannot encode: " + oiioMessage(out->geterror()));
     writeFileAtomically(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
@@ -100,7 +99,7 @@ Image readImage(const std::string& path) {
     OIIO::ImageSpec config;
     config.attribute("oiio:UnassociatedAlpha", 1);
     auto in = OIIO::ImageInput::open(path, &config);
-    if (!in) throw Error(path, "cannot read image: " + oneLine(OIIO::geterror()));
+    if (!in) throw Error(path, "cannot read image: " + oiioMessage(OIIO::geterror()));
 
     const OIIO::ImageSpec& spec = in->spec();
     if (spec.deep) throw Error(path, "deep images are not supported");
@@ -143,7 +142,7 @@ Image readImage(const std::string& path) {
                                              OIIO::TypeDesc::FLOAT, dst)
                             : in->read_scanlines(0, 0, spec.y + y0, spec.y + y1, spec.z, 0, c, OIIO::TypeDesc::FLOAT, dst);
         if (!ok) {
-            const std::string reason = oneLine(in->geterror());
+            const std::string reason = oiioMessage(in->geterror());
             in->close();
             throw Error(path, "cannot read pixels: " + reason);
         }

@@ -909,13 +909,6 @@ std::string plural(size_t n, const char* one, const char* many) {
 // container, the primitives' modes and the number of triangles they declare, which the
 // triangles Assimp delivers must match.
 
-std::string oneLine(std::string text) {
-    for (char& c : text)
-        if (c == '\n' || c == '\r') c = ' ';
-    while (!text.empty() && text.back() == ' ') text.pop_back();
-    return text;
-}
-
 const char* gltfModeName(int mode) {
     switch (mode) {
         case 0: return "POINTS";

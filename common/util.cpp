@@ -26,6 +26,13 @@ std::string trim(const std::string& s) {
     return s.substr(a, b - a);
 }
 
+std::string oneLine(std::string text) {
+    for (char& c : text)
+        if (c == '\n' || c == '\r') c = ' ';
+    while (!text.empty() && std::isspace(static_cast<unsigned char>(text.back()))) text.pop_back();
+    return text;
+}
+
 std::vector<std::string> splitText(const std::string& s, char separator) {
     std::vector<std::string> parts;
     size_t start = 0;

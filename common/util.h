@@ -23,6 +23,9 @@ std::string toLower(std::string s);
 
 // s without its leading and trailing whitespace.
 std::string trim(const std::string& s);
+// A library's (sometimes multi-line) message on one line: line breaks become spaces,
+// trailing whitespace goes.
+std::string oneLine(std::string text);
 // s cut at every `separator` ("a::b" gives "a", "", "b"; "" gives one empty part).
 std::vector<std::string> splitText(const std::string& s, char separator);
 // A comma-separated list of numbers as people type them (whitespace around each, a

@@ -20,6 +20,12 @@ TEST(Util, ToLowerIsAsciiOnly) {
     EXPECT_EQ(prt::toLower(""), "");
 }
 
+TEST(Util, OneLineJoinsALibrarysMessage) {
+    EXPECT_EQ(prt::oneLine("cannot open\nfile.exr: no such file\r\n"), "cannot open file.exr: no such file");
+    EXPECT_EQ(prt::oneLine("one line"), "one line");
+    EXPECT_EQ(prt::oneLine("\n\n"), "");
+}
+
 TEST(Util, StopwatchMeasuresElapsedTime) {
     prt::Stopwatch w;
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
