@@ -12,7 +12,11 @@
 #   5. prt-bench-tsis: point lights by texture-space importance sampling (Chang et al.
 #      2008's goal row: dragon res4, hybrid, N = 900, 512 x 512, per vertex as the
 #      viewer): the time per new light position split into its stages, and a material
-#      change (setMaterial) with the sums after it.
+#      change (setMaterial) with the sums after it;
+#   6. prt-pointlight --method cache --compare-jb: a point light by the translucent
+#      irradiance cache (Keng et al. 2006) at its defaults on the bunny (1024 x 1024),
+#      its time T_cache and Jensen-Buhler's T_JB on the same samples and octree in the
+#      same run, their ratio, and the cache's distance from Jensen-Buhler.
 # Prints one Markdown table (with the command of each row) and writes it to
 # out/bench/summary.md; raw outputs are kept in out/bench/*.log and *.json.
 set -euo pipefail
@@ -50,7 +54,8 @@ cd "$root"
 
 # --- inputs -----------------------------------------------------------------
 missing=()
-for f in data/meshes/dragon_vrip_res3.ply.gz data/meshes/dragon_vrip_res4.ply.gz data/envmaps/forest.exr; do
+for f in data/meshes/dragon_vrip_res3.ply.gz data/meshes/dragon_vrip_res4.ply.gz data/meshes/bunny.off \
+         data/envmaps/forest.exr; do
   [ -f "$f" ] || missing+=("$f")
 done
 if [ ${#missing[@]} -gt 0 ]; then
@@ -61,11 +66,10 @@ fi
 command -v python3 >/dev/null 2>&1 || { echo "bench: python3 is needed for the report (apt-get install python3)" >&2; exit 1; }
 
 # --- build ------------------------------------------------------------------
-targets=(bench_relight prt-bench-pass1 prt-precompute prt-bench-relight-file prt-bench-tsis)
+targets=(bench_relight prt-bench-pass1 prt-precompute prt-bench-relight-file prt-bench-tsis prt-pointlight)
 if [ "$do_build" = 1 ]; then
   echo "bench: building ${targets[*]} (Release) in $build"
-  cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake --build "$build" -j"$(nproc)" --target "${targets[@]}"
+  BUILD_DIR=$build BUILD_TYPE=Release "$root/tools/build.sh" "${targets[@]}"
 fi
 # Commands are shown relative to the repository when the build is inside it.
 b=${build#"$root"/}
@@ -74,7 +78,8 @@ bench_pass1=$b/bin/prt-bench-pass1
 precompute=$b/bin/prt-precompute
 bench_file=$b/bin/prt-bench-relight-file
 bench_tsis=$b/bin/prt-bench-tsis
-for exe in "$bench_relight" "$bench_pass1" "$precompute" "$bench_file" "$bench_tsis"; do
+pointlight=$b/bin/prt-pointlight
+for exe in "$bench_relight" "$bench_pass1" "$precompute" "$bench_file" "$bench_tsis" "$pointlight"; do
   [ -x "$exe" ] || { echo "bench: $exe not built (run without --no-build, or tools/build.sh)" >&2; exit 1; }
 done
 
@@ -118,6 +123,8 @@ run relight_file_folded "$bench_file" "$o/dragon4_folded.prt" -e data/envmaps/fo
   --json "$o/relight_file_folded.json"
 run tsis "$bench_tsis" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 -m Skin2 --light point:-20,40,-60:0.04 \
   -W 512 -H 512 --split hybrid --samples 900 --repeat 7 --material-change Skin1 --json "$o/tsis.json"
+run cache "$pointlight" data/meshes/bunny.off --size-mm 40 -m Marble --light point:30,40,30:0.01 \
+  -W 1024 -H 1024 --exposure -1 --method cache --compare-jb -o "$o/cache"
 echo "load_end=$(cut -d' ' -f1-3 /proc/loadavg)" >>"$out/meta.txt"
 rm -f "$out/dragon4_ms_ss.prt" "$out/dragon4_folded.prt"
 

@@ -4,8 +4,8 @@
 Usage: tools/bench_report.py OUT_DIR
 
 Reads OUT_DIR/{meta.txt, commands.tsv, relight.json, pass1.log, precompute.json,
-relight_file.json, relight_file_folded.json, tsis.json}, prints one Markdown table with the command of each row and writes
-it to OUT_DIR/summary.md.
+relight_file.json, relight_file_folded.json, tsis.json, cache.log}, prints one Markdown
+table with the command of each row and writes it to OUT_DIR/summary.md.
 """
 
 import json
@@ -210,6 +210,22 @@ def main():
                 f"{fmt(change[key]['median_ms'])} ms ({fmt(change[key]['min_ms'])} .. {fmt(change[key]['max_ms'])})"
                 + (f" + {fmt(sums['median_ms'])} ms" if sums else ""),
                 "<= 20 ms before the next frame", "tsis")
+
+    cache_path = os.path.join(out, "cache.log")
+    if os.path.exists(cache_path):
+        with open(cache_path) as f:
+            cache_log = f.read()
+        tc = re.search(r"T_cache ([0-9.]+) s$", cache_log, re.M)
+        jb = re.search(r"T_JB ([0-9.]+) s, speedup ([0-9.]+)x.*relative RMSE \(linear\) ([0-9.e+-]+)", cache_log)
+        caches = re.search(r"([0-9]+) caches / ([0-9]+) hit pixels = ([0-9.]+)%", cache_log)
+        if tc and jb and caches:
+            row("point light by the translucent irradiance cache (Keng et al. 2006; bunny, Marble, 40 mm, "
+                "1024 x 1024, defaults): T_cache / T_JB on the same samples and octree, speedup in the same run; "
+                "caches per hit pixel; relative RMSE against Jensen-Buhler",
+                f"{fmt(float(tc.group(1)))} s / {fmt(float(jb.group(1)))} s, **{fmt(float(jb.group(2)))}x**; "
+                f"{caches.group(3)}% ({int(caches.group(1)):,} of {int(caches.group(2)):,}); "
+                f"{100 * float(jb.group(3)):.2f}%",
+                ">= 10x faster than Jensen-Buhler", "cache")
 
     lines = [
         f"Measured {meta.get('date', '?')} on {meta.get('cpu', '?')} ({meta.get('threads', '?')} threads, "

@@ -5,7 +5,9 @@ Usage: tools/plot_scaling.py --dir out/scaling [--plots docs/images]
 
 Reads DIR/manifest.tsv (run name, series, commands) and DIR/json/NAME.json
 (prt-precompute --summary-json) + DIR/json/NAME.relight.json
-(prt-bench-relight-file --json); writes DIR/scaling.csv (one row per run, every
+(prt-bench-relight-file --json), and for the point lights DIR/pointlights.tsv with
+DIR/json/NAME.tsis.json (prt-bench-tsis --json) and DIR/logs/NAME.cache.log
+(prt-pointlight --method cache --compare-jb); writes DIR/scaling.csv (one row per run, every
 field), DIR/tables.md (one table per series, fitted slopes) and, when matplotlib is
 installed (tools/setup.sh --plots), PLOTS/scaling_*.png: log-log plots with the
 least-squares slope of log y against log x in the legend (slope 1: linear growth;
@@ -17,6 +19,7 @@ import csv
 import json
 import math
 import os
+import re
 import sys
 
 # Each series: what is on the x axis and which metrics to plot and tabulate.
@@ -163,6 +166,79 @@ def fit(xs, ys, kind):
     return per_doubling, f"{per_doubling:+.3g} per doubling"
 
 
+# Point-light runs (DIR/pointlights.tsv): metrics of the plot's two panels.
+POINT_LIGHT_METRICS = [
+    ("tsis_frame_ms", "texture space: new light position", "texture-space sampling [ms]"),
+    ("tsis_irradiance_ms", "texture space: irradiance map", "texture-space sampling [ms]"),
+    ("tsis_sums_ms", "texture space: per-vertex sums", "texture-space sampling [ms]"),
+    ("cache_seconds", "irradiance cache (T_cache)", "irradiance cache frame [s]"),
+    ("jb_seconds", "Jensen-Buhler (T_JB)", "irradiance cache frame [s]"),
+]
+
+
+def load_point_lights(d):
+    """One row per point-light run: prt-bench-tsis's JSON and prt-pointlight's log."""
+    path = os.path.join(d, "pointlights.tsv")
+    if not os.path.exists(path):
+        return []
+    rows = []
+    with open(path) as f:
+        for m in csv.DictReader(f, delimiter="\t"):
+            tsis_path = os.path.join(d, "json", m["name"] + ".tsis.json")
+            log_path = os.path.join(d, "logs", m["name"] + ".cache.log")
+            if not os.path.exists(tsis_path) or not os.path.exists(log_path):
+                print(f"plot_scaling: {m['name']}: no point-light results (the run failed?), left out",
+                      file=sys.stderr)
+                continue
+            t = json.load(open(tsis_path))
+            frame = t["rows"][0]
+            log = open(log_path).read()
+            tc = re.search(r"T_cache ([0-9.]+) s$", log, re.M)
+            jb = re.search(r"T_JB ([0-9.]+) s, speedup ([0-9.]+)x.*relative RMSE \(linear\) ([0-9.e+-]+)", log)
+            caches = re.search(r"([0-9]+) caches / ([0-9]+) hit pixels = ([0-9.]+)%", log)
+            rows.append({
+                "name": m["name"], "vertices": t["vertices"], "triangles": t["triangles"],
+                "tsis_frame_ms": frame["frame_ms"], "tsis_irradiance_ms": frame["irradiance_ms"],
+                "tsis_shadow_maps_ms": frame["shadow_maps_ms"], "tsis_draws_ms": frame["draws_ms"],
+                "tsis_sums_ms": frame["sums_ms"],
+                "cache_seconds": float(tc.group(1)) if tc else None,
+                "jb_seconds": float(jb.group(1)) if jb else None,
+                "cache_speedup": float(jb.group(2)) if jb else None,
+                "cache_vs_jb": float(jb.group(3)) if jb else None,
+                "cache_share": float(caches.group(3)) if caches else None,
+                "tsis_command": m["tsis"], "cache_command": m["cache"],
+            })
+    return sorted(rows, key=lambda r: r["vertices"])
+
+
+def point_light_table(pl):
+    """Markdown section and fitted slopes of the point-light runs."""
+    out = ["## Point lights vs mesh size (dragon, 30 mm, Skin2, one point light)", "",
+           "Texture-space sampling: hybrid, N = 900, 512 x 512, per vertex, median of 5 new light "
+           "positions (irradiance map + shadow maps + draws + per-vertex sums). Irradiance cache: "
+           "defaults, 1024 x 1024, T_cache and Jensen-Buhler's T_JB on the same samples and octree "
+           "in the same run.", "",
+           "| run | vertices | triangles | TSIS ms per light (fps) | irradiance map ms | shadow maps ms | "
+           "draws ms | sums ms | T_cache s | T_JB s | speedup | caches % of hit pixels | cache vs JB |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in pl:
+        out.append(f"| {r['name']} | {r['vertices']:,} | {r['triangles']:,} | {r['tsis_frame_ms']:.3g} "
+                   f"({1e3 / r['tsis_frame_ms']:.3g}) | {r['tsis_irradiance_ms']:.3g} | "
+                   f"{r['tsis_shadow_maps_ms']:.3g} | {r['tsis_draws_ms']:.3g} | {r['tsis_sums_ms']:.3g} | "
+                   f"{cell(r['cache_seconds'], '{:.3g}')} | {cell(r['jb_seconds'], '{:.3g}')} | "
+                   f"{cell(r['cache_speedup'], '{:.3g}')}x | {cell(r['cache_share'], '{:.3g}')} | "
+                   f"{'' if r['cache_vs_jb'] is None else format(100 * r['cache_vs_jb'], '.2f') + '%'} |")
+    out += ["", "Commands:", ""]
+    out += [f"- {r['name']}: `{r['tsis_command']}`; `{r['cache_command']}`" for r in pl]
+    out.append("")
+    slopes = []
+    for key, label, _ in POINT_LIGHT_METRICS:
+        value, text = fit([r["vertices"] for r in pl], [r.get(key) for r in pl], "loglog")
+        if value is not None:
+            slopes.append(("Point lights vs mesh size", label, text, len(pl)))
+    return out, slopes
+
+
 def load_runs(d):
     runs = []
     with open(os.path.join(d, "manifest.tsv")) as f:
@@ -212,7 +288,7 @@ def series_rows(rows, name):
     return sorted(rs, key=lambda r: r[spec["x"]])
 
 
-def tables(rows):
+def tables(rows, pl=()):
     out = ["# Scaling runs", "",
            "Generated by tools/scaling.sh + tools/plot_scaling.py. Times are wall-clock seconds "
            "on the machine the runs were made on; \"load avg\" is the 1-minute load average when "
@@ -265,6 +341,10 @@ def tables(rows):
             value, text = fit([r["relight_stream_MB"] for r in rs], [r.get(key) for r in rs], "loglog")
             if value is not None:
                 slope_rows.append(("Relight", label, text, len(rs)))
+    if pl:
+        section, slopes = point_light_table(pl)
+        out += section
+        slope_rows += slopes
     if slope_rows:
         out += ["## Fitted growth", "", "| series | metric | fit | points |", "|---|---|---|---|"]
         out += [f"| {a} | {b} | {c} | {d} |" for a, b, c, d in slope_rows]
@@ -272,7 +352,7 @@ def tables(rows):
     return "\n".join(out)
 
 
-def plot(rows, plots_dir):
+def plot(rows, plots_dir, pl=()):
     try:
         import matplotlib
         matplotlib.use("Agg")
@@ -379,6 +459,30 @@ def plot(rows, plots_dir):
         fig.savefig(path, dpi=100)
         plt.close(fig)
         written.append(path)
+    if pl:
+        panels = []
+        for m in POINT_LIGHT_METRICS:
+            if m[2] not in panels:
+                panels.append(m[2])
+        fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4.2), squeeze=False)
+        xs = [r["vertices"] for r in pl]
+        for ax, panel in zip(axes[0], panels):
+            for i, (key, label, p) in enumerate(m for m in POINT_LIGHT_METRICS if m[2] == panel):
+                draw(ax, xs, [r.get(key) for r in pl], label, "loglog", "osD^v"[i])
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            label_axes(ax)
+            ax.set_xlabel("vertices")
+            ax.set_ylabel(panel)
+            ax.grid(True, which="both", alpha=0.3)
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(fontsize=8)
+        fig.suptitle("Point lights vs mesh size (dragon, 30 mm, Skin2)", fontsize=10)
+        fig.tight_layout()
+        path = os.path.join(plots_dir, "scaling_pointlights_mesh.png")
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+        written.append(path)
     return written
 
 
@@ -388,10 +492,11 @@ def main():
     ap.add_argument("--plots", default=None, help="directory of the PNG plots (default DIR/images)")
     a = ap.parse_args()
     rows = load_runs(a.dir)
-    if not rows:
+    pl = load_point_lights(a.dir)
+    if not rows and not pl:
         sys.exit("plot_scaling: no successful runs in " + a.dir)
     write_csv(rows, os.path.join(a.dir, "scaling.csv"))
-    text = tables(rows)
+    text = tables(rows, pl)
     path = os.path.join(a.dir, "tables.md")
     with open(path + ".tmp", "w") as f:
         f.write(text)
@@ -399,7 +504,7 @@ def main():
     print(text)
     plots_dir = a.plots or os.path.join(a.dir, "images")
     os.makedirs(plots_dir, exist_ok=True)
-    written = plot(rows, plots_dir)
+    written = plot(rows, plots_dir, pl)
     print(f"wrote {os.path.join(a.dir, 'scaling.csv')}, {path}" +
           (", " + ", ".join(written) if written else ""))
 

@@ -10,11 +10,17 @@
 # Series (full run; dragon at 30 mm, Marble, defaults unless stated):
 #   ms_mesh          multiple scattering: dragon res4, res3, res2, full (5K-437K vertices)
 #   ms_cubemap       cubemap 32, 64 (res3)
-#   ms_coefficients  coefficients kept per vertex 64, 128, 192, 256 (res3)
+#   ms_coefficients  coefficients kept per vertex 64, 128, 192, 256 (res3; -k alone: per-vertex files)
 #   ms_samples       --samples 5000, 10000, 20000, 40000 (+ the default 9,732) (res3)
 #   ss_mesh          isotropic single scattering (--components ss): res4, res3
 #   ss_path_samples  --path-samples 2, 3, the default 4, 6, 8 and 32 (res4; Gauss-Legendre rule, adaptive directions)
 #   relight          relight time per frame of every file against its bytes
+#   pointlights      point lights vs mesh size (dragon res4, res3, res2; 30 mm, Skin2, one
+#                    point light): texture-space sampling (prt-bench-tsis, hybrid, N = 900,
+#                    512 x 512, per vertex: time per new light position and its stages,
+#                    median of 5) and the irradiance cache (prt-pointlight --method cache
+#                    --compare-jb, 1024 x 1024: T_cache and Jensen-Buhler's T_JB in the
+#                    same run)
 set -euo pipefail
 
 usage() {
@@ -22,7 +28,7 @@ usage() {
 Usage: tools/scaling.sh [--quick] [--no-build] [--keep] [--out DIR] [--plots DIR]
 
 Full run: about 15-20 minutes on 2 quiet cores (the single-scattering jobs take most of
-it). --quick: dragon res4 only with tiny variants (about 1-2 minutes), to test the
+it). --quick: dragon res4 only with tiny variants (about 2 minutes), to test the
 chain; its plots go to DIR/images, not docs/images.
 
   --quick       res4 + tiny variants only
@@ -65,7 +71,8 @@ env=data/envmaps/forest.exr
 # name | series (comma-separated) | mesh | extra prt-precompute options
 if [ "$quick" = 1 ]; then
   runs=(
-    "ms_res4|ms_mesh,ms_cubemap,ms_coefficients,ms_samples|$m/dragon_vrip_res4.ply.gz|"
+    "ms_res4|ms_mesh,ms_cubemap,ms_samples|$m/dragon_vrip_res4.ply.gz|"
+    "ms_res4_k128|ms_coefficients|$m/dragon_vrip_res4.ply.gz|-k 128"
     "ms_res4_n16|ms_cubemap|$m/dragon_vrip_res4.ply.gz|--cubemap-size 16"
     "ms_res4_k64|ms_coefficients|$m/dragon_vrip_res4.ply.gz|-k 64"
     "ms_res4_s2000|ms_samples|$m/dragon_vrip_res4.ply.gz|--samples 2000"
@@ -73,14 +80,16 @@ if [ "$quick" = 1 ]; then
     "ss_res4_n16_p2|ss_mesh,ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --cubemap-size 16 --path-samples 2"
     "ss_res4_n16_p4|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --cubemap-size 16 --path-samples 4"
   )
+  pl_runs=("pl_res4|$m/dragon_vrip_res4.ply.gz")
 else
   runs=(
     "ms_res4|ms_mesh|$m/dragon_vrip_res4.ply.gz|"
-    "ms_res3|ms_mesh,ms_cubemap,ms_coefficients,ms_samples|$m/dragon_vrip_res3.ply.gz|"
+    "ms_res3|ms_mesh,ms_cubemap,ms_samples|$m/dragon_vrip_res3.ply.gz|"
     "ms_res2|ms_mesh|$m/dragon_vrip_res2.ply.gz|"
     "ms_full|ms_mesh|$m/dragon_vrip.ply.gz|"
     "ms_res3_n64|ms_cubemap|$m/dragon_vrip_res3.ply.gz|--cubemap-size 64"
     "ms_res3_k64|ms_coefficients|$m/dragon_vrip_res3.ply.gz|-k 64"
+    "ms_res3_k128|ms_coefficients|$m/dragon_vrip_res3.ply.gz|-k 128"
     "ms_res3_k192|ms_coefficients|$m/dragon_vrip_res3.ply.gz|-k 192"
     "ms_res3_k256|ms_coefficients|$m/dragon_vrip_res3.ply.gz|-k 256"
     "ms_res3_s5000|ms_samples|$m/dragon_vrip_res3.ply.gz|--samples 5000"
@@ -95,6 +104,8 @@ else
     "ss_res4_p8|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 8"
     "ss_res4_p32|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 32"
   )
+  pl_runs=("pl_res4|$m/dragon_vrip_res4.ply.gz" "pl_res3|$m/dragon_vrip_res3.ply.gz"
+           "pl_res2|$m/dragon_vrip_res2.ply.gz")
 fi
 
 # --- inputs -----------------------------------------------------------------
@@ -117,16 +128,17 @@ for p in /usr/bin/python3 python3; do
 done
 
 # --- build ------------------------------------------------------------------
-targets=(prt-precompute prt-bench-relight-file)
+targets=(prt-precompute prt-bench-relight-file prt-bench-tsis prt-pointlight)
 if [ "$do_build" = 1 ]; then
   echo "scaling: building ${targets[*]} (Release) in $build"
-  cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake --build "$build" -j"$(nproc)" --target "${targets[@]}"
+  BUILD_DIR=$build BUILD_TYPE=Release "$root/tools/build.sh" "${targets[@]}"
 fi
 b=${build#"$root"/}
 precompute=$b/bin/prt-precompute
 bench_file=$b/bin/prt-bench-relight-file
-for exe in "$precompute" "$bench_file"; do
+bench_tsis=$b/bin/prt-bench-tsis
+pointlight=$b/bin/prt-pointlight
+for exe in "$precompute" "$bench_file" "$bench_tsis" "$pointlight"; do
   [ -x "$exe" ] || { echo "scaling: $exe not built (run without --no-build, or tools/build.sh)" >&2; exit 1; }
 done
 
@@ -163,7 +175,31 @@ for r in "${runs[@]}"; do
   fi
   [ "$keep" = 1 ] || rm -f "$prt"
 done
-echo "scaling: ${#runs[@]} runs in $((SECONDS - start_all)) s, $failed failed"
+
+# Point lights: one scene per mesh, the same light and material for every size.
+pl_manifest=$out/pointlights.tsv
+printf 'name\tmesh\ttsis\tcache\n' >"$pl_manifest"
+light=(--size-mm 30 -m Skin2 --light point:-20,40,-60:0.04)
+for r in "${pl_runs[@]}"; do
+  IFS='|' read -r name mesh <<<"$r"
+  i=$((i + 1))
+  rm -f "$out/json/$name.tsis.json"
+  tsis_cmd=("$bench_tsis" "$mesh" "${light[@]}" -W 512 -H 512 --split hybrid --samples 900 --repeat 5
+            --json "$o/json/$name.tsis.json")
+  cache_cmd=("$pointlight" "$mesh" "${light[@]}" -W 1024 -H 1024 --method cache --compare-jb
+             -o "$o/prt/$name.cache")
+  printf '%s\t%s\t%s\t%s\n' "$name" "$mesh" "${tsis_cmd[*]}" "${cache_cmd[*]}" >>"$pl_manifest"
+  started=$SECONDS
+  printf 'scaling: [%d] %s: point lights on %s\n' "$i" "$name" "$mesh"
+  if "${tsis_cmd[@]}" >"$out/logs/$name.tsis.log" 2>&1 && "${cache_cmd[@]}" >"$out/logs/$name.cache.log" 2>&1; then
+    printf 'scaling: [%d] %s done in %d s\n' "$i" "$name" $((SECONDS - started))
+  else
+    echo "scaling: [$i] $name FAILED; see $o/logs/$name.tsis.log and $name.cache.log" >&2
+    failed=$((failed + 1))
+  fi
+  [ "$keep" = 1 ] || rm -f "$out/prt/$name".cache*
+done
+echo "scaling: ${#runs[@]} + ${#pl_runs[@]} runs in $((SECONDS - start_all)) s, $failed failed"
 
 mkdir -p "$plots"
 "$py" "$root/tools/plot_scaling.py" --dir "$out" --plots "$plots"
