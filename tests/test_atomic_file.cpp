@@ -39,10 +39,7 @@ protected:
         std::sort(out.begin(), out.end());
         return out;
     }
-    static std::string read(const std::string& p) {
-        std::ifstream in(p, std::ios::binary);
-        return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-    }
+    static std::string read(const std::string& p) { return prt::test::fileBytes(p); }
     fs::path dir_;
 };
 

@@ -35,11 +35,6 @@ fs::path tempDir() {
     return d;
 }
 
-std::string bytesOf(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 // Random sparse vectors, some vertices empty.
 SparseRgbVectors randomVectors(size_t vertices, uint32_t seed) {
     std::mt19937 rng(seed);
@@ -197,7 +192,7 @@ TEST(Shards, MergedShardsAreTheSingleProcessFileByteForByte) {
         }
         const fs::path merged = dir / ("merged" + std::to_string(n) + ".prt");
         saveTransportFile(merged.string(), mergeShards(parts));
-        EXPECT_EQ(bytesOf(merged), bytesOf(whole.outputPath)) << n << " shards";
+        EXPECT_EQ(prt::test::fileBytes(merged), prt::test::fileBytes(whole.outputPath)) << n << " shards";
     }
     fs::remove_all(dir);
 }
@@ -222,7 +217,7 @@ TEST(Shards, BlockedJobsShardsMergeToTheSingleProcessFileByteForByte) {
         for (const TransportComponent& c : loadTransportFile(part).components) EXPECT_FALSE(c.blocked());
     const fs::path merged = dir / "merged.prt";
     saveTransportFile(merged.string(), mergeShards(parts, whole.meshPath));
-    EXPECT_EQ(bytesOf(merged), bytesOf(whole.outputPath));
+    EXPECT_EQ(prt::test::fileBytes(merged), prt::test::fileBytes(whole.outputPath));
     EXPECT_EQ(errorOf([&] { mergeShards(parts); }),
               "shards: their job stores blocks of 24 terms (--block-coefficients), formed from the mesh: give it "
               "with --mesh");
@@ -250,7 +245,7 @@ TEST(Shards, EditableShardsMergeToTheSingleProcessFileByteForByte) {
     const std::vector<std::string> parts = runShards(whole, 3, dir);
     const fs::path merged = dir / "merged.prt";
     saveTransportFile(merged.string(), mergeShards(parts));
-    EXPECT_EQ(bytesOf(merged), bytesOf(whole.outputPath));
+    EXPECT_EQ(prt::test::fileBytes(merged), prt::test::fileBytes(whole.outputPath));
 
     // A shard whose basis differs (another material range, same everything else the
     // check reads first) is refused by name.
@@ -336,7 +331,7 @@ TEST(Pass1File, RoundTripsAndRefusesWhatIsNotItsOwn) {
     EXPECT_EQ(errorOf([&] { loadPass1File(path, "seed=2\nsamples=5\n"); }),
               path + ": was made for other pass-1 inputs (file has 'seed=1', this job 'seed=2')");
     // Every flipped byte is refused (magic, version, marker, or the CRC).
-    const std::string bytes = bytesOf(path);
+    const std::string bytes = prt::test::fileBytes(path);
     for (size_t at = 0; at < bytes.size(); ++at) {
         std::string bad = bytes;
         bad[at] = char(bad[at] ^ 0x5a);
@@ -377,7 +372,7 @@ TEST(Pass1File, ShardsThatLoadPassOneMergeToTheSingleProcessFile) {
     }
     const fs::path merged = dir / "merged.prt";
     saveTransportFile(merged.string(), mergeShards(parts));
-    EXPECT_EQ(bytesOf(merged), bytesOf(whole.outputPath));
+    EXPECT_EQ(prt::test::fileBytes(merged), prt::test::fileBytes(whole.outputPath));
 
     // Another job's pass 1 is refused, not used.
     PrecomputeSettings other = whole;

@@ -262,6 +262,29 @@ TEST(Precompute, BlockedOutputIsTheJointTruncationOfThePerVertexVectors) {
     fs::remove_all(dir);
 }
 
+// Pass 2 runs over chunks of vertices (PrecomputeSettings::pass2ChunkVertices) to bound
+// its memory; the file is the same bytes whatever the chunk, for RGB vectors and for an
+// editable job's profiles (split over several components per chunk).
+TEST(Precompute, Pass2ChunksLeaveTheFileUnchanged) {
+    Progress::setEnabled(false);
+    const fs::path dir = tempDir();
+    for (const bool editable : {false, true}) {
+        SCOPED_TRACE(editable ? "editable" : "rgb");
+        PrecomputeSettings s = smallBoxJob(dir);
+        s.components = {true, false};
+        s.editable.enabled = editable;
+        if (editable) s.editable.materials = {"Skin1", "Marble"};
+        s.outputPath = (dir / "whole.prt").string();
+        precomputeTransport(s, /*force=*/true);
+        s.pass2ChunkVertices = 7;  // many chunks, the last one partial
+        s.outputPath = (dir / "chunks.prt").string();
+        precomputeTransport(s, /*force=*/true);
+        EXPECT_GT(loadMesh(s.meshPath).vertexCount() % 7, 0u);
+        EXPECT_EQ(prt::test::fileBytes(dir / "whole.prt"), prt::test::fileBytes(dir / "chunks.prt"));
+    }
+    fs::remove_all(dir);
+}
+
 // --fold-ss is the unfolded job's two per-vertex components folded (foldVectors, tested
 // against the sum on its own), written as one multiple-scattering component that the
 // renderers show only whole; blocked, the fold comes before the blocks.

@@ -3,7 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
 #include <functional>
+#include <iterator>
 #include <map>
 #include <new>
 #include <random>
@@ -19,6 +22,12 @@
 namespace prt::test {
 
 inline constexpr const char* kNoError = "<no error>";
+
+// The whole file's bytes ("" when it cannot be read).
+inline std::string fileBytes(const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
 
 // Per-vertex vectors with random supports in [0, space) (each index present with
 // probability 1 / keepOneIn) and values in [-10, 10] (steps of 0.01): deterministic per seed.

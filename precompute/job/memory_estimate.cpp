@@ -52,8 +52,17 @@ MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vert
         {"pass 1 vectors", n * (double(s.pass1.sampleCoefficients) * 8.0 + 64.0)},
         {"pass 2 kd-tree sums", n / 4.0 * (double(s.pass2.nodeCoefficients) * 8.0 + 64.0)},
         {"pass 2 cell sub-points", subPoints * (graded ? kCellBytesPerGradedSubPoint : kCellBytesPerSubPoint)},
-        {"per-vertex results",
-         double(vertices) * double(s.vertexCoefficients) * (16.0 * (ms ? channels / 3.0 : 0.0) + 8.0 * terms)},
+        // The file's arrays: 8 bytes per term (a 16-bit index and three 16-bit values) for
+        // each multiple-scattering component of three channels and each single-scattering term.
+        {"per-vertex results", double(vertices) * double(s.vertexCoefficients) * 8.0 * ((ms ? channels / 3.0 : 0.0) + terms)},
+        // Pass 2's float vectors of one chunk of vertices (an index and K floats per term).
+        {"pass 2 vectors of a chunk", ms ? double(std::min(vertices, std::max<size_t>(s.pass2ChunkVertices, 1))) *
+                                               double(s.vertexCoefficients) * (4.0 + 4.0 * channels)
+                                         : 0.0},
+        // Blocks (per component: 16 vertices share an index and 48 one-byte values per term).
+        {"blocks", s.blockCoefficients > 0 ? double(vertices) / 16.0 * double(s.blockCoefficients) * 50.0 *
+                                                 ((ms ? channels / 3.0 : 0.0) + terms)
+                                           : 0.0},
         {"per-thread workspaces", double(std::max(threads, 1)) * texels * 64.0 * std::max(1.0, channels / 3.0)},
         {"ground", groundTriangles * 250.0 + groundVertices * (double(s.vertexCoefficients) * 16.0 + 64.0) +
                        (s.ground ? 40.0 * double(vertices) + 12.0 * double(triangles) : 0.0)},

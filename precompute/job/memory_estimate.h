@@ -12,10 +12,14 @@
 //   pass 2 cell sub-points     estimateCellSubPoints(...) x 36 bytes (68 when graded,
 //                              as editable jobs are; cell_quadrature.h; 0 when the
 //                              area is not given)
-//   per-vertex results         vertices x vertex coefficients x 16 bytes (RGB float +
-//                              index; J/3 times for editable multiple scattering), and
-//                              x 8 bytes per single-scattering vector (K, or 1 when
-//                              isotropic)
+//   per-vertex results         vertices x vertex coefficients x 8 bytes (the file's
+//                              16-bit index and RGB values) per component: one for
+//                              multiple scattering (J/3 when editable), one per
+//                              single-scattering vector (K, or 1 when isotropic)
+//   pass 2 vectors of a chunk  min(vertices, pass2ChunkVertices) x vertex coefficients x
+//                              (4 + 4 x 3) bytes (4 + 4 J when editable)
+//   blocks                     vertices / 16 x block coefficients x 50 bytes per
+//                              component, when the file stores blocks
 //   per-thread workspaces      threads x 6 N^2 x 64 bytes
 // times kSafety = 1.5 (allocator slack, vector growth). A refusal only has to tell 40 GB
 // from 24 GB (how close it lands to measured peaks: docs/reliability.md).

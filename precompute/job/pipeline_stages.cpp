@@ -2,8 +2,10 @@
 
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <span>
 #include <utility>
 
 #include "common/atomic_file.h"
@@ -253,6 +255,26 @@ RadialBasis editableBasis(const PrecomputeSettings& s, const TriangleMesh& mesh,
     return basis;
 }
 
+// Appends pass 2's vectors of consecutive vertices to the components: the RGB vector, or
+// with profiles (editable) the K channels split into K / 3 components of three.
+void appendPass2Vectors(const std::vector<SparseVector>& transport, bool profiles, int K,
+                        std::vector<TransportComponent>& components) {
+    std::vector<float> rgb;
+    for (size_t p = 0; p < components.size(); ++p) {
+        SparseRgbVectors& out = components[p].vectors;
+        for (const SparseVector& v : transport) {
+            if (!profiles) {
+                out.appendVertex(v.index, v.value);
+                continue;
+            }
+            rgb.resize(3 * v.index.size());
+            for (size_t n = 0; n < v.index.size(); ++n)
+                for (size_t ch = 0; ch < 3; ++ch) rgb[3 * n + ch] = v.value[n * size_t(K) + 3 * p + ch];
+            out.appendVertex(v.index, rgb);
+        }
+    }
+}
+
 }  // namespace
 
 Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const PlacedSamples& placed,
@@ -261,13 +283,21 @@ Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const P
     Distribution& dist = job.distribution;
     const size_t texelCount = size_t(6) * s.cubemapSize * s.cubemapSize;
     Pass2Output out;
-    std::vector<SparseVector> transport;
     MultipleScatteringStats stats;
     const Stopwatch start;
     // Every process builds the same basis (deterministic), so only the writer's is kept.
     std::optional<RadialBasis> basis;
     if (s.editable.enabled) basis = editableBasis(s, prepared.mesh, out.derived);
     const RadialKernels kernels = basis ? radialBasisKernels(*basis) : RadialKernels(s.material);
+    // RGB transport; or profiles 3p, 3p+1, 3p+2 of every vertex in component p, all
+    // components sharing the vertex's one index list.
+    out.components.resize(basis ? size_t(kernels.count() / 3) : 1);
+    for (size_t p = 0; p < out.components.size(); ++p) {
+        TransportComponent& c = out.components[p];
+        c.kind = basis ? ComponentKind::MultipleScatteringProfiles : ComponentKind::MultipleScattering;
+        c.term = basis ? uint32_t(p) : 0;
+        c.vectors.reserve(prepared.myVertices, prepared.myVertices * s.vertexCoefficients);
+    }
     dist.stage([&] {
         SampleCloud cloud;
         cloud.positions.reserve(placed.samples.samples.size());
@@ -297,7 +327,24 @@ Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const P
                              prepared.mesh.positions.begin() + ptrdiff_t(r.end));
         Progress p("pass 2 (multiple scattering" + std::string(basis ? ", radial profiles" : "") + ")" + job.share,
                    prepared.myVertices, "vertices");
-        transport = multipleScatteringTransport(tree, positions, kernels, s.pass2, texelCount, &stats, &p, &cells);
+        // In chunks of vertices, each moved into the file's quantized arrays at once: the
+        // float vectors of one chunk, not of the whole mesh, are held beside them.
+        const std::span<const glm::vec3> all(positions);
+        double nodesVisited = 0.0, retained = 0.0;
+        const size_t chunkVertices = std::max<size_t>(s.pass2ChunkVertices, 1);
+        for (size_t first = 0; first < all.size(); first += chunkVertices) {
+            const size_t count = std::min(chunkVertices, all.size() - first);
+            MultipleScatteringStats chunk;
+            const std::vector<SparseVector> transport = multipleScatteringTransport(
+                tree, all.subspan(first, count), kernels, s.pass2, texelCount, &chunk, &p, &cells);
+            appendPass2Vectors(transport, basis.has_value(), kernels.count(), out.components);
+            nodesVisited += chunk.meanNodesVisited * double(count);
+            retained += chunk.retainedEnergyFraction * double(count);
+        }
+        if (!all.empty()) {
+            stats.meanNodesVisited = nodesVisited / double(all.size());
+            stats.retainedEnergyFraction = retained / double(all.size());
+        }
         out.busySeconds = start.seconds();
     });
     // Means over the vertices computed (all ranks'; a shard's own range).
@@ -306,29 +353,6 @@ Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const P
     out.summary.meanNodesVisited = dist.sum(stats.meanNodesVisited * vertexWeight);
     out.summary.retainedEnergy = dist.sum(stats.retainedEnergyFraction * vertexWeight);
 
-    // RGB transport; or profiles 3p, 3p+1, 3p+2 of every vertex in component p, all
-    // components sharing the vertex's one index list.
-    const int K = kernels.count();
-    const int groups = basis ? K / 3 : 1;
-    out.components.resize(size_t(groups));
-    std::vector<float> rgb;
-    for (int p = 0; p < groups; ++p) {
-        TransportComponent& c = out.components[size_t(p)];
-        c.kind = basis ? ComponentKind::MultipleScatteringProfiles : ComponentKind::MultipleScattering;
-        c.term = basis ? uint32_t(p) : 0;
-        c.vectors.reserve(transport.size(), transport.size() * s.vertexCoefficients);
-        for (const SparseVector& v : transport) {
-            if (!basis) {
-                c.vectors.appendVertex(v.index, v.value);
-                continue;
-            }
-            rgb.resize(3 * v.index.size());
-            for (size_t n = 0; n < v.index.size(); ++n)
-                for (int ch = 0; ch < 3; ++ch) rgb[3 * n + size_t(ch)] = v.value[n * size_t(K) + size_t(3 * p + ch)];
-            c.vectors.appendVertex(v.index, rgb);
-        }
-    }
-    transport.clear();
     const Stopwatch gatherStart;
     for (TransportComponent& c : out.components)
         c.vectors = dist.gatherVertices(std::move(c.vectors), prepared.mesh.vertexCount());

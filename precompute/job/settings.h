@@ -96,6 +96,10 @@ struct PrecomputeSettings {
     // Refuse the job up front when its estimated memory (memory_estimate.h) exceeds
     // this many GB; 0 = the machine's available memory.
     double maxMemoryGb = 0.0;
+    // Pass 2 runs over this many vertices at a time, each chunk's float vectors moved
+    // into the file's quantized arrays before the next (the memory of one chunk, not of
+    // the whole mesh, beside them). The results do not depend on it.
+    size_t pass2ChunkVertices = 32768;
     // --shard i/n: only the vertices of shard i of n, into a shard file that prt-merge
     // joins (distribution.h); the shards of a job share its input_digest.
     std::optional<ShardSpec> shard;
