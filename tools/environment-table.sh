@@ -4,9 +4,9 @@
 # a material, 30 mm) one prt-precompute at the defaults; then, per environment, a 256 x 256
 # prt-relight render and prt-reference's independent render of the same frame (its own
 # samples and seed), compared by prt-compare (overall linear relative RMSE over the
-# object's pixels). Writes DIR/table.md (scene x environment), DIR/table.tsv (one row per
-# cell with the reference's noise floor and discretisation estimate) and keeps every
-# file and log in DIR.
+# object's pixels). Writes table.md (scene x environment) and table.tsv (one row per cell
+# with the reference's noise floor and discretisation estimate) into the output
+# directory, and keeps every file and log there.
 set -euo pipefail
 
 usage() {
