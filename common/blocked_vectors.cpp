@@ -236,34 +236,49 @@ std::vector<BlockedRgbVectors> jointTruncateShared(const std::vector<const Spars
         }
     }
     const size_t blocks = (vertices + kVertexBlock - 1) / kVertexBlock;
-    std::vector<Block> chosen(blocks);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 64), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t b = r.begin(); b != r.end(); ++b) {
-            const size_t first = b * kVertexBlock;
-            const uint32_t lanes = uint32_t(std::min<size_t>(kVertexBlock, vertices - first));
-            chosen[b] = chooseBlock(components, order.data() + first, lanes, keep, forcedFrom);
-        }
-    });
-    size_t total = 0;
-    uint32_t shFrom = UINT32_MAX;
-    for (const Block& b : chosen) {
-        total += b.idx.size();
-        // SH scales only where there is an SH part (not for single-scattering components).
-        if (!b.idx.empty() && b.idx.back() >= forcedFrom) shFrom = forcedFrom;
-    }
+    // The SH scales are kept when some block keeps an SH index, which is known only after
+    // the choice: every block is quantized with them (an SH-free block gives the same
+    // values either way) and they are dropped at the end if no block kept one.
+    // A block keeps at most `keep` indices, and at most its 16 vertices' indices.
+    size_t widest = 0;
+    for (const SparseRgbVectors* c : components)
+        for (size_t v = 0; v < vertices; ++v) widest = std::max<size_t>(widest, c->offsets[v + 1] - c->offsets[v]);
+    const size_t perBlock = std::min(keep, kVertexBlock * widest);
     std::vector<BlockedRgbVectors> out(components.size());
     for (BlockedRgbVectors& o : out) {
-        o.shFrom = shFrom;
+        o.shFrom = forcedFrom;
         o.offsets.reserve(blocks + 1);
-        o.indices.reserve(total);
-        o.values.reserve(total * kBlockValuesPerIndex);
+        o.indices.reserve(blocks * perBlock);
+        o.values.reserve(blocks * perBlock * kBlockValuesPerIndex);
         o.scales.reserve(blocks * kBlockValuesPerIndex);
-        if (shFrom != UINT32_MAX) o.shScales.reserve(blocks * kBlockValuesPerIndex);
+        if (forcedFrom != UINT32_MAX) o.shScales.reserve(blocks * kBlockValuesPerIndex);
     }
-    for (Block& b : chosen) {
-        for (size_t k = 0; k < out.size(); ++k) out[k].appendBlock(b.idx, b.rgb[k], b.lanes);
-        b = Block();
+    // Chosen in parallel a batch at a time: a chosen block holds its values in float,
+    // 4x the bytes of the quantized block it becomes.
+    constexpr size_t kBatchBlocks = 4096;
+    bool keptSh = false;
+    std::vector<Block> chosen;
+    for (size_t begin = 0; begin < blocks; begin += kBatchBlocks) {
+        const size_t end = std::min(blocks, begin + kBatchBlocks);
+        chosen.assign(end - begin, Block());
+        tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, 64), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t b = r.begin(); b != r.end(); ++b) {
+                const size_t first = b * kVertexBlock;
+                const uint32_t lanes = uint32_t(std::min<size_t>(kVertexBlock, vertices - first));
+                chosen[b - begin] = chooseBlock(components, order.data() + first, lanes, keep, forcedFrom);
+            }
+        });
+        for (Block& b : chosen) {
+            if (!b.idx.empty() && b.idx.back() >= forcedFrom) keptSh = true;
+            for (size_t k = 0; k < out.size(); ++k) out[k].appendBlock(b.idx, b.rgb[k], b.lanes);
+            b = Block();
+        }
     }
+    if (!keptSh)
+        for (BlockedRgbVectors& o : out) {
+            o.shFrom = UINT32_MAX;
+            o.shScales = {};
+        }
     return out;
 }
 

@@ -245,6 +245,38 @@ TEST(BlockedVectors, IndexVarintsRoundTripAndRefuseBadStreams) {
     EXPECT_NE(decodeBlockIndices(s.data(), s.size(), two, back).find("decodes index 65536"), std::string::npos);
 }
 
+// The blocks of a large set are chosen a batch of blocks at a time (jointTruncateShared
+// keeps the float values of one batch): each block, at the start, on either side of a
+// batch boundary and at the end, is the block the same 16 vertices make on their own.
+TEST(BlockedVectors, EveryBlockOfALargeSetIsTheBlockOfItsVerticesAlone) {
+    const size_t vertices = 4096 * 16 * 2 + 37;  // over two batches, the last block partial
+    const SparseRgbVectors src = randomVectors(vertices, 6, 64, 21);
+    const size_t keep = 10;
+    const BlockedRgbVectors all = jointTruncate(src, keep, identityOrder(vertices));
+    ASSERT_EQ(all.blockCount(), vertices / 16 + 1);
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    for (size_t b : {size_t(0), size_t(4095), size_t(4096), size_t(8191), size_t(8192), all.blockCount() - 1}) {
+        SCOPED_TRACE(b);
+        SparseRgbVectors alone;
+        const size_t first = 16 * b, lanes = std::min<size_t>(16, vertices - first);
+        for (size_t v = first; v < first + lanes; ++v) {
+            src.dequantizeVertex(v, idx, rgb);
+            alone.appendVertex(idx, rgb);
+        }
+        const BlockedRgbVectors one = jointTruncate(alone, keep, identityOrder(lanes));
+        ASSERT_EQ(one.blockCount(), 1u);
+        const uint32_t begin = all.offsets[b], end = all.offsets[b + 1];
+        EXPECT_EQ(std::vector<uint32_t>(all.indices.begin() + begin, all.indices.begin() + end),
+                  std::vector<uint32_t>(one.indices.begin(), one.indices.end()));
+        EXPECT_EQ(std::vector<int8_t>(all.values.begin() + ptrdiff_t(begin) * kBlockValuesPerIndex,
+                                      all.values.begin() + ptrdiff_t(end) * kBlockValuesPerIndex),
+                  one.values);
+        for (size_t k = 0; k < kBlockValuesPerIndex; ++k)
+            EXPECT_NEAR(all.scales[b * kBlockValuesPerIndex + k], one.scales[k], 1e-6f * one.scales[k]);
+    }
+}
+
 TEST(BlockedVectors, JointChoiceMatchesBruteForceScores) {
     const SparseRgbVectors src = randomVectors(16, 12, 64, 3);
     const size_t keep = 10;
