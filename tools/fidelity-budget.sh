@@ -2,13 +2,18 @@
 # The error budget of docs/fidelity.md: the bunny (30 mm) precomputed with the defaults,
 # with one approximation relaxed at a time, and swept over coefficients per vertex and
 # over sample density; each rendered at 256 x 256 under forest and city and compared
-# with prt-reference's independent render (made once per environment, a few minutes
+# with prt-reference's independent render (made once per environment, about half a minute
 # each, kept in OUT_DIR). Prints one line per run and writes OUT_DIR/MATERIAL.tsv
 # (material, kind, name, option value, environment, rel RMSE, precompute seconds) for
 # tools/plot_fidelity.py.
-#   tools/fidelity-budget.sh [MATERIAL] [OUT_DIR] [MESH] [SIZE_MM]
-#   (defaults: Marble, out/budget, data/meshes/bunny.off, 30)
+#   tools/fidelity-budget.sh [--reuse] [MATERIAL] [OUT_DIR] [MESH] [SIZE_MM]
+#   (defaults: Marble, out/budget, data/meshes/bunny.off, 30). --reuse keeps the
+#   references and transport files OUT_DIR already holds (from an earlier run of the same
+#   commit: not checked) and says so for each; without it everything is made again.
 set -euo pipefail
+reuse=0
+if [[ ${1:-} == --reuse ]]; then reuse=1; shift; fi
+if [[ ${1:-} == -h || ${1:-} == --help ]]; then sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 0; fi
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build=${BUILD_DIR:-$root/build}
 mat=${1:-Marble}
@@ -24,8 +29,12 @@ precompute() { "$build/bin/prt-precompute" "$mesh" --size-mm "$size" --material 
 precompute -o "$out/${tag}_default.prt" > "$out/${tag}_default.log"
 for env in forest city; do
     ref=$out/ref_${tag}_$env
-    [[ -f $ref.exr ]] || "$build/bin/prt-reference" "$mesh" -t "$out/${tag}_default.prt" \
-        -e "$root/data/envmaps/$env.exr" -W 256 -H 256 -o "$ref" > "$ref.log"
+    if [[ $reuse == 1 && -f $ref.exr ]]; then
+        echo "fidelity-budget: reusing $ref.exr (--reuse)"
+    else
+        "$build/bin/prt-reference" "$mesh" -t "$out/${tag}_default.prt" \
+            -e "$root/data/envmaps/$env.exr" -W 256 -H 256 -o "$ref" > "$ref.log"
+    fi
 done
 
 spacing=$(awk '/^samples  / {gsub(/[(),]/, ""); print $4}' "$out/${tag}_default.log")
@@ -63,7 +72,11 @@ for r in "${runs[@]}"; do
         log=$out/${tag}_default.log
     else
         log=$out/${tag}_$slug.log
-        [[ -f $file ]] || precompute -o "$file" "${opts[@]}" > "$log"
+        if [[ $reuse == 1 && -f $file ]]; then
+            echo "fidelity-budget: reusing $file (--reuse)"
+        else
+            precompute -o "$file" "${opts[@]}" > "$log"
+        fi
     fi
     seconds=$(awk '/^total/ { t = $2; if ($3 == "min") t = t * 60 + $4; print t }' "$log")
     for env in forest city; do
