@@ -359,7 +359,7 @@ Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const P
     out.summary.gatherSeconds = gatherStart.seconds();
     if (basis) out.radialBasis = StoredRadialBasis{basis->range(), basis->tables()};
     out.summary.seconds = start.seconds();
-    // After the copy into the file's arrays, which coexists with the per-vertex vectors.
+    // After the gather: the file's arrays and the last chunk's float vectors have both been held.
     out.summary.peakMemoryBytes = peakMemoryBytes();
     return out;
 }
