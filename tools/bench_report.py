@@ -14,6 +14,8 @@ import re
 import shlex
 import sys
 
+from pointlight_log import parse_cache_log
+
 
 def load_json(path):
     with open(path) as f:
@@ -214,17 +216,13 @@ def main():
     cache_path = os.path.join(out, "cache.log")
     if os.path.exists(cache_path):
         with open(cache_path) as f:
-            cache_log = f.read()
-        tc = re.search(r"T_cache ([0-9.]+) s$", cache_log, re.M)
-        jb = re.search(r"T_JB ([0-9.]+) s, speedup ([0-9.]+)x.*relative RMSE \(linear\) ([0-9.e+-]+)", cache_log)
-        caches = re.search(r"([0-9]+) caches / ([0-9]+) hit pixels = ([0-9.]+)%", cache_log)
-        if tc and jb and caches:
+            c = parse_cache_log(f.read())
+        if c:
             row("point light by the translucent irradiance cache (Keng et al. 2006; bunny, Marble, 40 mm, "
                 "1024 x 1024, defaults): T_cache / T_JB on the same samples and octree, speedup in the same run; "
                 "caches per hit pixel; relative RMSE against Jensen-Buhler",
-                f"{fmt(float(tc.group(1)))} s / {fmt(float(jb.group(1)))} s, **{fmt(float(jb.group(2)))}x**; "
-                f"{caches.group(3)}% ({int(caches.group(1)):,} of {int(caches.group(2)):,}); "
-                f"{100 * float(jb.group(3)):.2f}%",
+                f"{fmt(c['cache_seconds'])} s / {fmt(c['jb_seconds'])} s, **{fmt(c['speedup'])}x**; "
+                f"{c['cache_share']}% ({c['caches']:,} of {c['hit_pixels']:,}); {100 * c['vs_jb']:.2f}%",
                 ">= 10x faster than Jensen-Buhler", "cache")
 
     lines = [

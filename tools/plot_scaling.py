@@ -19,8 +19,9 @@ import csv
 import json
 import math
 import os
-import re
 import sys
+
+from pointlight_log import parse_cache_log
 
 # Each series: what is on the x axis and which metrics to plot and tabulate.
 # A metric: (key, label, unit, panel, fit) with fit "loglog" (slope) or "doubling"
@@ -166,13 +167,13 @@ def fit(xs, ys, kind):
     return per_doubling, f"{per_doubling:+.3g} per doubling"
 
 
-# Point-light runs (DIR/pointlights.tsv): metrics of the plot's two panels.
+# Point-light runs (DIR/pointlights.tsv), plotted against their vertices; metrics as SERIES'.
 POINT_LIGHT_METRICS = [
-    ("tsis_frame_ms", "texture space: new light position", "texture-space sampling [ms]"),
-    ("tsis_irradiance_ms", "texture space: irradiance map", "texture-space sampling [ms]"),
-    ("tsis_sums_ms", "texture space: per-vertex sums", "texture-space sampling [ms]"),
-    ("cache_seconds", "irradiance cache (T_cache)", "irradiance cache frame [s]"),
-    ("jb_seconds", "Jensen-Buhler (T_JB)", "irradiance cache frame [s]"),
+    ("tsis_frame_ms", "texture space: new light position", "ms", "texture-space sampling [ms]", "loglog"),
+    ("tsis_irradiance_ms", "texture space: irradiance map", "ms", "texture-space sampling [ms]", "loglog"),
+    ("tsis_sums_ms", "texture space: per-vertex sums", "ms", "texture-space sampling [ms]", "loglog"),
+    ("cache_seconds", "irradiance cache (T_cache)", "s", "irradiance cache frame [s]", "loglog"),
+    ("jb_seconds", "Jensen-Buhler (T_JB)", "s", "irradiance cache frame [s]", "loglog"),
 ]
 
 
@@ -192,20 +193,14 @@ def load_point_lights(d):
                 continue
             t = json.load(open(tsis_path))
             frame = t["rows"][0]
-            log = open(log_path).read()
-            tc = re.search(r"T_cache ([0-9.]+) s$", log, re.M)
-            jb = re.search(r"T_JB ([0-9.]+) s, speedup ([0-9.]+)x.*relative RMSE \(linear\) ([0-9.e+-]+)", log)
-            caches = re.search(r"([0-9]+) caches / ([0-9]+) hit pixels = ([0-9.]+)%", log)
+            c = parse_cache_log(open(log_path).read()) or {}
             rows.append({
                 "name": m["name"], "vertices": t["vertices"], "triangles": t["triangles"],
                 "tsis_frame_ms": frame["frame_ms"], "tsis_irradiance_ms": frame["irradiance_ms"],
                 "tsis_shadow_maps_ms": frame["shadow_maps_ms"], "tsis_draws_ms": frame["draws_ms"],
                 "tsis_sums_ms": frame["sums_ms"],
-                "cache_seconds": float(tc.group(1)) if tc else None,
-                "jb_seconds": float(jb.group(1)) if jb else None,
-                "cache_speedup": float(jb.group(2)) if jb else None,
-                "cache_vs_jb": float(jb.group(3)) if jb else None,
-                "cache_share": float(caches.group(3)) if caches else None,
+                "cache_seconds": c.get("cache_seconds"), "jb_seconds": c.get("jb_seconds"),
+                "cache_speedup": c.get("speedup"), "cache_vs_jb": c.get("vs_jb"), "cache_share": c.get("cache_share"),
                 "tsis_command": m["tsis"], "cache_command": m["cache"],
             })
     return sorted(rows, key=lambda r: r["vertices"])
@@ -232,7 +227,7 @@ def point_light_table(pl):
     out += [f"- {r['name']}: `{r['tsis_command']}`; `{r['cache_command']}`" for r in pl]
     out.append("")
     slopes = []
-    for key, label, _ in POINT_LIGHT_METRICS:
+    for key, label, _, _, _ in POINT_LIGHT_METRICS:
         value, text = fit([r["vertices"] for r in pl], [r.get(key) for r in pl], "loglog")
         if value is not None:
             slopes.append(("Point lights vs mesh size", label, text, len(pl)))
@@ -399,37 +394,39 @@ def plot(rows, plots_dir, pl=()):
             ax.plot(ends, [math.exp(c + slope * math.log(x)) for x in ends], linestyle="--",
                     color=line.get_color(), linewidth=1)
 
-    for name, spec in SERIES.items():
-        rs = series_rows(rows, name)
-        if not rs:
-            continue
-        xs = [r[spec["x"]] for r in rs]
+    def panels_figure(rs, xs, metrics, xlabel, suptitle, name):
+        """One panel per metric group against xs (log x; log y unless fitted per doubling): scaling_NAME.png."""
         panels = []
-        for m in spec["metrics"]:
+        for m in metrics:
             if m[3] not in panels:
                 panels.append(m[3])
         fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4.2), squeeze=False)
         markers = "osD^vx+*"
         for ax, panel in zip(axes[0], panels):
             doubling = False
-            for i, (key, label, unit, p, kind) in enumerate(m for m in spec["metrics"] if m[3] == panel):
+            for i, (key, label, unit, p, kind) in enumerate(m for m in metrics if m[3] == panel):
                 draw(ax, xs, [r.get(key) for r in rs], label, kind, markers[i % len(markers)])
                 doubling = doubling or kind == "doubling"
             ax.set_xscale("log")
             if not doubling:
                 ax.set_yscale("log")
             label_axes(ax)
-            ax.set_xlabel(spec["xlabel"])
+            ax.set_xlabel(xlabel)
             ax.set_ylabel(panel)
             ax.grid(True, which="both", alpha=0.3)
             if ax.get_legend_handles_labels()[0]:
                 ax.legend(fontsize=8)
-        fig.suptitle(title(spec, rs), fontsize=10)
+        fig.suptitle(suptitle, fontsize=10)
         fig.tight_layout()
         path = os.path.join(plots_dir, f"scaling_{name}.png")
         fig.savefig(path, dpi=100)
         plt.close(fig)
         written.append(path)
+
+    for name, spec in SERIES.items():
+        rs = series_rows(rows, name)
+        if rs:
+            panels_figure(rs, [r[spec["x"]] for r in rs], spec["metrics"], spec["xlabel"], title(spec, rs), name)
     rs = [r for r in rows if number(r.get("relight_stream_MB")) and number(r.get("relight_ms_median"))]
     if rs:
         fig, ax = plt.subplots(figsize=(6, 4.5))
@@ -460,29 +457,8 @@ def plot(rows, plots_dir, pl=()):
         plt.close(fig)
         written.append(path)
     if pl:
-        panels = []
-        for m in POINT_LIGHT_METRICS:
-            if m[2] not in panels:
-                panels.append(m[2])
-        fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4.2), squeeze=False)
-        xs = [r["vertices"] for r in pl]
-        for ax, panel in zip(axes[0], panels):
-            for i, (key, label, p) in enumerate(m for m in POINT_LIGHT_METRICS if m[2] == panel):
-                draw(ax, xs, [r.get(key) for r in pl], label, "loglog", "osD^v"[i])
-            ax.set_xscale("log")
-            ax.set_yscale("log")
-            label_axes(ax)
-            ax.set_xlabel("vertices")
-            ax.set_ylabel(panel)
-            ax.grid(True, which="both", alpha=0.3)
-            if ax.get_legend_handles_labels()[0]:
-                ax.legend(fontsize=8)
-        fig.suptitle("Point lights vs mesh size (dragon, 30 mm, Skin2)", fontsize=10)
-        fig.tight_layout()
-        path = os.path.join(plots_dir, "scaling_pointlights_mesh.png")
-        fig.savefig(path, dpi=100)
-        plt.close(fig)
-        written.append(path)
+        panels_figure(pl, [r["vertices"] for r in pl], POINT_LIGHT_METRICS, "vertices",
+                      "Point lights vs mesh size (dragon, 30 mm, Skin2)", "pointlights_mesh")
     return written
 
 

@@ -369,10 +369,6 @@ MultipleScatteringReference::MultipleScatteringReference(const Material& materia
     samples_.pad();
 }
 
-void MultipleScatteringReference::setDipoleSumIsa(DipoleSumIsa isa) {
-    isa_ = isa == DipoleSumIsa::Portable ? isa : bestDipoleSumIsa();
-}
-
 RadianceEstimate MultipleScatteringReference::diffuse(const glm::vec3& x) const {
     const DipoleSumResult sum = dipoleSum(samples_, channels_, x, isa_);
     RadianceEstimate out;

@@ -236,9 +236,6 @@ public:
     // dipoleRd that tests hold it to.
     RadianceEstimate diffuse(const glm::vec3& x) const;
     RadianceEstimate diffuseScalar(const glm::vec3& x) const;
-    // The instruction set of diffuse(): Portable, or the CPU's best (tests, benchmarks).
-    void setDipoleSumIsa(DipoleSumIsa isa);
-    DipoleSumIsa dipoleSumIsa() const { return isa_; }
 
     // Per-vertex mode: evaluates diffuse() at every vertex of `mesh` (in parallel);
     // radiance() then interpolates the vertex values with the pixel's barycentric
