@@ -36,6 +36,7 @@
 #include "relight/pointlight/surface_atlas.h"
 #include "relight/pointlight/texture_space_sampling.h"
 #include "relight/prt/environment_frame.h"
+#include "relight/prt/eye_path.h"
 #include "relight/prt/frame_settings.h"
 #include "relight/prt/light_vector.h"
 #include "relight/prt/relight_kernel.h"
@@ -134,10 +135,15 @@ int runRender(const RenderOptions& o) {
                 camera.eye.x, camera.eye.y, camera.eye.z, camera.target.x, camera.target.y,
                 camera.target.z, camera.fovY, camera.width, camera.height, o.camera.spp,
                 subpixels > 1 ? " (a regular sub-pixel grid, box filter)" : "");
-    std::printf("components: %s%s%s%s; light terms: %s; loaded in %.0f ms\n",
+    const char* ssPath = !components.singleScattering ? ""
+                         : componentsOf(object.transport).folded ? " (single scattering folded: along the inward normal)"
+                         : parseSingleScatteringView(look.ssPath) == SingleScatteringView::Normal
+                             ? " (single scattering along the inward normal)"
+                             : " (single scattering along the eye's refracted path)";
+    std::printf("components: %s%s%s%s%s; light terms: %s; loaded in %.0f ms\n",
                 components.multipleScattering ? "ms" : "",
                 components.multipleScattering && components.singleScattering ? "," : "",
-                components.singleScattering ? "ss" : "", look.specular ? " + specular" : "",
+                components.singleScattering ? "ss" : "", ssPath, look.specular ? " + specular" : "",
                 look.lightTerms ? std::to_string(look.lightTerms).c_str() : "all", loadMs);
     std::fflush(stdout);
 

@@ -41,6 +41,7 @@ void expectSame(const FrameSettings& a, const FrameSettings& b) {
     EXPECT_EQ(a.envRotation, b.envRotation);
     EXPECT_EQ(a.components, b.components);
     EXPECT_EQ(a.lightTerms, b.lightTerms);
+    EXPECT_EQ(a.ssPath, b.ssPath);
     EXPECT_EQ(a.specular, b.specular);
     EXPECT_EQ(a.specularBlur, b.specularBlur);
     EXPECT_EQ(a.display.exposureStops, b.display.exposureStops);
@@ -54,6 +55,7 @@ TEST(FrameSettings, DefaultsAreTheStructs) {
     const FrameSettings d;
     EXPECT_EQ(d.components, "all");
     EXPECT_EQ(d.lightTerms, 0u);
+    EXPECT_EQ(d.ssPath, "refracted");
     EXPECT_FALSE(d.specular);
     EXPECT_EQ(d.specularBlur, 0);
     EXPECT_EQ(d.envRotation, 0.0);
@@ -63,7 +65,8 @@ TEST(FrameSettings, DefaultsAreTheStructs) {
 
 TEST(FrameSettings, OptionsBindEveryField) {
     const FrameSettings s = parse({"--env-rotation=-70", "--components", "ms", "-L", "40", "--specular",
-                                   "--specular-blur", "4", "--exposure", "1.5", "--tonemap", "Filmic"});
+                                   "--specular-blur", "4", "--exposure", "1.5", "--tonemap", "Filmic",
+                                   "--ss-path", "normal"});
     EXPECT_EQ(s.envRotation, -70.0);
     EXPECT_EQ(s.components, "ms");
     EXPECT_EQ(s.lightTerms, 40u);
@@ -71,6 +74,7 @@ TEST(FrameSettings, OptionsBindEveryField) {
     EXPECT_EQ(s.specularBlur, 4);
     EXPECT_EQ(s.display.exposureStops, 1.5);
     EXPECT_EQ(s.display.op, ToneMapOperator::Filmic);
+    EXPECT_EQ(s.ssPath, "normal");
     EXPECT_EQ(parse({"--light-terms", "7"}).lightTerms, 7u);
 }
 
@@ -84,7 +88,7 @@ TEST(FrameSettings, OptionGroups) {
     EXPECT_EQ(o.specularBlur->get_group(), "Lighting");
     EXPECT_EQ(app.get_option("--exposure")->get_group(), "Output");
     EXPECT_EQ(app.get_option("--tonemap")->get_group(), "Output");
-    for (const char* name : {"--env-rotation", "--components", "--light-terms"})
+    for (const char* name : {"--env-rotation", "--components", "--light-terms", "--ss-path"})
         EXPECT_EQ(app.get_option(name)->get_group(), "Lighting") << name;
 }
 
@@ -104,6 +108,8 @@ TEST(FrameSettings, ChecksNameTheOption) {
     EXPECT_EQ(subjectOf([](FrameSettings& s) { s.envRotation = INFINITY; }), "--env-rotation");
     EXPECT_EQ(subjectOf([](FrameSettings& s) { s.display.exposureStops = -INFINITY; }), "--exposure");
     EXPECT_EQ(subjectOf([](FrameSettings& s) { s.specularBlur = -1; }), "--specular-blur");
+    EXPECT_EQ(subjectOf([](FrameSettings& s) { s.ssPath = "eye"; }), "--ss-path");
+    EXPECT_EQ(subjectOf([](FrameSettings& s) { s.ssPath = "normal"; }), "<accepted>");
     EXPECT_EQ(subjectOf([](FrameSettings& s) { s.envRotation = -1e300; }), "<accepted>");
 }
 
@@ -120,6 +126,9 @@ TEST(FrameSettings, RenderArgumentsText) {
               " --env-rotation=-70.25 --exposure=1.10000002 -L 256 --components ms,ss --specular --specular-blur 2");
     s.specular = false;  // the blur goes with the layer
     EXPECT_EQ(renderArguments(s), " --env-rotation=-70.25 --exposure=1.10000002 -L 256 --components ms,ss");
+    s.ssPath = "normal";
+    EXPECT_EQ(renderArguments(s),
+              " --env-rotation=-70.25 --exposure=1.10000002 -L 256 --components ms,ss --ss-path normal");
 }
 
 TEST(FrameSettings, RenderArgumentsParseBackToTheSettings) {
@@ -128,6 +137,7 @@ TEST(FrameSettings, RenderArgumentsParseBackToTheSettings) {
     s.display = {-2.5, ToneMapOperator::Chang};
     s.lightTerms = 40;
     s.components = "ss";
+    s.ssPath = "normal";
     s.specular = true;
     s.specularBlur = 8;
     FrameSettings back = parse(words(renderArguments(s)));

@@ -83,8 +83,11 @@ const LightVector& lightOf(const py::handle& value) {
     }
 }
 
+// isotropicTerm: the file's term 0 is isotropic single scattering that loadRelightObject
+// moved out of the diffuse sum (RelightObject::isotropicAsTerm); it is added back, so an
+// object relights as its transport file does.
 py::array_t<float> relightInto(PyTransport& t, const TransportFile& file, const LightVector& light,
-                               const std::string& components, const py::object& out) {
+                               const std::string& components, const py::object& out, bool isotropicTerm = false) {
     const ScatteringComponents which = selectComponents(components, componentsOf(file), t.path);
     if (light.size != int(file.cubemapSize))
         throw Error("light", "its cubemap is 6x" + std::to_string(light.size) + "^2, the transport file's 6x" +
@@ -95,6 +98,8 @@ py::array_t<float> relightInto(PyTransport& t, const TransportFile& file, const 
         py::gil_scoped_release release;
         std::lock_guard lock(t.mutex);
         relightVertices(file, light, which, t.scratch);
+        if (isotropicTerm && t.scratch.terms.size() == 1)
+            for (size_t v = 0; v < t.scratch.diffuse.size(); ++v) t.scratch.diffuse[v] += t.scratch.terms[0][v];
         std::copy_n(&t.scratch.diffuse.data()->x, 3 * t.scratch.diffuse.size(), dst);
     }
     return result;
@@ -305,7 +310,8 @@ void bindRendering(py::module_& m) {
         .def(
             "relight",
             [](PyObject& o, const py::handle& light, const std::string& components, const py::object& out) {
-                return relightInto(*o.transport, o.object->transport, lightOf(light), components, out);
+                return relightInto(*o.transport, o.object->transport, lightOf(light), components, out,
+                                   o.object->isotropicAsTerm);
             },
             py::arg("light"), py::arg("components") = "all", py::arg("out") = py::none(),
             "prt.relight of the object's transport (the current material's)")
@@ -371,10 +377,12 @@ void bindRendering(py::module_& m) {
         [](PyObject& o, const PyEnvironment& environment, const py::object& eye, const py::object& target,
            const py::object& up, double fov, int width, int height, double azimuth, double elevation, double fill,
            const py::object& envRotation, const std::string& components, size_t lightTerms, bool specular,
-           int specularBlur, const py::object& material, std::optional<double> sizeMm, int spp) {
+           int specularBlur, const py::object& material, std::optional<double> sizeMm, int spp,
+           const std::string& ssPath) {
             const int subpixels = subpixelGridSize(spp);
             FrameSettings look;
             look.components = components;
+            look.ssPath = ssPath;
             look.lightTerms = lightTerms;
             look.specular = specular;
             look.specularBlur = specularBlur;
@@ -425,11 +433,13 @@ void bindRendering(py::module_& m) {
         py::arg("fill") = 0.9, py::arg("env_rotation") = 0.0, py::arg("components") = "all",
         py::arg("light_terms") = 0, py::arg("specular") = false, py::arg("specular_blur") = 0,
         py::arg("material") = py::none(), py::arg("size_mm") = py::none(), py::arg("spp") = 1,
+        py::arg("ss_path") = "refracted",
         "prt-relight render's frame as an (H, W, 4) float32 linear RGBA array (A = 1 on the object), the same "
         "bit for bit as its EXR for the same arguments. Camera: eye/target/up in mm (default: the object framed "
         "from azimuth/elevation to fill that share of the image), fov in degrees; spp: anti-aliasing samples per "
         "pixel (a square number; render's --spp). material/size_mm: as "
-        "set_material, and they stay the object's.");
+        "set_material, and they stay the object's. ss_path: single scattering along the eye's refracted ray "
+        "('refracted') or the inward normal as precomputed ('normal'; render's --ss-path).");
 }
 
 }  // namespace prt::python

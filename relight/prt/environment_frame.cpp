@@ -16,7 +16,8 @@ EnvironmentFrameRenderer::EnvironmentFrameRenderer(const RelightObject& object, 
                                      : std::nullopt),
       scene_(tracedMesh()),
       shader_(object.mesh, object.eta,
-              components.singleScattering && object.transport.viewMaps ? &*object.transport.viewMaps : nullptr) {
+              components.singleScattering && object.transport.viewMaps ? &*object.transport.viewMaps : nullptr,
+              EyePathTable(object.eta, parseSingleScatteringView(look.ssPath))) {
     if (look_.specular)
         prefiltered_ = prefilterEnvironment(environment_, specularBlurFactor(look_.specularBlur, environment_));
     if (sequence) prepared_.emplace(environment_, int(object_.transport.cubemapSize));

@@ -39,9 +39,9 @@ struct EnvironmentFrameTimes {
 class EnvironmentFrameRenderer {
 public:
     // `object` must outlive the renderer (the ray scene and the shader refer to its
-    // mesh). `look` gives the light terms, the specular layer and its blur; its
-    // material and rotation are not read here (the caller applies the edit and passes
-    // the rotation per frame). `sequence` prepares the environment once for many
+    // mesh). `look` gives the light terms, the single-scattering path, the specular
+    // layer and its blur; its material and rotation are not read here (the caller
+    // applies the edit and passes the rotation per frame). `sequence` prepares the environment once for many
     // rotations (EnvironmentLight, the fast path of a turntable or a spin); a single
     // frame builds its light vector directly, as `render` does without a sequence.
     EnvironmentFrameRenderer(const RelightObject& object, Image environment, const FrameSettings& look,

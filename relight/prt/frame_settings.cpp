@@ -10,6 +10,7 @@
 #include "common/error.h"
 #include "common/util.h"
 #include "common/options.h"
+#include "relight/prt/eye_path.h"
 
 namespace prt {
 
@@ -21,6 +22,11 @@ FrameOptions addFrameOptions(CLI::App& app, FrameSettings& s) {
                    "Components to render: ms, ss, ms,ss or all (default: all the file has)")
         ->capture_default_str()->group("Lighting");
     app.add_option("-L,--light-terms", s.lightTerms, "Keep the largest L Haar terms of the light (0 = all)")
+        ->capture_default_str()->group("Lighting");
+    app.add_option("--ss-path", s.ssPath,
+                   "Single scattering along the eye's refracted ray (refracted: the precomputed vectors "
+                   "times a factor of the view, exact for a half space) or along the inward normal as "
+                   "precomputed (normal: Wang et al. 2005)")
         ->capture_default_str()->group("Lighting");
     o.specular = app.add_flag("--specular", s.specular,
                               "Add a Fresnel-weighted specular reflection of the pre-filtered environment "
@@ -61,6 +67,7 @@ void checkFrameSettings(const FrameSettings& s) {
     if (!std::isfinite(s.envRotation)) throw Error("--env-rotation", "must be finite");
     if (!std::isfinite(s.display.exposureStops)) throw Error("--exposure", "must be finite");
     if (s.specularBlur < 0) throw Error("--specular-blur", "must be >= 1");
+    parseSingleScatteringView(s.ssPath);
     if (!(s.sizeMm >= 0.0) || !std::isfinite(s.sizeMm)) throw Error("--size-mm", "must be a size in mm > 0");
 }
 
@@ -71,6 +78,7 @@ std::string renderArguments(const FrameSettings& s) {
     if (s.display.op != ToneMapOperator::Clamp) args += std::string(" --tonemap ") + toneMapOperatorName(s.display.op);
     if (s.lightTerms > 0) args += " -L " + std::to_string(s.lightTerms);
     if (s.components != "all") args += " --components " + s.components;
+    if (parseSingleScatteringView(s.ssPath) == SingleScatteringView::Normal) args += " --ss-path normal";
     if (s.specular) {
         args += " --specular";
         if (s.specularBlur > 0) args += " --specular-blur " + std::to_string(s.specularBlur);

@@ -22,6 +22,9 @@ struct FrameSettings {
     double envRotation = 0.0;         // --env-rotation: degrees about +Y (rotationY), light and background
     std::string components = "all";   // --components: ms, ss, ms,ss or all (selectComponents against the file)
     size_t lightTerms = 0;            // -L: keep the light's largest Haar terms; 0 = all
+    // --ss-path: the path single scattering is shown along, refracted (the eye's) or
+    // normal (as precomputed); parseSingleScatteringView, relight/prt/eye_path.h.
+    std::string ssPath = "refracted";
     bool specular = false;            // --specular: the Fresnel-weighted pre-filtered reflection
     int specularBlur = 0;             // --specular-blur: pre-filter factor; 0 = automatic (specularBlurFactor)
     DisplayTransform display;         // --exposure, --tonemap: the displayed / PNG image only
@@ -49,20 +52,21 @@ struct FrameOptions {
     CLI::Option* specularBlur = nullptr;
 };
 
-// Declares --env-rotation, --components, -L/--light-terms, --specular, --specular-blur
+// Declares --env-rotation, --components, -L/--light-terms, --ss-path, --specular, --specular-blur
 // (group "Lighting"), --material and --size-mm (group "Material") and --exposure,
 // --tonemap (group "Output", addDisplayOptions), bound to `s`; the defaults are FrameSettings'.
 FrameOptions addFrameOptions(CLI::App& app, FrameSettings& s);
 
 // Throws prt::Error naming the option: a non-finite --env-rotation or --exposure, a
-// negative --specular-blur, a --size-mm that is not finite and >= 0. --components is checked against the transport file by
+// negative --specular-blur, an --ss-path that is neither refracted nor normal, a --size-mm that is not finite and >= 0. --components is checked against the transport file by
 // selectComponents (common/transport_params.h).
 void checkFrameSettings(const FrameSettings& s);
 
 // The options that give `s` back through addFrameOptions:
 // " --env-rotation=R --exposure=E" (%.9g; '=' so negative values parse), then
 // " --tonemap T" unless T is clamp, " -L N"
-// when N > 0, " --components C" unless C is "all", " --specular" followed by
+// when N > 0, " --components C" unless C is "all", " --ss-path normal" when set,
+// " --specular" followed by
 // " --specular-blur F" (F > 0) when the layer is on, and " --material M" /
 // " --size-mm=S" when set, " --base-colour" when on, " --ground G" and
 // " --material-map MAP --map-material B" when set; M, G, MAP and B as shellQuote

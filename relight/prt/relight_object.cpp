@@ -10,6 +10,26 @@
 
 namespace prt {
 
+namespace {
+
+// Isotropic single scattering is the one-term phase factorisation with h_0 = 1 (its
+// 1/(4 pi) is in the vectors): shown as that term, it leaves the diffuse sum, so the
+// shaders can give it the eye's-path factor (eye_path.h) like the K-term files.
+bool showIsotropicSingleScatteringAsATerm(TransportFile& file) {
+    TransportComponent* isotropic = nullptr;
+    for (TransportComponent& c : file.components) {
+        if (c.kind == ComponentKind::SingleScatteringTerm) return false;
+        if (c.kind == ComponentKind::SingleScatteringIsotropic) isotropic = &c;
+    }
+    if (!isotropic || file.viewMaps) return false;
+    isotropic->kind = ComponentKind::SingleScatteringTerm;
+    isotropic->term = 0;
+    file.viewMaps = ViewMaps{.size = 1, .terms = 1, .data = std::vector<float>(6, 1.0f)};
+    return true;
+}
+
+}  // namespace
+
 RelightObject loadRelightObject(const std::string& meshPath, const std::string& transportPath) {
     RelightObject o;
     o.mesh = loadMesh(meshPath);
@@ -17,6 +37,7 @@ RelightObject loadRelightObject(const std::string& meshPath, const std::string& 
     o.transport = loadTransportFile(transportPath, fingerprint);
     scaleToPhysical(o.mesh, MeshScale{.sizeMm = std::nullopt, .mmPerUnit = o.transport.mmPerUnit});
     o.eta = readTransportParameters(o.transport.parameters, transportPath).eta.value_or(1.3);
+    o.isotropicAsTerm = showIsotropicSingleScatteringAsATerm(o.transport);
     o.box = bounds(o.mesh);
     const BoundingSphere sphere = boundingSphere(o.mesh);
     o.sphereCentre = sphere.centre;

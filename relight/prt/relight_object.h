@@ -20,7 +20,10 @@ namespace prt {
 // The object as the relighting tools place it: the mesh file loaded, checked against
 // the transport file's fingerprint (a mismatch is a prt::Error naming the transport
 // file) and scaled by the file's mmPerUnit about the origin (as prt-precompute did),
-// so positions are in mm and vertex v is the transport file's vertex v.
+// so positions are in mm and vertex v is the transport file's vertex v. Isotropic single
+// scattering is held as the one-term phase (a SingleScatteringTerm component 0 with a
+// constant view map h_0 = 1, 6 x 1 x 1), which renders the same, so that the
+// renderers can put it along the eye's path (eye_path.h).
 //
 // An editable file (prt-precompute --editable, editable_transport.h) keeps its profile
 // vectors in `editable`, and `transport` holds in their place the multiple-scattering
@@ -37,6 +40,7 @@ struct RelightObject {
     BaseColour baseColour;    // --base-colour: tints the translucent exitance (white when off)
     std::optional<GroundReceiver> ground;  // --ground: the plane under the object
     std::optional<MaterialMap> materialMap;  // --material-map: a second material where the map says
+    bool isotropicAsTerm = false;  // the file's isotropic single scattering is held as term 0 (above)
 };
 RelightObject loadRelightObject(const std::string& meshPath, const std::string& transportPath);
 

@@ -9,8 +9,9 @@
 
 namespace prt {
 
-TranslucentShader::TranslucentShader(const TriangleMesh& mesh, double eta, const ViewMaps* viewMaps)
-    : mesh_(&mesh), eta_(eta) {
+TranslucentShader::TranslucentShader(const TriangleMesh& mesh, double eta, const ViewMaps* viewMaps,
+                                     const EyePathTable& eyePath)
+    : mesh_(&mesh), eta_(eta), eyePath_(eyePath) {
     if (!(eta > 0) || !std::isfinite(eta)) throw Error("eta", "must be positive and finite");
     if (viewMaps && viewMaps->terms > 0) {
         const int n = viewMaps->size, k = viewMaps->terms;
@@ -56,7 +57,7 @@ glm::vec3 TranslucentShader::shade(const GBufferPixel& p, const VertexRadiance& 
             }
             // The K-term phase (phase_factoring.h) has negative lobes where HG is small
             // (g = 0.4, cos = -1: -0.015 for 0.024); single scattering is never negative.
-            sum += glm::max(ss, glm::dvec3(0.0));
+            sum += eyePath_(-glm::dot(woRefracted, n)) * glm::max(ss, glm::dvec3(0.0));
         }
     }
     // Truncated wavelets can undershoot too; radiance is never negative.

@@ -421,6 +421,7 @@ void SceneGl::draw(const SceneFrame& frame, bool offscreen) {
     glUniform1i(glGetUniformLocation(p, "uTermCount"), frame.viewTerms);
     glUniform1i(glGetUniformLocation(p, "uViewMapSize"), std::max(viewMapSize_, 1));
     glUniform1f(glGetUniformLocation(p, "uEta"), float(object_.eta));
+    glUniform1fv(glGetUniformLocation(p, "uEyePath"), EyePathTable::kSize, frame.eyePath.values().data());
     glUniform1i(glGetUniformLocation(p, "uObjectTriangles"), int(object_.mesh.triangleCount()));
     glUniform1i(glGetUniformLocation(p, "uSpecular"), frame.specular && frame.environmentLight ? 1 : 0);
     glUniform1i(glGetUniformLocation(p, "uBackground"), frame.environmentLight ? 1 : 0);

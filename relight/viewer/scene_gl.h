@@ -35,6 +35,7 @@
 #include "common/image.h"
 #include "common/tonemap.h"
 #include "relight/pointlight/point_lights.h"
+#include "relight/prt/eye_path.h"
 #include "relight/prt/relight_object.h"
 
 namespace prt {
@@ -46,6 +47,7 @@ struct SceneFrame {
     double rotation = 0.0;         // the environment's rotation, degrees about +Y
     DisplayTransform display;      // exposure and tone mapping (chang: Radiance_avg of the uploaded radiance)
     int viewTerms = 0;             // K of the uploaded radiance (0: diffuse only)
+    EyePathTable eyePath;          // the single-scattering path's factor (eye_path.h; ones: the normal)
     bool specular = false;         // the specular layer asked for (its pre-filtered map is bound)
     bool environmentLight = true;  // background and specular layer shown
     // The point lights' specular (uploadPointSpecular's lights and vertex irradiance):

@@ -127,6 +127,7 @@ private:
     LightRequest displayed_, submitted_;
     uint64_t nextId_ = 1;
     int displayedTerms_ = 0;
+    EyePathTable eyePath_;  // --ss-path's factor for the object's eta
     double lastUploadMs_ = 0.0;
     RunningStats relightStats_, lightStats_, kernelStats_, uploadStats_;
     MaterialEditStats editStats_;
@@ -184,6 +185,7 @@ void Viewer::start() {
     for (const TransportComponent& c : file.components)
         available_.singleScattering = available_.singleScattering || c.kind == ComponentKind::SingleScatteringTerm;
     fileTerms_ = file.viewMaps ? file.viewMaps->terms : 0;
+    eyePath_ = EyePathTable(s_.object.eta, parseSingleScatteringView(s_.frame.ssPath));
     limits_.environments = int(s_.environments.size());
     limits_.maxLightTerms = 6 * int(file.cubemapSize * file.cubemapSize);
     limits_.home = s_.camera;
@@ -377,6 +379,7 @@ SceneFrame Viewer::sceneFrame() const {
     f.rotation = haveLight_ ? displayed_.rotation : state_.rotation;
     f.display = {double(state_.exposure), ToneMapOperator(state_.toneMap)};
     f.viewTerms = haveLight_ ? displayedTerms_ : 0;
+    f.eyePath = eyePath_;
     f.specular = state_.specular;
     f.environmentLight = state_.environmentLight;
     f.pointSpecular = state_.pointLights && havePoint_ && pointFront_.request.specular;

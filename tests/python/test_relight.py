@@ -111,6 +111,7 @@ def test_constant_environment_gives_the_rotation_invariant_answer(scene):
         [],
         ["--env-rotation", "40", "--specular", "--components", "ms,ss", "-L", "50"],
         ["--azimuth", "60", "--elevation", "-20", "--fov", "25"],
+        ["--ss-path", "normal", "--components", "ss"],
     ],
 )
 def test_render_equals_prt_relight_render_bit_for_bit(scene, tmp_path, extra):
@@ -123,7 +124,7 @@ def test_render_equals_prt_relight_render_bit_for_bit(scene, tmp_path, extra):
     flags = iter(extra)
     names = {"--env-rotation": ("env_rotation", float), "--components": ("components", str),
              "-L": ("light_terms", int), "--azimuth": ("azimuth", float), "--elevation": ("elevation", float),
-             "--fov": ("fov", float)}
+             "--fov": ("fov", float), "--ss-path": ("ss_path", str)}
     for flag in flags:
         if flag == "--specular":
             options["specular"] = True
@@ -134,6 +135,25 @@ def test_render_equals_prt_relight_render_bit_for_bit(scene, tmp_path, extra):
     assert image.shape == (64, 96, 4) and image.dtype == np.float32
     assert np.array_equal(image, cli)
     assert image[..., 3].sum() > 100  # the object is in the frame
+
+
+def test_object_relights_as_its_file_and_the_eyes_path_brightens_single_scattering(scene):
+    # The object holds its isotropic single scattering as a one-term phase (for the
+    # eye's-path factor); its per-vertex radiance is still the file's.
+    t = prt.load_transport(str(scene / "torus_ss.prt"))
+    obj = prt.load_object(str(scene / "torus.ply"), str(scene / "torus_ss.prt"))
+    light = prt.load_environment(str(scene / "sky.exr")).light_vector(8)
+    assert np.array_equal(obj.relight(light), prt.relight(t, light))
+    assert np.array_equal(obj.relight(light, "ss"), prt.relight(t, light, "ss"))
+    env = prt.load_environment(str(scene / "sky.exr"))
+    eye = prt.render(obj, env, width=64, height=64, components="ss")
+    normal = prt.render(obj, env, width=64, height=64, components="ss", ss_path="normal")
+    inside = eye[..., 3] == 1
+    ratio = eye[..., :3][inside].sum() / normal[..., :3][inside].sum()
+    assert 1.01 < ratio < 1.3  # 1 at a normal view, 1.25 at grazing ones (eta 1.3)
+    assert np.all(eye[..., :3][inside] >= normal[..., :3][inside] * (1 - 1e-6))
+    with pytest.raises(ValueError, match="--ss-path"):
+        prt.render(obj, env, width=8, height=8, ss_path="eye")
 
 
 def test_live_material_equals_render_with_material(scene, tmp_path):

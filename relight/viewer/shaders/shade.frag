@@ -11,6 +11,7 @@ uniform int uTermCount;        // K used (0: no view-dependent single scattering
 uniform sampler2D uViewMaps;   // R32F, N x 6NK: texel (i, (k * 6 + face) * N + j) = h_k
 uniform int uViewMapSize;
 uniform float uEta;
+uniform float uEyePath[65];    // EyePathTable (eye_path.h): the eye's-path factor at cos_o' = i / 64
 uniform int uObjectTriangles;  // triangles past these are the ground's (its radiance in slot 0)
 uniform bool uSpecular;
 uniform bool uBackground;      // false: black background (the environment's light is off)
@@ -243,7 +244,10 @@ void main() {
             if (refractDirection(wo, n, uEta, wt)) {
                 vec3 ss = vec3(0.0);
                 for (int k = 0; k < uTermCount; ++k) ss += viewMap(k, wt) * interpolated(k + 1);
-                sum += max(ss, vec3(0.0));  // the K-term phase's negative lobes, as translucent_shader.cpp
+                float x = clamp(-dot(wt, n), 0.0, 1.0) * 64.0;
+                int i = min(int(x), 63);
+                float eyePath = mix(uEyePath[i], uEyePath[i + 1], x - float(i));
+                sum += eyePath * max(ss, vec3(0.0));  // the K-term phase's negative lobes, as translucent_shader.cpp
             }
         }
         L = (1.0 - fr) * max(sum, vec3(0.0));
