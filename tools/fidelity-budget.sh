@@ -1,19 +1,28 @@
 #!/usr/bin/env bash
 # The error budget of docs/fidelity.md: the bunny (30 mm) precomputed with the defaults,
 # with one approximation relaxed at a time, and swept over coefficients per vertex and
-# over sample density; each rendered at 256 x 256 under forest and city and compared
-# with prt-reference's independent render (made once per environment, about half a minute
-# each, kept in OUT_DIR). Prints one line per run and writes OUT_DIR/MATERIAL.tsv
-# (material, kind, name, option value, environment, rel RMSE, precompute seconds) for
-# tools/plot_fidelity.py.
-#   tools/fidelity-budget.sh [--reuse] [MATERIAL] [OUT_DIR] [MESH] [SIZE_MM]
-#   (defaults: Marble, out/budget, data/meshes/bunny.off, 30). --reuse keeps the
-#   references and transport files OUT_DIR already holds (from an earlier run of the same
-#   commit: not checked) and says so for each; without it everything is made again.
+# over sample density; each rendered at 256 x 256 under forest and city (or the
+# environments --envs names) and compared with prt-reference's independent render (made
+# once per environment, about half a minute each, kept in OUT_DIR). Prints one line per
+# run and writes OUT_DIR/MATERIAL_MESH.tsv (material, kind, name, option value,
+# environment, rel RMSE, precompute seconds) for tools/plot_fidelity.py.
+#   tools/fidelity-budget.sh [--reuse] [--envs "E1 E2 ..."] [MATERIAL] [OUT_DIR] [MESH] [SIZE_MM]
+#   (defaults: Marble, out/budget, data/meshes/bunny.off, 30; environments are stems in
+#   data/envmaps, "all" for every one). --reuse keeps the references and transport files
+#   OUT_DIR already holds (from an earlier run of the same commit: not checked) and says
+#   so for each; without it everything is made again.
 set -euo pipefail
 reuse=0
-if [[ ${1:-} == --reuse ]]; then reuse=1; shift; fi
-if [[ ${1:-} == -h || ${1:-} == --help ]]; then sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 0; fi
+envs="forest city"
+while [[ ${1:-} == -* ]]; do
+    case $1 in
+        --reuse) reuse=1 ;;
+        --envs) [[ $# -ge 2 ]] || { echo "fidelity-budget: --envs needs a list" >&2; exit 2; }; envs=$2; shift ;;
+        -h|--help) sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        *) echo "fidelity-budget: unknown option '$1' (see --help)" >&2; exit 2 ;;
+    esac
+    shift
+done
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build=${BUILD_DIR:-$root/build}
 mat=${1:-Marble}
@@ -21,13 +30,19 @@ out=${2:-$root/out/budget}
 mesh=${3:-$root/data/meshes/bunny.off}
 size=${4:-30}
 tag=${mat}_$(basename "$mesh" | cut -d. -f1)
+if [[ $envs == all ]]; then
+    envs=$(for e in "$root"/data/envmaps/*.exr; do basename "$e" .exr; done | tr '\n' ' ')
+fi
+for env in $envs; do
+    [[ -f $root/data/envmaps/$env.exr ]] || { echo "fidelity-budget: no environment data/envmaps/$env.exr" >&2; exit 1; }
+done
 mkdir -p "$out"
 tsv=$out/$tag.tsv
 printf 'material\tkind\tname\tvalue\tenvironment\trel_rmse\tprecompute_s\n' > "$tsv"
 precompute() { "$build/bin/prt-precompute" "$mesh" --size-mm "$size" --material "$mat" --force "$@"; }
 
 precompute -o "$out/${tag}_default.prt" > "$out/${tag}_default.log"
-for env in forest city; do
+for env in $envs; do
     ref=$out/ref_${tag}_$env
     if [[ $reuse == 1 && -f $ref.exr ]]; then
         echo "fidelity-budget: reusing $ref.exr (--reuse)"
@@ -79,7 +94,7 @@ for r in "${runs[@]}"; do
         fi
     fi
     seconds=$(awk '/^total/ { t = $2; if ($3 == "min") t = t * 60 + $4; print t }' "$log")
-    for env in forest city; do
+    for env in $envs; do
         img=$out/r_${tag}_${slug}_$env
         "$build/bin/prt-relight" render "$mesh" -t "$file" -e "$root/data/envmaps/$env.exr" \
             -W 256 -H 256 -o "$img" > /dev/null

@@ -20,7 +20,7 @@ from collections import defaultdict
 
 
 def print_budget_table(paths):
-    values, variants, materials = {}, [], []
+    values, variants, materials, environments = {}, [], [], []
     for path in paths:
         with open(path, newline="") as f:
             for row in csv.DictReader(f, delimiter="\t"):
@@ -30,13 +30,15 @@ def print_budget_table(paths):
                     variants.append(row["name"])
                 if row["material"] not in materials:
                     materials.append(row["material"])
+                if row["environment"] not in environments:
+                    environments.append(row["environment"])
                 values[(row["name"], row["material"], row["environment"])] = 100.0 * float(row["rel_rmse"])
-    print("| variant | " + " | ".join(f"{m} forest | {m} city" for m in materials) + " |")
-    print("|---|" + "---|---|" * len(materials))
+    print("| variant | " + " | ".join(f"{m} {e}" for m in materials for e in environments) + " |")
+    print("|---|" + "---|" * (len(materials) * len(environments)))
     for v in variants:
         cells = []
         for m in materials:
-            for env in ("forest", "city"):
+            for env in environments:
                 x = values.get((v, m, env))
                 cells.append("" if x is None else f"{x:.2f}%")
         print(f"| {v} | " + " | ".join(cells) + " |")
