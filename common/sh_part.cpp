@@ -15,11 +15,12 @@
 
 namespace prt {
 
-bool validShTerms(int terms) { return terms == 0 || terms == 1 || terms == 4 || terms == 9; }
 
 void shBasis(const glm::dvec3& d, int terms, double* y) {
-    // Real SH, bands 0..2 (Sloan, "Stupid Spherical Harmonics Tricks", Appendix A2).
+    // Real SH, bands 0..4 (Sloan, "Stupid Spherical Harmonics Tricks", Appendix A2;
+    // bands 3 and 4 in the same convention, z the polar axis).
     const double x = d.x, yy = d.y, z = d.z;
+    const double x2 = x * x, y2 = yy * yy, z2 = z * z;
     const double all[kMaxShTerms] = {
         0.28209479177387814,                  // 1 / (2 sqrt(pi))
         0.48860251190291992 * yy,             // sqrt(3 / (4 pi))
@@ -30,6 +31,22 @@ void shBasis(const glm::dvec3& d, int terms, double* y) {
         0.31539156525252005 * (3.0 * z * z - 1.0),  // sqrt(5 / pi) / 4
         1.0925484305920792 * x * z,
         0.54627421529603959 * (x * x - yy * yy),    // sqrt(15 / pi) / 4
+        0.59004358992664352 * yy * (3.0 * x2 - y2),  // sqrt(35 / (2 pi)) / 4
+        2.8906114426405538 * x * yy * z,             // sqrt(105 / pi) / 2
+        0.45704579946446572 * yy * (5.0 * z2 - 1.0), // sqrt(21 / (2 pi)) / 4
+        0.37317633259011540 * z * (5.0 * z2 - 3.0),  // sqrt(7 / pi) / 4
+        0.45704579946446572 * x * (5.0 * z2 - 1.0),
+        1.4453057213202769 * z * (x2 - y2),          // sqrt(105 / pi) / 4
+        0.59004358992664352 * x * (x2 - 3.0 * y2),
+        2.5033429417967046 * x * yy * (x2 - y2),     // 3 sqrt(35 / pi) / 4
+        1.7701307697799304 * yy * z * (3.0 * x2 - y2),  // 3 sqrt(35 / (2 pi)) / 4
+        0.94617469575756008 * x * yy * (7.0 * z2 - 1.0),  // 3 sqrt(5 / pi) / 4
+        0.66904654355728917 * yy * z * (7.0 * z2 - 3.0),  // 3 sqrt(5 / (2 pi)) / 4
+        0.10578554691520431 * (35.0 * z2 * z2 - 30.0 * z2 + 3.0),  // 3 / (16 sqrt(pi))
+        0.66904654355728917 * x * z * (7.0 * z2 - 3.0),
+        0.47308734787878004 * (x2 - y2) * (7.0 * z2 - 1.0),  // 3 sqrt(5 / pi) / 8
+        1.7701307697799304 * x * z * (x2 - 3.0 * y2),
+        0.62583573544917614 * (x2 * (x2 - 3.0 * y2) - y2 * (3.0 * x2 - y2)),  // 3 sqrt(35 / pi) / 16
     };
     for (int i = 0; i < terms; ++i) y[i] = all[i];
 }
@@ -157,7 +174,7 @@ std::unique_ptr<ShTables> buildTables(int n, int terms) {
 
 const ShTables& shTables(int n, int terms) {
     if (!validShTerms(terms) || terms == 0)
-        throw Error("sh part", "SH term count " + std::to_string(terms) + " is not 1, 4 or 9");
+        throw Error("sh part", "SH term count " + std::to_string(terms) + " is not 1, 4, 9, 16 or 25");
     if (n < 1 || n > 64 || !isPowerOfTwo(n))
         throw Error("sh part", "cubemap size " + std::to_string(n) + " is not a power of two in 1..64");
     // The last table this thread used, without the lock (tables live as long as the
@@ -176,7 +193,7 @@ const ShTables& shTables(int n, int terms) {
 SparseVector truncateWithShPart(float* dense, size_t count, int channels, int terms, size_t keep,
                                 double* retained) {
     if (!validShTerms(terms))
-        throw Error("sh part", "SH term count " + std::to_string(terms) + " is not 0, 1, 4 or 9");
+        throw Error("sh part", "SH term count " + std::to_string(terms) + " is not " + kShTermCounts);
     if (keep <= size_t(terms))
         throw Error("sh part", "keeping " + std::to_string(keep) + " terms leaves no room beside " +
                                    std::to_string(terms) + " SH terms");

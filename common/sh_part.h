@@ -35,8 +35,8 @@
 // 6 N^2 + i, after every Haar index: the relight kernel appends the light's l_i to
 // its Haar coefficients and needs nothing else (transport_file.h: shTerms).
 //
-// Y_i are the real spherical harmonics of bands 0..2 in the usual order
-// (l, m) = (0,0), (1,-1), (1,0), (1,1), (2,-2), (2,-1), (2,0), (2,1), (2,2) with
+// Y_i are the real spherical harmonics of bands 0..4 in the usual order
+// (l, m) = (0,0), (1,-1), (1,0), (1,1), (2,-2), ..., (2,2), (3,-3), ..., (4,4) with
 // Y_1,-1 ~ y, Y_10 ~ z, Y_11 ~ x (docs/conventions.md frame), orthonormal on the
 // sphere. W_i is dOmega_t Y_i(w_t) scaled to unit texel norm (||W^_i|| = 1), so SH
 // coefficients are on the scale of the Haar coefficients beside them and one
@@ -51,12 +51,19 @@
 
 namespace prt {
 
-inline constexpr int kMaxShTerms = 9;
+inline constexpr int kMaxShTerms = 25;
 
-// Whether `terms` is an SH term count this module supports: 0, 1, 4 or 9.
-bool validShTerms(int terms);
+// Whether `terms` is an SH term count this module supports: 0, 1, 4, 9, 16 or 25
+// (bands 0..b for b = -1..4).
+inline bool validShTerms(int terms) {
+    return terms == 0 || terms == 1 || terms == 4 || terms == 9 || terms == 16 || terms == 25;
+}
+inline constexpr const char* kShTermCounts = "0, 1, 4, 9, 16 or 25";
+// The smallest cubemap size N on which `terms` SH terms are independent (sampled at the
+// texel centres of 6 x N x N): 9 need 2, 16 and 25 need 4.
+inline int minShCubemapSize(int terms) { return terms > 9 ? 4 : terms > 4 ? 2 : 1; }
 
-// Y_0..Y_{terms-1} at the unit direction d (terms <= 9).
+// Y_0..Y_{terms-1} at the unit direction d (terms <= 25).
 void shBasis(const glm::dvec3& d, int terms, double* y);
 
 // The tables of one (N, terms): Haar transforms of W_i (unit norm) and the projection rows

@@ -182,8 +182,10 @@ std::string checkFile(const TransportFile& f) {
     if (f.cubemapSize < 1 || f.cubemapSize > kMaxCubemapSize ||
         !std::has_single_bit(f.cubemapSize))
         return "cubemap size " + u64(f.cubemapSize) + " is not a power of two in 1..64";
-    if (!validShTermCount(f.shTerms)) return "SH term count " + u64(f.shTerms) + " is not 0, 1, 4 or 9";
-    if (f.shTerms == 9 && f.cubemapSize < 2) return "9 SH terms on a 6 x 1 x 1 cubemap (they are not independent there)";
+    if (!validShTermCount(f.shTerms)) return "SH term count " + u64(f.shTerms) + " is not " + kShTermCounts;
+    if (f.cubemapSize < uint32_t(minShCubemapSize(int(f.shTerms))))
+        return u64(f.shTerms) + " SH terms on a 6 x " + u64(f.cubemapSize) + " x " + u64(f.cubemapSize) +
+               " cubemap (they are not independent there)";
     if (f.mesh.vertexCount == 0) return "mesh fingerprint has zero vertices";
     if (f.mesh.vertexCount > kMaxVertices)
         return "mesh fingerprint has " + u64(f.mesh.vertexCount) + " vertices (limit 2^40)";

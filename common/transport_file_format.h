@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "common/sh_part.h"
 #include "common/transport_file.h"
 
 namespace prt::transport_format {
@@ -221,7 +222,7 @@ inline bool validRadialConstruction(uint32_t c) {
     return c <= uint32_t(RadialConstruction::ExpLadder);
 }
 
-inline bool validShTermCount(uint32_t terms) { return terms == 0 || terms == 1 || terms == 4 || terms == 9; }
+inline bool validShTermCount(uint32_t terms) { return terms <= uint32_t(kMaxShTerms) && validShTerms(int(terms)); }
 
 // Per-vertex vectors of `vertices` vertices with indices < 6 N^2 + shTerms.
 std::string checkVectors(const SparseRgbVectors& s, uint64_t vertices, uint32_t cubemapSize, uint32_t shTerms);

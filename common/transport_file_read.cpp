@@ -321,18 +321,20 @@ HeadFields readHead(FileReader& r, uint32_t version) {
     if (version >= kRadialFormatVersion) {
         // Version 5 is chosen by the radial basis alone, with or without an SH part.
         if (!validShTermCount(reserved))
-            r.fail(where + "SH term count " + u64(reserved) + " is not 0, 1, 4 or 9 (format version " +
+            r.fail(where + "SH term count " + u64(reserved) + " is not " + kShTermCounts + " (format version " +
                    u64(version) + ")");
         h.shTerms = reserved;
-        if (h.shTerms == 9 && h.cubemapSize < 2)
-            r.fail(where + "9 SH terms on a 6 x 1 x 1 cubemap (they are not independent there)");
+        if (h.cubemapSize < uint32_t(minShCubemapSize(int(h.shTerms))))
+            r.fail(where + u64(h.shTerms) + " SH terms on a 6 x " + u64(h.cubemapSize) + " x " + u64(h.cubemapSize) +
+                   " cubemap (they are not independent there)");
     } else if (version >= kShFormatVersion) {
         if (reserved == 0 || !validShTermCount(reserved))
-            r.fail(where + "SH term count " + u64(reserved) + " is not 1, 4 or 9 (format version " +
+            r.fail(where + "SH term count " + u64(reserved) + " is not 1, 4, 9, 16 or 25 (format version " +
                    u64(version) + ")");
         h.shTerms = reserved;
-        if (h.shTerms == 9 && h.cubemapSize < 2)
-            r.fail(where + "9 SH terms on a 6 x 1 x 1 cubemap (they are not independent there)");
+        if (h.cubemapSize < uint32_t(minShCubemapSize(int(h.shTerms))))
+            r.fail(where + u64(h.shTerms) + " SH terms on a 6 x " + u64(h.cubemapSize) + " x " + u64(h.cubemapSize) +
+                   " cubemap (they are not independent there)");
     } else if (reserved != 0) {
         r.fail(where + "reserved field is " + hex32(reserved) + ", not 0");
     }

@@ -548,3 +548,72 @@ TEST(Precompute, EditableMatchesFullPrecomputes) {
     EXPECT_THROW(precomputeTransport(spectralon, true), Error);
     fs::remove_all(dir);
 }
+
+// Bands 3 and 4 in the SH part (--sh-terms 25): a box (shadows, edges) at N = 8, 48 terms
+// per vertex, relit by a light that is a band-0..4 combination (a smooth sky) plus a
+// small bright patch. Against the same job with every coefficient kept (the truth up
+// to quantization), the 25-term file must be closer than the 9-term file: under the
+// smooth part of the light it sees only its SH part, which is kept whole. The file's
+// header records 25 terms and its SH entries take the indices 6 N^2 .. 6 N^2 + 24.
+TEST(Precompute, TwentyFiveShTermsCarryBandsThreeAndFour) {
+    const fs::path dir = fs::temp_directory_path() / ("prt_sh25_" + std::to_string(getpid()));
+    fs::create_directories(dir);
+    const std::string meshPath = (dir / "box.obj").string();
+    saveMesh(makeBox({10, 6, 4}, glm::ivec3(5, 4, 3)), meshPath);
+    const int n = 8;
+    const size_t count = size_t(6) * n * n;
+    Cubemap light(n, 1);
+    const double a[25] = {2.0, 0.4, -0.3, 0.2, 0.3, -0.2, 0.25, 0.1, -0.15, 0.2, -0.1, 0.15, 0.2,
+                          -0.2, 0.1, 0.15, -0.1, 0.12, -0.08, 0.1, 0.15, -0.1, 0.08, 0.1, -0.12};
+    double y[25];
+    for (int f = 0; f < 6; ++f)
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                shBasis(texelDirection(n, f, i, j), 25, y);
+                double v = 0.0;
+                for (int k = 0; k < 25; ++k) v += a[k] * y[k];
+                light.texel(f, i, j)[0] = float(std::max(v, 0.0) + (f == 2 && i == 3 && j == 4 ? 20.0 : 0.0));
+            }
+    haarForward(light);
+    auto radiance = [&](int shTerms, size_t coefficients) {
+        PrecomputeSettings s;
+        s.meshPath = meshPath;
+        s.outputPath = (dir / ("sh" + std::to_string(shTerms) + "_" + std::to_string(coefficients) + ".prt")).string();
+        s.scale.mmPerUnit = 1.0;
+        s.material = materialByName("Marble");
+        s.cubemapSize = n;
+        s.shTerms = shTerms;
+        s.samples.count = 2000;
+        s.pass1.sampleCoefficients = s.pass2.nodeCoefficients = count + size_t(shTerms);
+        s.vertexCoefficients = coefficients;
+        precomputeTransport(s, true);
+        const TransportFile file = loadTransportFile(s.outputPath);
+        EXPECT_EQ(file.shTerms, uint32_t(shTerms));
+        std::vector<float> withSh = light.data();
+        withSh.resize(count + size_t(shTerms));
+        if (shTerms > 0) shProjectLight(light.data().data(), n, 1, shTerms, withSh.data() + count);
+        std::vector<uint32_t> idx;
+        std::vector<float> rgb;
+        std::vector<double> out;
+        const TransportComponent* ms = file.find(ComponentKind::MultipleScattering);
+        for (size_t v = 0; v < ms->vertexCount(); ++v) {
+            ms->dequantizeVertex(v, idx, rgb);
+            double r = 0.0;
+            for (size_t k = 0; k < idx.size(); ++k) r += rgb[3 * k + 1] * withSh[idx[k]];
+            out.push_back(r);
+        }
+        return out;
+    };
+    const std::vector<double> truth = radiance(25, count + 25);
+    const std::vector<double> nine = radiance(9, 48), twentyFive = radiance(25, 48);
+    double e9 = 0.0, e25 = 0.0, norm = 0.0;
+    for (size_t v = 0; v < truth.size(); ++v) {
+        e9 += (nine[v] - truth[v]) * (nine[v] - truth[v]);
+        e25 += (twentyFive[v] - truth[v]) * (twentyFive[v] - truth[v]);
+        norm += truth[v] * truth[v];
+    }
+    std::printf("48 terms per vertex, relative L2 error: 9 SH terms %.4f, 25 SH terms %.4f\n", std::sqrt(e9 / norm),
+                std::sqrt(e25 / norm));
+    EXPECT_LT(e25, 0.5 * e9);
+    fs::remove_all(dir);
+}

@@ -855,10 +855,10 @@ TEST_F(TransportTest, ForeignFilesAreRefusedClearly) {
     refused(x, "format version 5 but no radial basis");
     x = b;  // version 4 is only written for files with SH scales in a blocked component
     putLe32(&x[8], 4);
-    refused(x, "SH term count 0 is not 1, 4 or 9 (format version 4)");
+    refused(x, "SH term count 0 is not 1, 4, 9, 16 or 25 (format version 4)");
     x = b;  // version 3 holds an SH term count where versions 1 and 2 have 0
     putLe32(&x[8], 3);
-    refused(x, "SH term count 0 is not 1, 4 or 9 (format version 3)");
+    refused(x, "SH term count 0 is not 1, 4, 9, 16 or 25 (format version 3)");
     x = b;  // version 2 is only written for files with a blocked component
     putLe32(&x[8], 2);
     refused(x, "format version 2 but no blocked component");
@@ -1717,7 +1717,7 @@ TEST_F(TransportTest, ShIndicesAreBoundedByTheTermCount) {
     EXPECT_TRUE(contains(e, "coefficient index 96 >= 96 (6 x 4 x 4)")) << e;
     f.shTerms = 5;
     e = errorOf([&] { saveTransportFile(path("bad"), f); });
-    EXPECT_TRUE(contains(e, "SH term count 5 is not 0, 1, 4 or 9")) << e;
+    EXPECT_TRUE(contains(e, "SH term count 5 is not 0, 1, 4, 9, 16 or 25")) << e;
     EXPECT_FALSE(std::filesystem::exists(path("bad")));
     // 9 SH terms are not independent on a 6 x 1 x 1 cubemap: refused; 4 are fine.
     TransportFile one = makeShFile(rng, 3, 1, 9);
@@ -1745,7 +1745,7 @@ TEST_F(TransportTest, ShIndicesAreBoundedByTheTermCount) {
     };
     Bytes x = b;
     putLe32(&x[secs[0].payload + 36], 5);
-    refused(x, "SH term count 5 is not 1, 4 or 9");
+    refused(x, "SH term count 5 is not 1, 4, 9, 16 or 25");
     x = b;
     putLe32(&x[secs[0].payload + 36], 1);
     refused(x, "coefficient index 97 >= 97 (6 x 4 x 4 + 1 SH terms)", false);

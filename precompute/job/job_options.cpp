@@ -52,8 +52,8 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
                    "given alone, it makes a per-vertex file")
         ->default_str(std::to_string(kDefaultPreBlockCoefficients) + " before blocking; 128 per vertex");
     app.add_option("--sh-terms", s.shTerms,
-                   "Of the terms kept per sample, node and vertex, this many (0, 1, 4 or 9) are a fit by "
-                   "spherical harmonics of bands 0..2 whose residual no band-0..2 light sees, the rest the "
+                   "Of the terms kept per sample, node and vertex, this many (0, 1, 4, 9, 16 or 25) are a fit by "
+                   "spherical harmonics of bands 0..2 (up to 4) whose residual no light of those bands sees, the rest the "
                    "largest Haar terms of that residual (9: the smooth shape kept whole; 0: Haar only; "
                    "docs/precompute.md)")
         ->capture_default_str();

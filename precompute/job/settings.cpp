@@ -65,9 +65,11 @@ void validateSettings(const PrecomputeSettings& s) {
         throw Error("--supersample", "must be between 1 and 8, got " + std::to_string(s.pass1.supersample));
     const size_t texels = size_t(6) * s.cubemapSize * s.cubemapSize;
     if (!validShTerms(s.shTerms))
-        throw Error("--sh-terms", "must be 0, 1, 4 or 9, got " + std::to_string(s.shTerms));
-    if (s.shTerms == 9 && s.cubemapSize < 2)
-        throw Error("--sh-terms", "9 SH terms need a cubemap of at least 6 x 2 x 2 (use 0, 1 or 4)");
+        throw Error("--sh-terms", std::string("must be ") + kShTermCounts + ", got " + std::to_string(s.shTerms));
+    if (s.cubemapSize < minShCubemapSize(s.shTerms))
+        throw Error("--sh-terms", std::to_string(s.shTerms) + " SH terms need a cubemap of at least 6 x " +
+                                      std::to_string(minShCubemapSize(s.shTerms)) + " x " +
+                                      std::to_string(minShCubemapSize(s.shTerms)));
     // Every count includes the SH terms: more than them, at most all of the space.
     const size_t space = texels + size_t(s.shTerms);
     auto checkTerms = [&](const char* name, size_t k) {

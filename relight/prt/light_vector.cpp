@@ -87,9 +87,9 @@ LightVector makeLightVector(const Cubemap& radiance, size_t keepTerms) {
     light.size = radiance.size();
     const size_t count = coefficients.texelCount();
     std::vector<float>& full = coefficients.data();
-    // 9 SH terms are not independent on a 6 x 1 x 1 cubemap: 4 there (files at N = 1
-    // hold at most 4).
-    const int shTerms = light.size >= 2 ? kMaxShTerms : 4;
+    // As many SH terms as are independent on this cubemap (minShCubemapSize): a file of
+    // this N holds at most these.
+    const int shTerms = light.size >= 4 ? kMaxShTerms : light.size >= 2 ? 9 : 4;
     light.sh.resize(size_t(shTerms) * 3);
     shProjectLight(full.data(), light.size, 3, shTerms, light.sh.data());
 

@@ -28,7 +28,7 @@ struct LightVector {
     size_t keptTerms = 0;         // non-zero coefficients after approximation
     double relativeL2Error = 0;   // of the approximation, ||L - L_approx|| / ||L|| (Parseval)
     // The light's SH projections l_i = <W^_i, L^> (common/sh_part.h), kMaxShTerms x 3
-    // (RGB per term; 4 x 3 for N = 1), of the whole light even when it is approximated:
+    // (RGB per term; 9 x 3 for N = 2, 4 x 3 for N = 1), of the whole light even when it is approximated:
     // what the SH part of a transport file relights against. makeLightVector fills it;
     // the relight kernel derives it from `rgb` when it is empty (a hand-built vector).
     std::vector<float> sh;
