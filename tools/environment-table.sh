@@ -11,7 +11,7 @@ set -euo pipefail
 
 usage() {
   cat <<'EOF'
-Usage: tools/environment-table.sh [--out DIR] [--reuse] [--size W] [SCENE ...]
+Usage: tools/environment-table.sh [--out DIR] [--reuse] [--size W] [--precompute OPTIONS] [SCENE ...]
 
 SCENE is MESH:MATERIAL, MESH a file stem in data/meshes (bunny, dragon_vrip_res3, ...),
 MATERIAL a name of prt-precompute --material. Default scenes: bunny:Marble bunny:Skin1
@@ -23,6 +23,9 @@ data/envmaps/*.exr.
               earlier run of the same commit and options: not checked); the table marks
               the cells whose reference was reused. Default: everything is made again.
   --size W    frame width and height (default 256)
+  --precompute OPTIONS
+              more prt-precompute options for every scene, one word list (e.g.
+              "--sh-terms 25"); the references do not depend on them
 
 About 30 s per reference on the bunny at 256 x 256 on 2 cores (AVX2); the default set
 (5 scenes x 8 environments) takes about 20-25 minutes. Needs a build (tools/build.sh)
@@ -35,12 +38,15 @@ build=${BUILD_DIR:-$root/build}
 out=$root/out/environments
 reuse=0
 size=256
+extra=()
 scenes=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --out) [ $# -ge 2 ] || { echo "environment-table: --out needs a directory" >&2; exit 2; }; out=$2; shift ;;
     --reuse) reuse=1 ;;
     --size) [ $# -ge 2 ] || { echo "environment-table: --size needs a number" >&2; exit 2; }; size=$2; shift ;;
+    --precompute) [ $# -ge 2 ] || { echo "environment-table: --precompute needs options" >&2; exit 2; }
+                  read -r -a extra <<< "$2"; shift ;;
     -h|--help) usage; exit 0 ;;
     -*) echo "environment-table: unknown option '$1' (see --help)" >&2; exit 2 ;;
     *) scenes+=("$1") ;;
@@ -78,7 +84,7 @@ for k in "${!scenes[@]}"; do
   prt=$out/$tag.prt
   if [ "$reuse" = 0 ] || [ ! -f "$prt" ]; then
     echo "environment-table: precomputing $tag"
-    "$build/bin/prt-precompute" "$mesh" --size-mm 30 --material "$mat" -f -q -o "$prt" > "$out/$tag.precompute.log" 2>&1 \
+    "$build/bin/prt-precompute" "$mesh" --size-mm 30 --material "$mat" "${extra[@]}" -f -q -o "$prt" > "$out/$tag.precompute.log" 2>&1 \
       || { echo "environment-table: prt-precompute failed for $tag (see $out/$tag.precompute.log)" >&2; exit 1; }
   fi
   for env in "${envs[@]}"; do
