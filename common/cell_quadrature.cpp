@@ -2,6 +2,7 @@
 
 #include "common/error.h"
 #include "common/mesh.h"
+#include "common/point_grid.h"
 #include "common/util.h"
 
 #include <tbb/blocked_range.h>
@@ -11,7 +12,6 @@
 #include <cmath>
 #include <limits>
 #include <string>
-#include <unordered_map>
 
 namespace prt {
 
@@ -20,41 +20,28 @@ namespace {
 // Samples bucketed in a hashed grid of cell size `cell` for nearest-sample queries.
 class SampleGrid {
 public:
-    SampleGrid(std::span<const glm::vec3> positions, double cell) : positions_(positions), inverse_(1.0 / cell) {
-        std::vector<std::pair<uint64_t, uint32_t>> keyed(positions.size());
-        for (uint32_t i = 0; i < positions.size(); ++i) keyed[i] = {key(coords(positions[i])), i};
-        std::sort(keyed.begin(), keyed.end());
-        order_.resize(keyed.size());
-        for (size_t k = 0; k < keyed.size(); ++k) {
-            order_[k] = keyed[k].second;
-            auto [it, inserted] = buckets_.try_emplace(keyed[k].first, uint32_t(k), uint32_t(k + 1));
-            if (!inserted) it->second.second = uint32_t(k + 1);
-        }
-    }
+    SampleGrid(std::span<const glm::vec3> positions, double cell) : positions_(positions), grid_(positions, cell) {}
 
     // The nearest sample whose normal is within 120 degrees of `normal` (or the nearest
     // of all when none is within `maxRings` cells).
     uint32_t nearest(const glm::vec3& p, const glm::vec3& normal, std::span<const glm::vec3> normals) const {
-        const glm::ivec3 c = coords(p);
+        const glm::ivec3 c = grid_.coords(p);
         float bestFacing = std::numeric_limits<float>::max(), bestAny = bestFacing;
         uint32_t facing = UINT32_MAX, any = UINT32_MAX;
-        const float cell = float(1.0 / inverse_);
+        const float cell = float(grid_.cell());
         for (int ring = 0; ring <= kMaxRings; ++ring) {
             for (int dx = -ring; dx <= ring; ++dx)
                 for (int dy = -ring; dy <= ring; ++dy)
                     for (int dz = -ring; dz <= ring; ++dz) {
                         if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != ring) continue;
-                        const auto it = buckets_.find(key(c + glm::ivec3(dx, dy, dz)));
-                        if (it == buckets_.end()) continue;
-                        for (uint32_t k = it->second.first; k < it->second.second; ++k) {
-                            const uint32_t s = order_[k];
+                        grid_.forEachInCell(c + glm::ivec3(dx, dy, dz), [&](uint32_t s) {
                             const glm::vec3 d = positions_[s] - p;
                             const float d2 = glm::dot(d, d);
                             if (d2 < bestAny || (d2 == bestAny && s < any)) bestAny = d2, any = s;
                             if (glm::dot(normals[s], normal) > -0.5f &&
                                 (d2 < bestFacing || (d2 == bestFacing && s < facing)))
                                 bestFacing = d2, facing = s;
-                        }
+                        });
                     }
             // Every sample within `ring` cells' distance has been seen.
             const float seen = float(ring) * cell;
@@ -75,19 +62,8 @@ public:
     static constexpr int kMaxRings = 4;
 
 private:
-    glm::ivec3 coords(const glm::vec3& p) const {
-        return glm::ivec3(int(std::floor(p.x * inverse_)), int(std::floor(p.y * inverse_)),
-                          int(std::floor(p.z * inverse_)));
-    }
-    static uint64_t key(const glm::ivec3& c) {
-        const auto part = [](int v) { return uint64_t(uint32_t(v + (1 << 20)) & 0x1FFFFFu); };
-        return part(c.x) | (part(c.y) << 21) | (part(c.z) << 42);
-    }
-
     std::span<const glm::vec3> positions_;
-    double inverse_;
-    std::vector<uint32_t> order_;
-    std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> buckets_;
+    PointGrid grid_;
 };
 
 double quinticStep(double t) {

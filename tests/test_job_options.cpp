@@ -97,6 +97,20 @@ TEST(JobOptions, PathQuadratureChoosesTheDefaultPathSamples) {
     EXPECT_NE(bad.find("midpoint or gauss"), std::string::npos) << bad;
 }
 
+TEST(JobOptions, SiteSpacing) {
+    EXPECT_EQ(PrecomputeSettings{}.singleScattering.siteSpacing, 0.0);
+    EXPECT_EQ(fromCommandLine({"m.obj", "-o", "o", "--ss-site-spacing", "0.25"}).singleScattering.siteSpacing, 0.25);
+    EXPECT_EQ(parseJob({{"ss-site-spacing", "0.5"}}, {{"mesh", "m.obj"}, {"output", "o"}}, "j").singleScattering.siteSpacing, 0.5);
+    for (const char* bad : {"-0.1", "inf", "nan"}) {
+        const std::string e = errorOf([&] {
+            PrecomputeSettings s = fromCommandLine({"m.obj", "-o", "o", "--ss-site-spacing", bad});
+            s.components = {true, true};
+            validateSettings(s);
+        });
+        EXPECT_NE(e.find("--ss-site-spacing"), std::string::npos) << bad << ": " << e;
+    }
+}
+
 TEST(JobOptions, DirectionStride) {
     EXPECT_EQ(fromCommandLine({"m.obj", "-o", "o"}).singleScattering.directionStride, PrecomputeSettings{}.singleScattering.directionStride);
     EXPECT_EQ(PrecomputeSettings{}.singleScattering.directionStride, 4);

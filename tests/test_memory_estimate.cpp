@@ -119,6 +119,21 @@ TEST(MemoryEstimate, GrowsWithSamplesAndCoefficients) {
     const MemoryEstimate withGround = estimatePrecomputeMemory(ground, 10000, 20000, 100000, 2);
     EXPECT_GT(withGround.bytes, a + 1'000'000'000ull);
     EXPECT_NE(withGround.largest.find("ground"), std::string::npos) << withGround.largest;
+    // Single-scattering sites hold their larger vectors: more the closer they are, at
+    // most one per vertex; none without a spacing.
+    PrecomputeSettings sites = ss;
+    sites.singleScattering.siteSpacing = 0.5;
+    const uint64_t none = estimatePrecomputeMemory(ss, 100000, 200000, 0, 2, 1000.0).bytes;
+    const uint64_t wide = estimatePrecomputeMemory(sites, 100000, 200000, 0, 2, 1000.0).bytes;
+    sites.singleScattering.siteSpacing = 0.2;
+    const uint64_t close = estimatePrecomputeMemory(sites, 100000, 200000, 0, 2, 1000.0).bytes;
+    sites.singleScattering.siteSpacing = 1e-4;
+    const uint64_t everyVertex = estimatePrecomputeMemory(sites, 100000, 200000, 0, 2, 1000.0).bytes;
+    EXPECT_GT(wide, none);
+    EXPECT_GT(close, wide);
+    EXPECT_GT(everyVertex, close);
+    // At most every vertex: 100,000 x 4 x 192 x 16 bytes (x 1.5 safety) above the blends.
+    EXPECT_LT(double(everyVertex - none), 1.5 * (100000.0 * 4 * double(s.vertexCoefficients) * 16 + 100000.0 * 112) * 1.001);
     EXPECT_EQ(formatBytes(41'200'000'000ull), "41.2 GB");
     EXPECT_EQ(formatBytes(830'000'000ull), "830 MB");
 }

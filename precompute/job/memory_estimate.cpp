@@ -45,6 +45,15 @@ MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vert
     const double groundCells = s.ground ? double(s.ground->cells) : 0.0;
     const double groundVertices = s.ground ? (groundCells + 1.0) * (groundCells + 1.0) : 0.0;
     const double groundTriangles = 2.0 * groundCells * groundCells;
+    // Single-scattering sites (--ss-site-spacing h): at most a hexagonal packing of the
+    // area at spacing h, each holding its terms' larger vectors (an index and three
+    // floats per entry), and about 12 blend entries per vertex.
+    const double h = s.components.singleScattering ? s.singleScattering.siteSpacing : 0.0;
+    const double sites = h > 0.0 ? std::min(double(vertices), 2.0 * totalAreaMm2 / (std::sqrt(3.0) * h * h)) : 0.0;
+    const double siteBytes =
+        h > 0.0 ? sites * terms * double(s.vertexCoefficients) * double(std::max(1, s.singleScattering.siteCoefficientFactor)) * 16.0 +
+                      double(vertices) * (12.0 * 8.0 + 16.0)
+                : 0.0;
     const std::vector<std::pair<const char*, double>> parts = {
         // + 36 bytes per triangle of single scattering's corner normals
         {"mesh and ray scene", (s.components.singleScattering ? 286.0 : 250.0) * double(triangles)},
@@ -63,6 +72,7 @@ MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vert
         {"blocks", s.blockCoefficients > 0 ? double(vertices) / 16.0 * double(s.blockCoefficients) * 50.0 *
                                                  ((ms ? channels / 3.0 : 0.0) + terms)
                                            : 0.0},
+        {"single-scattering sites", siteBytes},
         {"per-thread workspaces", double(std::max(threads, 1)) * texels * 64.0 * std::max(1.0, channels / 3.0)},
         {"ground", groundTriangles * 250.0 + groundVertices * (double(s.vertexCoefficients) * 16.0 + 64.0) +
                        (s.ground ? 40.0 * double(vertices) + 12.0 * double(triangles) : 0.0)},

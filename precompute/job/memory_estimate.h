@@ -20,6 +20,9 @@
 //                              (4 + 4 x 3) bytes (4 + 4 J when editable)
 //   blocks                     vertices / 16 x block coefficients x 50 bytes per
 //                              component, when the file stores blocks
+//   single-scattering sites    with --ss-site-spacing h: min(vertices, 2 area / (sqrt 3 h^2))
+//                              sites x terms x site coefficients x 16 bytes, + 112
+//                              bytes per vertex of blend
 //   per-thread workspaces      threads x 6 N^2 x 64 bytes
 // times kSafety = 1.5 (allocator slack, vector growth). A refusal only has to tell 40 GB
 // from 24 GB (how close it lands to measured peaks: docs/reliability.md).

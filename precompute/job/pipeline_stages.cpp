@@ -439,6 +439,11 @@ SingleScatteringOutput runSingleScattering(const JobContext& job, const Prepared
     summary.culledRays = total(st.culledRays);
     summary.tracedTexels = total(st.tracedTexels);
     summary.interpolatedTexels = total(st.interpolatedTexels);
+    summary.sites = total(st.sites);
+    summary.siteSpacing = s.singleScattering.siteSpacing;
+    summary.splitsByStake = total(st.splitsByStake);
+    summary.splitsByThroughput = total(st.splitsByThroughput);
+    summary.splitsByExitKind = total(st.splitsByExitKind);
     summary.reversedHits = total(st.reversedHits);
     summary.outsideSamples = total(st.outsideSamples);
     summary.flippedNormals = total(st.flippedNormals);

@@ -109,6 +109,8 @@ void validateSettings(const PrecomputeSettings& s) {
     if (ss.directionStride < 1 || ss.directionStride > 16 || (ss.directionStride & (ss.directionStride - 1)))
         throw Error("--ss-direction-stride",
                     "must be 1, 2, 4, 8 or 16, got " + std::to_string(ss.directionStride));
+    if (!(ss.siteSpacing >= 0.0) || !std::isfinite(ss.siteSpacing))
+        throw Error("--ss-site-spacing", "must be a non-negative number of mm, got " + fmt(ss.siteSpacing));
     if (!s.pass1File.empty() && !s.components.multipleScattering)
         throw Error("--pass1-file", "needs multiple scattering (--components ms or ms,ss): single scattering has no pass 1");
     if (s.pass1Only && s.pass1File.empty()) throw Error("--pass1-only", "needs --pass1-file");
@@ -240,6 +242,10 @@ ParameterList settingsParameters(const PrecomputeSettings& settings, const MeshF
             p.push_back({"ss_refine_tolerances", fmt(o.refineValueTolerance) + " " + fmt(o.refineValueFloor) +
                                                      " " + fmt(o.refineLargeCellValue)});
         }
+        // Recorded only when it acts, so files made without it keep their digest.
+        if (o.siteSpacing > 0.0)
+            p.push_back({"ss_sites", fmt(o.siteSpacing) + " mm, " + std::to_string(o.siteCoefficientFactor) +
+                                         "x coefficients per site"});
         p.push_back({"ss_path", "inward normal, deterministic importance samples (Wang 2005 Eqs. 10-11)"});
         p.push_back({"ss_depth_cap_mfp", fmt(o.depthCapMeanFreePaths)});
         p.push_back({"ss_min_throughput", fmt(o.minThroughput)});

@@ -85,6 +85,9 @@ std::string PrecomputeSummary::format() const {
                 formatDuration(s.phaseSeconds).c_str());
         add("single scattering %s, %.3g rays, %.3g rays/s, retained energy %.4f",
             formatDuration(s.seconds).c_str(), double(s.rays), s.raysPerSecond, s.retainedEnergy);
+        if (s.siteSpacing > 0)
+            add("  sites           %llu, about %g mm apart, blended into the vertices", (unsigned long long)s.sites,
+                s.siteSpacing);
         add("  rays            %.3g exit, %.3g occlusion, %.3g culled (throughput), %.3g escaping, "
             "%.3g exits through reversed triangles, %.3g occluded exits",
             double(s.exitRays), double(s.occlusionRays), double(s.culledRays), double(s.escapedRays),
@@ -93,6 +96,9 @@ std::string PrecomputeSummary::format() const {
             add("  directions      %.3g traced, %.3g interpolated from agreeing corners (%.1f%% traced)",
                 double(s.tracedTexels), double(s.interpolatedTexels),
                 100.0 * double(s.tracedTexels) / double(s.tracedTexels + s.interpolatedTexels));
+        if (s.splitsByStake + s.splitsByThroughput + s.splitsByExitKind > 0)
+            add("  cells split     %.3g by light at stake (wide cells), %.3g by throughput spread, %.3g by "
+                "exit kind", double(s.splitsByStake), double(s.splitsByThroughput), double(s.splitsByExitKind));
         add("  path            mean d_m %.3f mm, %llu vertices with capped d_m, %llu integrated "
             "along +n (normal pointing inward), %llu path samples outside the object",
             s.meanDepthMm, (unsigned long long)s.cappedDepths, (unsigned long long)s.flippedNormals,

@@ -79,6 +79,9 @@ struct SingleScatteringSummary {
     uint64_t rays = 0;           // depth + exit + occlusion rays
     uint64_t exitRays = 0, occlusionRays = 0, culledRays = 0, occludedExits = 0;
     uint64_t tracedTexels = 0, interpolatedTexels = 0;
+    uint64_t sites = 0;          // points whose transport was computed (the vertices unless --ss-site-spacing)
+    double siteSpacing = 0;      // mm, 0: every vertex
+    uint64_t splitsByStake = 0, splitsByThroughput = 0, splitsByExitKind = 0;  // adaptive cells split, per rule
     uint64_t escapedRays = 0, reversedHits = 0, outsideSamples = 0;
     uint64_t flippedNormals = 0, cappedDepths = 0;
     double raysPerSecond = 0;

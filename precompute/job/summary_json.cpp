@@ -59,6 +59,7 @@ Json settingsJson(const PrecomputeSettings& s) {
     j["path_samples"] = s.singleScattering.pathSamples;
     j["ss_supersample"] = s.singleScattering.supersample;
     j["ss_direction_stride"] = s.singleScattering.directionStride;
+    j["ss_site_spacing_mm"] = s.singleScattering.siteSpacing;
     j["shard"] = s.shard ? Json(toString(*s.shard)) : Json(nullptr);
     j["pass1_file"] = s.pass1File.empty() ? Json(nullptr) : Json(s.pass1File);
     j["pass1_only"] = s.pass1Only;
@@ -137,6 +138,10 @@ Json summaryJson(const PrecomputeSummary& r) {
     j["ss_occluded_exits"] = ssOnly(ss.occludedExits);
     j["ss_traced_texels"] = ssOnly(ss.tracedTexels);
     j["ss_interpolated_texels"] = ssOnly(ss.interpolatedTexels);
+    j["ss_sites"] = ssOnly(ss.sites);
+    j["ss_splits_by_stake"] = ssOnly(ss.splitsByStake);
+    j["ss_splits_by_throughput"] = ssOnly(ss.splitsByThroughput);
+    j["ss_splits_by_exit_kind"] = ssOnly(ss.splitsByExitKind);
     j["ss_escaped_rays"] = ssOnly(ss.escapedRays);
     j["ss_reversed_hits"] = ssOnly(ss.reversedHits);
     j["ss_outside_samples"] = ssOnly(ss.outsideSamples);

@@ -1,4 +1,5 @@
 #include "precompute/passes/single_scattering.h"
+#include "precompute/passes/single_scattering_sites.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
@@ -44,6 +45,10 @@ void SingleScatteringStats::add(const SingleScatteringStats& o) {
     culledRays += o.culledRays;
     tracedTexels += o.tracedTexels;
     interpolatedTexels += o.interpolatedTexels;
+    splitsByStake += o.splitsByStake;
+    splitsByThroughput += o.splitsByThroughput;
+    splitsByExitKind += o.splitsByExitKind;
+    sites += o.sites;
     escapedRays += o.escapedRays;
     reversedHits += o.reversedHits;
     outsideSamples += o.outsideSamples;
@@ -544,27 +549,29 @@ void shadeExits(const SingleScatteringContext& ctx, const uint32_t* list, size_t
 // texels has little light at stake at every corner, occluded or not (at most
 // largeCellMax), so a small occluder, a small lit gap or a sheet edge that fits between
 // its corners can hide only where little light is at stake.
-bool cornersAgree(const SingleScatteringContext& ctx, const uint32_t* c, int span, float valueFloor,
-                  float largeCellMax, const SingleScatteringScratch& sc) {
+enum class CellSplit { None, Stake, Throughput, ExitKind };
+
+CellSplit cornersAgree(const SingleScatteringContext& ctx, const uint32_t* c, int span, float valueFloor,
+                       float largeCellMax, const SingleScatteringScratch& sc) {
     const size_t ns = sc.samplePoint.size();
     if (span > 2)  // before V: an occluded corner may border a lit gap
         for (int a = 0; a < 4; ++a)
-            if (sc.stake[c[a]] > largeCellMax) return false;
+            if (sc.stake[c[a]] > largeCellMax) return CellSplit::Stake;
     float lo = sc.magnitude[c[0]], hi = lo;
     for (int a = 1; a < 4; ++a) {
         lo = std::min(lo, sc.magnitude[c[a]]);
         hi = std::max(hi, sc.magnitude[c[a]]);
     }
-    if (hi - lo > float(ctx.options().refineValueTolerance) * hi + valueFloor) return false;
+    if (hi - lo > float(ctx.options().refineValueTolerance) * hi + valueFloor) return CellSplit::Throughput;
     for (size_t i = 0; i < ns; ++i) {
         float atStake = 0.0f;
         for (int a = 0; a < 4; ++a) atStake = std::max(atStake, sc.sampleMagnitude[size_t(c[a]) * ns + i]);
         if (atStake <= valueFloor) continue;
         const uint8_t code = sc.exitCode[size_t(c[0]) * ns + i];
         for (int a = 1; a < 4; ++a)
-            if (sc.exitCode[size_t(c[a]) * ns + i] != code) return false;
+            if (sc.exitCode[size_t(c[a]) * ns + i] != code) return CellSplit::ExitKind;
     }
-    return true;
+    return CellSplit::None;
 }
 
 // The adaptive directions after the lattice has been traced and shaded (with records):
@@ -593,7 +600,8 @@ void refineDirections(const SingleScatteringContext& ctx, float* dense, SingleSc
             const uint32_t corner[4] = {texelOf(f, i0, j0), texelOf(f, i1, j0), texelOf(f, i0, j1),
                                         texelOf(f, i1, j1)};
             const uint16_t span = uint16_t(std::max(i1 - i0, j1 - j0));
-            if (cornersAgree(ctx, corner, span, valueFloor, largeCellMax, sc)) {
+            const CellSplit split = cornersAgree(ctx, corner, span, valueFloor, largeCellMax, sc);
+            if (split == CellSplit::None) {
                 // The corners per steradian, once per cell: perSr[(k * 3 + c) * 4 + a].
                 sc.cornerPerSr.resize(size_t(terms) * 12);
                 float* perSr = sc.cornerPerSr.data();
@@ -623,6 +631,8 @@ void refineDirections(const SingleScatteringContext& ctx, float* dense, SingleSc
                 continue;
             }
             // Split: trace the new corners, then look at the four (or two) sub-cells.
+            (split == CellSplit::Stake ? stats.splitsByStake
+             : split == CellSplit::Throughput ? stats.splitsByThroughput : stats.splitsByExitKind) += 1;
             int xs[3], ys[3];
             int cx = 0, cy = 0;
             xs[cx++] = i0;
@@ -717,17 +727,23 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
         stats.tracedTexels += ctx.texelCount();
 }
 
-double compressSingleScattering(const SingleScatteringContext& ctx, float* dense,
-                                std::vector<SparseVector>& out) {
+void haarSingleScattering(const SingleScatteringContext& ctx, float* dense) {
     const int n = ctx.cubemapSize();
     const size_t texels = ctx.texelCount();
     const size_t faceSize = size_t(n) * n;
-    out.resize(size_t(ctx.terms()));
-    double total = 0.0, kept = 0.0;
     for (int k = 0; k < ctx.terms(); ++k) {
         float* term = dense + size_t(k) * texels * 3;
         for (int f = 0; f < kCubeFaces; ++f)
             for (int c = 0; c < 3; ++c) haarForwardFace(term + size_t(f) * faceSize * 3 + c, n, 3);
+    }
+}
+
+double truncateSingleScattering(const SingleScatteringContext& ctx, float* dense, std::vector<SparseVector>& out) {
+    const size_t texels = ctx.texelCount();
+    out.resize(size_t(ctx.terms()));
+    double total = 0.0, kept = 0.0;
+    for (int k = 0; k < ctx.terms(); ++k) {
+        float* term = dense + size_t(k) * texels * 3;
         const double termEnergy = energy(term, texels * 3);
         total += termEnergy;
         const int shTerms = ctx.options().shTerms;
@@ -745,6 +761,12 @@ double compressSingleScattering(const SingleScatteringContext& ctx, float* dense
         kept += retained * termEnergy;
     }
     return total > 0.0 ? kept / total : 1.0;
+}
+
+double compressSingleScattering(const SingleScatteringContext& ctx, float* dense,
+                                std::vector<SparseVector>& out) {
+    haarSingleScattering(ctx, dense);
+    return truncateSingleScattering(ctx, dense, out);
 }
 
 // ---------------------------------------------------------------------------------
@@ -779,6 +801,43 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
     double retainedSum = 0.0;
 
     const Stopwatch start;
+    const double spacing = ctx.options().siteSpacing;
+    // Sites: the transport of every site the range blends, each truncated to its
+    // largest coefficients, held until the end. Progress counts them as the vertices
+    // they stand for.
+    SingleScatteringSites sites;
+    std::vector<uint32_t> needed;                       // site numbers, increasing
+    std::vector<uint32_t> slotOfSite;                   // site number -> index into siteVectors
+    std::vector<std::vector<SparseVector>> siteVectors;  // [slot][term]
+    if (spacing > 0.0 && vertices > first) {
+        sites = chooseSingleScatteringSites(mesh.positions, mesh.normals, spacing);
+        needed = sites.sitesOf(first, vertices);
+        slotOfSite.assign(sites.site.size(), UINT32_MAX);
+        for (size_t i = 0; i < needed.size(); ++i) slotOfSite[needed[i]] = uint32_t(i);
+        siteVectors.resize(needed.size());
+        const size_t siteKeep = ctx.options().vertexCoefficients * size_t(std::max(1, ctx.options().siteCoefficientFactor));
+        const size_t span = vertices - first;
+        const auto share = [&](size_t i) { return i * span / needed.size(); };
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, needed.size(), 1),
+                          [&](const tbb::blocked_range<size_t>& r) {
+                              ThreadState& st = states.local();
+                              st.dense.resize(ctx.denseSize());
+                              for (size_t i = r.begin(); i != r.end(); ++i) {
+                                  const uint32_t v = sites.site[needed[i]];
+                                  singleScatteringVertex(ctx, ctx.pathOrigin(v), mesh.normals[v],
+                                                         st.dense.data(), st.scratch, st.stats);
+                                  st.stats.sites += 1;
+                                  haarSingleScattering(ctx, st.dense.data());
+                                  std::vector<SparseVector>& out = siteVectors[i];
+                                  out.resize(size_t(ctx.terms()));
+                                  for (int k = 0; k < ctx.terms(); ++k)
+                                      out[size_t(k)] = truncateLargest(
+                                          st.dense.data() + size_t(k) * ctx.texelCount() * 3, ctx.texelCount(), 3, siteKeep);
+                              }
+                              if (progress) progress->advance(share(r.end()) - share(r.begin()));
+                          });
+    }
+    const size_t texels = ctx.texelCount();
     for (size_t base = first; base < vertices; base += kBlock) {
         const size_t end = std::min(vertices, base + kBlock);
         tbb::parallel_for(tbb::blocked_range<size_t>(base, end, 1),
@@ -786,12 +845,30 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
                               ThreadState& st = states.local();
                               st.dense.resize(ctx.denseSize());
                               for (size_t v = r.begin(); v != r.end(); ++v) {
+                                  if (spacing > 0.0) {
+                                      // The blend, in the Haar domain (the transform is linear).
+                                      std::fill(st.dense.begin(), st.dense.end(), 0.0f);
+                                      for (uint32_t b = sites.offset[v]; b < sites.offset[v + 1]; ++b) {
+                                          const float w = sites.blendWeight[b];
+                                          const std::vector<SparseVector>& sv = siteVectors[slotOfSite[sites.blendSite[b]]];
+                                          for (int k = 0; k < ctx.terms(); ++k) {
+                                              const SparseVector& t = sv[size_t(k)];
+                                              float* d = st.dense.data() + size_t(k) * texels * 3;
+                                              for (size_t e = 0; e < t.index.size(); ++e)
+                                                  for (int c = 0; c < 3; ++c)
+                                                      d[size_t(t.index[e]) * 3 + size_t(c)] += w * t.value[e * 3 + size_t(c)];
+                                          }
+                                      }
+                                      retained[v - base] = truncateSingleScattering(ctx, st.dense.data(), block[v - base]);
+                                      continue;
+                                  }
                                   singleScatteringVertex(ctx, ctx.pathOrigin(v), mesh.normals[v],
                                                          st.dense.data(), st.scratch, st.stats);
+                                  st.stats.sites += 1;
                                   retained[v - base] =
                                       compressSingleScattering(ctx, st.dense.data(), block[v - base]);
                               }
-                              if (progress) progress->advance(r.size());
+                              if (progress && !(spacing > 0.0)) progress->advance(r.size());
                           });
         for (size_t v = base; v < end; ++v) {
             retainedSum += retained[v - base];

@@ -163,6 +163,13 @@ struct SingleScatteringOptions {
     double refineValueTolerance = 0.5;
     double refineValueFloor = 1e-2;
     double refineLargeCellValue = 0.3;
+    // Sites (precompute/passes/single_scattering_sites.h): with a spacing h > 0 (mm) the
+    // transport is computed at sites about h apart, each kept as its
+    // siteCoefficientFactor x vertexCoefficients largest Haar coefficients per term, and
+    // every vertex's vector is the truncation of its blend of those. 0: every vertex
+    // computes its own.
+    double siteSpacing = 0.0;
+    int siteCoefficientFactor = 4;
 };
 
 // Everything the kernel needs that does not depend on the vertex, prepared once.
@@ -280,6 +287,10 @@ struct SingleScatteringStats {
     // the lattice and the refined corners) or interpolated from agreeing corners.
     uint64_t tracedTexels = 0;
     uint64_t interpolatedTexels = 0;
+    // Adaptive directions: lattice cells split, by the first rule their corners broke
+    // (cornersAgree: light at stake in a wide cell, throughput spread, exit kind).
+    uint64_t splitsByStake = 0, splitsByThroughput = 0, splitsByExitKind = 0;
+    uint64_t sites = 0;           // points whose transport was computed (vertices or sites)
     uint64_t escapedRays = 0;     // exit rays of inside points that hit nothing (open mesh)
     uint64_t reversedHits = 0;    // exits through triangles wound the wrong way (used, reversed)
     uint64_t outsideSamples = 0;  // path samples x_p judged outside the object (skipped)
@@ -336,6 +347,10 @@ void singleScatteringVertex(const SingleScatteringContext& ctx, const glm::vec3&
 // retained energy fraction (kept / total over all terms; 1 for an all-zero vertex).
 double compressSingleScattering(const SingleScatteringContext& ctx, float* dense,
                                 std::vector<SparseVector>& out);
+// Its two halves: the Haar transform in place, and the truncation of a transformed
+// vector (with the SH part of options().shTerms), which modifies `dense`.
+void haarSingleScattering(const SingleScatteringContext& ctx, float* dense);
+double truncateSingleScattering(const SingleScatteringContext& ctx, float* dense, std::vector<SparseVector>& out);
 
 // ---------------------------------------------------------------------------------
 // All vertices
@@ -357,8 +372,10 @@ using SingleScatteringSink =
 
 // Every vertex of the context's mesh (positions and normals of mesh.positions /
 // mesh.normals), or those of [vertices.first, vertices.second) when given, in parallel (TBB)
-// over blocks of vertices. Deterministic: a vertex's result depends neither on the
-// thread count nor on the range it was computed in.
+// over blocks of vertices. With options().siteSpacing > 0 the sites those vertices blend
+// are computed first (all of them held in memory), then the vertices. Deterministic: a
+// vertex's result depends neither on the thread count nor on the range it was computed
+// in.
 SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ctx,
                                                const SingleScatteringSink& sink,
                                                Progress* progress = nullptr,
