@@ -98,10 +98,17 @@ TEST(JobOptions, PathQuadratureChoosesTheDefaultPathSamples) {
 }
 
 TEST(JobOptions, SiteSpacing) {
-    EXPECT_EQ(PrecomputeSettings{}.singleScattering.siteSpacing, 0.0);
-    EXPECT_EQ(fromCommandLine({"m.obj", "-o", "o", "--ss-site-spacing", "0.25"}).singleScattering.siteSpacing, 0.25);
-    EXPECT_EQ(parseJob({{"ss-site-spacing", "0.5"}}, {{"mesh", "m.obj"}, {"output", "o"}}, "j").singleScattering.siteSpacing, 0.5);
-    for (const char* bad : {"-0.1", "inf", "nan"}) {
+    // Unset: 0.75 mean free paths of the material (Marble: 1 / luminance(sigma_t) = 0.39 mm).
+    const PrecomputeSettings d = fromCommandLine({"m.obj", "-o", "o", "--material", "Marble"});
+    EXPECT_FALSE(d.ssSiteSpacing);
+    EXPECT_NEAR(resolvedSiteSpacing(d), 0.75 / luminance(d.material.sigmaT()), 1e-12);
+    EXPECT_NEAR(resolvedSiteSpacing(d), 0.294, 0.002);
+    EXPECT_EQ(withSharedValues(d).singleScattering.siteSpacing, resolvedSiteSpacing(d));
+    EXPECT_FALSE(fromCommandLine({"m.obj", "-o", "o", "--ss-site-spacing", "auto"}).ssSiteSpacing);
+    EXPECT_EQ(*fromCommandLine({"m.obj", "-o", "o", "--ss-site-spacing", "0.25"}).ssSiteSpacing, 0.25);
+    EXPECT_EQ(withSharedValues(fromCommandLine({"m.obj", "-o", "o", "--ss-site-spacing", "0"})).singleScattering.siteSpacing, 0.0);
+    EXPECT_EQ(*parseJob({{"ss-site-spacing", "0.5"}}, {{"mesh", "m.obj"}, {"output", "o"}}, "j").ssSiteSpacing, 0.5);
+    for (const char* bad : {"-0.1", "inf", "nan", "x", "1,2"}) {
         const std::string e = errorOf([&] {
             PrecomputeSettings s = fromCommandLine({"m.obj", "-o", "o", "--ss-site-spacing", bad});
             s.components = {true, true};

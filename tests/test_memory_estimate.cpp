@@ -121,13 +121,14 @@ TEST(MemoryEstimate, GrowsWithSamplesAndCoefficients) {
     EXPECT_NE(withGround.largest.find("ground"), std::string::npos) << withGround.largest;
     // Single-scattering sites hold their larger vectors: more the closer they are, at
     // most one per vertex; none without a spacing.
-    PrecomputeSettings sites = ss;
-    sites.singleScattering.siteSpacing = 0.5;
-    const uint64_t none = estimatePrecomputeMemory(ss, 100000, 200000, 0, 2, 1000.0).bytes;
+    PrecomputeSettings sites = ss, every = ss;
+    every.ssSiteSpacing = 0.0;
+    sites.ssSiteSpacing = 0.5;
+    const uint64_t none = estimatePrecomputeMemory(every, 100000, 200000, 0, 2, 1000.0).bytes;
     const uint64_t wide = estimatePrecomputeMemory(sites, 100000, 200000, 0, 2, 1000.0).bytes;
-    sites.singleScattering.siteSpacing = 0.2;
+    sites.ssSiteSpacing = 0.2;
     const uint64_t close = estimatePrecomputeMemory(sites, 100000, 200000, 0, 2, 1000.0).bytes;
-    sites.singleScattering.siteSpacing = 1e-4;
+    sites.ssSiteSpacing = 1e-4;
     const uint64_t everyVertex = estimatePrecomputeMemory(sites, 100000, 200000, 0, 2, 1000.0).bytes;
     EXPECT_GT(wide, none);
     EXPECT_GT(close, wide);

@@ -1253,11 +1253,13 @@ TEST(SingleScatteringPipeline, ParametersAndDigest) {
     EXPECT_NE(value(settingsParameters(s2, fp), "input_digest"), value(both, "input_digest"));
     s2.singleScattering.directionStride = 1;  // every texel: the parameters of files made before the option
     EXPECT_EQ(value(settingsParameters(s2, fp), "ss_direction_stride"), "<absent>");
-    EXPECT_EQ(value(both, "ss_sites"), "<absent>");  // every vertex: the parameters of files made before the option
+    EXPECT_EQ(value(both, "ss_sites"), "0.292979119 mm, 4x coefficients per site");  // auto: 0.75 mean free paths
     s2 = s;
-    s2.singleScattering.siteSpacing = 0.25;
+    s2.ssSiteSpacing = 0.25;
     EXPECT_EQ(value(settingsParameters(s2, fp), "ss_sites"), "0.25 mm, 4x coefficients per site");
     EXPECT_NE(value(settingsParameters(s2, fp), "input_digest"), value(both, "input_digest"));
+    s2.ssSiteSpacing = 0.0;  // every vertex: the parameters of files made before the option
+    EXPECT_EQ(value(settingsParameters(s2, fp), "ss_sites"), "<absent>");
     s2 = s;
     s2.singleScattering.pathQuadrature = PathQuadrature::Midpoint;
     EXPECT_EQ(value(settingsParameters(s2, fp), "path_quadrature"), "midpoint");

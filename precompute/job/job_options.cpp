@@ -100,12 +100,22 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
                    "the cut-off, bright cells) down to single texels and interpolate the others; 1 "
                    "traces every texel. Ignored when --ss-supersample > 1 (docs/single-scattering.md)")
         ->capture_default_str();
-    app.add_option("--ss-site-spacing", s.singleScattering.siteSpacing,
-                   "Single scattering: compute it at sites about this far apart (mm) and give every vertex "
-                   "the blend of the sites within twice that distance whose normals are within 60 degrees "
-                   "of its own (fewer rays, a blur of about one spacing); 0 computes it at every vertex "
-                   "(docs/single-scattering.md, \"Sites\")")
-        ->capture_default_str();
+    app.add_option_function<std::string>(
+           "--ss-site-spacing",
+           [&s](const std::string& v) {
+               if (v == "auto") {
+                   s.ssSiteSpacing.reset();
+                   return;
+               }
+               const std::vector<double> h = parseNumberList(v, "--ss-site-spacing", "spacing (auto or mm)");
+               if (h.size() != 1) throw Error("--ss-site-spacing", "must be auto or one number of mm, got '" + v + "'");
+               s.ssSiteSpacing = h[0];
+           },
+           "Single scattering: compute it at sites about this far apart (mm) and give every vertex "
+           "the blend of the sites within twice that distance whose normals are within 60 degrees "
+           "of its own (fewer rays, a blur of about one spacing); 0 computes it at every vertex; auto: "
+           "0.75 mean free paths of the material, 1 / luminance(sigma_t) (docs/single-scattering.md, \"Sites\")")
+        ->default_str("auto");
     app.add_option_function<std::string>(
            "--ss-visibility",
            [&s](const std::string& v) {

@@ -48,10 +48,15 @@ MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vert
     // Single-scattering sites (--ss-site-spacing h): at most a hexagonal packing of the
     // area at spacing h, each holding its terms' larger vectors (an index and three
     // floats per entry), and about 12 blend entries per vertex.
-    const double h = s.components.singleScattering ? s.singleScattering.siteSpacing : 0.0;
-    const double sites = h > 0.0 ? std::min(double(vertices), 2.0 * totalAreaMm2 / (std::sqrt(3.0) * h * h)) : 0.0;
+    // Without the area (single scattering alone), every vertex.
+    const double h = s.components.singleScattering ? resolvedSiteSpacing(s) : 0.0;
+    const double sites = h <= 0.0            ? 0.0
+                         : totalAreaMm2 > 0.0 ? std::min(double(vertices), 2.0 * totalAreaMm2 / (std::sqrt(3.0) * h * h))
+                                              : double(vertices);
     const double siteBytes =
-        h > 0.0 ? sites * terms * double(s.vertexCoefficients) * double(std::max(1, s.singleScattering.siteCoefficientFactor)) * 16.0 +
+        h > 0.0 ? sites * terms *
+                          std::min(texels, double(s.vertexCoefficients) * double(std::max(1, s.singleScattering.siteCoefficientFactor))) *
+                          16.0 +
                       double(vertices) * (12.0 * 8.0 + 16.0)
                 : 0.0;
     const std::vector<std::pair<const char*, double>> parts = {

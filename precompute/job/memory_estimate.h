@@ -21,7 +21,7 @@
 //   blocks                     vertices / 16 x block coefficients x 50 bytes per
 //                              component, when the file stores blocks
 //   single-scattering sites    with --ss-site-spacing h: min(vertices, 2 area / (sqrt 3 h^2))
-//                              sites x terms x site coefficients x 16 bytes, + 112
+//                              sites x terms x site coefficients (at most 6 N^2) x 16 bytes, + 112
 //                              bytes per vertex of blend
 //   per-thread workspaces      threads x 6 N^2 x 64 bytes
 // times kSafety = 1.5 (allocator slack, vector growth). A refusal only has to tell 40 GB
@@ -42,7 +42,7 @@ struct MemoryEstimate {
 };
 
 // The samples count only with multiple scattering; totalAreaMm2 = 0 leaves out the cell
-// sub-points. An editable job (settings.h) integrates J radial profiles instead of three
+// sub-points and counts every vertex as a single-scattering site. An editable job (settings.h) integrates J radial profiles instead of three
 // channels, with sub-points spaced for the narrowest dipole of its range, which needs
 // the object's size (bounding-box diagonal, mm; 0: taken as the material's own widths).
 MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vertices, size_t triangles,

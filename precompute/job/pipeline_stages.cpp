@@ -112,7 +112,7 @@ PreparedJob setUp(const JobContext& job, JobInputs inputs, const Stopwatch& jobS
         const MemoryEstimate need =
             estimatePrecomputeMemory(s, p.mesh.vertexCount(), p.mesh.triangleCount(), p.sampleCount,
                                      tbb::this_task_arena::max_concurrency(),
-                                     s.components.multipleScattering ? p.summary.totalAreaMm2 : 0.0,
+                                     p.summary.totalAreaMm2,
                                      bounds(p.mesh).diagonal());
         checkMemory(need, s.maxMemoryGb);
         p.summary.estimatedMemoryBytes = need.bytes;

@@ -51,7 +51,14 @@ PrecomputeSettings withSharedValues(PrecomputeSettings s) {
     s.singleScattering.cubemapSize = s.cubemapSize;
     s.singleScattering.vertexCoefficients = s.vertexCoefficients;
     s.singleScattering.shTerms = 0;
+    s.singleScattering.siteSpacing = resolvedSiteSpacing(s);
     return s;
+}
+
+double resolvedSiteSpacing(const PrecomputeSettings& s) {
+    if (s.ssSiteSpacing) return *s.ssSiteSpacing;
+    const double extinction = samplingExtinction(s.material);
+    return extinction > 0.0 && std::isfinite(extinction) ? kSiteSpacingMeanFreePaths / extinction : 0.0;
 }
 
 void validateSettings(const PrecomputeSettings& s) {
@@ -109,8 +116,8 @@ void validateSettings(const PrecomputeSettings& s) {
     if (ss.directionStride < 1 || ss.directionStride > 16 || (ss.directionStride & (ss.directionStride - 1)))
         throw Error("--ss-direction-stride",
                     "must be 1, 2, 4, 8 or 16, got " + std::to_string(ss.directionStride));
-    if (!(ss.siteSpacing >= 0.0) || !std::isfinite(ss.siteSpacing))
-        throw Error("--ss-site-spacing", "must be a non-negative number of mm, got " + fmt(ss.siteSpacing));
+    if (s.ssSiteSpacing && (!(*s.ssSiteSpacing >= 0.0) || !std::isfinite(*s.ssSiteSpacing)))
+        throw Error("--ss-site-spacing", "must be auto or a non-negative number of mm, got " + fmt(*s.ssSiteSpacing));
     if (!s.pass1File.empty() && !s.components.multipleScattering)
         throw Error("--pass1-file", "needs multiple scattering (--components ms or ms,ss): single scattering has no pass 1");
     if (s.pass1Only && s.pass1File.empty()) throw Error("--pass1-only", "needs --pass1-file");

@@ -90,6 +90,11 @@ struct PrecomputeSettings {
     // pathSamples, directionStride, visibilityFromExitRay. Adaptive directions by
     // default (docs/single-scattering.md, "adaptive directions and 4 Gauss points").
     SingleScatteringOptions singleScattering{.directionStride = 4};
+    // --ss-site-spacing: single scattering at sites this far apart (mm; 0 = at every
+    // vertex); unset = kSiteSpacingMeanFreePaths mean free paths of the material
+    // (resolvedSiteSpacing; docs/single-scattering.md, "Sites"). withSharedValues
+    // copies the resolved spacing into singleScattering.siteSpacing.
+    std::optional<double> ssSiteSpacing;
     EditableSettings editable;
 
     // Not physics settings: neither stored in the file nor part of the input digest.
@@ -120,6 +125,11 @@ PrecomputeSettings withSharedValues(PrecomputeSettings s);
 
 // Throws prt::Error naming the bad option.
 void validateSettings(const PrecomputeSettings& s);
+
+// The single-scattering site spacing a job uses, mm: ssSiteSpacing, or when unset
+// kSiteSpacingMeanFreePaths / luminance(sigma_t) of its material.
+inline constexpr double kSiteSpacingMeanFreePaths = 0.75;
+double resolvedSiteSpacing(const PrecomputeSettings& s);
 
 // The materials an editable job's basis covers: s.editable.materials parsed with the
 // job's eta (or the measured ones with absorption), then the job's own material.

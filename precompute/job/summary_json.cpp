@@ -59,7 +59,7 @@ Json settingsJson(const PrecomputeSettings& s) {
     j["path_samples"] = s.singleScattering.pathSamples;
     j["ss_supersample"] = s.singleScattering.supersample;
     j["ss_direction_stride"] = s.singleScattering.directionStride;
-    j["ss_site_spacing_mm"] = s.singleScattering.siteSpacing;
+    j["ss_site_spacing_mm"] = resolvedSiteSpacing(s);
     j["shard"] = s.shard ? Json(toString(*s.shard)) : Json(nullptr);
     j["pass1_file"] = s.pass1File.empty() ? Json(nullptr) : Json(s.pass1File);
     j["pass1_only"] = s.pass1Only;
