@@ -357,6 +357,35 @@ TEST(Precompute, ShardSummaryCountsItsOwnVertices) {
     fs::remove_all(dir);
 }
 
+// The path statistics count the points whose transport was computed: on a sphere the
+// inward normal crosses the diameter, so the mean d_m is 2 r whether every vertex is
+// computed or only the sites (before, the sites' sum was divided by every vertex).
+TEST(Precompute, MeanPathDepthIsOverTheComputedPoints) {
+    Progress::setEnabled(false);
+    const fs::path dir = tempDir();
+    PrecomputeSettings s;
+    s.meshPath = (dir / "sphere.obj").string();
+    saveMesh(makeIcosphere(3, 4.0f), s.meshPath);
+    s.scale.mmPerUnit = 1.0;
+    s.material = materialByName("Skin1");
+    s.components = parseScatteringComponents("ss");
+    s.singleScattering.pathSamples = 2;
+    s.cubemapSize = 4;
+    s.pass1.sampleCoefficients = s.pass2.nodeCoefficients = s.vertexCoefficients = 40;
+    s.outputPath = (dir / "sphere.prt").string();
+    for (double spacing : {0.0, 1.5}) {
+        s.ssSiteSpacing = spacing;
+        const PrecomputeSummary r = precomputeTransport(s, /*force=*/true);
+        if (spacing > 0.0) {
+            EXPECT_LT(r.singleScattering.sites, r.setup.vertices / 2);
+        } else {
+            EXPECT_EQ(r.singleScattering.sites, r.setup.vertices);
+        }
+        EXPECT_NEAR(r.singleScattering.meanDepthMm, 8.0, 0.1) << "spacing " << spacing;
+    }
+    fs::remove_all(dir);
+}
+
 namespace {
 
 // The editable tests' small job: a sphere in mm, a 6 x 4 x 4 cubemap with 4 SH terms,

@@ -451,7 +451,8 @@ SingleScatteringOutput runSingleScattering(const JobContext& job, const Prepared
     summary.cappedDepths = total(st.cappedDepths);
     summary.raysPerSecond = result.seconds > 0 ? double(summary.rays) / result.seconds : 0.0;
     const size_t computed = prepared.summary.computedVertices;
-    summary.meanDepthMm = computed ? dist.sum(st.depthSum) / double(computed) : 0.0;
+    // d_m is found once per computed point (a site, or every vertex without sites).
+    summary.meanDepthMm = summary.sites ? dist.sum(st.depthSum) / double(summary.sites) : 0.0;
     summary.retainedEnergy =
         computed ? dist.sum(result.retainedEnergyFraction * double(prepared.myVertices)) / double(computed) : 1.0;
     summary.peakMemoryBytes = peakMemoryBytes();

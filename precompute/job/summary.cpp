@@ -99,7 +99,7 @@ std::string PrecomputeSummary::format() const {
         if (s.splitsByStake + s.splitsByThroughput + s.splitsByExitKind > 0)
             add("  cells split     %.3g by light at stake (wide cells), %.3g by throughput spread, %.3g by "
                 "exit kind", double(s.splitsByStake), double(s.splitsByThroughput), double(s.splitsByExitKind));
-        add("  path            mean d_m %.3f mm, %llu vertices with capped d_m, %llu integrated "
+        add("  path            mean d_m %.3f mm, %llu points with capped d_m, %llu integrated "
             "along +n (normal pointing inward), %llu path samples outside the object",
             s.meanDepthMm, (unsigned long long)s.cappedDepths, (unsigned long long)s.flippedNormals,
             (unsigned long long)s.outsideSamples);

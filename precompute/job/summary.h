@@ -85,7 +85,9 @@ struct SingleScatteringSummary {
     uint64_t escapedRays = 0, reversedHits = 0, outsideSamples = 0;
     uint64_t flippedNormals = 0, cappedDepths = 0;
     double raysPerSecond = 0;
-    double meanDepthMm = 0;      // mean d_m
+    // Path statistics count the points whose transport was computed (the sites, or
+    // every vertex without sites): meanDepthMm is the mean d_m over them.
+    double meanDepthMm = 0;
     double retainedEnergy = 0;   // of the per-vertex truncations
     double gatherSeconds = 0;
     size_t peakMemoryBytes = 0;
