@@ -38,7 +38,9 @@ void expectValidSites(const TriangleMesh& mesh, const SingleScatteringSites& s, 
             sum += s.blendWeight[b];
             EXPECT_LE(dist(v, site), 2.0 * h * (1 + 1e-6));
             EXPECT_GT(glm::dot(mesh.normals[v], mesh.normals[site]), 0.5f);
-            if (b > s.offset[v]) EXPECT_LT(s.blendSite[b - 1], s.blendSite[b]);
+            if (b > s.offset[v]) {
+                EXPECT_LT(s.blendSite[b - 1], s.blendSite[b]);
+            }
             nearSite = nearSite || dist(v, site) <= h * (1 + 1e-6);
         }
         EXPECT_NEAR(sum, 1.0, 1e-5) << "vertex " << v;
@@ -46,8 +48,9 @@ void expectValidSites(const TriangleMesh& mesh, const SingleScatteringSites& s, 
     }
     for (size_t a = 0; a < s.site.size(); ++a)
         for (size_t b = a + 1; b < s.site.size(); ++b)
-            if (glm::dot(mesh.normals[s.site[a]], mesh.normals[s.site[b]]) > 0.5f)
+            if (glm::dot(mesh.normals[s.site[a]], mesh.normals[s.site[b]]) > 0.5f) {
                 EXPECT_GT(dist(s.site[a], s.site[b]), h * (1 - 1e-6)) << "sites " << a << ", " << b;
+            }
 }
 
 }  // namespace
@@ -74,7 +77,9 @@ TEST(SingleScatteringSites, CoverPackAndBlendOnASphere) {
         // the disk's area; fewer sites than vertices once h is past the vertex spacing.
         const double area = 4.0 * M_PI * 25.0;
         EXPECT_LE(double(s.site.size()), area / (M_PI * h * h / 4.0) * 1.2);
-        if (h > 0.5) EXPECT_LT(s.site.size(), sphere.positions.size() / 2);
+        if (h > 0.5) {
+            EXPECT_LT(s.site.size(), sphere.positions.size() / 2);
+        }
         EXPECT_EQ(s.sitesOf(0, sphere.positions.size()).size(), s.site.size());
         // The same inputs, the same choice (shards rely on it).
         const SingleScatteringSites again = chooseSingleScatteringSites(sphere.positions, sphere.normals, h);
@@ -201,16 +206,33 @@ TEST(SingleScatteringSites, EveryVertexGetsTheBlendOfItsSitesInAnyRange) {
     }
     EXPECT_LT(worst, 1e-5);  // float sums of a few sites
 
-    // A range: the same vectors, bit for bit.
-    const size_t first = 500, end = 900;
-    size_t seen = 0;
-    computeSingleScattering(
+    // Ranges (interleaved blocks, as MPI ranks take them): the same vectors, bit for
+    // bit, in the ranges' order, and each site computed once however many ranges blend it.
+    const VertexRanges ranges = {{600, 700}, {500, 600}, {100, 120}};
+    std::vector<size_t> order;
+    const SingleScatteringResult r = computeSingleScattering(
         ctx,
         [&](size_t v, const std::vector<SparseVector>& terms) {
             EXPECT_EQ(terms[0].index, shared[0][v].index) << v;
             EXPECT_EQ(terms[0].value, shared[0][v].value) << v;
-            ++seen;
+            order.push_back(v);
         },
-        nullptr, std::pair<size_t, size_t>{first, end});
-    EXPECT_EQ(seen, end - first);
+        nullptr, ranges);
+    std::vector<size_t> expected;
+    for (const auto& [first, end] : ranges)
+        for (size_t v = first; v < end; ++v) expected.push_back(v);
+    EXPECT_EQ(order, expected);
+    std::vector<uint32_t> needed;
+    for (const auto& [first, end] : ranges) {
+        const std::vector<uint32_t> of = s.sitesOf(first, end);
+        needed.insert(needed.end(), of.begin(), of.end());
+    }
+    std::sort(needed.begin(), needed.end());
+    const size_t withRepeats = needed.size();
+    needed.erase(std::unique(needed.begin(), needed.end()), needed.end());
+    ASSERT_GT(withRepeats, needed.size());  // neighbouring ranges blend some sites alike
+    EXPECT_EQ(r.stats.sites, needed.size());
+    EXPECT_THROW(computeSingleScattering(ctx, [](size_t, const std::vector<SparseVector>&) {}, nullptr,
+                                         VertexRanges{{0, torus.positions.size() + 1}}),
+                 Error);
 }

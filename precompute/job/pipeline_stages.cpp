@@ -397,23 +397,16 @@ SingleScatteringOutput runSingleScattering(const JobContext& job, const Prepared
                                         : "single scattering (" + std::to_string(terms) + " terms)") +
                        job.share,
                    prepared.myVertices, "vertices");
-        double retained = 0.0;
-        for (const IndexRange& r : prepared.vertexShares) {
-            const SingleScatteringResult part = computeSingleScattering(
-                context,
-                [&](size_t, const std::vector<SparseVector>& vectors) {
-                    for (int k = 0; k < terms; ++k)
-                        out.components[size_t(k)].vectors.appendVertex(vectors[size_t(k)].index,
-                                                                       vectors[size_t(k)].value);
-                },
-                &p, std::pair{r.begin, r.end});
-            result.stats.add(part.stats);
-            result.seconds += part.seconds;
-            retained += part.retainedEnergyFraction * double(r.size());
-        }
-        result.isotropic = context.isotropic();
-        result.terms = terms;
-        result.retainedEnergyFraction = prepared.myVertices ? retained / double(prepared.myVertices) : 1.0;
+        // All of this process's shares in one call, so the sites they share are computed once.
+        VertexRanges ranges;
+        for (const IndexRange& r : prepared.vertexShares) ranges.push_back({r.begin, r.end});
+        result = computeSingleScattering(
+            context,
+            [&](size_t, const std::vector<SparseVector>& vectors) {
+                for (int k = 0; k < terms; ++k)
+                    out.components[size_t(k)].vectors.appendVertex(vectors[size_t(k)].index, vectors[size_t(k)].value);
+            },
+            &p, ranges);
         out.busySeconds = result.seconds;
     });
     const Stopwatch gatherStart;

@@ -776,12 +776,14 @@ double compressSingleScattering(const SingleScatteringContext& ctx, float* dense
 SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ctx,
                                                const SingleScatteringSink& sink,
                                                Progress* progress,
-                                               std::optional<std::pair<size_t, size_t>> range) {
+                                               std::optional<VertexRanges> given) {
     const TriangleMesh& mesh = ctx.mesh();
-    const size_t first = range ? range->first : 0;
-    const size_t vertices = range ? range->second : mesh.positions.size();
-    if (first > vertices || vertices > mesh.positions.size())
-        throw Error("single scattering", "vertex range out of bounds");
+    const VertexRanges ranges = given ? *given : VertexRanges{{0, mesh.positions.size()}};
+    size_t vertexCount = 0;
+    for (const auto& [first, end] : ranges) {
+        if (first > end || end > mesh.positions.size()) throw Error("single scattering", "vertex range out of bounds");
+        vertexCount += end - first;
+    }
     SingleScatteringResult result;
     result.isotropic = ctx.isotropic();
     result.terms = ctx.terms();
@@ -809,15 +811,19 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
     std::vector<uint32_t> needed;                       // site numbers, increasing
     std::vector<uint32_t> slotOfSite;                   // site number -> index into siteVectors
     std::vector<std::vector<SparseVector>> siteVectors;  // [slot][term]
-    if (spacing > 0.0 && vertices > first) {
+    if (spacing > 0.0 && vertexCount > 0) {
         sites = chooseSingleScatteringSites(mesh.positions, mesh.normals, spacing);
-        needed = sites.sitesOf(first, vertices);
+        for (const auto& [first, end] : ranges) {
+            const std::vector<uint32_t> of = sites.sitesOf(first, end);
+            needed.insert(needed.end(), of.begin(), of.end());
+        }
+        std::sort(needed.begin(), needed.end());
+        needed.erase(std::unique(needed.begin(), needed.end()), needed.end());
         slotOfSite.assign(sites.site.size(), UINT32_MAX);
         for (size_t i = 0; i < needed.size(); ++i) slotOfSite[needed[i]] = uint32_t(i);
         siteVectors.resize(needed.size());
         const size_t siteKeep = ctx.options().vertexCoefficients * size_t(std::max(1, ctx.options().siteCoefficientFactor));
-        const size_t span = vertices - first;
-        const auto share = [&](size_t i) { return i * span / needed.size(); };
+        const auto share = [&](size_t i) { return i * vertexCount / needed.size(); };
         tbb::parallel_for(tbb::blocked_range<size_t>(0, needed.size(), 1),
                           [&](const tbb::blocked_range<size_t>& r) {
                               ThreadState& st = states.local();
@@ -838,6 +844,7 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
                           });
     }
     const size_t texels = ctx.texelCount();
+    for (const auto& [first, vertices] : ranges)
     for (size_t base = first; base < vertices; base += kBlock) {
         const size_t end = std::min(vertices, base + kBlock);
         tbb::parallel_for(tbb::blocked_range<size_t>(base, end, 1),
@@ -878,7 +885,7 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
     result.seconds =
         start.seconds();
     states.combine_each([&](const ThreadState& st) { result.stats.add(st.stats); });
-    result.retainedEnergyFraction = vertices > first ? retainedSum / double(vertices - first) : 1.0;
+    result.retainedEnergyFraction = vertexCount > 0 ? retainedSum / double(vertexCount) : 1.0;
     return result;
 }
 

@@ -371,15 +371,17 @@ using SingleScatteringSink =
     std::function<void(size_t vertex, const std::vector<SparseVector>& terms)>;
 
 // Every vertex of the context's mesh (positions and normals of mesh.positions /
-// mesh.normals), or those of [vertices.first, vertices.second) when given, in parallel (TBB)
-// over blocks of vertices. With options().siteSpacing > 0 the sites those vertices blend
-// are computed first (all of them held in memory), then the vertices. Deterministic: a
-// vertex's result depends neither on the thread count nor on the range it was computed
-// in.
+// mesh.normals), or those of the ranges [first, second) when given (in their order, each
+// within the mesh), in parallel (TBB) over blocks of vertices; the sink sees them in that
+// order. With options().siteSpacing > 0 the sites those vertices blend are computed first,
+// once for all the ranges (all of them held in memory), then the vertices. Deterministic:
+// a vertex's result depends neither on the thread count nor on the ranges it was computed
+// in. Throws prt::Error on a range outside the mesh.
+using VertexRanges = std::vector<std::pair<size_t, size_t>>;
 SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ctx,
                                                const SingleScatteringSink& sink,
                                                Progress* progress = nullptr,
-                                               std::optional<std::pair<size_t, size_t>> vertices = {});
+                                               std::optional<VertexRanges> vertices = {});
 
 // Convenience: collects the vectors, out[k][vertex].
 SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ctx,
