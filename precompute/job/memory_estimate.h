@@ -42,7 +42,8 @@ struct MemoryEstimate {
 };
 
 // The samples count only with multiple scattering; totalAreaMm2 = 0 leaves out the cell
-// sub-points and counts every vertex as a single-scattering site. An editable job (settings.h) integrates J radial profiles instead of three
+// sub-points and counts every vertex as a single-scattering site. An editable job
+// (settings.h) integrates J radial profiles instead of three
 // channels, with sub-points spaced for the narrowest dipole of its range, which needs
 // the object's size (bounding-box diagonal, mm; 0: taken as the material's own widths).
 MemoryEstimate estimatePrecomputeMemory(const PrecomputeSettings& s, size_t vertices, size_t triangles,

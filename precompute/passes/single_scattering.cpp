@@ -813,12 +813,7 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
     std::vector<std::vector<SparseVector>> siteVectors;  // [slot][term]
     if (spacing > 0.0 && vertexCount > 0) {
         sites = chooseSingleScatteringSites(mesh.positions, mesh.normals, spacing);
-        for (const auto& [first, end] : ranges) {
-            const std::vector<uint32_t> of = sites.sitesOf(first, end);
-            needed.insert(needed.end(), of.begin(), of.end());
-        }
-        std::sort(needed.begin(), needed.end());
-        needed.erase(std::unique(needed.begin(), needed.end()), needed.end());
+        needed = sites.sitesOf(ranges);
         slotOfSite.assign(sites.site.size(), UINT32_MAX);
         for (size_t i = 0; i < needed.size(); ++i) slotOfSite[needed[i]] = uint32_t(i);
         siteVectors.resize(needed.size());
@@ -844,9 +839,10 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
                           });
     }
     const size_t texels = ctx.texelCount();
-    for (const auto& [first, vertices] : ranges)
-    for (size_t base = first; base < vertices; base += kBlock) {
-        const size_t end = std::min(vertices, base + kBlock);
+    VertexRanges blocks;
+    for (const auto& [first, last] : ranges)
+        for (size_t base = first; base < last; base += kBlock) blocks.push_back({base, std::min(last, base + kBlock)});
+    for (const auto& [base, end] : blocks) {
         tbb::parallel_for(tbb::blocked_range<size_t>(base, end, 1),
                           [&](const tbb::blocked_range<size_t>& r) {
                               ThreadState& st = states.local();

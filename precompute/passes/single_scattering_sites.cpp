@@ -18,8 +18,15 @@ bool unitNormal(const glm::vec3& n) { return std::abs(glm::dot(n, n) - 1.0f) < 1
 }  // namespace
 
 std::vector<uint32_t> SingleScatteringSites::sitesOf(size_t first, size_t end) const {
-    std::vector<uint32_t> out(blendSite.begin() + std::ptrdiff_t(offset[first]),
-                              blendSite.begin() + std::ptrdiff_t(offset[end]));
+    const std::pair<size_t, size_t> range{first, end};
+    return sitesOf(std::span(&range, 1));
+}
+
+std::vector<uint32_t> SingleScatteringSites::sitesOf(std::span<const std::pair<size_t, size_t>> ranges) const {
+    std::vector<uint32_t> out;
+    for (const auto& [first, end] : ranges)
+        out.insert(out.end(), blendSite.begin() + std::ptrdiff_t(offset[first]),
+                   blendSite.begin() + std::ptrdiff_t(offset[end]));
     std::sort(out.begin(), out.end());
     out.erase(std::unique(out.begin(), out.end()), out.end());
     return out;

@@ -26,6 +26,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <utility>
 #include <vector>
 
 namespace prt {
@@ -41,6 +42,8 @@ struct SingleScatteringSites {
     size_t vertexCount() const { return offset.empty() ? 0 : offset.size() - 1; }
     // The sites that vertices [first, end) blend, increasing (indices into `site`).
     std::vector<uint32_t> sitesOf(size_t first, size_t end) const;
+    // The same for the vertices of several ranges, each site once.
+    std::vector<uint32_t> sitesOf(std::span<const std::pair<size_t, size_t>> ranges) const;
 };
 
 SingleScatteringSites chooseSingleScatteringSites(std::span<const glm::vec3> positions,
