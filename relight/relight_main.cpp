@@ -225,7 +225,7 @@ struct ViewOptions {
     std::vector<std::string> lights;
     std::string lightsFile, split = "hybrid";
     TextureSpaceOptions tsis;
-    int atlasSize = 1024;
+    int atlasSize = kDefaultIrradianceMapSize;
     bool noEnvironmentLight = false;
     bool pointSpecular = false, pointSingleScattering = false;
     double pointSpecularRoughness = kDefaultSpecularRoughness;
@@ -298,6 +298,8 @@ void addViewOptions(CLI::App& app, ViewOptions& o) {
         ->capture_default_str()->group(group);
     app.add_option("--rings", o.tsis.rings, "L, rings of the local filter")->capture_default_str()->group(group);
     app.add_option("--ring-samples", o.tsis.ringSamples, "C, taps per ring")->capture_default_str()->group(group);
+    app.add_option("--cluster-angle", o.tsis.clusterAngle, "theta of the clustered global sum (0: every sample)")
+        ->capture_default_str()->group(group);
     app.add_option("--importance-bound", o.tsis.importanceBound, "c in mm^-1 (R_p: R_d(r) 2 pi r = c)")
         ->capture_default_str()->group(group);
     app.add_option("--split-sharpness", o.tsis.sharpness, "K in mm^-1")->capture_default_str()->group(group);

@@ -1,13 +1,19 @@
 // R_d tables and the local/global split (relight/pointlight/diffusion_split.h). Asserted: the
 // table reproduces dipoleRd; W_l + W_g = 1 with W_l(0) ~ 1, W_l(R_p) = 1/2 and a
 // continuous slope at R_p; R_p is where the importance R_d 2 pi r crosses c (the
-// paper's Skimmilk figure: 2.41 mm at c = 0.1 /mm); local + global tables = full table.
+// paper's Skimmilk figure: 2.41 mm at c = 0.1 /mm); local + global tables = full table;
+// the curvature tables against a Gaussian's closed forms, and the second-order
+// expansion they serve against the sum over a cluster's points (third order left).
 
 #include "relight/pointlight/diffusion_split.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <utility>
+#include <vector>
 
 #include "common/bssrdf.h"
 #include "common/util.h"
@@ -94,4 +100,75 @@ TEST(DiffusionSplit, LocalPlusGlobalIsTheFullKernel) {
         const glm::vec3 sum = local(r2) + global(r2), ref = full(r2);
         for (int c = 0; c < 3; ++c) EXPECT_NEAR(sum[c], ref[c], 1e-6f * ref[c] + 1e-12f) << r;
     }
+}
+
+TEST(DiffusionSplit, CurvatureTablesMatchAGaussiansClosedForms) {
+    // k = e^(-r^2 / s^2): k' = -2 r k / s^2, k'' = (4 r^2 / s^4 - 2 / s^2) k, so
+    // A = (k'' - k'/r) / 2 = 2 r^2 k / s^4 and B = k' / (2 r) = -k / s^2.
+    const double s = 1.7;
+    const RadialKernel k = [s](double r) { return glm::dvec3(1.0, 2.0, 3.0) * std::exp(-r * r / (s * s)); };
+    const RadialCurvature c = radialCurvature(k, 12.0, 1e-3);
+    for (double r = 0.0; r < 8.0; r += 0.0371) {
+        const double g = std::exp(-r * r / (s * s));
+        for (int ch = 0; ch < 3; ++ch) {
+            const double a = (ch + 1) * 2.0 * r * r * g / (s * s * s * s), b = -(ch + 1) * g / (s * s);
+            EXPECT_NEAR(c.along(float(r * r))[ch], a, 2e-4 * (ch + 1)) << r;
+            EXPECT_NEAR(c.across(float(r * r))[ch], b, 2e-4 * (ch + 1)) << r;
+        }
+    }
+    test::expectErrorSubject([&] { radialCurvature(k, 12.0, 0.0); }, "diffusion table");
+}
+
+TEST(DiffusionSplit, SecondOrderClusterExpansionLeavesThirdOrder) {
+    // Points around a centre c (zero weighted mean), seen from x at distance d along
+    // an oblique direction, summed through the global kernel of Skin1: the monopole
+    // W k(d) errs at second order in the cluster's size a, the expansion
+    // W [k + A u^T S u + B tr S] at third. Halving a must cut its error by more than
+    // 4 (second order would), and it must beat the monopole by far.
+    const Material m = materialByName("Skin1");
+    const DiffusionSplit split{.rp = importanceRadius(m, 0.1)};
+    const RadialKernel k = globalDiffusionKernel(m, split);
+    const RadialTable table(k, 40.0);
+    const RadialCurvature curvature = radialCurvature(k, 40.0, 1e-3 / std::max({m.sigmaTPrime().x, m.sigmaTPrime().y, m.sigmaTPrime().z}));
+    const glm::dvec3 x(0.0, 0.0, 0.0), u = glm::normalize(glm::dvec3(1.0, 0.4, 0.2));
+    const double d = 4.0;
+    auto errors = [&](double a) {
+        // A flattened, uneven cluster: 27 points on a grid, weights 1 .. 3, recentred.
+        std::vector<glm::dvec3> p;
+        std::vector<double> w;
+        for (int i = -1; i <= 1; ++i)
+            for (int j = -1; j <= 1; ++j)
+                for (int l = -1; l <= 1; ++l) {
+                    p.push_back(a * glm::dvec3(i, 0.3 * j + 0.2 * i * i, 0.8 * l));
+                    w.push_back(1.0 + (i + 1) * 0.5 + (l == 1 ? 0.5 : 0.0));
+                }
+        double total = 0.0;
+        glm::dvec3 mean(0.0);
+        for (size_t i = 0; i < p.size(); ++i) {
+            total += w[i];
+            mean += w[i] * p[i];
+        }
+        mean /= total;
+        glm::dmat3 cov(0.0);
+        glm::dvec3 exact(0.0);
+        const glm::dvec3 c = x + d * u;
+        for (size_t i = 0; i < p.size(); ++i) {
+            const glm::dvec3 q = p[i] - mean;
+            cov += w[i] * glm::outerProduct(q, q) / total;
+            exact += w[i] * k(glm::length(x - (c + q)));
+        }
+        const float r2 = float(d * d);
+        const glm::dvec3 monopole = total * glm::dvec3(table(r2));
+        const double q = glm::dot(u, cov * u), tr = cov[0][0] + cov[1][1] + cov[2][2];
+        const glm::dvec3 second =
+            total * (glm::dvec3(table(r2)) + q * glm::dvec3(curvature.along(r2)) + tr * glm::dvec3(curvature.across(r2)));
+        return std::make_pair(glm::length(monopole - exact) / glm::length(exact),
+                              glm::length(second - exact) / glm::length(exact));
+    };
+    const auto coarse = errors(0.6), fine = errors(0.3);
+    std::printf("cluster 1.2 mm at 4 mm: monopole %.3g, second order %.3g; 0.6 mm: %.3g, %.3g\n", coarse.first,
+                coarse.second, fine.first, fine.second);
+    EXPECT_LT(coarse.second, 0.1 * coarse.first);
+    EXPECT_LT(fine.second, coarse.second / 5.0);
+    EXPECT_GT(fine.first, coarse.first / 5.0);  // the monopole: second order (about 4)
 }

@@ -10,7 +10,7 @@
 #   4. prt-bench-relight-file: light vector and relight time per frame of that file, and
 #      of the same job with --fold-ss (single scattering folded into one vector);
 #   5. prt-bench-tsis: point lights by texture-space importance sampling (Chang et al.
-#      2008's goal row: dragon res4, hybrid, N = 900, 512 x 512, per vertex as the
+#      2008's goal row: dragon res4, hybrid at its defaults, 512 x 512, per vertex as the
 #      viewer): the time per new light position split into its stages, and a material
 #      change (setMaterial) with the sums after it;
 #   6. prt-pointlight --method cache --compare-jb: a point light by the translucent
@@ -122,7 +122,7 @@ run precompute_folded "$precompute" data/meshes/dragon_vrip_res4.ply.gz --size-m
 run relight_file_folded "$bench_file" "$o/dragon4_folded.prt" -e data/envmaps/forest.exr \
   --json "$o/relight_file_folded.json"
 run tsis "$bench_tsis" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 -m Skin2 --light point:-20,40,-60:0.04 \
-  -W 512 -H 512 --split hybrid --samples 900 --repeat 7 --material-change Skin1 --json "$o/tsis.json"
+  -W 512 -H 512 --split hybrid --samples 3600 --repeat 7 --material-change Skin1 --json "$o/tsis.json"
 run cache "$pointlight" data/meshes/bunny.off --size-mm 40 -m Marble --light point:30,40,30:0.01 \
   -W 1024 -H 1024 --exposure -1 --method cache --compare-jb -o "$o/cache"
 echo "load_end=$(cut -d' ' -f1-3 /proc/loadavg)" >>"$out/meta.txt"

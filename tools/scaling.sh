@@ -16,7 +16,7 @@
 #   ss_path_samples  --path-samples 2, 3, the default 4, 6, 8 and 32 (res4; Gauss-Legendre rule, adaptive directions)
 #   relight          relight time per frame of every file against its bytes
 #   pointlights      point lights vs mesh size (dragon res4, res3, res2; 30 mm, Skin2, one
-#                    point light): texture-space sampling (prt-bench-tsis, hybrid, N = 900,
+#                    point light): texture-space sampling (prt-bench-tsis, hybrid at its defaults,
 #                    512 x 512, per vertex: time per new light position and its stages,
 #                    median of 5) and the irradiance cache (prt-pointlight --method cache
 #                    --compare-jb, 1024 x 1024: T_cache and Jensen-Buhler's T_JB in the
@@ -184,7 +184,7 @@ for r in "${pl_runs[@]}"; do
   IFS='|' read -r name mesh <<<"$r"
   i=$((i + 1))
   rm -f "$out/json/$name.tsis.json"
-  tsis_cmd=("$bench_tsis" "$mesh" "${light[@]}" -W 512 -H 512 --split hybrid --samples 900 --repeat 5
+  tsis_cmd=("$bench_tsis" "$mesh" "${light[@]}" -W 512 -H 512 --split hybrid --samples 3600 --repeat 5
             --json "$o/json/$name.tsis.json")
   cache_cmd=("$pointlight" "$mesh" "${light[@]}" -W 1024 -H 1024 --method cache --compare-jb
              -o "$o/prt/$name.cache")

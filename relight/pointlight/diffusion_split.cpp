@@ -66,16 +66,56 @@ RadialTable::RadialTable(const std::function<glm::dvec3(double r)>& kernel, doub
     }
 }
 
+RadialKernel diffusionKernel(const Material& material) {
+    return [material](double r) { return dipoleRd(material, r); };
+}
+
+RadialKernel localDiffusionKernel(const Material& material, const DiffusionSplit& split) {
+    return [material, split](double r) { return dipoleRd(material, r) * split.localWeight(r); };
+}
+
+RadialKernel globalDiffusionKernel(const Material& material, const DiffusionSplit& split) {
+    return [material, split](double r) { return dipoleRd(material, r) * split.globalWeight(r); };
+}
+
 RadialTable diffusionTable(const Material& material, double rMax) {
-    return RadialTable([&](double r) { return dipoleRd(material, r); }, rMax);
+    return RadialTable(diffusionKernel(material), rMax);
 }
 
 RadialTable localDiffusionTable(const Material& material, const DiffusionSplit& split, double rMax) {
-    return RadialTable([&](double r) { return dipoleRd(material, r) * split.localWeight(r); }, rMax);
+    return RadialTable(localDiffusionKernel(material, split), rMax);
 }
 
 RadialTable globalDiffusionTable(const Material& material, const DiffusionSplit& split, double rMax) {
-    return RadialTable([&](double r) { return dipoleRd(material, r) * split.globalWeight(r); }, rMax);
+    return RadialTable(globalDiffusionKernel(material, split), rMax);
+}
+
+RadialCurvature radialCurvature(const RadialKernel& kernel, double rMax, double h, int entries) {
+    if (!std::isfinite(h) || !(h > 0.0)) throw Error("diffusion table", "the difference step must be finite and > 0");
+    // k'(r) and k''(r) by central differences, once per node (the two tables share them).
+    struct Derivatives {
+        glm::dvec3 first, second;
+    };
+    auto at = [&](double r) {
+        const glm::dvec3 below = kernel(std::abs(r - h)), centre = kernel(r), above = kernel(r + h);
+        return Derivatives{(above - below) / (2.0 * h), (above - 2.0 * centre + below) / (h * h)};
+    };
+    const double tiny = 1e-9 * rMax;
+    RadialCurvature c;
+    c.along = RadialTable(
+        [&](double r) {
+            if (r < tiny) return glm::dvec3(0.0);
+            const Derivatives d = at(r);
+            return 0.5 * (d.second - d.first / r);
+        },
+        rMax, entries);
+    c.across = RadialTable(
+        [&](double r) {
+            const Derivatives d = at(r);
+            return r < tiny ? 0.5 * d.second : 0.5 * d.first / r;
+        },
+        rMax, entries);
+    return c;
 }
 
 }  // namespace prt

@@ -106,9 +106,30 @@ private:
     std::vector<glm::vec4> values_;  // RGB + 0 padding: one 16-byte load per node
 };
 
-// The three kernels of a material: full R_d, local R_d W_l and global R_d W_g.
+// The three kernels of a material as functions of r (mm): full R_d, local R_d W_l and
+// global R_d W_g (mm^-2), and tabulated.
+using RadialKernel = std::function<glm::dvec3(double r)>;
+RadialKernel diffusionKernel(const Material& material);
+RadialKernel localDiffusionKernel(const Material& material, const DiffusionSplit& split);
+RadialKernel globalDiffusionKernel(const Material& material, const DiffusionSplit& split);
 RadialTable diffusionTable(const Material& material, double rMax);
 RadialTable localDiffusionTable(const Material& material, const DiffusionSplit& split, double rMax);
 RadialTable globalDiffusionTable(const Material& material, const DiffusionSplit& split, double rMax);
+
+// The second-order part of a radial kernel's Taylor expansion. For y = c + d near c,
+// with x - c = r u (u unit), the Hessian of k(|x - y|) in y is
+// k''(r) u u^T + (k'(r) / r) (I - u u^T), so a sum of weights w_i at c + d_i with
+// sum w_i d_i = 0 is, to second order,
+//     sum w_i k(|x - c - d_i|) = W [k(r) + A(r) u^T S u + B(r) tr S],
+//     A = (k'' - k'/r) / 2,  B = k' / (2 r),  S = sum w_i d_i d_i^T / W,  W = sum w_i.
+// Both are tabulated as RadialTables on the same grid as the kernel's (same rMax and
+// entries: one position() serves all three), from central differences of k with step h
+// (mm, > 0; k is even in r, so r - h < 0 reads k(|r - h|); at r = 0, A = 0 and B =
+// k''(0) / 2). Throws prt::Error as RadialTable for a bad rMax or entries, and for h <= 0.
+struct RadialCurvature {
+    RadialTable along;   // A(r), mm^-4
+    RadialTable across;  // B(r), mm^-4
+};
+RadialCurvature radialCurvature(const RadialKernel& kernel, double rMax, double h, int entries = 4096);
 
 }  // namespace prt

@@ -725,6 +725,10 @@ void addPointLightOptions(CLI::App& app, PointLightCommand& o) {
     app.add_option("--rings", o.tsis.rings, "L, rings of the local filter")->capture_default_str()->group("Texture-space sampling");
     app.add_option("--ring-samples", o.tsis.ringSamples, "C, taps per ring of the local filter")
         ->capture_default_str()->group("Texture-space sampling");
+    app.add_option("--cluster-angle", o.tsis.clusterAngle,
+                   "theta: the global sum uses a cluster of samples whole when its cell's diagonal is below theta "
+                   "times its distance (0 sums every sample)")
+        ->capture_default_str()->group("Texture-space sampling");
     app.add_option("--evaluate", o.evaluate,
                    "pixel (the sums at every visible point) or vertex (at mesh vertices, interpolated, and so are "
                    "the rays of --specular and --single-scattering: what prt-relight view draws)")

@@ -70,8 +70,8 @@ struct PointLightCommand {
     std::string lightPath, materialPath, sizePath;
     // Texture-space importance sampling (--method tsis).
     TextureSpaceOptions tsis;
-    std::string split = "hybrid", evaluate = "pixel";
-    int atlasSize = 1024;
+    std::string split = "hybrid", evaluate = "vertex";
+    int atlasSize = kDefaultIrradianceMapSize;
     // The surface terms added to every frame of every method (point_animation.h,
     // SurfaceTermSettings): --specular, --specular-roughness, --single-scattering,
     // --single-scattering-samples.

@@ -1,5 +1,6 @@
 #include "relight/pointlight/texture_space_sampling.h"
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <xmmintrin.h>
 
@@ -43,6 +44,8 @@ void validateTextureSpaceOptions(const TextureSpaceOptions& o) {
         throw Error("--light-map", "must be from 16 to 8192, got " + std::to_string(o.lightMapSize));
     if (o.rings < 1 || o.rings > 1000) throw Error("--rings", "must be from 1 to 1000");
     if (o.ringSamples < 1 || o.ringSamples > 1000) throw Error("--ring-samples", "must be from 1 to 1000");
+    if (!std::isfinite(o.clusterAngle) || o.clusterAngle < 0.0 || o.clusterAngle > 2.0)
+        throw Error("--cluster-angle", "must be from 0 to 2 (0 sums every sample)");
 }
 
 TextureSpaceRenderer::TextureSpaceRenderer(const TriangleMesh& mesh, const RayScene& scene, const SurfaceAtlas& atlas,
@@ -67,11 +70,15 @@ void TextureSpaceRenderer::buildMaterialState(const Material& material) {
     split_.sharpness = options_.sharpness;
     split_.weights = options_.weights;
     sampleKernel_ = RadialTable();
-    switch (options_.mode) {
-        case TextureSpaceMode::Sampling: sampleKernel_ = diffusionTable(material_, rMax); break;
-        case TextureSpaceMode::Hybrid:
-        case TextureSpaceMode::Global: sampleKernel_ = globalDiffusionTable(material_, split_, rMax); break;
-        case TextureSpaceMode::Local: break;
+    sampleCurvature_ = RadialCurvature();
+    if (usesSamples()) {
+        const RadialKernel kernel = options_.mode == TextureSpaceMode::Sampling ? diffusionKernel(material_)
+                                                                                : globalDiffusionKernel(material_, split_);
+        sampleKernel_ = RadialTable(kernel, rMax);
+        // Difference steps well inside the dipole's narrowest scale (1 / sigma_t').
+        const glm::dvec3 st = material_.sigmaTPrime();
+        if (options_.clusterAngle > 0.0)
+            sampleCurvature_ = radialCurvature(kernel, rMax, 1e-3 / std::max({st.x, st.y, st.z}));
     }
     filter_ = LocalFilter();
     if (usesFilter())
@@ -136,7 +143,8 @@ void TextureSpaceRenderer::redraw(int samples, uint64_t seed, bool drawNow) {
 }
 
 void TextureSpaceRenderer::draw() {
-    px_.clear(); py_.clear(); pz_.clear(); w_.clear();
+    samples_.clear();
+    tree_.reset();
     if (!usesSamples() || !(sampler_->total() > 0.0)) return;
     std::vector<uint32_t> texels = sampler_->stratifiedSamples(size_t(options_.samples), options_.seed, options_.jitter);
     std::sort(texels.begin(), texels.end());
@@ -150,44 +158,198 @@ void TextureSpaceRenderer::draw() {
         const double phi = double(f.x + f.y + f.z) / 3.0;
         // Phi_t / (N p_t) per draw, times the number of equal draws.
         const double scale = double(e - k) * total / (n * phi);
-        const glm::vec3 p = atlas_->samples.positions[s];
-        px_.push_back(p.x);
-        py_.push_back(p.y);
-        pz_.push_back(p.z);
-        w_.push_back(glm::vec4(glm::vec3(glm::dvec3(f) * scale), 0.0f));
+        samples_.push(atlas_->samples.positions[s], glm::vec3(glm::dvec3(f) * scale));
         k = e;
     }
+    buildClusters();
 }
 
-void TextureSpaceRenderer::sampleSums(const glm::vec3* points, size_t count, glm::dvec3* out) const {
-    // Tiled: one block of samples (kBlock x 24 bytes, in L1) for all the points, then
-    // the next block. Per point and block: distances and table positions in loops the
-    // compiler vectorises, then the table reads and the weighted sums (float within a
-    // block, double across blocks: the same order for one point or many).
+void SampleTerms::clear() {
+    x.clear(); y.clear(); z.clear(); w.clear();
+}
+
+void SampleTerms::push(const glm::vec3& position, const glm::vec3& weight) {
+    x.push_back(position.x); y.push_back(position.y); z.push_back(position.z);
+    w.push_back(glm::vec4(weight, 0.0f));
+}
+
+void ClusterTerms::clear() {
+    SampleTerms::clear();
+    sxx.clear(); syy.clear(); szz.clear(); sxy.clear(); sxz.clear(); syz.clear(); trace.clear();
+}
+
+void ClusterTerms::push(const glm::vec3& position, const glm::vec3& weight, const float s[6]) {
+    SampleTerms::push(position, weight);
+    sxx.push_back(s[0]); syy.push_back(s[1]); szz.push_back(s[2]);
+    sxy.push_back(s[3]); sxz.push_back(s[4]); syz.push_back(s[5]);
+    trace.push_back(s[0] + s[1] + s[2]);
+}
+
+namespace {
+
+// out[p] = sum_j w_j K(|points[p] - x_j|) over the terms. Tiled: one block of terms
+// (kBlock x 28 bytes, in L1) for all the points, then the next block. Per point and
+// block: distances and table positions in loops the compiler vectorises, then the
+// table reads and the weighted sums (RGB in one SSE register; float within a block,
+// double across blocks: the same order for one point or many). The table reads stay
+// scalar: AVX2 gathers measured slower.
+void kernelSums(const RadialTable& kernel, const SampleTerms& s, const glm::vec3* points, size_t count,
+                glm::dvec3* out) {
     constexpr size_t kBlock = 64;
     float r2[kBlock], t[kBlock];
     for (size_t p = 0; p < count; ++p) out[p] = glm::dvec3(0.0);
-    const size_t n = px_.size();
+    const float rMax2 = kernel.rMax2();
+    const size_t n = s.size();
     for (size_t begin = 0; begin < n; begin += kBlock) {
         const size_t block = std::min(kBlock, n - begin);
-        const float *px = &px_[begin], *py = &py_[begin], *pz = &pz_[begin];
-        const glm::vec4* w = &w_[begin];
-        const float rMax2 = sampleKernel_.rMax2();
+        const float *px = &s.x[begin], *py = &s.y[begin], *pz = &s.z[begin];
+        const glm::vec4* w = &s.w[begin];
         for (size_t p = 0; p < count; ++p) {
             const float x0 = points[p].x, y0 = points[p].y, z0 = points[p].z;
             for (size_t j = 0; j < block; ++j) {
                 const float dx = x0 - px[j], dy = y0 - py[j], dz = z0 - pz[j];
                 r2[j] = dx * dx + dy * dy + dz * dz;
             }
-            for (size_t j = 0; j < block; ++j) t[j] = sampleKernel_.position(r2[j]);
-            __m128 acc = _mm_setzero_ps();  // RGB in one SSE register
+            for (size_t j = 0; j < block; ++j) t[j] = kernel.position(r2[j]);
+            __m128 acc = _mm_setzero_ps();
             for (size_t j = 0; j < block; ++j)
-                if (r2[j] < rMax2) acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(&w[j].x), sampleKernel_.atSse(t[j])));
+                if (r2[j] < rMax2) acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(&w[j].x), kernel.atSse(t[j])));
             alignas(16) float sum[4];
             _mm_store_ps(sum, acc);
             out[p] += glm::dvec3(sum[0], sum[1], sum[2]);
         }
     }
+}
+
+// out[p] += sum_j W_j [K(r) + A(r) u^T S_j u + B(r) tr S_j] over the clusters (see
+// CLUSTERS in the header), blocked as kernelSums. A cluster's distance is never 0 (it
+// is used whole only at a positive distance from every point).
+void clusterSums(const RadialTable& kernel, const RadialCurvature& curvature, const ClusterTerms& s,
+                 const glm::vec3* points, size_t count, glm::dvec3* out) {
+    constexpr size_t kBlock = 64;
+    float r2[kBlock], t[kBlock], q[kBlock];
+    const float rMax2 = kernel.rMax2();
+    const size_t n = s.size();
+    for (size_t begin = 0; begin < n; begin += kBlock) {
+        const size_t block = std::min(kBlock, n - begin);
+        const float *px = &s.x[begin], *py = &s.y[begin], *pz = &s.z[begin];
+        const float *sxx = &s.sxx[begin], *syy = &s.syy[begin], *szz = &s.szz[begin];
+        const float *sxy = &s.sxy[begin], *sxz = &s.sxz[begin], *syz = &s.syz[begin], *tr = &s.trace[begin];
+        const glm::vec4* w = &s.w[begin];
+        for (size_t p = 0; p < count; ++p) {
+            const float x0 = points[p].x, y0 = points[p].y, z0 = points[p].z;
+            for (size_t j = 0; j < block; ++j) {
+                const float dx = x0 - px[j], dy = y0 - py[j], dz = z0 - pz[j];
+                r2[j] = dx * dx + dy * dy + dz * dz;
+                const float vsv = sxx[j] * dx * dx + syy[j] * dy * dy + szz[j] * dz * dz +
+                                  2.0f * (sxy[j] * dx * dy + sxz[j] * dx * dz + syz[j] * dy * dz);
+                q[j] = vsv / std::max(r2[j], 1e-30f);  // u^T S u
+            }
+            for (size_t j = 0; j < block; ++j) t[j] = kernel.position(r2[j]);
+            __m128 acc = _mm_setzero_ps();
+            for (size_t j = 0; j < block; ++j) {
+                if (!(r2[j] < rMax2)) continue;
+                const __m128 k = _mm_add_ps(kernel.atSse(t[j]),
+                                            _mm_add_ps(_mm_mul_ps(_mm_set1_ps(q[j]), curvature.along.atSse(t[j])),
+                                                       _mm_mul_ps(_mm_set1_ps(tr[j]), curvature.across.atSse(t[j]))));
+                acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(&w[j].x), k));
+            }
+            alignas(16) float sum[4];
+            _mm_store_ps(sum, acc);
+            out[p] += glm::dvec3(sum[0], sum[1], sum[2]);
+        }
+    }
+}
+
+// Squared distance between the box [lo, hi] and the cubic cell of a node, mm^2.
+double boxCellDistance2(const glm::dvec3& lo, const glm::dvec3& hi, const IrradianceOctree::Node& node) {
+    const glm::dvec3 cellHi = node.cellLo + glm::dvec3(node.cellSize);
+    const glm::dvec3 d = glm::max(glm::max(node.cellLo - hi, lo - cellHi), glm::dvec3(0.0));
+    return glm::dot(d, d);
+}
+
+}  // namespace
+
+void TextureSpaceRenderer::buildClusters() {
+    tree_.reset();
+    if (!(options_.clusterAngle > 0.0) || samples_.size() == 0) return;
+    // A sample's "area" is its mean weight and its "irradiance" weight / area, so that a
+    // node's area x irradiance is the sum of its samples' weights and its position their
+    // weight-centred mean (jensen_buhler.h, THE OCTREE).
+    IrradianceSamples in;
+    const size_t n = samples_.size();
+    in.positions.resize(n);
+    in.areas.resize(n);
+    in.irradiance.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+        const glm::vec3 w(samples_.w[i]);
+        const float a = (w.x + w.y + w.z) / 3.0f;
+        in.positions[i] = glm::vec3(samples_.x[i], samples_.y[i], samples_.z[i]);
+        in.areas[i] = a;
+        in.irradiance[i] = a > 0.0f ? w / a : glm::vec3(0.0f);
+    }
+    tree_.emplace(in, OctreeOptions{8, 24});
+    // The samples in tree order, so that every node's samples are one contiguous range.
+    SampleTerms sorted;
+    for (const uint32_t i : tree_->order())
+        sorted.push(in.positions[i], glm::vec3(samples_.w[i]));
+    samples_ = std::move(sorted);
+    // Each node's weighted covariance about its centre (mean-weight weights, as the
+    // centre's).
+    const std::vector<IrradianceOctree::Node>& nodes = tree_->nodes();
+    nodeCovariance_.assign(nodes.size(), {});
+    tbb::parallel_for(size_t(0), nodes.size(), [&](size_t k) {
+        const IrradianceOctree::Node& node = nodes[k];
+        if (!(node.area > 0.0)) return;
+        double s[6] = {0, 0, 0, 0, 0, 0};
+        for (uint32_t i = node.firstSample; i < node.firstSample + node.sampleCount; ++i) {
+            const glm::vec4 w = samples_.w[i];
+            const double a = (double(w.x) + double(w.y) + double(w.z)) / 3.0;
+            const glm::dvec3 d = glm::dvec3(samples_.x[i], samples_.y[i], samples_.z[i]) - node.position;
+            s[0] += a * d.x * d.x; s[1] += a * d.y * d.y; s[2] += a * d.z * d.z;
+            s[3] += a * d.x * d.y; s[4] += a * d.x * d.z; s[5] += a * d.y * d.z;
+        }
+        for (int c = 0; c < 6; ++c) nodeCovariance_[k][size_t(c)] = float(s[c] / node.area);
+    });
+}
+
+void TextureSpaceRenderer::sampleSums(const glm::vec3* points, size_t count, glm::dvec3* out) const {
+    if (!tree_) {
+        kernelSums(sampleKernel_, samples_, points, count, out);
+        return;
+    }
+    // The clusters seen from the points' box (see CLUSTERS in the header): whole nodes
+    // as one term each, the samples of the opened leaves as they are.
+    glm::dvec3 lo(points[0]), hi(points[0]);
+    for (size_t p = 1; p < count; ++p) {
+        lo = glm::min(lo, glm::dvec3(points[p]));
+        hi = glm::max(hi, glm::dvec3(points[p]));
+    }
+    const double theta2 = options_.clusterAngle * options_.clusterAngle;
+    thread_local SampleTerms terms;
+    thread_local ClusterTerms clusters;
+    thread_local std::vector<uint32_t> stack;
+    terms.clear();
+    clusters.clear();
+    stack.assign(1, 0u);
+    const std::vector<IrradianceOctree::Node>& nodes = tree_->nodes();
+    while (!stack.empty()) {
+        const uint32_t index = stack.back();
+        const IrradianceOctree::Node& node = nodes[index];
+        stack.pop_back();
+        const double diagonal2 = 3.0 * node.cellSize * node.cellSize;
+        if (diagonal2 < theta2 * boxCellDistance2(lo, hi, node)) {
+            clusters.push(glm::vec3(node.position), glm::vec3(node.area * node.irradiance), nodeCovariance_[index].data());
+        } else if (node.leaf()) {
+            for (uint32_t k = node.firstSample; k < node.firstSample + node.sampleCount; ++k)
+                terms.push(glm::vec3(samples_.x[k], samples_.y[k], samples_.z[k]),
+                           glm::vec3(samples_.w[k]));
+        } else {
+            for (uint32_t c = node.childCount; c-- > 0;) stack.push_back(node.firstChild + c);
+        }
+    }
+    kernelSums(sampleKernel_, terms, points, count, out);
+    clusterSums(sampleKernel_, sampleCurvature_, clusters, points, count, out);
 }
 
 glm::dvec3 TextureSpaceRenderer::exitance(const glm::dvec3& x) const {
@@ -216,10 +378,12 @@ Image TextureSpaceRenderer::render(const GBuffer& g) const {
 std::vector<glm::vec3> TextureSpaceRenderer::vertexExitance() const {
     const size_t nv = mesh_->vertexCount();
     std::vector<glm::vec3> out(nv);
-    constexpr size_t kChunk = 64;  // vertices sharing each block of samples
+    // Vertices sharing each block of samples (and, with clusters, one box: fewer for a
+    // tighter box).
+    const size_t kChunk = tree_ ? 16 : 64;
     tbb::parallel_for(size_t(0), (nv + kChunk - 1) / kChunk, [&](size_t c) {
         const size_t begin = c * kChunk, count = std::min(kChunk, nv - begin);
-        glm::dvec3 m[kChunk];
+        glm::dvec3 m[64];
         const glm::vec3* points = &orderedPositions_[begin];
         if (usesSamples()) {
             sampleSums(points, count, m);
@@ -235,17 +399,44 @@ std::vector<glm::vec3> TextureSpaceRenderer::vertexExitance() const {
     return out;
 }
 
-Image TextureSpaceRenderer::renderPerVertex(const GBuffer& g) const {
-    const std::vector<glm::vec3> m = vertexExitance();
-    return compose(g, Image(), glm::dmat3(1.0), [&](const GBufferPixel& p) -> glm::vec3 {
-        if (!p.hit) return glm::vec3(0.0f);
+VertexInterpolation vertexInterpolation(const GBuffer& g, const TriangleMesh& mesh, double eta,
+                                        FresnelModel fresnel) {
+    VertexInterpolation v;
+    v.width = g.width;
+    v.height = g.height;
+    for (size_t i = 0; i < g.pixels.size(); ++i) {
+        const GBufferPixel& p = g.pixels[i];
+        if (!p.hit) continue;
         const double cosO = glm::dot(glm::dvec3(p.normal), glm::dvec3(p.toViewer));
-        const double fo = outgoingTransmittance(options_.fresnel, material_.eta, std::max(0.0, cosO));
-        if (fo == 0.0) return glm::vec3(0.0f);
-        const glm::uvec3 t = mesh_->triangles[p.triangle];
-        const glm::vec3 e = p.barycentric.x * m[t.x] + p.barycentric.y * m[t.y] + p.barycentric.z * m[t.z];
-        return float(fo / std::numbers::pi) * e;
+        v.pixel.push_back(uint32_t(i));
+        v.vertices.push_back(mesh.triangles[p.triangle]);
+        v.barycentric.push_back(p.barycentric);
+        v.transmittanceOverPi.push_back(
+            float(outgoingTransmittance(fresnel, eta, std::max(0.0, cosO)) / std::numbers::pi));
+    }
+    return v;
+}
+
+Image TextureSpaceRenderer::shadeVertices(const VertexInterpolation& view, const std::vector<glm::vec3>& m) const {
+    if (m.size() != mesh_->vertexCount()) throw Error("shadeVertices", "one exitance per mesh vertex expected");
+    Image out(view.width, view.height, 4, 0.0f);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, view.pixel.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t k = r.begin(); k != r.end(); ++k) {
+            const glm::uvec3 t = view.vertices[k];
+            const glm::vec3 b = view.barycentric[k];
+            const glm::vec3 e = view.transmittanceOverPi[k] * (b.x * m[t.x] + b.y * m[t.y] + b.z * m[t.z]);
+            float* o = &out.pixels[size_t(view.pixel[k]) * 4];
+            o[0] = e.x;
+            o[1] = e.y;
+            o[2] = e.z;
+            o[3] = 1.0f;
+        }
     });
+    return out;
+}
+
+Image TextureSpaceRenderer::renderPerVertex(const GBuffer& g) const {
+    return shadeVertices(vertexInterpolation(g, *mesh_, material_.eta, options_.fresnel), vertexExitance());
 }
 
 }  // namespace prt

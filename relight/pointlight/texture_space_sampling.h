@@ -38,6 +38,21 @@
 // (common/material_edit.h, scaledMaterial): the lights and the irradiance stay attached
 // to the object.
 //
+// CLUSTERS. With theta = clusterAngle > 0 the samples are put in an octree after each
+// draw (IrradianceOctree, jensen_buhler.h: a sample's "area" is its mean weight, so a
+// node carries exactly the weight W of its samples at their weight-centred position
+// c), and the global sum at a group of points (one pixel, or up to 16 Morton-ordered
+// vertices inside a box B) uses a node whole when its cell's diagonal is below theta
+// times the distance from B to the cell; other nodes are opened down to their samples.
+// A node used whole adds its Taylor expansion about c to second order,
+//     W_ch [K(r) + A(r) u^T S u + B(r) tr S]      (radialCurvature, diffusion_split.h)
+// with S the weighted covariance of its samples' positions (the weights' mean over R,
+// G, B; a node's colour is taken as uniform over it): the first order vanishes at c,
+// and the second is the curvature a monopole would miss (it would fall short: the
+// kernels are convex). What remains is third order in theta, bounded by the tests
+// against theta = 0 (tests/test_texture_space_sampling.cpp). theta = 0 is the plain sum
+// over every sample in draw order.
+//
 // EVALUATION. Per pixel of a G-buffer (render), or per mesh vertex then interpolated
 // barycentrically at every pixel (renderPerVertex: fewer sums when the mesh has fewer
 // vertices than the frame has object pixels; exact at vertices, linear between).
@@ -51,6 +66,7 @@
 
 #include <glm/glm.hpp>
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -61,6 +77,7 @@
 #include "common/mesh.h"
 #include "common/raytrace.h"
 #include "relight/pointlight/diffusion_split.h"
+#include "relight/pointlight/jensen_buhler.h"
 #include "relight/pointlight/mipmap_sampler.h"
 #include "relight/pointlight/point_lights.h"
 #include "relight/render/gbuffer.h"
@@ -68,6 +85,11 @@
 #include "relight/pointlight/translucent_shadow_map.h"
 
 namespace prt {
+
+// The defaults (docs/point-lights.md, "The defaults"): theta of the clustered sums and
+// the irradiance map's resolution (the surface atlas's, surface_atlas.h).
+inline constexpr double kDefaultClusterAngle = 1.2;
+inline constexpr int kDefaultIrradianceMapSize = 256;
 
 enum class TextureSpaceMode {
     Sampling,  // full R_d by the texture-space samples alone (section 3)
@@ -81,19 +103,51 @@ TextureSpaceMode parseTextureSpaceMode(const std::string& text);
 
 struct TextureSpaceOptions {
     TextureSpaceMode mode = TextureSpaceMode::Hybrid;
-    int samples = 900;                 // N, >= 1
+    int samples = 3600;                // N, >= 1
     uint64_t seed = 1;                 // the frame's jitter seed
     bool jitter = true;                // stratified with jitter (false: centred strata)
     double importanceBound = kDefaultImportanceBound;  // c, mm^-1
     double sharpness = kDefaultSplitSharpness;         // K, mm^-1
     SplitWeights weights = SplitWeights::Paper;
     int lightMapSize = 256;            // translucent shadow map resolution (docs/point-lights.md)
-    int rings = 20, ringSamples = 20;  // L, C
+    int rings = 32, ringSamples = 8;   // L, C
     FresnelModel fresnel = FresnelModel::Exact;
+    // theta of the clustered global sum (see CLUSTERS above), >= 0; 0 sums every sample.
+    double clusterAngle = kDefaultClusterAngle;
 };
 
 // Throws prt::Error naming the option for a bad value.
 void validateTextureSpaceOptions(const TextureSpaceOptions& options);
+
+// Weighted points the global sum runs over: positions (mm) as three arrays and weights
+// as (R, G, B, 0): what the SIMD loop reads.
+struct SampleTerms {
+    std::vector<float> x, y, z;
+    std::vector<glm::vec4> w;
+    size_t size() const { return x.size(); }
+    void clear();
+    void push(const glm::vec3& position, const glm::vec3& weight);
+};
+
+// Clusters used whole (see CLUSTERS above): centre and weight as SampleTerms, and the
+// covariance S (mm^2) as arrays: xx, yy, zz, xy, xz, yz and its trace.
+struct ClusterTerms : SampleTerms {
+    std::vector<float> sxx, syy, szz, sxy, sxz, syz, trace;
+    void clear();
+    void push(const glm::vec3& position, const glm::vec3& weight, const float covariance[6]);
+};
+
+// The per-view half of shading per-vertex exitance (renderPerVertex), built once per
+// G-buffer: every object pixel's index, its triangle's vertices, its barycentric
+// weights and F_out(n . w_o) / pi (which depends on the view and eta only).
+struct VertexInterpolation {
+    int width = 0, height = 0;
+    std::vector<uint32_t> pixel;
+    std::vector<glm::uvec3> vertices;
+    std::vector<glm::vec3> barycentric;
+    std::vector<float> transmittanceOverPi;
+};
+VertexInterpolation vertexInterpolation(const GBuffer& g, const TriangleMesh& mesh, double eta, FresnelModel fresnel);
 
 struct TextureSpaceTimings {
     double irradianceSeconds = 0.0;   // the irradiance map (shadow rays)
@@ -127,6 +181,11 @@ public:
     Image render(const GBuffer& g) const;
     // Exitance at every mesh vertex (positions of the mesh given at construction).
     std::vector<glm::vec3> vertexExitance() const;
+    // The per-pixel shading of renderPerVertex: exitance m (one per mesh vertex)
+    // interpolated barycentrically at every object pixel, times F_out / pi; RGBA, A = 1
+    // on the object, black background with A = 0. `view` from vertexInterpolation with
+    // this renderer's mesh, eta and Fresnel model.
+    Image shadeVertices(const VertexInterpolation& view, const std::vector<glm::vec3>& m) const;
     Image renderPerVertex(const GBuffer& g) const;
 
     const Material& material() const { return material_; }
@@ -138,7 +197,7 @@ public:
     const TextureSpaceTimings& timings() const { return timings_; }
     // The current samples (after merging equal draws) and the map's total flux (mean RGB
     // is the pdf's normaliser).
-    size_t uniqueSamples() const { return px_.size(); }
+    size_t uniqueSamples() const { return samples_.size(); }
     glm::dvec3 totalFlux() const { return totalFlux_; }
     const std::vector<glm::vec3>& texelFlux() const { return texelFlux_; }
     const std::vector<TranslucentShadowMap>& shadowMaps() const { return maps_; }
@@ -151,8 +210,11 @@ private:
     void draw();
     // The material-dependent state (see PER MATERIAL above).
     void buildMaterialState(const Material& material);
-    // The global (sample) sums at `count` points into out[0 .. count).
+    // The global (sample) sums at `count` points into out[0 .. count): over every
+    // sample, or with theta > 0 over the terms of the clusters (see CLUSTERS above).
     void sampleSums(const glm::vec3* points, size_t count, glm::dvec3* out) const;
+    // Builds tree_ over the merged samples and puts them in its order.
+    void buildClusters();
 
     const TriangleMesh* mesh_;
     const RayScene* scene_;
@@ -162,13 +224,15 @@ private:
     BoundingSphere sphere_;
     DiffusionSplit split_;
     RadialTable sampleKernel_;  // R_d or R_d W_g
+    RadialCurvature sampleCurvature_;  // its second-order terms (clusters)
     LocalFilter filter_;        // kernel R_d W_l
 
     std::vector<glm::vec3> texelFlux_;  // per atlas sample (covered texel): Phi_t
     std::optional<MipmapSampler> sampler_;
     glm::dvec3 totalFlux_{0.0};
-    std::vector<float> px_, py_, pz_;  // merged samples: positions (SoA) ...
-    std::vector<glm::vec4> w_;         // ... and weights (R, G, B, 0)
+    SampleTerms samples_;  // the merged samples (in the tree's order when there is one)
+    std::optional<IrradianceOctree> tree_;  // theta > 0: the samples' clusters (samples in its order)
+    std::vector<std::array<float, 6>> nodeCovariance_;  // per node of tree_: S (xx, yy, zz, xy, xz, yz)
     std::vector<TranslucentShadowMap> maps_;
     TextureSpaceTimings timings_;
     double materialSeconds_ = 0.0;

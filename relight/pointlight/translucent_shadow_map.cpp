@@ -280,35 +280,37 @@ glm::dvec3 TranslucentShadowMap::localExitance(const glm::dvec3& x, const LocalF
         const size_t count = std::min(kBlock, taps - begin);
         const float* o1 = &filter.tapOffset1[begin];
         const float* o2 = &filter.tapOffset2[begin];
-        // Plain floats and selects so that GCC vectorises it (4 taps per SSE op).
+        // Plain floats, selects and non-short-circuit tests so that GCC vectorises it
+        // (4 taps per SSE op): the perspective divide is by qz or by 1.
         const float zMin = perspective ? 0.0f : -std::numeric_limits<float>::infinity();
+        const float zScale = perspective ? 1.0f : 0.0f, zBias = perspective ? 0.0f : 1.0f;
         const float lastF = float(last);
         for (size_t k = 0; k < count; ++k) {
             const float qx = X.x + o1[k] * E1.x + o2[k] * E2.x;
             const float qy = X.y + o1[k] * E1.y + o2[k] * E2.y;
             const float qz = X.z + o1[k] * E1.z + o2[k] * E2.z;
-            const float inv = toPixel / (perspective ? qz : 1.0f);
+            const float inv = toPixel / (qz * zScale + zBias);
             const float px = qx * inv + half, py = qy * inv + half;
-            const bool inside = qz > zMin && px >= 0.0f && py >= 0.0f && px < res && py < res;
+            const bool inside = (qz > zMin) & (px >= 0.0f) & (py >= 0.0f) & (px < res) & (py < res);
             const int ix = int(std::min(std::max(px, 0.0f), lastF)), iy = int(std::min(std::max(py, 0.0f), lastF));
             index[k] = inside ? iy * resolution_ + ix : -1;
         }
+        // Without branches (a tap off the map or beyond the table reads pixel 0 and
+        // gets flux 0): which taps land on lit pixels does not follow a pattern.
         for (size_t k = 0; k < count; ++k) {
-            flux[k] = 0.0f;
-            r2[k] = 0.0f;
-            if (index[k] < 0) continue;
-            const Texel& tx = texels_[size_t(index[k])];
+            const Texel& tx = texels_[size_t(std::max(index[k], 0))];
             const glm::vec3 d = xf - tx.position;
-            flux[k] = tx.flux;
             r2[k] = glm::dot(d, d);
+            flux[k] = index[k] >= 0 ? tx.flux : 0.0f;
         }
-        for (size_t k = 0; k < count; ++k) t[k] = filter.kernel.position(r2[k]);
+        for (size_t k = 0; k < count; ++k) {
+            t[k] = filter.kernel.position(r2[k]);
+            flux[k] = r2[k] < rMax2 ? flux[k] : 0.0f;
+        }
         const glm::vec4* area = &filter.tapArea[begin];
-        for (size_t k = 0; k < count; ++k) {  // flux x K(r) x measure, RGB in one SSE register
-            if (flux[k] == 0.0f || !(r2[k] < rMax2)) continue;
-            const __m128 kr = filter.kernel.atSse(t[k]);
-            sum = _mm_add_ps(sum, _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(flux[k]), kr), _mm_loadu_ps(&area[k].x)));
-        }
+        for (size_t k = 0; k < count; ++k)  // flux x K(r) x measure, RGB in one SSE register
+            sum = _mm_add_ps(sum, _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(flux[k]), filter.kernel.atSse(t[k])),
+                                             _mm_loadu_ps(&area[k].x)));
     }
     alignas(16) float total[4];
     _mm_store_ps(total, sum);

@@ -52,7 +52,7 @@ struct ViewerSetup {
     std::optional<Material> material;  // the transport file's
     std::vector<Light> pointLights;    // initial lights (mm, the object's frame)
     TextureSpaceOptions tsis;          // split mode, N, seed, shadow map, filter
-    int atlasSize = 1024;              // irradiance map resolution
+    int atlasSize = kDefaultIrradianceMapSize;              // irradiance map resolution
     // Their surface terms at start (vertex_surface_terms.h; prt-pointlight --specular,
     // --specular-roughness, --single-scattering, --single-scattering-samples).
     bool pointSpecular = false;

@@ -49,7 +49,7 @@ struct Options {
     std::vector<std::string> lights;
     std::vector<int> samples{49, 100, 169, 256, 400, 900, 1600, 2500};
     std::string split = "hybrid", evaluate = "vertex";
-    int atlasSize = 1024, repeat = 5, seeds = 1;
+    int atlasSize = kDefaultIrradianceMapSize, repeat = 5, seeds = 1;
     double epsilon = 0.0, exposure = 0.0;
     bool reference = false;
     std::string materialChange;
@@ -169,15 +169,17 @@ int run(const Options& o) {
     if (o.reference)
         std::printf("reference: Jensen-Buhler epsilon %g over %zu face centroids, per pixel, %.2f s\n", o.epsilon,
                     mesh.triangleCount(), referenceSeconds);
-    std::printf("| N | irradiance map ms | shadow maps ms | draws ms | sums ms | new light: ms (fps) | sums only: fps |%s\n",
+    std::printf("| N | irradiance map ms | shadow maps ms | draws ms | sums ms | shading ms | new light: ms (fps) | "
+                "sums only: fps |%s\n",
                 o.reference ? " RMSE (displayed) | rel. RMSE |" : "");
-    std::printf("|---|---|---|---|---|---|---|%s\n", o.reference ? "---|---|" : "");
+    std::printf("|---|---|---|---|---|---|---|---|%s\n", o.reference ? "---|---|" : "");
     nlohmann::json rows = nlohmann::json::array();
     for (int n : o.samples) {
         TextureSpaceOptions on = to;
         on.samples = n;
         TextureSpaceRenderer r(mesh, scene, atlas, material, on);
-        std::vector<double> irr, maps, draws, sums;
+        std::vector<double> irr, maps, draws, sums, shading;
+        const VertexInterpolation view = vertexInterpolation(g, mesh, material.eta, to.fresnel);
         Image image;
         for (int k = 0; k < o.repeat; ++k) {
             r.setLights(lights);
@@ -185,20 +187,25 @@ int run(const Options& o) {
             irr.push_back(1e3 * t.irradianceSeconds);
             maps.push_back(1e3 * t.shadowMapSeconds);
             draws.push_back(1e3 * t.samplingSeconds);
-            const Stopwatch s;
+            Stopwatch s;
             if (perVertex) {
                 const std::vector<glm::vec3> m = r.vertexExitance();
-                if (m.empty()) throw Error("bench", "no vertices");
+                sums.push_back(s.milliseconds());
+                s.restart();
+                image = r.shadeVertices(view, m);
+                shading.push_back(s.milliseconds());
             } else {
-                image = r.render(g);
+                image = r.render(g);  // the sums and the shading at every pixel
+                sums.push_back(s.milliseconds());
+                shading.push_back(0.0);
             }
-            sums.push_back(s.milliseconds());
         }
-        const double total = median(irr) + median(maps) + median(draws) + median(sums);
-        std::printf("| %d | %.2f | %.2f | %.2f | %.2f | %.1f (%.1f) | %.1f |", n, median(irr), median(maps),
-                    median(draws), median(sums), total, 1e3 / total, 1e3 / median(sums));
+        const double total = median(irr) + median(maps) + median(draws) + median(sums) + median(shading);
+        std::printf("| %d | %.2f | %.2f | %.2f | %.2f | %.2f | %.1f (%.1f) | %.1f |", n, median(irr), median(maps),
+                    median(draws), median(sums), median(shading), total, 1e3 / total, 1e3 / median(sums));
         nlohmann::json row = {{"samples", n},           {"irradiance_ms", median(irr)}, {"shadow_maps_ms", median(maps)},
-                              {"draws_ms", median(draws)}, {"sums_ms", median(sums)},    {"frame_ms", total}};
+                              {"draws_ms", median(draws)}, {"sums_ms", median(sums)},    {"shading_ms", median(shading)},
+                              {"frame_ms", total}};
         if (o.reference) {
             // RMS over seeds of the error of one frame.
             double d2 = 0.0, r2 = 0.0;
@@ -261,6 +268,7 @@ int main(int argc, char** argv) {
         app.add_option("--light-map", o.tsis.lightMapSize, "Shadow map resolution")->capture_default_str();
         app.add_option("--rings", o.tsis.rings, "L")->capture_default_str();
         app.add_option("--ring-samples", o.tsis.ringSamples, "C")->capture_default_str();
+        app.add_option("--cluster-angle", o.tsis.clusterAngle, "theta (0: every sample)")->capture_default_str();
         app.add_option("--repeat", o.repeat, "Runs per N (the median is reported)")->capture_default_str();
         app.add_flag("--reference", o.reference, "Also render Jensen-Buhler and report the error at each N");
         app.add_option("--epsilon", o.epsilon, "Jensen-Buhler's epsilon for --reference (0 = brute force)")
