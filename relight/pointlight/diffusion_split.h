@@ -93,9 +93,15 @@ public:
     // at(t, r2) as (R, G, B, 0) in one SSE register, for the SIMD loops; the caller
     // checks r2 < rMax2() (beyond it the kernel is 0).
     __m128 atSse(float t) const {
-        const int i = std::min(int(t), last_);
+        const int i = node(t);
+        return lerpSse(i, _mm_set1_ps(t - float(i)));
+    }
+    // atSse split for tables on one grid (same rMax and entries): the node below t, and
+    // the interpolation at node i with the fraction f (t - i in every lane).
+    int node(float t) const { return std::min(int(t), last_); }
+    __m128 lerpSse(int i, __m128 f) const {
         const __m128 a = _mm_loadu_ps(&values_[size_t(i)].x), b = _mm_loadu_ps(&values_[size_t(i) + 1].x);
-        return _mm_add_ps(a, _mm_mul_ps(_mm_set1_ps(t - float(i)), _mm_sub_ps(b, a)));
+        return _mm_add_ps(a, _mm_mul_ps(f, _mm_sub_ps(b, a)));
     }
     float rMax2() const { return rMax2_; }
 

@@ -393,6 +393,8 @@ void renderTextureSpaceAnimation(const PointAnimation& a, TextureSpaceRenderer& 
         throw Error("--method", "tsis animates the material and size only (--material-path / --size-path); move "
                                 "its lights interactively in prt-relight view");
     validateAnimation(a, {});
+    // The view's pixel list, the same for every frame (one G-buffer, one eta).
+    const VertexInterpolation view = perVertex ? renderer.interpolation(g) : VertexInterpolation{};
     for (int k = 0; k < a.frames; ++k) {
         AnimationFrameInfo info;
         info.frame = k;
@@ -404,7 +406,7 @@ void renderTextureSpaceAnimation(const PointAnimation& a, TextureSpaceRenderer& 
         info.hitPixels = g.objectPixels();
         PointFrame frame;
         const Stopwatch t;
-        frame.image = perVertex ? renderer.renderPerVertex(g) : renderer.render(g);
+        frame.image = perVertex ? renderer.shadeVertices(view, renderer.vertexExitance()) : renderer.render(g);
         frame.renderSeconds = t.seconds();
         sink(info, frame);
     }

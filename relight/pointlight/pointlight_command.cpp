@@ -329,13 +329,15 @@ int runTextureSpace(const PointLightCommand& o, ImageWriter& writer, const Trian
     const TextureSpaceTimings& tt = renderer.timings();
     Stopwatch t;
     const GBuffer g = traceGBuffer(scene, mesh, camera);
+    // Per vertex, the view's pixel list belongs with the G-buffer (once per view).
+    const VertexInterpolation view = evaluate == "vertex" ? renderer.interpolation(g) : VertexInterpolation{};
     const double tGBuffer = t.seconds();
     t.restart();
     if (animation.kind == AnimationKind::MaterialPath)
         return runTextureSpaceAnimation(o, writer, animation, renderer, g, evaluate == "vertex", settings.material,
                                         settings.baseColour, mesh, scene, lights, surface, tGBuffer,
                                         output, start);
-    Image image = evaluate == "vertex" ? renderer.renderPerVertex(g) : renderer.render(g);
+    Image image = evaluate == "vertex" ? renderer.shadeVertices(view, renderer.vertexExitance()) : renderer.render(g);
     if (settings.baseColour) applyBaseColour(image, g, *settings.baseColour);
     const double tEval = t.seconds();
     const SurfaceTerms terms = renderSurfaceTerms(g, mesh, scene, lights, material, surface, settings.baseColour);
@@ -344,9 +346,9 @@ int runTextureSpace(const PointLightCommand& o, ImageWriter& writer, const Trian
     std::printf("frame: %d x %d, %zu hit pixels; %zu distinct sample texels of %d draws\n", g.width, g.height,
                 g.objectPixels(), renderer.uniqueSamples(), to.samples);
     std::printf("times: irradiance map %.4f s, shadow maps %.4f s, draws %.4f s, evaluation %.4f s = %.4f s per "
-                "new light position (%.1f fps); G-buffer %.4f s (once per view)\n",
+                "new light position (%.1f fps); G-buffer%s %.4f s (once per view)\n",
                 tt.irradianceSeconds, tt.shadowMapSeconds, tt.samplingSeconds, tEval, tt.lighting() + tEval,
-                1.0 / std::max(tt.lighting() + tEval, 1e-9), tGBuffer);
+                1.0 / std::max(tt.lighting() + tEval, 1e-9), evaluate == "vertex" ? " and pixel list" : "", tGBuffer);
     t.restart();
     writer.exr(output + ".exr", image);
     writer.png(output + ".png", image, &o.display);

@@ -78,7 +78,7 @@ void TextureSpaceRenderer::buildMaterialState(const Material& material) {
         // Difference steps well inside the dipole's narrowest scale (1 / sigma_t').
         const glm::dvec3 st = material_.sigmaTPrime();
         if (options_.clusterAngle > 0.0)
-            sampleCurvature_ = radialCurvature(kernel, rMax, 1e-3 / std::max({st.x, st.y, st.z}));
+            sampleCurvature_ = radialCurvature(kernel, rMax, 1e-3 / std::max({st.x, st.y, st.z}), sampleKernel_.entries());
     }
     filter_ = LocalFilter();
     if (usesFilter())
@@ -249,9 +249,12 @@ void clusterSums(const RadialTable& kernel, const RadialCurvature& curvature, co
             __m128 acc = _mm_setzero_ps();
             for (size_t j = 0; j < block; ++j) {
                 if (!(r2[j] < rMax2)) continue;
-                const __m128 k = _mm_add_ps(kernel.atSse(t[j]),
-                                            _mm_add_ps(_mm_mul_ps(_mm_set1_ps(q[j]), curvature.along.atSse(t[j])),
-                                                       _mm_mul_ps(_mm_set1_ps(tr[j]), curvature.across.atSse(t[j]))));
+                // The three tables share the grid: one node and fraction for all.
+                const int i = kernel.node(t[j]);
+                const __m128 f = _mm_set1_ps(t[j] - float(i));
+                const __m128 k = _mm_add_ps(kernel.lerpSse(i, f),
+                                            _mm_add_ps(_mm_mul_ps(_mm_set1_ps(q[j]), curvature.along.lerpSse(i, f)),
+                                                       _mm_mul_ps(_mm_set1_ps(tr[j]), curvature.across.lerpSse(i, f))));
                 acc = _mm_add_ps(acc, _mm_mul_ps(_mm_loadu_ps(&w[j].x), k));
             }
             alignas(16) float sum[4];
@@ -435,8 +438,12 @@ Image TextureSpaceRenderer::shadeVertices(const VertexInterpolation& view, const
     return out;
 }
 
+VertexInterpolation TextureSpaceRenderer::interpolation(const GBuffer& g) const {
+    return vertexInterpolation(g, *mesh_, material_.eta, options_.fresnel);
+}
+
 Image TextureSpaceRenderer::renderPerVertex(const GBuffer& g) const {
-    return shadeVertices(vertexInterpolation(g, *mesh_, material_.eta, options_.fresnel), vertexExitance());
+    return shadeVertices(interpolation(g), vertexExitance());
 }
 
 }  // namespace prt

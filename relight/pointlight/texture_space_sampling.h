@@ -186,6 +186,9 @@ public:
     // on the object, black background with A = 0. `view` from vertexInterpolation with
     // this renderer's mesh, eta and Fresnel model.
     Image shadeVertices(const VertexInterpolation& view, const std::vector<glm::vec3>& m) const;
+    // vertexInterpolation with this renderer's mesh, eta and Fresnel model (material
+    // changes keep eta, so it serves every material of the renderer).
+    VertexInterpolation interpolation(const GBuffer& g) const;
     Image renderPerVertex(const GBuffer& g) const;
 
     const Material& material() const { return material_; }

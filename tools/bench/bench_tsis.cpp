@@ -269,6 +269,7 @@ int main(int argc, char** argv) {
         app.add_option("--rings", o.tsis.rings, "L")->capture_default_str();
         app.add_option("--ring-samples", o.tsis.ringSamples, "C")->capture_default_str();
         app.add_option("--cluster-angle", o.tsis.clusterAngle, "theta (0: every sample)")->capture_default_str();
+        app.add_option("--importance-bound", o.tsis.importanceBound, "c in mm^-1 (R_p)")->capture_default_str();
         app.add_option("--repeat", o.repeat, "Runs per N (the median is reported)")->capture_default_str();
         app.add_flag("--reference", o.reference, "Also render Jensen-Buhler and report the error at each N");
         app.add_option("--epsilon", o.epsilon, "Jensen-Buhler's epsilon for --reference (0 = brute force)")
