@@ -192,7 +192,7 @@ namespace {
 // block: distances and table positions in loops the compiler vectorises, then the
 // table reads and the weighted sums (RGB in one SSE register; float within a block,
 // double across blocks: the same order for one point or many). The table reads stay
-// scalar: AVX2 gathers measured slower.
+// scalar (docs/point-lights.md, "Clustered sums and the defaults", on gathers).
 void kernelSums(const RadialTable& kernel, const SampleTerms& s, const glm::vec3* points, size_t count,
                 glm::dvec3* out) {
     constexpr size_t kBlock = 64;

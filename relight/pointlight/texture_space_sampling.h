@@ -86,8 +86,8 @@
 
 namespace prt {
 
-// The defaults (docs/point-lights.md, "The defaults"): theta of the clustered sums and
-// the irradiance map's resolution (the surface atlas's, surface_atlas.h).
+// Defaults (docs/point-lights.md, "Clustered sums and the defaults"): theta of the
+// clustered sums and the irradiance map's resolution (the surface atlas's).
 inline constexpr double kDefaultClusterAngle = 1.2;
 inline constexpr int kDefaultIrradianceMapSize = 256;
 
