@@ -177,8 +177,12 @@ TEST(MemoryEstimate, LandsNearTheMeasuredPeakOfRealJobs) {
         const double ratio = double(m.estimate) / double(m.peak);
         std::printf("%s: estimate %s (largest: %s), measured peak %s above the start, ratio %.2f\n", name,
                     formatBytes(m.estimate).c_str(), m.largest.c_str(), formatBytes(m.peak).c_str(), ratio);
+        // Above: the estimate is an upper bound with its 1.5x margin. Below 2.5: it is not
+        // uselessly generous. The same job's peak moves by a third from run to run (the
+        // single-scattering job: 90 MB alone, 68 MB beside another test under ctest -j2,
+        // ratios 1.61 and 2.13; malloc's per-thread arenas), so 2.0 was too tight.
         EXPECT_GE(ratio, 0.75) << name;
-        EXPECT_LE(ratio, 2.0) << name;
+        EXPECT_LE(ratio, 2.5) << name;
     }
 }
 
