@@ -25,8 +25,8 @@
 // jensen_buhler.h (exact Fresnel or Keng's).
 //
 // PER MATERIAL (the constructor and setMaterial): R_p (importanceRadius), the sample
-// kernel's R_d table (R_d or R_d W_g) and the local filter (its R_d W_l table, ring
-// radii and tap weights). Nothing else depends on sigma_a or sigma_s': the atlas, the
+// kernel's R_d table (R_d or R_d W_g) with, when theta > 0, its curvature tables (see
+// CLUSTERS) and the local filter (its R_d W_l table, ring radii and tap weights). Nothing else depends on sigma_a or sigma_s': the atlas, the
 // irradiance map, the pyramid and the draws (p_t is the irradiance's), and the shadow
 // maps (they store transmitted flux, which depends on eta alone; their power
 // normalisation is the atlas's power) are all REUSED by setMaterial, so a material
@@ -54,7 +54,8 @@
 // over every sample in draw order.
 //
 // EVALUATION. Per pixel of a G-buffer (render), or per mesh vertex then interpolated
-// barycentrically at every pixel (renderPerVertex: fewer sums when the mesh has fewer
+// barycentrically at every pixel (renderPerVertex = shadeVertices of vertexExitance
+// over the view's pixel list, VertexInterpolation: fewer sums when the mesh has fewer
 // vertices than the frame has object pixels; exact at vertices, linear between).
 //
 // The reference is the Jensen-Buhler renderer at epsilon = 0 on the same irradiance
