@@ -107,7 +107,7 @@ TEST(DiffusionSplit, CurvatureTablesMatchAGaussiansClosedForms) {
     // A = (k'' - k'/r) / 2 = 2 r^2 k / s^4 and B = k' / (2 r) = -k / s^2.
     const double s = 1.7;
     const RadialKernel k = [s](double r) { return glm::dvec3(1.0, 2.0, 3.0) * std::exp(-r * r / (s * s)); };
-    const RadialCurvature c = radialCurvature(k, 12.0, 1e-3);
+    const RadialCurvature c = radialCurvature(radialNodes(k, 12.0), 12.0);
     for (double r = 0.0; r < 8.0; r += 0.0371) {
         const double g = std::exp(-r * r / (s * s));
         for (int ch = 0; ch < 3; ++ch) {
@@ -116,7 +116,8 @@ TEST(DiffusionSplit, CurvatureTablesMatchAGaussiansClosedForms) {
             EXPECT_NEAR(c.across(float(r * r))[ch], b, 2e-4 * (ch + 1)) << r;
         }
     }
-    test::expectErrorSubject([&] { radialCurvature(k, 12.0, 0.0); }, "diffusion table");
+    test::expectErrorSubject([&] { radialCurvature({glm::dvec3(1.0), glm::dvec3(1.0)}, 12.0); }, "diffusion table");
+    test::expectErrorSubject([&] { radialNodes(k, -1.0); }, "diffusion table");
 }
 
 TEST(DiffusionSplit, SecondOrderClusterExpansionLeavesThirdOrder) {
@@ -128,8 +129,9 @@ TEST(DiffusionSplit, SecondOrderClusterExpansionLeavesThirdOrder) {
     const Material m = materialByName("Skin1");
     const DiffusionSplit split{.rp = importanceRadius(m, 0.1)};
     const RadialKernel k = globalDiffusionKernel(m, split);
-    const RadialTable table(k, 40.0);
-    const RadialCurvature curvature = radialCurvature(k, 40.0, 1e-3 / std::max({m.sigmaTPrime().x, m.sigmaTPrime().y, m.sigmaTPrime().z}));
+    const std::vector<glm::dvec3> nodes = radialNodes(k, 40.0);
+    const RadialTable table(nodes, 40.0);
+    const RadialCurvature curvature = radialCurvature(nodes, 40.0);
     const glm::dvec3 x(0.0, 0.0, 0.0), u = glm::normalize(glm::dvec3(1.0, 0.4, 0.2));
     const double d = 4.0;
     auto errors = [&](double a) {

@@ -51,19 +51,31 @@ double DiffusionSplit::localWeight(double r) const {
     return r <= rp ? 1.0 - 0.5 * std::exp((r - rp) * sharpness) : 0.5 * std::exp(-(r - rp) * sharpness);
 }
 
-RadialTable::RadialTable(const std::function<glm::dvec3(double r)>& kernel, double rMax, int entries) {
+std::vector<glm::dvec3> radialNodes(const RadialKernel& kernel, double rMax, int entries) {
     if (!std::isfinite(rMax) || !(rMax > 0.0)) throw Error("diffusion table", "rMax must be finite and > 0");
     if (entries < 2) throw Error("diffusion table", "needs at least 2 entries");
+    std::vector<glm::dvec3> nodes(size_t(entries) + 1);
+    for (int i = 0; i <= entries; ++i) {
+        const double t = double(i) / double(entries);
+        nodes[size_t(i)] = kernel(rMax * t * t);
+    }
+    return nodes;
+}
+
+RadialTable::RadialTable(const std::function<glm::dvec3(double r)>& kernel, double rMax, int entries)
+    : RadialTable(radialNodes(kernel, rMax, entries), rMax) {}
+
+RadialTable::RadialTable(const std::vector<glm::dvec3>& nodes, double rMax) {
+    if (!std::isfinite(rMax) || !(rMax > 0.0)) throw Error("diffusion table", "rMax must be finite and > 0");
+    if (nodes.size() < 3) throw Error("diffusion table", "needs at least 2 entries");
+    const int entries = int(nodes.size()) - 1;
     rMax_ = rMax;
     rMax2_ = float(rMax * rMax);
     invRMax_ = float(1.0 / rMax);
     scale_ = float(entries);
     last_ = entries - 1;
-    values_.resize(size_t(entries) + 1);
-    for (int i = 0; i <= entries; ++i) {
-        const double t = double(i) / double(entries);
-        values_[size_t(i)] = glm::vec4(glm::vec3(kernel(rMax * t * t)), 0.0f);
-    }
+    values_.resize(nodes.size());
+    for (size_t i = 0; i < nodes.size(); ++i) values_[i] = glm::vec4(glm::vec3(nodes[i]), 0.0f);
 }
 
 RadialKernel diffusionKernel(const Material& material) {
@@ -90,32 +102,28 @@ RadialTable globalDiffusionTable(const Material& material, const DiffusionSplit&
     return RadialTable(globalDiffusionKernel(material, split), rMax);
 }
 
-RadialCurvature radialCurvature(const RadialKernel& kernel, double rMax, double h, int entries) {
-    if (!std::isfinite(h) || !(h > 0.0)) throw Error("diffusion table", "the difference step must be finite and > 0");
-    // k'(r) and k''(r) by central differences, once per node (the two tables share them).
-    struct Derivatives {
-        glm::dvec3 first, second;
-    };
-    auto at = [&](double r) {
-        const glm::dvec3 below = kernel(std::abs(r - h)), centre = kernel(r), above = kernel(r + h);
-        return Derivatives{(above - below) / (2.0 * h), (above - 2.0 * centre + below) / (h * h)};
-    };
-    const double tiny = 1e-9 * rMax;
-    RadialCurvature c;
-    c.along = RadialTable(
-        [&](double r) {
-            if (r < tiny) return glm::dvec3(0.0);
-            const Derivatives d = at(r);
-            return 0.5 * (d.second - d.first / r);
-        },
-        rMax, entries);
-    c.across = RadialTable(
-        [&](double r) {
-            const Derivatives d = at(r);
-            return r < tiny ? 0.5 * d.second : 0.5 * d.first / r;
-        },
-        rMax, entries);
-    return c;
+RadialCurvature radialCurvature(const std::vector<glm::dvec3>& k, double rMax) {
+    if (k.size() < 3) throw Error("diffusion table", "needs at least 2 entries");
+    const size_t last = k.size() - 1;
+    const double entries = double(last);
+    auto radius = [&](size_t i) { return rMax * (double(i) / entries) * (double(i) / entries); };
+    std::vector<glm::dvec3> along(k.size()), across(k.size());
+    // r = 0: k = k(0) + k''(0) r^2 / 2 + O(r^4), k being even.
+    along[0] = glm::dvec3(0.0);
+    across[0] = (k[1] - k[0]) / (radius(1) * radius(1));
+    for (size_t i = 1; i < last; ++i) {
+        // Second-order differences on the uneven spacing h1 = r_i - r_i-1, h2 = r_i+1 - r_i.
+        const double r = radius(i), h1 = r - radius(i - 1), h2 = radius(i + 1) - r;
+        const glm::dvec3 first = (-h2 / (h1 * (h1 + h2))) * k[i - 1] + ((h2 - h1) / (h1 * h2)) * k[i] +
+                                 (h1 / (h2 * (h1 + h2))) * k[i + 1];
+        const glm::dvec3 second =
+            2.0 * (k[i - 1] / (h1 * (h1 + h2)) - k[i] / (h1 * h2) + k[i + 1] / (h2 * (h1 + h2)));
+        along[i] = 0.5 * (second - first / r);
+        across[i] = 0.5 * first / r;
+    }
+    along[last] = along[last - 1];
+    across[last] = across[last - 1];
+    return RadialCurvature{RadialTable(along, rMax), RadialTable(across, rMax)};
 }
 
 }  // namespace prt

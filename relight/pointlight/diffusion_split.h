@@ -66,6 +66,8 @@ public:
     RadialTable() = default;
     // kernel(r) for r in [0, rMax]; rMax > 0 (mm), entries >= 2. Throws prt::Error otherwise.
     RadialTable(const std::function<glm::dvec3(double r)>& kernel, double rMax, int entries = 4096);
+    // From the kernel's values at the nodes (radialNodes with this rMax).
+    RadialTable(const std::vector<glm::dvec3>& nodes, double rMax);
 
     // k(sqrt(r2)) by linear interpolation on the t grid; 0 for r2 >= rMax^2.
     glm::vec3 operator()(float r2) const {
@@ -122,20 +124,26 @@ RadialTable diffusionTable(const Material& material, double rMax);
 RadialTable localDiffusionTable(const Material& material, const DiffusionSplit& split, double rMax);
 RadialTable globalDiffusionTable(const Material& material, const DiffusionSplit& split, double rMax);
 
+// k at the nodes of the t grid: entries + 1 values, node i at r = rMax (i / entries)^2.
+// Throws prt::Error for rMax not finite and > 0 or entries < 2.
+std::vector<glm::dvec3> radialNodes(const RadialKernel& kernel, double rMax, int entries = 4096);
+
 // The second-order part of a radial kernel's Taylor expansion. For y = c + d near c,
 // with x - c = r u (u unit), the Hessian of k(|x - y|) in y is
 // k''(r) u u^T + (k'(r) / r) (I - u u^T), so a sum of weights w_i at c + d_i with
 // sum w_i d_i = 0 is, to second order,
 //     sum w_i k(|x - c - d_i|) = W [k(r) + A(r) u^T S u + B(r) tr S],
 //     A = (k'' - k'/r) / 2,  B = k' / (2 r),  S = sum w_i d_i d_i^T / W,  W = sum w_i.
-// Both are tabulated as RadialTables on the same grid as the kernel's (same rMax and
-// entries: one position() serves all three), from central differences of k with step h
-// (mm, > 0; k is even in r, so r - h < 0 reads k(|r - h|); at r = 0, A = 0 and B =
-// k''(0) / 2). Throws prt::Error as RadialTable for a bad rMax or entries, and for h <= 0.
+// Both are tabulated as RadialTables on the kernel's own grid (the same nodes: one
+// position() serves all three), from the kernel's node values (radialNodes: no
+// evaluation of k beyond the kernel table's own) by second-order differences on the
+// uneven node spacing; at r = 0, A = 0 and B = k''(0) / 2 from k being even in r; the
+// last node repeats the one before it. Throws prt::Error as RadialTable for a bad rMax
+// or fewer than 3 nodes.
 struct RadialCurvature {
     RadialTable along;   // A(r), mm^-4
     RadialTable across;  // B(r), mm^-4
 };
-RadialCurvature radialCurvature(const RadialKernel& kernel, double rMax, double h, int entries = 4096);
+RadialCurvature radialCurvature(const std::vector<glm::dvec3>& nodes, double rMax);
 
 }  // namespace prt

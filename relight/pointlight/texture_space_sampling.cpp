@@ -74,11 +74,9 @@ void TextureSpaceRenderer::buildMaterialState(const Material& material) {
     if (usesSamples()) {
         const RadialKernel kernel = options_.mode == TextureSpaceMode::Sampling ? diffusionKernel(material_)
                                                                                 : globalDiffusionKernel(material_, split_);
-        sampleKernel_ = RadialTable(kernel, rMax);
-        // Difference steps well inside the dipole's narrowest scale (1 / sigma_t').
-        const glm::dvec3 st = material_.sigmaTPrime();
-        if (options_.clusterAngle > 0.0)
-            sampleCurvature_ = radialCurvature(kernel, rMax, 1e-3 / std::max({st.x, st.y, st.z}), sampleKernel_.entries());
+        const std::vector<glm::dvec3> nodes = radialNodes(kernel, rMax);
+        sampleKernel_ = RadialTable(nodes, rMax);
+        if (options_.clusterAngle > 0.0) sampleCurvature_ = radialCurvature(nodes, rMax);
     }
     filter_ = LocalFilter();
     if (usesFilter())
