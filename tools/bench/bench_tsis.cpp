@@ -179,7 +179,8 @@ int run(const Options& o) {
         on.samples = n;
         TextureSpaceRenderer r(mesh, scene, atlas, material, on);
         std::vector<double> irr, maps, draws, sums, shading;
-        const VertexInterpolation view = vertexInterpolation(g, mesh, material.eta, to.fresnel);
+        // The view's pixel list, once per view as in prt-pointlight (per vertex only).
+        const VertexInterpolation view = perVertex ? r.interpolation(g) : VertexInterpolation{};
         Image image;
         for (int k = 0; k < o.repeat; ++k) {
             r.setLights(lights);
