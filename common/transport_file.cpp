@@ -126,6 +126,16 @@ std::string checkVectors(const SparseRgbVectors& s, uint64_t vertices, uint32_t 
     if (s.scales.size() != 3 * vertices)
         return "has " + u64(s.scales.size()) + " scales, expected 3 per vertex (" +
                u64(3 * vertices) + ")";
+    const bool eightBit = s.haarBits == 8;
+    if (s.haarBits != 16 && !eightBit) return "Haar values of " + u64(s.haarBits) + " bits (16 or 8)";
+    if (!eightBit && (s.shFrom != UINT32_MAX || !s.shScales.empty()))
+        return "SH scales on 16-bit vectors (only 8-bit Haar values have them)";
+    const bool shScales = eightBit && s.shFrom != UINT32_MAX;
+    if (shScales && (shTerms == 0 || s.shFrom != 6 * cubemapSize * cubemapSize))
+        return "SH scales from index " + u64(s.shFrom) + " but the SH part " +
+               (shTerms == 0 ? std::string("is absent") : "starts at " + u64(6 * cubemapSize * cubemapSize));
+    if (s.shScales.size() != (shScales ? 3 * vertices : 0))
+        return "has " + u64(s.shScales.size()) + " SH scales, expected " + u64(shScales ? 3 * vertices : 0);
     // Monotone offsets from 0 to the coefficient count keep every range in bounds.
     for (uint64_t v = 0; v < vertices; ++v)
         if (s.offsets[v + 1] < s.offsets[v])
@@ -146,7 +156,16 @@ std::string checkVectors(const SparseRgbVectors& s, uint64_t vertices, uint32_t 
             if (!std::isfinite(scale) || scale < 0.0f)
                 return "vertex " + u64(v) + ": scale of channel " + std::to_string(c) +
                        " is not a finite non-negative number";
+            if (shScales && (!std::isfinite(s.shScales[3 * v + c]) || s.shScales[3 * v + c] < 0.0f))
+                return "vertex " + u64(v) + ": SH scale of channel " + std::to_string(c) +
+                       " is not a finite non-negative number";
         }
+        if (eightBit)
+            for (uint32_t n = begin; n < end; ++n)
+                for (int c = 0; c < 3; ++c)
+                    if (s.indices[n] < s.shFrom && std::abs(int(s.values[3 * size_t(n) + c])) > kEightBitLevels)
+                        return "vertex " + u64(v) + ": 8-bit Haar value " + std::to_string(s.values[3 * size_t(n) + c]) +
+                               " outside -127..127";
     }
     return {};
 }
@@ -238,6 +257,9 @@ std::string checkFile(const TransportFile& f) {
             (f.shTerms == 0 || b.shFrom != 6 * f.cubemapSize * f.cubemapSize))
             return name + ": SH scales from index " + u64(b.shFrom) + " but the SH part " +
                    (f.shTerms == 0 ? std::string("is absent") : "starts at " + u64(6 * f.cubemapSize * f.cubemapSize));
+        // 8-bit Haar values are the profile components' encoding (version 6 builds on 5).
+        if (!c.blocked() && v.haarBits == 8 && c.kind != ComponentKind::MultipleScatteringProfiles)
+            return name + ": 8-bit Haar values on a component that is not a radial profile";
         std::string reason = c.blocked() ? checkBlocked(b, f.mesh.vertexCount, f.cubemapSize, f.shTerms)
                                          : checkVectors(v, f.mesh.vertexCount, f.cubemapSize, f.shTerms);
         if (!reason.empty()) return name + ": " + reason;
@@ -320,15 +342,25 @@ void SparseRgbVectors::appendVertex(std::span<const uint32_t> idx, std::span<con
         if (idx[order[k]] == idx[order[k - 1]])
             throw Error(subject, "coefficient index " + u64(idx[order[k]]) + " appears twice");
 
-    float scale[3];
-    for (int c = 0; c < 3; ++c) {
+    // Per channel the scale of the Haar part (k < split in sorted order: every index
+    // unless haarBits is 8 with an SH part) and of the SH part.
+    const bool eightBit = haarBits == 8;
+    size_t split = order.size();
+    if (eightBit)
+        while (split > 0 && idx[order[split - 1]] >= shFrom) --split;
+    auto scaleOver = [&](size_t from, size_t to, int c, int levels) {
         float maxAbs = 0.0f;
-        for (size_t k = 0; k < idx.size(); ++k) maxAbs = std::max(maxAbs, std::fabs(rgb[3 * k + c]));
-        // A channel whose maximum is below 32767 * FLT_MIN (its scale would be
+        for (size_t k = from; k < to; ++k) maxAbs = std::max(maxAbs, std::fabs(rgb[3 * order[k] + c]));
+        // A channel whose maximum is below levels * FLT_MIN (its scale would be
         // subnormal) is flushed to zero: scale 0, absolute error < 4e-34.
-        scale[c] = double(maxAbs) < kQuantMax * double(std::numeric_limits<float>::min())
-                       ? 0.0f
-                       : float(double(maxAbs) / kQuantMax);
+        return double(maxAbs) < levels * double(std::numeric_limits<float>::min()) ? 0.0f
+                                                                                   : float(double(maxAbs) / levels);
+    };
+    const int haarLevels = eightBit ? kEightBitLevels : kQuantMax;
+    float scale[3], shScale[3];
+    for (int c = 0; c < 3; ++c) {
+        scale[c] = scaleOver(0, split, c, haarLevels);
+        shScale[c] = scaleOver(split, order.size(), c, kQuantMax);
     }
     const size_t base = indices.size();
     indices.resize(base + idx.size());
@@ -336,17 +368,28 @@ void SparseRgbVectors::appendVertex(std::span<const uint32_t> idx, std::span<con
     for (size_t k = 0; k < order.size(); ++k) {
         const uint32_t src = order[k];
         indices[base + k] = uint16_t(idx[src]);
+        const float* sc = k < split ? scale : shScale;
+        const int levels = k < split ? haarLevels : kQuantMax;
         for (int c = 0; c < 3; ++c) {
             int q = 0;
-            if (scale[c] > 0.0f) {
-                const double r = std::nearbyint(double(rgb[3 * src + c]) / double(scale[c]));
-                q = int(std::clamp(r, double(-kQuantMax), double(kQuantMax)));
+            if (sc[c] > 0.0f) {
+                const double r = std::nearbyint(double(rgb[3 * src + c]) / double(sc[c]));
+                q = int(std::clamp(r, double(-levels), double(levels)));
             }
             values[3 * (base + k) + c] = int16_t(q);
         }
     }
     scales.insert(scales.end(), scale, scale + 3);
+    if (eightBit && shFrom != UINT32_MAX) shScales.insert(shScales.end(), shScale, shScale + 3);
     offsets.push_back(uint32_t(indices.size()));
+}
+
+void SparseRgbVectors::useEightBitHaar(uint32_t shIndex) {
+    if (!indices.empty() || vertexCount() != 0)
+        throw Error("transport vectors", "8-bit Haar values must be chosen before the first vertex");
+    haarBits = 8;
+    shFrom = shIndex;
+    shScales.clear();
 }
 
 void SparseRgbVectors::dequantizeVertex(size_t v, std::vector<uint32_t>& idx,
@@ -359,12 +402,13 @@ void SparseRgbVectors::dequantizeVertex(size_t v, std::vector<uint32_t>& idx,
     rgb.resize(3 * size_t(end - begin));
     for (uint32_t n = begin; n < end; ++n)
         for (int c = 0; c < 3; ++c)
-            rgb[3 * size_t(n - begin) + c] = float(values[3 * size_t(n) + c]) * scales[3 * v + c];
+            rgb[3 * size_t(n - begin) + c] = float(values[3 * size_t(n) + c]) * scaleOf(v, n, c);
 }
 
 void SparseRgbVectors::reserve(size_t vertices, size_t coefficients) {
     offsets.reserve(vertices + 1);
     scales.reserve(3 * vertices);
+    if (haarBits == 8 && shFrom != UINT32_MAX) shScales.reserve(3 * vertices);
     indices.reserve(coefficients);
     values.reserve(3 * coefficients);
 }
@@ -374,11 +418,12 @@ void SparseRgbVectors::clear() {
     indices.clear();
     values.clear();
     scales.clear();
+    shScales.clear();
 }
 
 size_t SparseRgbVectors::byteSize() const {
     return offsets.size() * sizeof(uint32_t) + indices.size() * sizeof(uint16_t) +
-           values.size() * sizeof(int16_t) + scales.size() * sizeof(float);
+           values.size() * sizeof(int16_t) + (scales.size() + shScales.size()) * sizeof(float);
 }
 
 bool StoredRadialBasis::operator==(const StoredRadialBasis& o) const {

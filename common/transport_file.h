@@ -72,11 +72,32 @@ std::string componentName(ComponentKind kind, uint32_t term = 0);
 // vertex's per-channel maximum), plus float rounding of the scale and the product,
 // less than 2^-23 * max_n |v_nc|: kQuantizationMaxRelativeError below. (A channel
 // whose maximum is below 32767 * FLT_MIN ~ 3.9e-34 is stored as zero, scale 0.)
+//
+// EIGHT-BIT HAAR VALUES (haarBits = 8; the radial-profile components of an editable
+// file, which keep twice the terms in about the bytes): the indices below shFrom (the
+// Haar terms) hold q in [-127, 127] with scale = max over those indices / 127, so their
+// error is at most max / 254 (kEightBitHaarMaxRelativeError); the indices from shFrom
+// on (the SH part, transport_file.h's shIndexBegin) keep 16 bits with a scale of their
+// own, shScales[3v + c] = max over them / 32767. WHY: the SH band-0 term dwarfs the
+// Haar ones, and one 8-bit scale set by it would leave the Haar terms a few levels.
+// shFrom = UINT32_MAX (no SH part): every index is a Haar index and shScales is empty.
+// haarBits = 16 (the default): shFrom = UINT32_MAX and shScales empty, as above.
 struct SparseRgbVectors {
     std::vector<uint32_t> offsets{0};  // V + 1; vertex v owns [offsets[v], offsets[v+1])
     std::vector<uint16_t> indices;     // strictly increasing within a vertex, < 6 N^2 + shTerms
     std::vector<int16_t> values;       // 3 per coefficient, RGB interleaved
-    std::vector<float> scales;         // 3 per vertex: value = q * scales[3v + c]
+    std::vector<float> scales;         // 3 per vertex: value = q * scales[3v + c] (index < shFrom)
+    uint32_t haarBits = 16;            // 16, or 8 (EIGHT-BIT HAAR VALUES)
+    uint32_t shFrom = UINT32_MAX;      // with haarBits 8: the first index scaled by shScales
+    std::vector<float> shScales;       // 3 per vertex iff haarBits 8 and shFrom set
+
+    // Switches an empty vector set to EIGHT-BIT HAAR VALUES, the SH part (if any, else
+    // UINT32_MAX) from shIndex on. Throws prt::Error when vertices were appended.
+    void useEightBitHaar(uint32_t shIndex);
+    // The scale of coefficient n (of vertex v), channel c.
+    float scaleOf(size_t v, size_t n, int c) const {
+        return indices[n] < shFrom ? scales[3 * v + size_t(c)] : shScales[3 * v + size_t(c)];
+    }
 
     size_t vertexCount() const { return offsets.empty() ? 0 : offsets.size() - 1; }
     size_t coefficientCount() const { return indices.size(); }
@@ -103,6 +124,10 @@ struct SparseRgbVectors {
 
 // Bound of |v - dequantized v| / max_n |v_nc| (see SparseRgbVectors).
 inline constexpr double kQuantizationMaxRelativeError = 0.5 / 32767.0 + 1.0 / 8388608.0;
+// The same bound for the Haar terms of haarBits = 8 vectors, relative to the maximum over
+// the vertex's Haar terms in that channel (its SH terms keep kQuantizationMaxRelativeError
+// relative to theirs).
+inline constexpr double kEightBitHaarMaxRelativeError = 0.5 / 127.0 + 1.0 / 8388608.0;
 
 // A component holds its vectors in one of two encodings: per vertex (`vectors`, the
 // default) or in blocks of 16 vertices sharing their indices (`blocks`,
@@ -192,7 +217,9 @@ inline constexpr const char* kShardVerticesParameter = "shard_vertices";
 // construction), then writes through writeAtomically (common/atomic_file.h): on any
 // failure an existing file at `path` is untouched, no temporary file is left and
 // prt::Error(path, reason) is thrown. The format version is the lowest that holds the
-// file: 5 with a radial basis (whatever else it holds), else 4 with SH terms and a
+// file: 6 with 8-bit profile components (SparseRgbVectors::haarBits; the writer stores
+// the offsets and indices of a profile component equal to the one before it once), 5
+// with a radial basis (whatever else it holds), else 4 with SH terms and a
 // blocked component (varint indices, SH scales where BlockedRgbVectors::shFrom is
 // set), 3 with SH terms, 2 with a blocked component, else 1, so older readers keep
 // reading what needs nothing newer (docs/transport-format.md, "Compatibility").
@@ -211,7 +238,7 @@ TransportFile loadTransportFile(const std::string& path, const MeshFingerprint& 
 
 // What readTransportFileInfo returns: everything except the vectors and view maps.
 struct TransportFileInfo {
-    uint32_t version = 0;  // the file's format version, 1..5 (see saveTransportFile)
+    uint32_t version = 0;  // the file's format version, 1..6 (see saveTransportFile)
     uint32_t cubemapSize = 0;
     uint32_t shTerms = 0;
     MeshFingerprint mesh;
@@ -228,6 +255,8 @@ struct TransportFileInfo {
         bool blocked = false;       // a BLKC section (blocks of 16 vertices sharing indices)
         uint64_t blockCount = 0;    // blocked only: ceil(vertexCount / 16)
         bool shScales = false;      // blocked only: the SH part has scales of its own (version 4)
+        bool eightBitHaar = false;  // per vertex only: 8-bit Haar values (version 6)
+        bool sharedIndices = false; // 8-bit only: no indices of its own, the component before's
     };
     std::vector<Component> components;
     int viewMapSize = 0;   // 0 when the file has no view maps

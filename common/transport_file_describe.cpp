@@ -173,8 +173,12 @@ std::string describe(const TransportFileInfo& info) {
             c.vertexCount ? double(c.coefficientCount) / double(c.vertexCount) : 0.0;
         char stats[64];
         std::snprintf(stats, sizeof stats, "%.1f mean per vertex", mean);
+        const std::string encoding =
+            c.eightBitHaar ? std::string(info.shTerms ? "8-bit Haar values, 16-bit SH part, " : "8-bit values, ") +
+                                 (c.sharedIndices ? "the indices of the component before, " : "")
+                           : "";
         out += "  " + componentName(c.kind, c.term) + ": " + u64(c.vertexCount) + " vertices, " +
-               u64(c.coefficientCount) + " coefficients (" + stats + "), " +
+               u64(c.coefficientCount) + " coefficients (" + stats + "), " + encoding +
                formatBinaryBytes(c.payloadBytes) + " on disk (" + bytesPerVertex(c.payloadBytes, c.vertexCount) +
                ")\n";
     }

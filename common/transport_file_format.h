@@ -34,7 +34,14 @@ inline constexpr uint32_t kShFormatVersion = 3;           // + SH term count in 
 inline constexpr uint32_t kBlockVarintFormatVersion = 4;  // + varint BLKC indices and SH scales
 // + the radial basis (RBAS) and profile components (kind 4); the SH term count may be 0.
 inline constexpr uint32_t kRadialFormatVersion = 5;
-inline constexpr uint32_t kNewestFormatVersion = kRadialFormatVersion;
+// + COMP flags: 8-bit Haar values with SH scales, offsets and indices shared with the
+// component before (the profile components of an editable file).
+inline constexpr uint32_t kEightBitFormatVersion = 6;
+inline constexpr uint32_t kNewestFormatVersion = kEightBitFormatVersion;
+inline constexpr int kEightBitLevels = 127;  // 8-bit values: [-127, 127]
+// COMP flags (format version 6; reserved zero before).
+inline constexpr uint32_t kCompEightBitHaar = 1;      // values: int8 Haar, int16 SH; SH scales
+inline constexpr uint32_t kCompSharedIndices = 2;     // no offsets or indices: the previous COMP's
 
 inline constexpr uint32_t kEndianMarker = 0x01020304u;
 inline constexpr uint64_t kAlignment = 64;  // every section payload and array starts at a multiple
@@ -86,19 +93,38 @@ inline uint64_t paddingBefore(uint64_t pos) {
     return (kAlignment - (pos + kSectionHeaderBytes) % kAlignment) % kAlignment;
 }
 
-// Byte offsets, relative to the payload start, of a COMP section's arrays.
+// Byte offsets, relative to the payload start, of a COMP section's arrays. With
+// kCompSharedIndices there are no offsets or indices (offsets = indices = 0); with
+// kCompEightBitHaar the values are the Haar values as int8 (3 per Haar coefficient),
+// then at shValues the SH values as int16 (3 per SH coefficient), and after the scales
+// the SH scales when the file has SH terms (shScales > 0).
 struct ComponentLayout {
-    uint64_t offsets = 0, indices = 0, values = 0, scales = 0, total = 0;
+    uint64_t offsets = 0, indices = 0, values = 0, shValues = 0, scales = 0, shScales = 0, total = 0;
 };
 
-// Requires vertices <= kMaxVertices and coefficients <= UINT32_MAX (no overflow).
-inline ComponentLayout componentLayout(uint64_t vertices, uint64_t coefficients) {
+// Requires vertices <= kMaxVertices and shCoefficients <= coefficients <= UINT32_MAX
+// (no overflow). shCoefficients and withShScales only count with kCompEightBitHaar.
+inline ComponentLayout componentLayout(uint64_t vertices, uint64_t coefficients, uint32_t flags = 0,
+                                       uint64_t shCoefficients = 0, bool withShScales = false) {
     ComponentLayout l;
-    l.offsets = kComponentFixedBytes;
-    l.indices = alignUp(l.offsets + (vertices + 1) * sizeof(uint32_t));
-    l.values = alignUp(l.indices + coefficients * sizeof(uint16_t));
-    l.scales = alignUp(l.values + 3 * coefficients * sizeof(int16_t));
+    uint64_t pos = kComponentFixedBytes;
+    if (!(flags & kCompSharedIndices)) {
+        l.offsets = pos;
+        l.indices = alignUp(l.offsets + (vertices + 1) * sizeof(uint32_t));
+        pos = l.indices + coefficients * sizeof(uint16_t);
+    }
+    l.values = alignUp(pos);
+    if (flags & kCompEightBitHaar) {
+        l.shValues = alignUp(l.values + 3 * (coefficients - shCoefficients) * sizeof(int8_t));
+        l.scales = alignUp(l.shValues + 3 * shCoefficients * sizeof(int16_t));
+    } else {
+        l.scales = alignUp(l.values + 3 * coefficients * sizeof(int16_t));
+    }
     l.total = l.scales + 3 * vertices * sizeof(float);
+    if ((flags & kCompEightBitHaar) && withShScales) {
+        l.shScales = alignUp(l.total);
+        l.total = l.shScales + 3 * vertices * sizeof(float);
+    }
     return l;
 }
 

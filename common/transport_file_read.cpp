@@ -501,8 +501,12 @@ TransportComponent readBlockedComponent(FileReader& r, OpenSection& s, const Hea
 // Reads one component section: COMP, or from version 2 on also BLKC. In info mode
 // only the fixed part is read and the arrays are skipped (the returned vectors are
 // left empty).
+// `previous`: the component read just before (nullptr for the first or after a blocked
+// one): an 8-bit component with kCompSharedIndices takes its offsets and indices. In
+// info mode `previousInfo` plays that part for the counts.
 TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t index, bool infoOnly,
-                                 TransportFileInfo::Component* info) {
+                                 TransportFileInfo::Component* info, const TransportComponent* previous,
+                                 const TransportFileInfo::Component* previousInfo) {
     const AlternativeSection blocked{
         Section::BlockedComponent,
         sectionLabel(Section::BlockedComponent, index, h.componentCount),
@@ -522,7 +526,12 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
     const uint32_t term = getU32(b + 4);
     const uint64_t vertices = getU64(b + 8);
     const uint64_t coefficients = getU64(b + 16);
-    const bool reservedZero = allZero(b + 24, size_t(kComponentFixedBytes - 24));
+    // Version 6: flags at 24, zero at 28, the SH coefficient count at 32; reserved zero before.
+    const bool flagged = h.version >= kEightBitFormatVersion;
+    const uint32_t flags = flagged ? getU32(b + 24) : 0;
+    const uint64_t shCoefficients = flagged ? getU64(b + 32) : 0;
+    const bool reservedZero = flagged ? allZero(b + 28, 4) && allZero(b + 40, size_t(kComponentFixedBytes - 40))
+                                      : allZero(b + 24, size_t(kComponentFixedBytes - 24));
 
     auto fail = [&](const std::string& reason) {
         if (infoOnly) r.fail("inconsistent: " + s.label + ": " + reason);
@@ -532,7 +541,24 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
         fail("has " + u64(vertices) + " vertices, the header says " + u64(h.mesh.vertexCount));
     if (coefficients > UINT32_MAX)
         fail(u64(coefficients) + " coefficients exceed the 32-bit offsets");
-    const ComponentLayout l = componentLayout(vertices, coefficients);
+    if (flags & ~(kCompEightBitHaar | kCompSharedIndices)) fail("unknown component flags " + hex32(flags));
+    const bool eightBit = flags & kCompEightBitHaar;
+    const bool shared = flags & kCompSharedIndices;
+    if (shared && !eightBit) fail("shares the previous component's indices without 8-bit values");
+    if (!eightBit && shCoefficients != 0) fail("an SH coefficient count without 8-bit values");
+    if (shCoefficients > coefficients)
+        fail(u64(shCoefficients) + " SH coefficients of " + u64(coefficients) + " coefficients");
+    if (shared) {
+        const bool previousFits = infoOnly ? previousInfo && !previousInfo->blocked && previousInfo->eightBitHaar &&
+                                                 previousInfo->coefficientCount == coefficients
+                                           : previous && previous->vectors.haarBits == 8 &&
+                                                 previous->vectors.coefficientCount() == coefficients;
+        if (!previousFits)
+            fail("shares the indices of the component before it, which is not an 8-bit component of " +
+                 u64(coefficients) + " coefficients");
+    }
+    const bool withShScales = eightBit && h.shTerms > 0;
+    const ComponentLayout l = componentLayout(vertices, coefficients, flags, shCoefficients, withShScales);
     if (l.total != s.length)
         fail(u64(vertices) + " vertices and " + u64(coefficients) + " coefficients need a " +
              u64(l.total) + "-byte payload, the section has " + u64(s.length));
@@ -540,20 +566,62 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
     TransportComponent c;
     c.kind = ComponentKind(kind);
     c.term = term;
-    if (info) *info = {ComponentKind(kind), term, vertices, coefficients, s.length};
+    if (info) {
+        *info = {ComponentKind(kind), term, vertices, coefficients, s.length};
+        info->eightBitHaar = eightBit;
+        info->sharedIndices = shared;
+    }
     if (infoOnly) {
         skipSection(r, s);
     } else {
-        bool paddingZero = readPaddingTo(r, s, l.offsets);
-        readArray(r, s, c.vectors.offsets, vertices + 1);
-        paddingZero &= readPaddingTo(r, s, l.indices);
-        readArray(r, s, c.vectors.indices, coefficients);
+        SparseRgbVectors& v = c.vectors;
+        bool paddingZero = true, shCountMismatch = false;
+        if (shared) {
+            v.offsets = previous->vectors.offsets;
+            v.indices = previous->vectors.indices;
+        } else {
+            paddingZero &= readPaddingTo(r, s, l.offsets);
+            readArray(r, s, v.offsets, vertices + 1);
+            paddingZero &= readPaddingTo(r, s, l.indices);
+            readArray(r, s, v.indices, coefficients);
+        }
         paddingZero &= readPaddingTo(r, s, l.values);
-        readArray(r, s, c.vectors.values, 3 * coefficients);
+        if (eightBit) {
+            v.haarBits = 8;
+            v.shFrom = withShScales ? 6 * h.cubemapSize * h.cubemapSize : UINT32_MAX;
+            std::vector<int8_t> haar;
+            std::vector<int16_t> sh;
+            readArray(r, s, haar, 3 * (coefficients - shCoefficients));
+            paddingZero &= readPaddingTo(r, s, l.shValues);
+            readArray(r, s, sh, 3 * shCoefficients);
+            // Back into one int16 array in coefficient order; the counts must match.
+            v.values.resize(3 * coefficients);
+            size_t nh = 0, ns = 0;
+            bool countsMatch = true;
+            for (size_t n = 0; n < v.indices.size() && countsMatch; ++n) {
+                const bool isSh = v.indices[n] >= v.shFrom;
+                if ((isSh ? ns : nh) + 3 > (isSh ? sh.size() : haar.size())) {
+                    countsMatch = false;
+                    break;
+                }
+                for (int ch = 0; ch < 3; ++ch)
+                    v.values[3 * n + size_t(ch)] = isSh ? sh[ns++] : int16_t(haar[nh++]);
+            }
+            shCountMismatch = !countsMatch || nh != haar.size() || ns != sh.size();
+        } else {
+            readArray(r, s, v.values, 3 * coefficients);
+        }
         paddingZero &= readPaddingTo(r, s, l.scales);
-        readArray(r, s, c.vectors.scales, 3 * vertices);
+        readArray(r, s, v.scales, 3 * vertices);
+        if (l.shScales) {
+            paddingZero &= readPaddingTo(r, s, l.shScales);
+            readArray(r, s, v.shScales, 3 * vertices);
+        }
         closeSection(r, s);
         if (!paddingZero) r.fail("inconsistent: " + s.label + ": non-zero padding between arrays");
+        if (shCountMismatch)
+            r.fail("inconsistent: " + s.label + ": the SH coefficient count " + u64(shCoefficients) +
+                   " does not match the indices");
     }
     checkComponentHeader(r, s, h, kind, term, reservedZero);
     if (!infoOnly) {
@@ -566,7 +634,10 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
 // A version-2 or -4 file without a blocked component is refused: the writer writes such
 // a file as version 1 or 3, so this is a corrupted version field. (A version-3 file with
 // one is what the writer wrote before version 4, and is read as such.)
-void checkVersionMatchesComponents(FileReader& r, const HeadFields& h, bool anyBlocked) {
+void checkVersionMatchesComponents(FileReader& r, const HeadFields& h, bool anyBlocked, bool anyEightBit) {
+    if (h.version == kEightBitFormatVersion && !anyEightBit)
+        r.fail("inconsistent: format version 6 but no component with 8-bit Haar values (a file without one is "
+               "version 5 or lower)");
     if ((h.version == kBlockedFormatVersion || h.version == kBlockVarintFormatVersion) && !anyBlocked)
         r.fail("inconsistent: format version " + u64(h.version) +
                " but no blocked component (a file without one is version " +
@@ -610,10 +681,11 @@ ViewMaps readViewMaps(FileReader& r, bool infoOnly) {
 
 // Reads an RBAS section (version 5). In info mode only the fixed part is read: `out`
 // gets the range and the table's shape, with empty values.
-StoredRadialBasis readRadialBasis(FileReader& r, bool infoOnly) {
-    // A version-5 file always has one (the writer picks version 5 for it alone).
+StoredRadialBasis readRadialBasis(FileReader& r, bool infoOnly, uint32_t version) {
+    // A version-5 or -6 file always has one (the writer picks those versions for it alone).
     const AlternativeSection end{Section::End, sectionLabel(Section::End),
-                                 "format version 5 but no radial basis (a file without one is version 1 to 4)"};
+                                 "format version " + u64(version) +
+                                     " but no radial basis (a file without one is version 1 to 4)"};
     OpenSection s = openSection(r, Section::RadialBasis, sectionLabel(Section::RadialBasis), &end);
     if (s.length < kRadialFixedBytes)
         failAfterChecksum(r, s, "payload is " + u64(s.length) + " bytes, less than the " +
@@ -704,12 +776,17 @@ TransportFile loadImpl(const std::string& path, const MeshFingerprint* expected)
                               f.parameter(kShardVerticesParameter) +
                               ") of a sharded precompute, not a whole transport file: join the shards with "
                               "prt-merge");
-    for (size_t i = 0; i < h.componentCount; ++i)
-        f.components.push_back(readComponent(r, h, i, false, nullptr));
+    for (size_t i = 0; i < h.componentCount; ++i) {
+        const TransportComponent* previous = i > 0 && !f.components.back().blocked() ? &f.components.back() : nullptr;
+        TransportComponent c = readComponent(r, h, i, false, nullptr, previous, nullptr);
+        f.components.push_back(std::move(c));
+    }
     checkVersionMatchesComponents(
-        r, h, std::any_of(f.components.begin(), f.components.end(), [](const auto& c) { return c.blocked(); }));
+        r, h, std::any_of(f.components.begin(), f.components.end(), [](const auto& c) { return c.blocked(); }),
+        std::any_of(f.components.begin(), f.components.end(),
+                    [](const auto& c) { return !c.blocked() && c.vectors.haarBits == 8; }));
     if (h.hasViewMaps) f.viewMaps = readViewMaps(r, false);
-    if (version >= kRadialFormatVersion) f.radialBasis = readRadialBasis(r, false);
+    if (version >= kRadialFormatVersion) f.radialBasis = readRadialBasis(r, false, version);
     readEnd(r, version);
     const std::string reason = checkFile(f);
     if (!reason.empty()) r.fail("inconsistent: " + reason);
@@ -738,11 +815,12 @@ TransportFileInfo readTransportFileInfo(const std::string& path) {
     info.parameters = readParameters(r);
     for (size_t i = 0; i < h.componentCount; ++i) {
         TransportFileInfo::Component c;
-        readComponent(r, h, i, true, &c);
+        readComponent(r, h, i, true, &c, nullptr, info.components.empty() ? nullptr : &info.components.back());
         info.components.push_back(c);
     }
     checkVersionMatchesComponents(
-        r, h, std::any_of(info.components.begin(), info.components.end(), [](const auto& c) { return c.blocked; }));
+        r, h, std::any_of(info.components.begin(), info.components.end(), [](const auto& c) { return c.blocked; }),
+        std::any_of(info.components.begin(), info.components.end(), [](const auto& c) { return c.eightBitHaar; }));
     if (h.hasViewMaps) {
         const ViewMaps m = readViewMaps(r, true);
         info.viewMapSize = m.size;
@@ -750,7 +828,7 @@ TransportFileInfo readTransportFileInfo(const std::string& path) {
     }
     int basisSize = -1;
     if (version >= kRadialFormatVersion) {
-        const StoredRadialBasis b = readRadialBasis(r, true);
+        const StoredRadialBasis b = readRadialBasis(r, true, version);
         info.radialRange = b.range;
         info.radialProfiles = basisSize = b.tables.size;
         info.radialNodeCount = b.tables.nodeCount;

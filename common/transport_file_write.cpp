@@ -137,6 +137,9 @@ private:
 
 // The lowest version that holds f (docs/transport-format.md, "Preamble").
 uint32_t formatVersionOf(const TransportFile& f) {
+    if (std::any_of(f.components.begin(), f.components.end(),
+                    [](const TransportComponent& c) { return !c.blocked() && c.vectors.haarBits == 8; }))
+        return kEightBitFormatVersion;
     if (f.radialBasis) return kRadialFormatVersion;
     const bool blocked = std::any_of(f.components.begin(), f.components.end(),
                                      [](const TransportComponent& c) { return c.blocked(); });
@@ -150,23 +153,62 @@ uint64_t parameterPayloadBytes(const TransportFile& f) {
     return bytes;
 }
 
-void writeComponent(FileWriter& w, const TransportComponent& c) {
-    const uint64_t vertices = c.vectors.vertexCount();
-    const uint64_t coefficients = c.vectors.coefficientCount();
-    const ComponentLayout l = componentLayout(vertices, coefficients);
+// A per-vertex component; `previous` is the COMP written just before it (or nullptr):
+// an 8-bit component with its offsets and indices stores none of its own.
+void writeComponent(FileWriter& w, const TransportComponent& c, const TransportComponent* previous) {
+    const SparseRgbVectors& v = c.vectors;
+    const uint64_t vertices = v.vertexCount();
+    const uint64_t coefficients = v.coefficientCount();
+    const bool eightBit = v.haarBits == 8;
+    uint32_t flags = eightBit ? kCompEightBitHaar : 0;
+    if (eightBit && previous && previous->vectors.haarBits == 8 && previous->vectors.offsets == v.offsets &&
+        previous->vectors.indices == v.indices)
+        flags |= kCompSharedIndices;
+    uint64_t shCoefficients = 0;
+    if (eightBit)
+        shCoefficients = uint64_t(std::count_if(v.indices.begin(), v.indices.end(),
+                                                [&](uint16_t i) { return i >= v.shFrom; }));
+    const ComponentLayout l = componentLayout(vertices, coefficients, flags, shCoefficients, !v.shScales.empty());
     w.beginSection(Section::Component, l.total);
     w.u32(uint32_t(c.kind));
     w.u32(c.term);
     w.u64(vertices);
     w.u64(coefficients);
-    w.padTo(l.offsets);
-    w.array(c.vectors.offsets);
-    w.padTo(l.indices);
-    w.array(c.vectors.indices);
+    w.u32(flags);  // reserved (0) before version 6
+    w.u32(0);
+    w.u64(shCoefficients);
+    if (!(flags & kCompSharedIndices)) {
+        w.padTo(l.offsets);
+        w.array(v.offsets);
+        w.padTo(l.indices);
+        w.array(v.indices);
+    }
     w.padTo(l.values);
-    w.array(c.vectors.values);
+    if (eightBit) {
+        std::vector<int8_t> haar;
+        std::vector<int16_t> sh;
+        haar.reserve(3 * (coefficients - shCoefficients));
+        sh.reserve(3 * shCoefficients);
+        for (size_t n = 0; n < v.indices.size(); ++n)
+            for (int ch = 0; ch < 3; ++ch) {
+                const int16_t q = v.values[3 * n + size_t(ch)];
+                if (v.indices[n] < v.shFrom)
+                    haar.push_back(int8_t(q));  // checkVectors: within -127..127
+                else
+                    sh.push_back(q);
+            }
+        w.array(haar);
+        w.padTo(l.shValues);
+        w.array(sh);
+    } else {
+        w.array(v.values);
+    }
     w.padTo(l.scales);
-    w.array(c.vectors.scales);
+    w.array(v.scales);
+    if (l.shScales) {
+        w.padTo(l.shScales);
+        w.array(v.shScales);
+    }
     w.endSection();
 }
 
@@ -236,11 +278,15 @@ void writeFile(FileWriter& w, const TransportFile& f) {
     }
     w.endSection();
 
+    const TransportComponent* previous = nullptr;
     for (const TransportComponent& c : f.components) {
-        if (c.blocked())
+        if (c.blocked()) {
             writeBlockedComponent(w, c, version);
-        else
-            writeComponent(w, c);
+            previous = nullptr;
+        } else {
+            writeComponent(w, c, previous);
+            previous = &c;
+        }
     }
 
     if (f.viewMaps) {

@@ -35,14 +35,18 @@ const RadialBasis& testBasis() {
     return basis;
 }
 
+constexpr uint32_t kShTerms = 9;  // the SH part of the 8-bit variant
+
 // Two profile components (J = 6) sharing each vertex's random index list, the basis, and
-// Marble as the file's material.
-TransportFile syntheticFile(uint64_t seed) {
+// Marble as the file's material. eightBit: 8-bit Haar values (SparseRgbVectors::haarBits)
+// and an SH part of kShTerms terms with its own scales, as prt-precompute --editable writes.
+TransportFile syntheticFile(uint64_t seed, bool eightBit = false) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<float> value(-1.0f, 1.0f);
     const RadialBasis& basis = testBasis();
     TransportFile file;
     file.cubemapSize = kN;
+    file.shTerms = eightBit ? kShTerms : 0;
     file.mesh.vertexCount = kVertices;
     file.parameters = materialParameters(materialByName("Marble"));
     file.radialBasis = StoredRadialBasis{basis.range(), basis.tables()};
@@ -50,15 +54,21 @@ TransportFile syntheticFile(uint64_t seed) {
     for (uint32_t p = 0; p < 2; ++p) {
         profiles[p].kind = ComponentKind::MultipleScatteringProfiles;
         profiles[p].term = p;
+        if (eightBit) profiles[p].vectors.useEightBitHaar(uint32_t(kTexels));
     }
     for (size_t v = 0; v < kVertices; ++v) {
         std::vector<uint32_t> idx{0};
         for (uint32_t k = 1; k < kTexels; ++k)
             if (rng() % 4 == 0) idx.push_back(k);
+        const size_t haar = idx.size();
+        for (uint32_t k = 0; k < file.shTerms; ++k) idx.push_back(uint32_t(kTexels) + k);
         for (auto& c : profiles) {
             std::vector<float> rgb(3 * idx.size());
             for (float& x : rgb) x = value(rng);
             rgb[0] = rgb[1] = rgb[2] = 2.0f;  // a dominant scaling coefficient, as real transport has
+            // An SH band-0 term that dwarfs the Haar ones, as real transport has.
+            for (size_t n = haar; n < idx.size(); ++n)
+                for (int ch = 0; ch < 3; ++ch) rgb[3 * n + size_t(ch)] *= n == haar ? 40.0f : 4.0f;
             c.vectors.appendVertex(idx, rgb);
         }
     }
@@ -110,6 +120,8 @@ LightVector randomLight(uint64_t seed) {
     light.size = kN;
     light.rgb.resize(3 * kTexels);
     for (float& x : light.rgb) x = value(rng);
+    light.sh.resize(3 * kShTerms);
+    for (float& x : light.sh) x = value(rng);
     return light;
 }
 
@@ -140,55 +152,61 @@ TEST(EditableTransport, TakesTheProfilesAndStartsFromTheFilesMaterial) {
 // the output's 16-bit quantization (kQuantizationMaxRelativeError of the vertex's channel
 // maximum) and float rounding of the products (1e-6 of sum_j |w_cj| max |U_j|).
 TEST(EditableTransport, RecombinationIsTheWeightedSumOfTheProfiles) {
-    TransportFile file = syntheticFile(2);
-    std::vector<TransportComponent> profiles = file.components;
-    EditableTransport e(file, kObjectMm);
-    e.setMaterial(materialByName("Skin1"), 31.0);
-    const TransportComponent ms = e.recombine();
-    EXPECT_EQ(ms.kind, ComponentKind::MultipleScattering);
-    std::vector<uint32_t> idx;
-    std::vector<float> rgb;
-    double absWeights[3] = {0.0, 0.0, 0.0};
-    for (int c = 0; c < 3; ++c)
-        for (double w : e.weights()[size_t(c)]) absWeights[c] += std::abs(w);
-    for (size_t v = 0; v < kVertices; ++v) {
-        ms.dequantizeVertex(v, idx, rgb);
-        const std::vector<double> expected = weightedProfileSum(profiles, e, v, idx);
-        ASSERT_EQ(expected.size(), rgb.size()) << v;
-        for (int c = 0; c < 3; ++c) {
-            double maxAbs = 0.0;
-            for (size_t n = 0; n < idx.size(); ++n) maxAbs = std::max(maxAbs, std::abs(expected[3 * n + size_t(c)]));
-            const double tolerance = kQuantizationMaxRelativeError * maxAbs + 1e-6 * absWeights[c] * 2.0;
-            for (size_t n = 0; n < idx.size(); ++n)
-                ASSERT_NEAR(rgb[3 * n + size_t(c)], expected[3 * n + size_t(c)], tolerance) << v << " " << n;
+    for (const bool eightBit : {false, true}) {
+        SCOPED_TRACE(eightBit ? "8-bit Haar values" : "16-bit values");
+        TransportFile file = syntheticFile(2, eightBit);
+        std::vector<TransportComponent> profiles = file.components;
+        EditableTransport e(file, kObjectMm);
+        e.setMaterial(materialByName("Skin1"), 31.0);
+        const TransportComponent ms = e.recombine();
+        EXPECT_EQ(ms.kind, ComponentKind::MultipleScattering);
+        std::vector<uint32_t> idx;
+        std::vector<float> rgb;
+        double absWeights[3] = {0.0, 0.0, 0.0};
+        for (int c = 0; c < 3; ++c)
+            for (double w : e.weights()[size_t(c)]) absWeights[c] += std::abs(w);
+        for (size_t v = 0; v < kVertices; ++v) {
+            ms.dequantizeVertex(v, idx, rgb);
+            const std::vector<double> expected = weightedProfileSum(profiles, e, v, idx);
+            ASSERT_EQ(expected.size(), rgb.size()) << v;
+            for (int c = 0; c < 3; ++c) {
+                double maxAbs = 0.0;
+                for (size_t n = 0; n < idx.size(); ++n) maxAbs = std::max(maxAbs, std::abs(expected[3 * n + size_t(c)]));
+                const double tolerance = kQuantizationMaxRelativeError * maxAbs + 1e-6 * absWeights[c] * (eightBit ? 80.0 : 2.0);
+                for (size_t n = 0; n < idx.size(); ++n)
+                    ASSERT_NEAR(rgb[3 * n + size_t(c)], expected[3 * n + size_t(c)], tolerance) << v << " " << n;
+            }
         }
     }
 }
 
 // Relighting the recombined component and the projected-light path agree.
 TEST(EditableTransport, ProjectedLightEqualsRelightingTheRecombination) {
-    TransportFile file = syntheticFile(3);
-    EditableTransport e(file, kObjectMm);
-    const LightVector light = randomLight(4);
-    e.projectLight(light);
-    for (const char* name : {"Marble", "Skin1"}) {
-        e.setMaterial(materialByName(name), 17.0);
-        TransportFile recombined = file;
-        recombined.components.push_back(e.recombine());
-        VertexRadiance viaFile;
-        relightVertices(recombined, light, ScatteringComponents{}, viaFile);
-        std::vector<glm::vec3> viaProjection;
-        e.relightProjected(viaProjection);
-        ASSERT_EQ(viaProjection.size(), kVertices);
-        double diff = 0.0, norm = 0.0;
-        for (size_t v = 0; v < kVertices; ++v)
-            for (int c = 0; c < 3; ++c) {
-                diff += std::pow(double(viaProjection[v][c] - viaFile.diffuse[v][c]), 2);
-                norm += std::pow(double(viaFile.diffuse[v][c]), 2);
-            }
-        EXPECT_GT(norm, 0.0);
-        // The recombination's own 16-bit quantization: ~1e-5 of each vertex's maximum.
-        EXPECT_LT(std::sqrt(diff / norm), 1e-4) << name;
+    for (const bool eightBit : {false, true}) {
+        SCOPED_TRACE(eightBit ? "8-bit Haar values" : "16-bit values");
+        TransportFile file = syntheticFile(3, eightBit);
+        EditableTransport e(file, kObjectMm);
+        const LightVector light = randomLight(4);
+        e.projectLight(light);
+        for (const char* name : {"Marble", "Skin1"}) {
+            e.setMaterial(materialByName(name), 17.0);
+            TransportFile recombined = file;
+            recombined.components.push_back(e.recombine());
+            VertexRadiance viaFile;
+            relightVertices(recombined, light, ScatteringComponents{}, viaFile);
+            std::vector<glm::vec3> viaProjection;
+            e.relightProjected(viaProjection);
+            ASSERT_EQ(viaProjection.size(), kVertices);
+            double diff = 0.0, norm = 0.0;
+            for (size_t v = 0; v < kVertices; ++v)
+                for (int c = 0; c < 3; ++c) {
+                    diff += std::pow(double(viaProjection[v][c] - viaFile.diffuse[v][c]), 2);
+                    norm += std::pow(double(viaFile.diffuse[v][c]), 2);
+                }
+            EXPECT_GT(norm, 0.0);
+            // The recombination's own 16-bit quantization: ~1e-5 of each vertex's maximum.
+            EXPECT_LT(std::sqrt(diff / norm), 1e-4) << name;
+        }
     }
 }
 

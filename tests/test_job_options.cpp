@@ -131,6 +131,17 @@ TEST(JobOptions, DirectionStride) {
     }
 }
 
+TEST(JobOptions, EditableBits) {
+    EXPECT_EQ(fromCommandLine({"m.obj", "-o", "o", "--editable"}).editable.haarBits, 8);
+    EXPECT_EQ(fromCommandLine({"m.obj", "-o", "o", "--editable", "--editable-bits", "16"}).editable.haarBits, 16);
+    for (const char* bad : {"0", "12", "32", "-8"}) {
+        const std::string e = errorOf([&] {
+            validateSettings(fromCommandLine({"m.obj", "-o", "o", "--editable", "--editable-bits", bad}));
+        });
+        EXPECT_NE(e.find("--editable-bits"), std::string::npos) << bad << ": " << e;
+    }
+}
+
 TEST(JobOptions, FlagsTakeTrueAndFalse) {
     const nlohmann::json job = {{"mesh", "m.obj"}, {"output", "o"}};
     EXPECT_TRUE(parseJob({{"editable", true}}, job, "j").editable.enabled);
@@ -204,7 +215,9 @@ TEST(JobOptions, BlocksAreTheDefault) {
     EXPECT_EQ(with({"-k", "64"}).blockCoefficients, 0u);
     EXPECT_EQ(with({"-k", "64"}).vertexCoefficients, 64u);
     EXPECT_EQ(with({"--editable"}).blockCoefficients, 0u);
-    EXPECT_EQ(with({"--editable"}).vertexCoefficients, 128u);
+    EXPECT_EQ(with({"--editable"}).vertexCoefficients, kDefaultEditableCoefficients);
+    EXPECT_EQ(with({"--editable", "--editable-bits", "16"}).vertexCoefficients, 128u);
+    EXPECT_EQ(with({"--editable", "--editable-bits", "16", "-k", "200"}).vertexCoefficients, 200u);
     EXPECT_EQ(with({"--block-coefficients", "0"}).vertexCoefficients, 128u);
     EXPECT_EQ(with({"--block-coefficients", "200", "-k", "300"}).blockCoefficients, 200u);
     EXPECT_EQ(with({"--block-coefficients", "200", "-k", "300"}).vertexCoefficients, 300u);

@@ -848,8 +848,11 @@ TEST_F(TransportTest, ForeignFilesAreRefusedClearly) {
     refused(Bytes{'P', 'K', 3, 4, 0, 0}, "not a transport file");
     refused(Bytes{}, "empty");
     x = b;
+    putLe32(&x[8], 7);
+    refused(x, "unsupported transport file format version 7 (this build reads versions 1 to 6)");
+    x = b;  // version 6 is only written for files with 8-bit profiles (and a radial basis)
     putLe32(&x[8], 6);
-    refused(x, "unsupported transport file format version 6 (this build reads versions 1 to 5)");
+    refused(x, "format version 6 but no component with 8-bit Haar values");
     x = b;  // version 5 is only written for files with a radial basis
     putLe32(&x[8], 5);
     refused(x, "format version 5 but no radial basis");
@@ -1364,9 +1367,9 @@ TEST_F(TransportTest, BlockedValidChecksumButInconsistentContentsIsRefused) {
         EXPECT_TRUE(contains(e, "corrupt: section 'BLKC' (blocked component 1 of 4)")) << e;
         EXPECT_TRUE(contains(e, "format version 1 file")) << e;
     }
-    putLe32(&x[8], 6);
+    putLe32(&x[8], 7);
     writeBytes(p, x);
-    EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "unsupported transport file format version 6"));
+    EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "unsupported transport file format version 7"));
 }
 
 TEST_F(TransportTest, InvalidBlockedDataIsRefusedOnSave) {
@@ -1779,7 +1782,8 @@ StoredRadialBasis smallBasis(uint32_t profileComponents, RadialConstruction cons
 // P profile components sharing one random index list per vertex (with the SH part when
 // shTerms > 0), then the basis; extras: a kind-1 and/or a kind-2 component of their own.
 TransportFile makeProfileFile(std::mt19937& rng, size_t vertices, uint32_t n, uint32_t profileComponents,
-                              uint32_t shTerms, bool withMultipleScattering, bool withIsotropic) {
+                              uint32_t shTerms, bool withMultipleScattering, bool withIsotropic,
+                              bool eightBit = false) {
     TransportFile f = makeFile(rng, vertices, n, 12, 0);
     f.shTerms = shTerms;
     f.components.clear();
@@ -1795,6 +1799,8 @@ TransportFile makeProfileFile(std::mt19937& rng, size_t vertices, uint32_t n, ui
         profiles[p].term = p;
     }
     const uint32_t limit = 6 * n * n;
+    if (eightBit)
+        for (TransportComponent& c : profiles) c.vectors.useEightBitHaar(shTerms ? limit : UINT32_MAX);
     std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
     for (size_t v = 0; v < vertices; ++v) {
         std::vector<uint32_t> idx;
@@ -2172,8 +2178,8 @@ TEST_F(TransportFileV5, DamagedOrMisversionedFilesAreRefused) {
         refused(y, "format version 5 but no radial basis", true);
     }
     x = b;
-    putLe32(&x[8], 6);
-    refused(x, "unsupported transport file format version 6 (this build reads versions 1 to 5)", true);
+    putLe32(&x[8], 7);
+    refused(x, "unsupported transport file format version 7 (this build reads versions 1 to 6)", true);
 }
 
 TEST_F(TransportFileV5, InfoChecksTheProfileTermsAgainstTheBasis) {
@@ -2193,4 +2199,255 @@ TEST_F(TransportFileV5, InfoChecksTheProfileTermsAgainstTheBasis) {
     EXPECT_TRUE(contains(e, expected)) << e;
     e = errorOf([&] { loadTransportFile(p); });
     EXPECT_TRUE(contains(e, expected)) << e;
+}
+
+// ---- version 6: 8-bit Haar values in the profile components -------------------------
+
+// Per vertex and channel, the Haar terms within half an 8-bit step of their own maximum
+// and the SH terms within half a 16-bit step of theirs: the SH band-0 term, however
+// large, does not coarsen the Haar terms.
+TEST(TransportQuantization, EightBitHaarBoundHoldsWithTheShPartApart) {
+    std::mt19937 rng(61);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    const uint32_t shFrom = 96;  // 6 x 4 x 4
+    SparseRgbVectors s;
+    s.useEightBitHaar(shFrom);
+    std::vector<std::vector<uint32_t>> idxs;
+    std::vector<std::vector<float>> vals;
+    for (int v = 0; v < 300; ++v) {
+        std::vector<uint32_t> idx;
+        for (uint32_t i = 0; i < shFrom; ++i)
+            if (rng() % 3 == 0) idx.push_back(i);
+        if (v % 7 != 3)
+            for (uint32_t i = 0; i < 9; ++i) idx.push_back(shFrom + i);
+        std::vector<float> rgb(3 * idx.size());
+        for (size_t n = 0; n < idx.size(); ++n)
+            for (int c = 0; c < 3; ++c) rgb[3 * n + size_t(c)] = unit(rng) * (idx[n] >= shFrom ? 1000.0f : 1.0f);
+        if (v % 11 == 5)
+            for (size_t n = 0; n < idx.size(); ++n) rgb[3 * n + 1] = 0.0f;  // a zero channel
+        std::shuffle(idx.begin(), idx.end(), rng);  // appendVertex sorts (values follow their index below)
+        std::vector<float> shuffled(rgb.size());
+        idxs.push_back({});
+        vals.push_back({});
+        std::vector<uint32_t> sorted = idx;
+        std::sort(sorted.begin(), sorted.end());
+        for (size_t n = 0; n < idx.size(); ++n) {
+            const size_t at = size_t(std::lower_bound(sorted.begin(), sorted.end(), idx[n]) - sorted.begin());
+            for (int c = 0; c < 3; ++c) shuffled[3 * n + size_t(c)] = rgb[3 * at + size_t(c)];
+        }
+        s.appendVertex(idx, shuffled);
+        idxs.back() = sorted;
+        vals.back() = rgb;
+    }
+    ASSERT_EQ(s.shScales.size(), 3 * s.vertexCount());
+    double worstHaar = 0.0;
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    for (size_t v = 0; v < s.vertexCount(); ++v) {
+        s.dequantizeVertex(v, idx, rgb);
+        ASSERT_EQ(idx, idxs[v]);
+        for (int c = 0; c < 3; ++c) {
+            double maxHaar = 0.0, maxSh = 0.0;
+            for (size_t n = 0; n < idx.size(); ++n)
+                (idx[n] < shFrom ? maxHaar : maxSh) =
+                    std::max(idx[n] < shFrom ? maxHaar : maxSh, std::fabs(double(vals[v][3 * n + size_t(c)])));
+            for (size_t n = 0; n < idx.size(); ++n) {
+                const bool haar = idx[n] < shFrom;
+                if (haar) {
+                    ASSERT_LE(std::abs(int(s.values[3 * (s.offsets[v] + n) + size_t(c)])), 127);
+                }
+                const double err = std::fabs(double(rgb[3 * n + size_t(c)]) - double(vals[v][3 * n + size_t(c)]));
+                const double bound = haar ? kEightBitHaarMaxRelativeError * maxHaar : kQuantizationMaxRelativeError * maxSh;
+                ASSERT_LE(err, bound) << "vertex " << v << " index " << idx[n] << " channel " << c;
+                if (haar && maxHaar > 0.0) worstHaar = std::max(worstHaar, err / maxHaar);
+            }
+        }
+    }
+    // Rounding to nearest at 8 bits: close to half a step, so the bound is not loose.
+    EXPECT_GT(worstHaar, 0.45 / 127.0);
+    // Without an SH part every index is a Haar index and there are no SH scales.
+    SparseRgbVectors plain;
+    plain.useEightBitHaar(UINT32_MAX);
+    plain.appendVertex(std::vector<uint32_t>{1, 5}, std::vector<float>{1, 2, 3, -4, 0.5f, 6});
+    EXPECT_TRUE(plain.shScales.empty());
+    EXPECT_EQ(std::abs(plain.values[3]), 127);
+    // The encoding is chosen before the first vertex.
+    EXPECT_THROW(plain.useEightBitHaar(UINT32_MAX), Error);
+}
+
+namespace {
+class TransportFileV6 : public TransportTest {};
+}  // namespace
+
+// 8-bit profile components (with and without an SH part, beside 16-bit components)
+// round-trip exactly; the file is version 6, a profile component after the first stores
+// no index list (its section is smaller by it), and saving what was loaded gives the
+// same bytes.
+TEST_F(TransportFileV6, RoundTripIsVersion6AndStoresTheIndicesOnce) {
+    std::mt19937 rng(62);
+    for (const uint32_t sh : {0u, 9u}) {
+        SCOPED_TRACE("SH terms " + std::to_string(sh));
+        const TransportFile f = makeProfileFile(rng, 23, 4, 3, sh, true, true, true);
+        const std::string p = path("v6_" + std::to_string(sh));
+        saveTransportFile(p, f);
+        const Bytes b = readBytes(p);
+        EXPECT_EQ(le32(&b[8]), 6u);
+        const TransportFile g = loadTransportFile(p);
+        EXPECT_EQ(g, f);
+        const std::string q = path("v6_again");
+        saveTransportFile(q, g);
+        EXPECT_EQ(readBytes(q), b);
+        const TransportFileInfo info = readTransportFileInfo(p);
+        ASSERT_EQ(info.components.size(), 5u);
+        EXPECT_FALSE(info.components[0].eightBitHaar);
+        for (size_t i = 1; i <= 3; ++i) {
+            EXPECT_TRUE(info.components[i].eightBitHaar) << i;
+            EXPECT_EQ(info.components[i].sharedIndices, i > 1) << i;
+        }
+        EXPECT_FALSE(info.components[4].eightBitHaar);
+        const std::vector<Sec> secs = walk(b);
+        ASSERT_EQ(secs[3].tag, "COMP");
+        const uint64_t coefficients = le64(&b[secs[3].payload + 16]);
+        EXPECT_GE(secs[3].length, secs[4].length + 2 * coefficients + 4 * 23) << "offsets and indices once";
+        // The same data at 16 bits is a larger version-5 file.
+        TransportFile wide = makeProfileFile(rng, 23, 4, 3, sh, true, true, false);
+        saveTransportFile(q, wide);
+        EXPECT_EQ(le32(&readBytes(q)[8]), 5u);
+        EXPECT_GT(readBytes(q).size(), b.size());
+        EXPECT_TRUE(contains(describe(info), "8-bit")) << describe(info);
+    }
+}
+
+// The COMP section of an 8-bit component (docs/transport-format.md, version 6): flags
+// at 24, zero at 28, the SH coefficient count at 32; the int8 Haar values, the int16 SH
+// values, the scales and the SH scales, each 64-byte aligned; a shared component has no
+// offsets or indices.
+TEST_F(TransportFileV6, LayoutMatchesTheFormatDocument) {
+    std::mt19937 rng(63);
+    const uint32_t n = 4, vertices = 17;
+    const TransportFile f = makeProfileFile(rng, vertices, n, 2, 9, false, false, true);
+    const std::string p = path("layout6");
+    saveTransportFile(p, f);
+    const Bytes b = readBytes(p);
+    const std::vector<Sec> secs = walk(b);
+    ASSERT_EQ(secs[2].tag, "COMP");
+    ASSERT_EQ(secs[3].tag, "COMP");
+    auto align = [](uint64_t x) { return (x + 63) / 64 * 64; };
+    for (int k = 0; k < 2; ++k) {
+        const SparseRgbVectors& v = f.components[size_t(k)].vectors;
+        const uint8_t* q = &b[secs[size_t(2 + k)].payload];
+        const uint64_t coefficients = v.coefficientCount();
+        uint64_t shCount = 0;
+        for (uint16_t i : v.indices) shCount += i >= 6 * n * n;
+        EXPECT_EQ(le32(q + 24), k == 0 ? 1u : 3u) << "flags";
+        EXPECT_EQ(le32(q + 28), 0u);
+        EXPECT_EQ(le64(q + 32), shCount);
+        for (size_t i = 40; i < 64; ++i) EXPECT_EQ(q[i], 0) << i;
+        uint64_t pos = 64;
+        if (k == 0) {
+            for (uint32_t i = 0; i <= vertices; ++i) EXPECT_EQ(le32(q + pos + 4 * i), v.offsets[i]);
+            pos = align(pos + 4 * (vertices + 1));
+            for (uint64_t i = 0; i < coefficients; ++i)
+                EXPECT_EQ(uint16_t(q[pos + 2 * i] | q[pos + 2 * i + 1] << 8), v.indices[i]);
+            pos += 2 * coefficients;
+        }
+        const uint64_t haarAt = align(pos), shAt = align(haarAt + 3 * (coefficients - shCount));
+        uint64_t h = 0, t = 0;
+        for (uint64_t i = 0; i < coefficients; ++i)
+            for (int c = 0; c < 3; ++c) {
+                const int16_t value = v.values[3 * i + uint64_t(c)];
+                if (v.indices[i] < 6 * n * n) {
+                    ASSERT_EQ(int8_t(q[haarAt + h++]), value);
+                } else {
+                    ASSERT_EQ(int16_t(q[shAt + 2 * t] | q[shAt + 2 * t + 1] << 8), value);
+                    ++t;
+                }
+            }
+        const uint64_t scalesAt = align(shAt + 6 * shCount), shScalesAt = align(scalesAt + 12 * vertices);
+        for (uint32_t i = 0; i < 3 * vertices; ++i) {
+            float x, y;
+            const uint32_t xb = le32(q + scalesAt + 4 * i), yb = le32(q + shScalesAt + 4 * i);
+            std::memcpy(&x, &xb, 4);
+            std::memcpy(&y, &yb, 4);
+            EXPECT_EQ(x, v.scales[i]);
+            EXPECT_EQ(y, v.shScales[i]);
+        }
+        EXPECT_EQ(secs[size_t(2 + k)].length, shScalesAt + 12 * vertices);
+    }
+}
+
+TEST_F(TransportFileV6, TruncatedOrFlippedIsRefusedNamingTheSection) {
+    std::mt19937 rng(64);
+    const TransportFile f = makeProfileFile(rng, 6, 1, 2, 4, false, true, true);
+    const std::string good = path("good6");
+    saveTransportFile(good, f);
+    const Bytes b = readBytes(good);
+    expectEveryCutRefused(b);
+    const std::string p = path("flip6");
+    writeBytes(p, b);
+    expectEveryFlipRefused(p);
+    EXPECT_EQ(loadTransportFile(p), f);
+}
+
+TEST_F(TransportFileV6, InvalidDataIsRefused) {
+    std::mt19937 rng(65);
+    const TransportFile f = makeProfileFile(rng, 12, 4, 2, 9, true, false, true);
+    const std::string p = path("bad6");
+    auto refusedOnSave = [&](const std::function<void(TransportFile&)>& edit, const std::string& expected) {
+        TransportFile g = f;
+        edit(g);
+        const std::string e = errorOf([&] { saveTransportFile(p, g); });
+        EXPECT_TRUE(contains(e, expected)) << "expected '" << expected << "' in: " << e;
+    };
+    refusedOnSave([](TransportFile& g) { g.components[1].vectors.values[0] = 128; }, "outside -127..127");
+    refusedOnSave([](TransportFile& g) { g.components[1].vectors.shScales.pop_back(); }, "SH scales, expected");
+    refusedOnSave([](TransportFile& g) { g.components[1].vectors.shScales[2] = -1.0f; }, "SH scale of channel 2");
+    refusedOnSave([](TransportFile& g) { g.components[1].vectors.shFrom = 7; }, "SH scales from index 7");
+    refusedOnSave([](TransportFile& g) { g.components[1].vectors.haarBits = 12; }, "Haar values of 12 bits");
+    refusedOnSave(
+        [](TransportFile& g) {
+            SparseRgbVectors& v = g.components[0].vectors;
+            v.haarBits = 8;
+            for (int16_t& q : v.values) q = int16_t(q / 300);
+        },
+        "8-bit Haar values on a component that is not a radial profile");
+    // On disk: unknown flags, shared indices without a component before that has them,
+    // and an SH count that disagrees with the indices.
+    saveTransportFile(p, f);
+    const Bytes b = readBytes(p);
+    const std::vector<Sec> secs = walk(b);
+    auto refused = [&](const std::function<void(Bytes&)>& edit, size_t sec, const std::string& expected) {
+        Bytes y = b;
+        edit(y);
+        fixChecksum(y, secs[sec]);
+        writeBytes(p, y);
+        const std::string e = errorOf([&] { loadTransportFile(p); });
+        EXPECT_TRUE(contains(e, expected)) << "expected '" << expected << "' in: " << e;
+        EXPECT_FALSE(contains(e, "\n")) << e;
+    };
+    const size_t first = 3, second = 4;  // HEAD, PARM, the 16-bit COMP, then the profiles
+    ASSERT_EQ(le32(&b[secs[first].payload]), 4u);
+    refused([&](Bytes& y) { putLe32(&y[secs[first].payload + 24], 5); }, first, "unknown component flags 0x00000005");
+    refused([&](Bytes& y) { putLe32(&y[secs[first].payload + 24], 3); }, first,
+            "shares the indices of the component before it, which is not an 8-bit component");
+    refused([&](Bytes& y) { putLe32(&y[secs[second].payload + 24], 2); }, second,
+            "shares the previous component's indices without 8-bit values");
+    refused([&](Bytes& y) { putLe32(&y[secs[first].payload + 28], 1); }, first, "reserved header bytes are not zero");
+    refused([&](Bytes& y) { putLe64(&y[secs[first].payload + 32], le64(&y[secs[first].payload + 32]) + 1); }, first,
+            "-byte payload, the section has");
+    Bytes y;
+    // A version-6 header on a file of 16-bit profiles (version 5).
+    saveTransportFile(p, makeProfileFile(rng, 12, 4, 2, 9, true, false, false));
+    y = readBytes(p);
+    ASSERT_EQ(le32(&y[8]), 5u);
+    putLe32(&y[8], 6);
+    writeBytes(p, y);
+    EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "format version 6 but no component with 8-bit"));
+    EXPECT_TRUE(contains(errorOf([&] { readTransportFileInfo(p); }), "format version 6 but no component with 8-bit"));
+    // Flags in a version-5 file are reserved bytes
+    y = b;
+    putLe32(&y[8], 5);
+    writeBytes(p, y);
+    // (read as version 5, the section is longer than its counts say)
+    EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "-byte payload, the section has"));
 }

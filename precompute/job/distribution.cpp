@@ -68,6 +68,8 @@ IndexRange ShardDistribution::vertexShare(size_t vertices) const {
 SparseRgbVectors ShardDistribution::gatherVertices(SparseRgbVectors mine, size_t vertices) {
     const IndexRange r = vertexShare(vertices);
     SparseRgbVectors all;
+    all.haarBits = mine.haarBits;
+    all.shFrom = mine.shFrom;
     all.reserve(vertices, mine.coefficientCount());
     appendEmptyVertices(all, r.begin);
     appendVertices(all, mine);
@@ -85,6 +87,13 @@ void appendVertices(SparseRgbVectors& all, const SparseRgbVectors& part) {
     const uint64_t base = all.offsets.back();
     if (base + part.coefficientCount() > UINT32_MAX)
         throw Error("transport", "more than 2^32 - 1 coefficients in one component");
+    if (all.vertexCount() == 0) {
+        all.haarBits = part.haarBits;
+        all.shFrom = part.shFrom;
+    } else if (all.haarBits != part.haarBits || all.shFrom != part.shFrom) {
+        throw Error("transport", "joining vectors of different encodings (8-bit and 16-bit Haar values)");
+    }
+    all.shScales.insert(all.shScales.end(), part.shScales.begin(), part.shScales.end());
     all.offsets.reserve(all.offsets.size() + part.vertexCount());
     for (size_t v = 1; v < part.offsets.size(); ++v) all.offsets.push_back(uint32_t(base + part.offsets[v]));
     all.indices.insert(all.indices.end(), part.indices.begin(), part.indices.end());
@@ -95,6 +104,9 @@ void appendVertices(SparseRgbVectors& all, const SparseRgbVectors& part) {
 SparseRgbVectors sliceVertices(const SparseRgbVectors& all, size_t begin, size_t end) {
     if (begin > end || end > all.vertexCount()) throw Error("sliceVertices", "vertex range out of bounds");
     SparseRgbVectors part;
+    part.haarBits = all.haarBits;
+    part.shFrom = all.shFrom;
+    if (!all.shScales.empty()) part.shScales.assign(all.shScales.begin() + 3 * begin, all.shScales.begin() + 3 * end);
     const uint32_t first = all.offsets[begin], last = all.offsets[end];
     part.offsets.reserve(end - begin + 1);
     for (size_t v = begin + 1; v <= end; ++v) part.offsets.push_back(all.offsets[v] - first);
@@ -107,6 +119,7 @@ SparseRgbVectors sliceVertices(const SparseRgbVectors& all, size_t begin, size_t
 void appendEmptyVertices(SparseRgbVectors& all, size_t count) {
     all.offsets.insert(all.offsets.end(), count, all.offsets.back());
     all.scales.insert(all.scales.end(), 3 * count, 0.0f);
+    if (all.haarBits == 8 && all.shFrom != UINT32_MAX) all.shScales.insert(all.shScales.end(), 3 * count, 0.0f);
 }
 
 }  // namespace prt

@@ -132,13 +132,15 @@ private:
 
 // Concatenates per-range vectors (in range order) into one array: the offsets are
 // rebased, everything else appended. The result equals computing all ranges at once.
+// An empty `all` takes part's encoding (SparseRgbVectors::haarBits, shFrom); a part of
+// another encoding is a prt::Error.
 void appendVertices(SparseRgbVectors& all, const SparseRgbVectors& part);
 
 // The vertices [begin, end) of `all` as their own array (offsets rebased); the
 // inverse of appendVertices.
 SparseRgbVectors sliceVertices(const SparseRgbVectors& all, size_t begin, size_t end);
 
-// `count` vertices without coefficients (scale 0).
+// `count` vertices without coefficients (scales 0, SH scales too with 8-bit Haar values).
 void appendEmptyVertices(SparseRgbVectors& all, size_t count);
 
 }  // namespace prt

@@ -50,7 +50,8 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     app.add_option("-k,--coefficients", raw.coefficients,
                    "Terms kept per vertex, the SH terms included (in a blocked file: before the joint choice); "
                    "given alone, it makes a per-vertex file")
-        ->default_str(std::to_string(kDefaultPreBlockCoefficients) + " before blocking; 128 per vertex");
+        ->default_str(std::to_string(kDefaultPreBlockCoefficients) + " before blocking; 128 per vertex, " +
+                      std::to_string(kDefaultEditableCoefficients) + " editable");
     app.add_option("--sh-terms", s.shTerms,
                    "Of the terms kept per sample, node and vertex, this many (0, 1, 4, 9, 16 or 25) are a fit by "
                    "spherical harmonics of bands 0..2 (up to 4) whose residual no light of those bands sees, the rest the "
@@ -155,6 +156,11 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
                    "g: pass 2 integrates the profiles over pieces no wider than 1/g of their distance from "
                    "the vertex (fine only at the narrowest profile's peak); 0: fine everywhere (slower)")
         ->capture_default_str()->group("Editable transport");
+    app.add_option("--editable-bits", s.editable.haarBits,
+                   "Bits of the profiles' Haar values in a per-vertex file: 8 (with -k " +
+                       std::to_string(kDefaultEditableCoefficients) +
+                       " by default: twice the terms in about the bytes) or 16 (-k 128 by default)")
+        ->capture_default_str()->group("Editable transport");
     CLI::Option* ground =
         app.add_flag("--ground", raw.ground,
                      "A diffuse plane under the object that receives its shadow and hides the environment below "
@@ -214,8 +220,10 @@ PrecomputeSettings settingsFromOptions(const JobOptions& raw, PrecomputeSettings
                           : raw.coefficients || s.editable.enabled
                               ? 0
                               : std::min(kDefaultBlockCoefficients, space);
+    const bool eightBitProfiles = s.editable.enabled && s.editable.haarBits == 8 && !s.blockCoefficients;
     s.vertexCoefficients = raw.coefficients      ? *raw.coefficients
                            : s.blockCoefficients ? std::min(kDefaultPreBlockCoefficients, space)
+                           : eightBitProfiles    ? std::min(kDefaultEditableCoefficients, space)
                                                  : size_t(128);
     s.singleScattering.pathSamples =
         raw.pathSamples ? *raw.pathSamples : defaultPathSamples(s.singleScattering.pathQuadrature);

@@ -197,6 +197,7 @@ public:
             out.putArray(mine.indices);
             out.putArray(mine.values);
             out.putArray(mine.scales);
+            out.putArray(mine.shScales);
             mine.clear();
             send(out.bytes, 0, kTag);
             return {};
@@ -207,10 +208,13 @@ public:
             const std::vector<char> bytes = receive(r, kTag);
             Reader in(bytes.data(), bytes.size());
             SparseRgbVectors& part = parts[size_t(r)];
+            part.haarBits = parts[0].haarBits;  // every rank runs the same settings
+            part.shFrom = parts[0].shFrom;
             in.getArray(part.offsets);
             in.getArray(part.indices);
             in.getArray(part.values);
             in.getArray(part.scales);
+            in.getArray(part.shScales);
             if (part.vertexCount() != totalSize(vertexShares_(vertices, r)) || !in.done())
                 throw Error("MPI", "rank " + std::to_string(r) + " sent the wrong number of vertices");
         }

@@ -296,6 +296,8 @@ Pass2Output runPass2(const JobContext& job, const PreparedJob& prepared, const P
         TransportComponent& c = out.components[p];
         c.kind = basis ? ComponentKind::MultipleScatteringProfiles : ComponentKind::MultipleScattering;
         c.term = basis ? uint32_t(p) : 0;
+        if (basis && s.editable.haarBits == 8 && s.blockCoefficients == 0)
+            c.vectors.useEightBitHaar(s.shTerms > 0 ? uint32_t(6 * s.cubemapSize * s.cubemapSize) : UINT32_MAX);
         c.vectors.reserve(prepared.myVertices, prepared.myVertices * s.vertexCoefficients);
     }
     dist.stage([&] {

@@ -141,6 +141,8 @@ void validateSettings(const PrecomputeSettings& s) {
         if (J < 3 || J > 30 || J % 3 != 0)
             throw Error("--editable-profiles", "must be a multiple of 3 between 3 and 30 (three profiles per stored "
                                                "component), got " + std::to_string(J));
+        if (s.editable.haarBits != 8 && s.editable.haarBits != 16)
+            throw Error("--editable-bits", "must be 8 or 16, got " + std::to_string(s.editable.haarBits));
         const double g = s.editable.cellGrading;
         if (!(g == 0.0 || (g >= 2.0 && g <= 64.0)))
             throw Error("--editable-grading", "must be 0 (off) or between 2 and 64, got " + fmt(g));
@@ -231,6 +233,7 @@ ParameterList settingsParameters(const PrecomputeSettings& settings, const MeshF
         p.push_back({"radial_profiles", std::to_string(s.editable.basis.size)});
         p.push_back({"radial_construction", radialConstructionName(s.editable.basis.construction)});
         p.push_back({"cell_grading", fmt(s.editable.cellGrading)});
+        if (!s.blockCoefficients) p.push_back({"profile_haar_bits", std::to_string(s.editable.haarBits)});
     }
     if (s.components.singleScattering) {
         const SingleScatteringOptions& o = s.singleScattering;

@@ -51,6 +51,10 @@ struct EditableSettings {
     // reach down to the narrowest material of the range, whose peak alone needs the
     // fine spacing. 0: one level of sub-points at the fine spacing.
     double cellGrading = 8.0;
+    // Bits of the profiles' Haar values in a per-vertex file (SparseRgbVectors::haarBits):
+    // 8 keeps twice the terms (kDefaultEditableCoefficients) in about the bytes of 128
+    // at 16 bits; 16 for comparisons that must not see the 8-bit rounding.
+    int haarBits = 8;
 };
 
 // prt-precompute's shared terms per block of 16 vertices when a job does not choose
@@ -58,6 +62,9 @@ struct EditableSettings {
 inline constexpr size_t kDefaultBlockCoefficients = 160;
 // The terms per vertex the joint choice picks from when a blocked job does not set -k.
 inline constexpr size_t kDefaultPreBlockCoefficients = 192;
+// The terms per vertex of an editable per-vertex job that does not set -k (shared by its
+// profiles, 8-bit Haar values).
+inline constexpr size_t kDefaultEditableCoefficients = 256;
 
 struct PrecomputeSettings {
     std::string meshPath;

@@ -117,6 +117,10 @@ void bindTransport(py::module_& m) {
                     d["indices"] = view(v.indices.data(), {py::ssize_t(v.indices.size())}, owner);
                     d["values"] = view(v.values.data(), {py::ssize_t(v.indices.size()), 3}, owner);
                     d["scales"] = view(v.scales.data(), {py::ssize_t(v.vertexCount()), 3}, owner);
+                    d["haar_bits"] = v.haarBits;
+                    d["sh_from"] = v.shFrom == UINT32_MAX ? py::object(py::none()) : py::object(py::int_(v.shFrom));
+                    if (!v.shScales.empty())
+                        d["sh_scales"] = view(v.shScales.data(), {py::ssize_t(v.vertexCount()), 3}, owner);
                 };
                 auto blockArrays = [&](const BlockedRgbVectors& b, py::handle owner) {
                     const py::ssize_t lanes = py::ssize_t(kVertexBlock), blocks = py::ssize_t(b.blockCount());
@@ -150,7 +154,8 @@ void bindTransport(py::module_& m) {
             py::arg("component") = "ms",
             "The component's stored arrays, d['blocked'] telling the layout. Per vertex: vertex v owns "
             "indices[offsets[v]:offsets[v+1]] and the int16 values of the same rows; value = q * scales[v] per "
-            "channel. Blocked (blocks of 16 vertices sharing indices): block b holds the vertices "
+            "channel, or with haar_bits 8 (an editable file's profiles) q * sh_scales[v] for indices >= sh_from "
+            "(the Haar values then lie in -127..127). Blocked (blocks of 16 vertices sharing indices): block b holds the vertices "
             "order[16 b:16 b + 16] (lanes) and the indices[offsets[b]:offsets[b+1]]; values[n, c, lane] is int8, "
             "value = q * scales[b, c, lane], or q * sh_scales[b, c, lane] for indices >= sh_from. Views of a "
             "loaded file; copies for an editable Object's transport, whose multiple scattering changes with "

@@ -108,15 +108,22 @@ TransportComponent EditableTransport::recombine() const {
             rgb.assign(3 * size_t(end - begin), 0.0f);
             for (size_t p = 0; p < P; ++p) {
                 const SparseRgbVectors& u = profiles_[p].vectors;
-                float scaled[3][3];  // [profile channel][colour] = scale * w
+                // [profile channel][colour] = scale * w, for the Haar and the SH scales
+                // (the same unless the profiles hold 8-bit Haar values).
+                float scaled[3][3], scaledSh[3][3];
+                const std::vector<float>& shScales = u.shScales.empty() ? u.scales : u.shScales;
                 for (int ch = 0; ch < 3; ++ch)
-                    for (int c = 0; c < 3; ++c)
-                        scaled[ch][c] = float(double(u.scales[3 * vi + size_t(ch)]) * weights_[size_t(c)][3 * p + size_t(ch)]);
+                    for (int c = 0; c < 3; ++c) {
+                        const double w = weights_[size_t(c)][3 * p + size_t(ch)];
+                        scaled[ch][c] = float(double(u.scales[3 * vi + size_t(ch)]) * w);
+                        scaledSh[ch][c] = float(double(shScales[3 * vi + size_t(ch)]) * w);
+                    }
                 for (uint32_t n = begin; n < end; ++n) {
                     float* dst = &rgb[3 * size_t(n - begin)];
                     const int16_t* q = &u.values[3 * size_t(n)];
+                    const float(&sc)[3][3] = u.indices[n] < u.shFrom ? scaled : scaledSh;
                     for (int ch = 0; ch < 3; ++ch)
-                        for (int c = 0; c < 3; ++c) dst[c] += float(q[ch]) * scaled[ch][c];
+                        for (int c = 0; c < 3; ++c) dst[c] += float(q[ch]) * sc[ch][c];
                 }
             }
             // Quantized as SparseRgbVectors::appendVertex does.

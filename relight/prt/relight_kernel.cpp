@@ -139,7 +139,8 @@ void checkArrays(const TransportComponent& c) {
     const SparseRgbVectors& s = c.vectors;
     const size_t v = s.vertexCount();
     if (s.offsets.empty() || s.offsets.front() != 0 || s.offsets.back() != s.indices.size() ||
-        s.values.size() != 3 * s.indices.size() || s.scales.size() != 3 * v)
+        s.values.size() != 3 * s.indices.size() || s.scales.size() != 3 * v ||
+        (!s.shScales.empty() && s.shScales.size() != 3 * v))
         throw Error("transport file", componentName(c.kind, c.term) +
                                           ": inconsistent array sizes (offsets " +
                                           std::to_string(s.offsets.size()) + ", indices " +
@@ -196,12 +197,14 @@ struct Stream {
     const uint16_t* indices;
     const int16_t* values;
     const float* scales;
-    uint32_t total;  // coefficients in the component
+    uint32_t total;                      // coefficients in the component
+    const float* shScales = nullptr;     // 8-bit Haar vectors with an SH part: its scales
+    uint32_t shFrom = UINT32_MAX;        // ... from this index on
 };
 
 Stream streamOf(const SparseRgbVectors& s) {
-    return {s.offsets.data(), s.indices.data(), s.values.data(), s.scales.data(),
-            uint32_t(s.indices.size())};
+    return {s.offsets.data(), s.indices.data(), s.values.data(), s.scales.data(), uint32_t(s.indices.size()),
+            s.shScales.empty() ? nullptr : s.shScales.data(), s.shFrom};
 }
 
 // Vertex v's coefficients, validated. `safe` is how many of the first ones may be read
@@ -236,6 +239,23 @@ inline void store(const Stream& s, size_t v, const float sum[3], glm::vec3* out)
         out[v] += r;
     else
         out[v] = r;
+}
+
+// With SH scales (Stream::shScales): cuts the SH indices (the last ones: indices
+// increase) off `span` and returns them as a span of their own. An 8-byte load of the
+// Haar part's last coefficient reads the first SH coefficient's R, which exists.
+inline VertexSpan splitShSpan(VertexSpan& span, uint32_t shFrom) {
+    size_t k = span.count;
+    while (k > 0 && span.idx[k - 1] >= shFrom) --k;
+    const VertexSpan sh{span.idx + k, span.q + 3 * k, span.count - k, span.safe > k ? span.safe - k : 0};
+    span.count = k;
+    span.safe = std::min(span.safe, k);
+    return sh;
+}
+
+// The SH part's sum, times its scales, added to out[v] (after store).
+inline void addSh(const Stream& s, size_t v, const float sum[3], glm::vec3* out) {
+    out[v] += glm::vec3(sum[0] * s.shScales[3 * v], sum[1] * s.shScales[3 * v + 1], sum[2] * s.shScales[3 * v + 2]);
 }
 
 // sum_n q[3n + c] * light[idx[n] * Stride + c] for c = 0..2, in float. Two variants
@@ -303,6 +323,14 @@ bool relightRangeBaseline(const Stream& s, size_t first, size_t last, const floa
             return false;
         }
         float sum[3];
+        if (s.shScales) {
+            const VertexSpan sh = splitShSpan(span, s.shFrom);
+            dotBaseline<Stride>(span, light, sum);
+            store<Add>(s, v, sum, out);
+            dotBaseline<Stride>(sh, light, sum);
+            addSh(s, v, sum, out);
+            continue;
+        }
         dotBaseline<Stride>(span, light, sum);
         store<Add>(s, v, sum, out);
     }
@@ -358,6 +386,14 @@ __attribute__((target("avx2,fma"))) bool relightRangeAvx2(const Stream& s, size_
             return false;
         }
         float sum[3];
+        if (s.shScales) {
+            const VertexSpan sh = splitShSpan(span, s.shFrom);
+            dotAvx2<Stride>(span, light, sum);
+            store<Add>(s, v, sum, out);
+            dotAvx2<Stride>(sh, light, sum);
+            addSh(s, v, sum, out);
+            continue;
+        }
         dotAvx2<Stride>(span, light, sum);
         store<Add>(s, v, sum, out);
     }

@@ -19,9 +19,14 @@ def dense_vectors(transport, component="ms"):
     values = arrays["values"].astype(np.float64)
     if not arrays["blocked"]:
         scales = arrays["scales"].astype(np.float64)
+        sh_from = arrays["sh_from"]
         for v in range(transport.vertex_count):
             rows = slice(offsets[v], offsets[v + 1])
-            dense[v, indices[rows]] = values[rows] * scales[v]
+            scale = np.broadcast_to(scales[v], (offsets[v + 1] - offsets[v], 3))
+            if sh_from is not None:  # 8-bit Haar values: the SH part has scales of its own
+                sh = indices[rows] >= sh_from
+                scale = np.where(sh[:, None], arrays["sh_scales"][v], scales[v])
+            dense[v, indices[rows]] = values[rows] * scale
         return dense
     order = arrays["order"]
     for b in range(len(offsets) - 1):
@@ -154,6 +159,22 @@ def test_object_relights_as_its_file_and_the_eyes_path_brightens_single_scatteri
     assert np.all(eye[..., :3][inside] >= normal[..., :3][inside] * (1 - 1e-6))
     with pytest.raises(ValueError, match="--ss-path"):
         prt.render(obj, env, width=8, height=8, ss_path="eye")
+
+
+def test_editable_profiles_hold_8_bit_haar_values(scene):
+    t = prt.load_transport(str(scene / "torus_edit.prt"))
+    assert t.components == ["profiles:0", "profiles:1", "profiles:2", "profiles:3"]
+    n = t.cubemap_size
+    for name in t.components:
+        arrays = t.vectors(name)
+        assert arrays["haar_bits"] == 8 and arrays["sh_from"] == 6 * n * n
+        haar = arrays["indices"] < arrays["sh_from"]
+        assert np.abs(arrays["values"][haar]).max() == 127  # each vertex's largest Haar term
+        assert np.abs(arrays["values"][~haar]).max() == 32767  # the SH part keeps 16 bits
+        dense = dense_vectors(t, name)
+        for v in (0, 400, t.vertex_count - 1):
+            idx, rgb = t.vertex_vector(v, name)
+            assert np.allclose(rgb, dense[v][idx], rtol=1e-6, atol=0)
 
 
 def test_live_material_equals_render_with_material(scene, tmp_path):
