@@ -46,7 +46,8 @@ editable() {
     ed="$out/$1_editable.prt"
     if fresh "$ed"; then
         echo "editable precompute of $1 ..." >&2
-        "$bin/prt-precompute" "$2" -o "$ed" --size-mm 30 -m Marble --editable --summary-json "$out/$1_editable.json" -q
+        "$bin/prt-precompute" "$2" -o "$ed" --size-mm 30 -m Marble --editable --summary-json "$out/$1_editable.json" \
+            > "$out/$1_editable.log" 2>&1 || { echo "editable-accuracy: see $out/$1_editable.log" >&2; exit 1; }
     fi
     samples=$(python3 -c "import json, sys; print(json.load(open(sys.argv[1]))['summary']['samples'])" "$out/$1_editable.json")
     terms=$(python3 -c "import json, sys; print(json.load(open(sys.argv[1]))['settings']['coefficients'])" "$out/$1_editable.json")
@@ -57,13 +58,14 @@ cell() {
     local name="$1" mesh="$2" m="$3" size="$4" env="$5"
     local full="$out/${name}_${m}_${size}_full.prt"
     if fresh "$full"; then
-        "$bin/prt-precompute" "$mesh" -o "$full" --size-mm "$size" -m "$m" --samples "$samples" -k "$terms" -q
+        "$bin/prt-precompute" "$mesh" -o "$full" --size-mm "$size" -m "$m" --samples "$samples" -k "$terms" \
+            > "$full.log" 2>&1 || { echo "editable-accuracy: see $full.log" >&2; exit 1; }
     fi
     e_img="$out/${name}_${m}_${size}_${env}_editable"
     f_img="$out/${name}_${m}_${size}_${env}_full"
     "$bin/prt-relight" render "$mesh" -t "$ed" -e "$data/envmaps/$env.exr" -W 256 -H 256 --material "$m" \
-        --size-mm "$size" -o "$e_img" > /dev/null
-    "$bin/prt-relight" render "$mesh" -t "$full" -e "$data/envmaps/$env.exr" -W 256 -H 256 -o "$f_img" > /dev/null
+        --size-mm "$size" -o "$e_img" > "$e_img.log" 2>&1
+    "$bin/prt-relight" render "$mesh" -t "$full" -e "$data/envmaps/$env.exr" -W 256 -H 256 -o "$f_img" > "$f_img.log" 2>&1
     rmse "$e_img.exr" "$f_img.exr"
 }
 

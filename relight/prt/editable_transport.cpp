@@ -26,18 +26,31 @@ RadialBasis storedBasis(const TransportFile& file, const std::string& path) {
     return RadialBasis(file.radialBasis->range, file.radialBasis->tables);
 }
 
-// One RGB component holding component p's vectors as kind MultipleScattering: what the
-// relight kernel takes.
-TransportFile singleComponentFile(const TransportComponent& profiles, uint32_t cubemapSize, uint32_t shTerms) {
-    TransportFile f;
-    f.cubemapSize = cubemapSize;
-    f.shTerms = shTerms;
-    TransportComponent c = profiles;
-    c.kind = ComponentKind::MultipleScattering;
-    c.term = 0;
-    f.components.push_back(std::move(c));
-    return f;
-}
+// A profile component's vectors lent, without a copy, to a one-component file as kind
+// MultipleScattering (what the relight kernel takes), and given back when this goes out
+// of scope, also on a throw.
+class LentComponent {
+public:
+    LentComponent(TransportComponent& profiles, uint32_t cubemapSize, uint32_t shTerms) : owner_(profiles) {
+        file.cubemapSize = cubemapSize;
+        file.shTerms = shTerms;
+        TransportComponent& c = file.components.emplace_back();
+        c.kind = ComponentKind::MultipleScattering;
+        c.vectors = std::move(profiles.vectors);
+        c.blocks = std::move(profiles.blocks);
+    }
+    ~LentComponent() {
+        owner_.vectors = std::move(file.components.front().vectors);
+        owner_.blocks = std::move(file.components.front().blocks);
+    }
+    LentComponent(const LentComponent&) = delete;
+    LentComponent& operator=(const LentComponent&) = delete;
+
+    TransportFile file;
+
+private:
+    TransportComponent& owner_;
+};
 
 }  // namespace
 
@@ -118,13 +131,19 @@ TransportComponent EditableTransport::recombine() const {
                         scaled[ch][c] = float(double(u.scales[3 * vi + size_t(ch)]) * w);
                         scaledSh[ch][c] = float(double(shScales[3 * vi + size_t(ch)]) * w);
                     }
-                for (uint32_t n = begin; n < end; ++n) {
-                    float* dst = &rgb[3 * size_t(n - begin)];
-                    const int16_t* q = &u.values[3 * size_t(n)];
-                    const float(&sc)[3][3] = u.indices[n] < u.shFrom ? scaled : scaledSh;
-                    for (int ch = 0; ch < 3; ++ch)
-                        for (int c = 0; c < 3; ++c) dst[c] += float(q[ch]) * sc[ch][c];
-                }
+                // The SH indices are the last ones (indices increase): two plain loops.
+                uint32_t split = end;
+                while (split > begin && u.indices[split - 1] >= u.shFrom) --split;
+                auto accumulate = [&](uint32_t from, uint32_t to, const float(&sc)[3][3]) {
+                    for (uint32_t n = from; n < to; ++n) {
+                        float* dst = &rgb[3 * size_t(n - begin)];
+                        const int16_t* q = &u.values[3 * size_t(n)];
+                        for (int ch = 0; ch < 3; ++ch)
+                            for (int c = 0; c < 3; ++c) dst[c] += float(q[ch]) * sc[ch][c];
+                    }
+                };
+                accumulate(begin, split, scaled);
+                accumulate(split, end, scaledSh);
             }
             // Quantized as SparseRgbVectors::appendVertex does.
             for (int c = 0; c < 3; ++c) {
@@ -208,7 +227,8 @@ void EditableTransport::projectLight(const LightVector& light) {
     VertexRadiance out;
     const ScatteringComponents ms{.multipleScattering = true, .singleScattering = false};
     for (size_t p = 0; p < profiles_.size(); ++p) {
-        const TransportFile file = singleComponentFile(profiles_[p], cubemapSize_, shTerms_);
+        const LentComponent lent(profiles_[p], cubemapSize_, shTerms_);
+        const TransportFile& file = lent.file;
         for (int c = 0; c < 3; ++c) {
             for (size_t k = 0; k < light.rgb.size() / 3; ++k)
                 grey.rgb[3 * k] = grey.rgb[3 * k + 1] = grey.rgb[3 * k + 2] = light.rgb[3 * k + size_t(c)];
