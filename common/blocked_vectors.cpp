@@ -332,12 +332,12 @@ std::string checkBlockedVectors(const BlockedRgbVectors& b, uint32_t lightCount)
     return {};
 }
 
-std::vector<uint8_t> encodeBlockIndices(const BlockedRgbVectors& b) {
+std::vector<uint8_t> encodeIndexLists(const std::vector<uint32_t>& offsets, const std::vector<uint16_t>& indices) {
     std::vector<uint8_t> out;
-    out.reserve(b.indices.size() + b.indices.size() / 8);
-    for (size_t k = 0; k < b.blockCount(); ++k)
-        for (uint32_t n = b.offsets[k]; n < b.offsets[k + 1]; ++n) {
-            uint32_t d = n == b.offsets[k] ? b.indices[n] : uint32_t(b.indices[n] - b.indices[n - 1] - 1);
+    out.reserve(indices.size() + indices.size() / 8);
+    for (size_t k = 0; k + 1 < offsets.size(); ++k)
+        for (uint32_t n = offsets[k]; n < offsets[k + 1]; ++n) {
+            uint32_t d = n == offsets[k] ? indices[n] : uint32_t(indices[n] - indices[n - 1] - 1);
             while (d >= 0x80) {
                 out.push_back(uint8_t(0x80 | (d & 0x7F)));
                 d >>= 7;
@@ -347,10 +347,17 @@ std::vector<uint8_t> encodeBlockIndices(const BlockedRgbVectors& b) {
     return out;
 }
 
+std::vector<uint8_t> encodeBlockIndices(const BlockedRgbVectors& b) { return encodeIndexLists(b.offsets, b.indices); }
+
 std::string decodeBlockIndices(const uint8_t* bytes, size_t size, const std::vector<uint32_t>& offsets,
                                std::vector<uint16_t>& indices) {
+    return decodeIndexLists(bytes, size, offsets, indices, "block");
+}
+
+std::string decodeIndexLists(const uint8_t* bytes, size_t size, const std::vector<uint32_t>& offsets,
+                             std::vector<uint16_t>& indices, const std::string& unit) {
     if (offsets.empty() || offsets.front() != 0 || !std::is_sorted(offsets.begin(), offsets.end()))
-        return "block offsets do not rise from 0";
+        return unit + " offsets do not rise from 0";
     const size_t total = offsets.back();
     indices.resize(total);
     size_t at = 0;
@@ -359,7 +366,7 @@ std::string decodeBlockIndices(const uint8_t* bytes, size_t size, const std::vec
             uint32_t d = 0;
             for (int shift = 0;; shift += 7) {
                 if (at == size)
-                    return "index stream ends inside block " + std::to_string(k) + " (" + std::to_string(size) +
+                    return "index stream ends inside " + unit + " " + std::to_string(k) + " (" + std::to_string(size) +
                            " bytes)";
                 const uint8_t byte = bytes[at++];
                 if (shift == 14 && byte >= 0x04)
@@ -373,7 +380,7 @@ std::string decodeBlockIndices(const uint8_t* bytes, size_t size, const std::vec
             }
             const uint32_t index = n == offsets[k] ? d : uint32_t(indices[n - 1]) + 1 + d;
             if (index > UINT16_MAX)
-                return "index stream: block " + std::to_string(k) + " decodes index " + std::to_string(index) +
+                return "index stream: " + unit + " " + std::to_string(k) + " decodes index " + std::to_string(index) +
                        " > 65535";
             indices[n] = uint16_t(index);
         }

@@ -165,6 +165,12 @@ std::vector<BlockedRgbVectors> jointTruncateShared(const std::vector<const Spars
 std::vector<uint8_t> encodeBlockIndices(const BlockedRgbVectors& b);
 std::string decodeBlockIndices(const uint8_t* bytes, size_t size, const std::vector<uint32_t>& offsets,
                                std::vector<uint16_t>& indices);
+// The same coding for any lists of increasing indices, list k being
+// indices[offsets[k] .. offsets[k + 1]) (the per-vertex lists of an 8-bit component,
+// format version 6); `unit` names a list in the messages ("block", "vertex").
+std::vector<uint8_t> encodeIndexLists(const std::vector<uint32_t>& offsets, const std::vector<uint16_t>& indices);
+std::string decodeIndexLists(const uint8_t* bytes, size_t size, const std::vector<uint32_t>& offsets,
+                             std::vector<uint16_t>& indices, const std::string& unit);
 
 // Mean over vertices of kept / total energy (sum of squares over RGB, per vertex,
 // vertices with zero energy count as 1) of a jointTruncate result against its source.

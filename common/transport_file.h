@@ -74,7 +74,7 @@ std::string componentName(ComponentKind kind, uint32_t term = 0);
 // whose maximum is below 32767 * FLT_MIN ~ 3.9e-34 is stored as zero, scale 0.)
 //
 // EIGHT-BIT HAAR VALUES (haarBits = 8; the radial-profile components of an editable
-// file, which keep twice the terms in about the bytes): the indices below shFrom (the
+// file, which keep more terms in fewer bytes): the indices below shFrom (the
 // Haar terms) hold q in [-127, 127] with scale = max over those indices / 127, so their
 // error is at most max / 254 (kEightBitHaarMaxRelativeError); the indices from shFrom
 // on (the SH part, transport_file.h's shIndexBegin) keep 16 bits with a scale of their

@@ -95,23 +95,27 @@ inline uint64_t paddingBefore(uint64_t pos) {
 
 // Byte offsets, relative to the payload start, of a COMP section's arrays. With
 // kCompSharedIndices there are no offsets or indices (offsets = indices = 0); with
-// kCompEightBitHaar the values are the Haar values as int8 (3 per Haar coefficient),
-// then at shValues the SH values as int16 (3 per SH coefficient), and after the scales
-// the SH scales when the file has SH terms (shScales > 0).
+// kCompEightBitHaar the indices are a varint stream of indexBytes bytes (the coding of
+// blocked_vectors.h's encodeIndexLists, per vertex), the values are the Haar values as
+// int8 (3 per Haar coefficient), then at shValues the SH values as int16 (3 per SH
+// coefficient), and after the scales the SH scales when the file has SH terms
+// (shScales > 0).
 struct ComponentLayout {
     uint64_t offsets = 0, indices = 0, values = 0, shValues = 0, scales = 0, shScales = 0, total = 0;
 };
 
-// Requires vertices <= kMaxVertices and shCoefficients <= coefficients <= UINT32_MAX
-// (no overflow). shCoefficients and withShScales only count with kCompEightBitHaar.
+// Requires vertices <= kMaxVertices, shCoefficients <= coefficients <= UINT32_MAX and
+// indexBytes <= 3 coefficients (no overflow). shCoefficients, withShScales and
+// indexBytes only count with kCompEightBitHaar.
 inline ComponentLayout componentLayout(uint64_t vertices, uint64_t coefficients, uint32_t flags = 0,
-                                       uint64_t shCoefficients = 0, bool withShScales = false) {
+                                       uint64_t shCoefficients = 0, bool withShScales = false,
+                                       uint64_t indexBytes = 0) {
     ComponentLayout l;
     uint64_t pos = kComponentFixedBytes;
     if (!(flags & kCompSharedIndices)) {
         l.offsets = pos;
         l.indices = alignUp(l.offsets + (vertices + 1) * sizeof(uint32_t));
-        pos = l.indices + coefficients * sizeof(uint16_t);
+        pos = l.indices + ((flags & kCompEightBitHaar) ? indexBytes : coefficients * sizeof(uint16_t));
     }
     l.values = alignUp(pos);
     if (flags & kCompEightBitHaar) {

@@ -530,7 +530,8 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
     const bool flagged = h.version >= kEightBitFormatVersion;
     const uint32_t flags = flagged ? getU32(b + 24) : 0;
     const uint64_t shCoefficients = flagged ? getU64(b + 32) : 0;
-    const bool reservedZero = flagged ? allZero(b + 28, 4) && allZero(b + 40, size_t(kComponentFixedBytes - 40))
+    const uint64_t indexBytes = flagged ? getU64(b + 40) : 0;
+    const bool reservedZero = flagged ? allZero(b + 28, 4) && allZero(b + 48, size_t(kComponentFixedBytes - 48))
                                       : allZero(b + 24, size_t(kComponentFixedBytes - 24));
 
     auto fail = [&](const std::string& reason) {
@@ -557,8 +558,12 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
             fail("shares the indices of the component before it, which is not an 8-bit component of " +
                  u64(coefficients) + " coefficients");
     }
+    // A varint takes 1 to 3 bytes per index (bounds the stream before the layout).
+    if (eightBit && !shared ? (indexBytes < coefficients || indexBytes > 3 * coefficients) : indexBytes != 0)
+        fail("an index stream of " + u64(indexBytes) + " bytes for " + u64(coefficients) + " coefficients");
     const bool withShScales = eightBit && h.shTerms > 0;
-    const ComponentLayout l = componentLayout(vertices, coefficients, flags, shCoefficients, withShScales);
+    const ComponentLayout l =
+        componentLayout(vertices, coefficients, flags, shCoefficients, withShScales, indexBytes);
     if (l.total != s.length)
         fail(u64(vertices) + " vertices and " + u64(coefficients) + " coefficients need a " +
              u64(l.total) + "-byte payload, the section has " + u64(s.length));
@@ -576,6 +581,7 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
     } else {
         SparseRgbVectors& v = c.vectors;
         bool paddingZero = true, shCountMismatch = false;
+        std::vector<uint8_t> stream;  // version 6: the varint-coded indices
         if (shared) {
             v.offsets = previous->vectors.offsets;
             v.indices = previous->vectors.indices;
@@ -583,7 +589,22 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
             paddingZero &= readPaddingTo(r, s, l.offsets);
             readArray(r, s, v.offsets, vertices + 1);
             paddingZero &= readPaddingTo(r, s, l.indices);
-            readArray(r, s, v.indices, coefficients);
+            if (eightBit)
+                readArray(r, s, stream, indexBytes);
+            else
+                readArray(r, s, v.indices, coefficients);
+        }
+        std::string indexReason;
+        if (eightBit && !shared) {
+            // checkVectors bounds the offsets against the count only after the read, so a
+            // decode that fails leaves the values unread against them (reported after the
+            // checksum, below).
+            if (v.offsets.empty() || v.offsets.back() != coefficients)
+                indexReason = "offsets end at " + u64(v.offsets.empty() ? 0 : v.offsets.back()) + " but there are " +
+                              u64(coefficients) + " coefficients";
+            else
+                indexReason = decodeIndexLists(stream.data(), stream.size(), v.offsets, v.indices, "vertex");
+            if (!indexReason.empty()) v.indices.assign(coefficients, 0);
         }
         paddingZero &= readPaddingTo(r, s, l.values);
         if (eightBit) {
@@ -619,6 +640,7 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
         }
         closeSection(r, s);
         if (!paddingZero) r.fail("inconsistent: " + s.label + ": non-zero padding between arrays");
+        if (!indexReason.empty()) r.fail("inconsistent: " + s.label + ": " + indexReason);
         if (shCountMismatch)
             r.fail("inconsistent: " + s.label + ": the SH coefficient count " + u64(shCoefficients) +
                    " does not match the indices");

@@ -13,6 +13,7 @@
 #include <stdexcept>
 
 #include "common/atomic_file.h"
+#include "common/blocked_vectors.h"
 #include "common/error.h"
 #include "common/transport_file.h"
 #include "common/transport_file_format.h"
@@ -168,7 +169,11 @@ void writeComponent(FileWriter& w, const TransportComponent& c, const TransportC
     if (eightBit)
         shCoefficients = uint64_t(std::count_if(v.indices.begin(), v.indices.end(),
                                                 [&](uint16_t i) { return i >= v.shFrom; }));
-    const ComponentLayout l = componentLayout(vertices, coefficients, flags, shCoefficients, !v.shScales.empty());
+    const bool ownIndices = !(flags & kCompSharedIndices);
+    const std::vector<uint8_t> stream =
+        eightBit && ownIndices ? encodeIndexLists(v.offsets, v.indices) : std::vector<uint8_t>();
+    const ComponentLayout l =
+        componentLayout(vertices, coefficients, flags, shCoefficients, !v.shScales.empty(), stream.size());
     w.beginSection(Section::Component, l.total);
     w.u32(uint32_t(c.kind));
     w.u32(c.term);
@@ -177,11 +182,15 @@ void writeComponent(FileWriter& w, const TransportComponent& c, const TransportC
     w.u32(flags);  // reserved (0) before version 6
     w.u32(0);
     w.u64(shCoefficients);
-    if (!(flags & kCompSharedIndices)) {
+    w.u64(stream.size());
+    if (ownIndices) {
         w.padTo(l.offsets);
         w.array(v.offsets);
         w.padTo(l.indices);
-        w.array(v.indices);
+        if (eightBit)
+            w.array(stream);
+        else
+            w.array(v.indices);
     }
     w.padTo(l.values);
     if (eightBit) {

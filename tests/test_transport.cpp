@@ -2308,7 +2308,7 @@ TEST_F(TransportFileV6, RoundTripIsVersion6AndStoresTheIndicesOnce) {
         const std::vector<Sec> secs = walk(b);
         ASSERT_EQ(secs[3].tag, "COMP");
         const uint64_t coefficients = le64(&b[secs[3].payload + 16]);
-        EXPECT_GE(secs[3].length, secs[4].length + 2 * coefficients + 4 * 23) << "offsets and indices once";
+        EXPECT_GE(secs[3].length, secs[4].length + coefficients + 4 * 23) << "offsets and indices once";
         // The same data at 16 bits is a larger version-5 file.
         TransportFile wide = makeProfileFile(rng, 23, 4, 3, sh, true, true, false);
         saveTransportFile(q, wide);
@@ -2342,14 +2342,17 @@ TEST_F(TransportFileV6, LayoutMatchesTheFormatDocument) {
         EXPECT_EQ(le32(q + 24), k == 0 ? 1u : 3u) << "flags";
         EXPECT_EQ(le32(q + 28), 0u);
         EXPECT_EQ(le64(q + 32), shCount);
-        for (size_t i = 40; i < 64; ++i) EXPECT_EQ(q[i], 0) << i;
+        const uint64_t streamBytes = le64(q + 40);
+        if (k == 1) EXPECT_EQ(streamBytes, 0u) << "no indices of its own";
+        for (size_t i = 48; i < 64; ++i) EXPECT_EQ(q[i], 0) << i;
         uint64_t pos = 64;
         if (k == 0) {
             for (uint32_t i = 0; i <= vertices; ++i) EXPECT_EQ(le32(q + pos + 4 * i), v.offsets[i]);
             pos = align(pos + 4 * (vertices + 1));
-            for (uint64_t i = 0; i < coefficients; ++i)
-                EXPECT_EQ(uint16_t(q[pos + 2 * i] | q[pos + 2 * i + 1] << 8), v.indices[i]);
-            pos += 2 * coefficients;
+            // The indices as the varint stream of blocked files, per vertex.
+            EXPECT_EQ(decodeVarints(q + pos, streamBytes, v.offsets), v.indices);
+            EXPECT_LT(streamBytes, 2 * coefficients);
+            pos += streamBytes;
         }
         const uint64_t haarAt = align(pos), shAt = align(haarAt + 3 * (coefficients - shCount));
         uint64_t h = 0, t = 0;
@@ -2435,6 +2438,12 @@ TEST_F(TransportFileV6, InvalidDataIsRefused) {
     refused([&](Bytes& y) { putLe32(&y[secs[first].payload + 28], 1); }, first, "reserved header bytes are not zero");
     refused([&](Bytes& y) { putLe64(&y[secs[first].payload + 32], le64(&y[secs[first].payload + 32]) + 1); }, first,
             "-byte payload, the section has");
+    refused([&](Bytes& y) { putLe64(&y[secs[first].payload + 40], 1); }, first, "an index stream of 1 bytes");
+    refused([&](Bytes& y) { putLe64(&y[secs[second].payload + 40], 5); }, second, "an index stream of 5 bytes");
+    {  // an overlong varint in the first vertex's list
+        const uint64_t at = secs[first].payload + (64 + 4 * 13 + 63) / 64 * 64;
+        refused([&](Bytes& y) { y[at] = 0x80; y[at + 1] = 0x00; }, first, "index stream: overlong varint at byte 1");
+    }
     Bytes y;
     // A version-6 header on a file of 16-bit profiles (version 5).
     saveTransportFile(p, makeProfileFile(rng, 12, 4, 2, 9, true, false, false));
@@ -2448,6 +2457,7 @@ TEST_F(TransportFileV6, InvalidDataIsRefused) {
     y = b;
     putLe32(&y[8], 5);
     writeBytes(p, y);
-    // (read as version 5, the section is longer than its counts say)
-    EXPECT_TRUE(contains(errorOf([&] { loadTransportFile(p); }), "-byte payload, the section has"));
+    // (read as version 5, its arrays do not fit the counts: refused in the first COMP)
+    const std::string e5 = errorOf([&] { loadTransportFile(p); });
+    EXPECT_TRUE(contains(e5, "inconsistent: section 'COMP' (component 2 of 3)")) << e5;
 }

@@ -159,7 +159,7 @@ void addJobOptions(CLI::App& app, JobOptions& raw, PrecomputeSettings& s) {
     app.add_option("--editable-bits", s.editable.haarBits,
                    "Bits of the profiles' Haar values in a per-vertex file: 8 (with -k " +
                        std::to_string(kDefaultEditableCoefficients) +
-                       " by default: twice the terms in about the bytes) or 16 (-k 128 by default)")
+                       " by default: more terms in fewer bytes than 16 bits) or 16 (-k 128 by default)")
         ->capture_default_str()->group("Editable transport");
     CLI::Option* ground =
         app.add_flag("--ground", raw.ground,

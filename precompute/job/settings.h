@@ -52,8 +52,9 @@ struct EditableSettings {
     // fine spacing. 0: one level of sub-points at the fine spacing.
     double cellGrading = 8.0;
     // Bits of the profiles' Haar values in a per-vertex file (SparseRgbVectors::haarBits):
-    // 8 keeps twice the terms (kDefaultEditableCoefficients) in about the bytes of 128
-    // at 16 bits; 16 for comparisons that must not see the 8-bit rounding.
+    // 8 keeps kDefaultEditableCoefficients terms in fewer bytes than 128 at 16 bits
+    // (the files, version 6, also store the shared index list once, varint-coded); 16
+    // for comparisons that must not see the 8-bit rounding.
     int haarBits = 8;
 };
 
@@ -64,7 +65,7 @@ inline constexpr size_t kDefaultBlockCoefficients = 160;
 inline constexpr size_t kDefaultPreBlockCoefficients = 192;
 // The terms per vertex of an editable per-vertex job that does not set -k (shared by its
 // profiles, 8-bit Haar values).
-inline constexpr size_t kDefaultEditableCoefficients = 256;
+inline constexpr size_t kDefaultEditableCoefficients = 296;
 
 struct PrecomputeSettings {
     std::string meshPath;
