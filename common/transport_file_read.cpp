@@ -596,9 +596,8 @@ TransportComponent readComponent(FileReader& r, const HeadFields& h, size_t inde
         }
         std::string indexReason;
         if (eightBit && !shared) {
-            // checkVectors bounds the offsets against the count only after the read, so a
-            // decode that fails leaves the values unread against them (reported after the
-            // checksum, below).
+            // A bad stream is reported after the checksum (below), like every content
+            // error; the values are read against zero indices meanwhile.
             if (v.offsets.empty() || v.offsets.back() != coefficients)
                 indexReason = "offsets end at " + u64(v.offsets.empty() ? 0 : v.offsets.back()) + " but there are " +
                               u64(coefficients) + " coefficients";
