@@ -323,16 +323,13 @@ bool relightRangeBaseline(const Stream& s, size_t first, size_t last, const floa
             return false;
         }
         float sum[3];
-        if (s.shScales) {
-            const VertexSpan sh = splitShSpan(span, s.shFrom);
-            dotBaseline<Stride>(span, light, sum);
-            store<Add>(s, v, sum, out);
-            dotBaseline<Stride>(sh, light, sum);
-            addSh(s, v, sum, out);
-            continue;
-        }
+        const VertexSpan sh = s.shScales ? splitShSpan(span, s.shFrom) : VertexSpan{};
         dotBaseline<Stride>(span, light, sum);
         store<Add>(s, v, sum, out);
+        if (s.shScales) {
+            dotBaseline<Stride>(sh, light, sum);
+            addSh(s, v, sum, out);
+        }
     }
     return true;
 }
@@ -386,16 +383,13 @@ __attribute__((target("avx2,fma"))) bool relightRangeAvx2(const Stream& s, size_
             return false;
         }
         float sum[3];
-        if (s.shScales) {
-            const VertexSpan sh = splitShSpan(span, s.shFrom);
-            dotAvx2<Stride>(span, light, sum);
-            store<Add>(s, v, sum, out);
-            dotAvx2<Stride>(sh, light, sum);
-            addSh(s, v, sum, out);
-            continue;
-        }
+        const VertexSpan sh = s.shScales ? splitShSpan(span, s.shFrom) : VertexSpan{};
         dotAvx2<Stride>(span, light, sum);
         store<Add>(s, v, sum, out);
+        if (s.shScales) {
+            dotAvx2<Stride>(sh, light, sum);
+            addSh(s, v, sum, out);
+        }
     }
     return true;
 }
