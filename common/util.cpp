@@ -8,6 +8,7 @@
 #include <cctype>
 #include <charconv>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -79,13 +80,29 @@ std::string formatRgb(const glm::dvec3& rgb, int significantDigits, const char* 
     return out;
 }
 
+namespace {
+
+// PRT_ISA caps the kernels' choice: "baseline" (x86-64), "avx2" (no AVX-512); unset or
+// anything else: what the CPU runs.
+int isaCap() {
+    static const int cap = [] {
+        const char* v = std::getenv("PRT_ISA");
+        if (v && std::strcmp(v, "baseline") == 0) return 0;
+        if (v && std::strcmp(v, "avx2") == 0) return 1;
+        return 2;
+    }();
+    return cap;
+}
+
+}  // namespace
+
 bool cpuHasAvx2Fma() {
 #if defined(__x86_64__) && defined(__GNUC__)
     static const bool has = [] {
         __builtin_cpu_init();
         return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
     }();
-    return has;
+    return has && isaCap() >= 1;
 #else
     return false;
 #endif
@@ -98,7 +115,7 @@ bool cpuHasAvx512() {
         return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
                __builtin_cpu_supports("avx512vl");
     }();
-    return has && cpuHasAvx2Fma();
+    return has && cpuHasAvx2Fma() && isaCap() >= 2;
 #else
     return false;
 #endif

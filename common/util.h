@@ -58,7 +58,9 @@ std::string formatRgb(const glm::dvec3& rgb, int significantDigits = 4, const ch
 double median(std::vector<double> values);
 
 // Whether this CPU runs AVX2 + FMA code (x86-64-v3), for the kernels compiled with a
-// target attribute and chosen at run time; false on other architectures. Cached.
+// target attribute and chosen at run time; false on other architectures. Cached. The
+// environment variable PRT_ISA=baseline (or avx2) caps both answers at the process's
+// start, so that the x86-64 (or AVX2) paths can be run and tested on any newer CPU.
 bool cpuHasAvx2Fma();
 // Whether it also runs AVX-512 F, BW and VL code (the blocked relight kernel). Cached.
 bool cpuHasAvx512();

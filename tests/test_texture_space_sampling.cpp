@@ -193,6 +193,35 @@ TEST(TextureSpaceSampling, ShadowMapHoldsTheLitPowerAndItsFilterTheLocalPart) {
     }
 }
 
+// The filter's SIMD loop against its taps summed one by one in double: the same taps
+// and table, so they agree to float rounding (the suite runs on the x86-64 path too,
+// TextureSpaceSamplingBaseline). A tap whose projection lands within float rounding of
+// a pixel edge could read the neighbouring pixel; none does at these points. Broken
+// once: a 1% scale on one path's sum fails it by 20x.
+TEST(TextureSpaceSampling, LocalFilterEqualsItsTapsSummedOneByOne) {
+    const Scene s(makeIcosphere(4, 8.0f), 256);
+    const Material m = materialByName("Skin1");
+    for (const Light& light : {pointLight({20, 30, 25}, {2, 2, 2}), directionalLight({1, 2, 1}, {900, 900, 900})}) {
+        TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m, {.mode = TextureSpaceMode::Hybrid, .samples = 64});
+        r.setLights({light});
+        const TranslucentShadowMap& map = r.shadowMaps().front();
+        double worst = 0.0, peak = 0.0;
+        for (size_t v = 0; v < s.mesh.vertexCount(); v += 7) {
+            const glm::dvec3 x(s.mesh.positions[v]);
+            const glm::dvec3 fast = map.localExitance(x, r.localFilter());
+            const glm::dvec3 slow = map.localExitanceReference(x, r.localFilter());
+            for (int c = 0; c < 3; ++c) {
+                peak = std::max(peak, slow[c]);
+                worst = std::max(worst, std::abs(fast[c] - slow[c]));
+            }
+        }
+        std::printf("%s: filter SIMD vs one by one: max |diff| %.3g of peak %.4g\n", describe(light).c_str(), worst,
+                    peak);
+        ASSERT_GT(peak, 0.0);
+        EXPECT_LT(worst, 5e-4 * peak) << describe(light);
+    }
+}
+
 // A coarse sphere with smooth normals: faces seen edge-on by the light have interpolated
 // normals facing it. The filter must stay close to the map's cubature everywhere (no
 // sparkle of one tap carrying a strip's flux).
@@ -260,6 +289,39 @@ TEST(TextureSpaceSampling, HybridReducesToEachMethodAndIsTheSumOfItsParts) {
     }
     EXPECT_LT(worst, 1e-5 * peak);
     EXPECT_GT(peak, 0.0);
+}
+
+// The global sum over every sample (theta = 0), its SIMD loop against the samples
+// summed one by one in double with the same table, per vertex (16 points a call) and at
+// one point; the suite runs on the x86-64 path too (TextureSpaceSamplingBaseline).
+TEST(TextureSpaceSampling, SampleSumEqualsItsSamplesSummedOneByOne) {
+    const Scene s(makeTorus(6.0f, 2.5f, 32, 16));
+    const Material m = materialByName("Skin1");
+    for (const TextureSpaceMode mode : {TextureSpaceMode::Sampling, TextureSpaceMode::Global}) {
+        TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m,
+                               {.mode = mode, .samples = 700, .seed = 4, .clusterAngle = 0.0});
+        r.setLights({pointLight({-20, 25, 30}, {1, 1, 1})});
+        const SampleTerms& t = r.samples();
+        ASSERT_GT(t.size(), 100u);
+        const std::vector<glm::vec3> fast = r.vertexExitance();
+        double worst = 0.0, peak = 0.0;
+        for (size_t v = 0; v < s.mesh.vertexCount(); v += 5) {
+            const glm::vec3 x = s.mesh.positions[v];
+            glm::dvec3 slow(0.0);
+            for (size_t j = 0; j < t.size(); ++j) {
+                const glm::vec3 d = x - glm::vec3(t.x[j], t.y[j], t.z[j]);
+                slow += glm::dvec3(glm::vec3(t.w[j])) * glm::dvec3(r.sampleKernel()(glm::dot(d, d)));
+            }
+            const glm::dvec3 one = r.exitance(glm::dvec3(x));
+            for (int c = 0; c < 3; ++c) {
+                peak = std::max(peak, slow[c]);
+                worst = std::max({worst, std::abs(double(fast[v][c]) - slow[c]), std::abs(one[c] - slow[c])});
+            }
+        }
+        std::printf("%s: sample sum SIMD vs one by one: max |diff| %.3g of peak %.4g\n", toString(mode), worst, peak);
+        ASSERT_GT(peak, 0.0);
+        EXPECT_LT(worst, 1e-5 * peak) << toString(mode);
+    }
 }
 
 TEST(TextureSpaceSampling, ClusteredSumsStayWithinTheirBoundOfEverySample) {

@@ -1,5 +1,8 @@
 #include "relight/pointlight/diffusion_split.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <cmath>
 #include <string>
 
@@ -55,10 +58,14 @@ std::vector<glm::dvec3> radialNodes(const RadialKernel& kernel, double rMax, int
     if (!std::isfinite(rMax) || !(rMax > 0.0)) throw Error("diffusion table", "rMax must be finite and > 0");
     if (entries < 2) throw Error("diffusion table", "needs at least 2 entries");
     std::vector<glm::dvec3> nodes(size_t(entries) + 1);
-    for (int i = 0; i <= entries; ++i) {
-        const double t = double(i) / double(entries);
-        nodes[size_t(i)] = kernel(rMax * t * t);
-    }
+    // Each node on its own (a live material change waits for these): the same values on
+    // any thread count.
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i < r.end(); ++i) {
+            const double t = double(i) / double(entries);
+            nodes[i] = kernel(rMax * t * t);
+        }
+    });
     return nodes;
 }
 

@@ -125,7 +125,8 @@ RadialTable localDiffusionTable(const Material& material, const DiffusionSplit& 
 RadialTable globalDiffusionTable(const Material& material, const DiffusionSplit& split, double rMax);
 
 // k at the nodes of the t grid: entries + 1 values, node i at r = rMax (i / entries)^2.
-// Throws prt::Error for rMax not finite and > 0 or entries < 2.
+// Throws prt::Error for rMax not finite and > 0 or entries < 2. Parallel (TBB): kernel
+// must be safe to call from several threads at once (a pure function of r).
 std::vector<glm::dvec3> radialNodes(const RadialKernel& kernel, double rMax, int entries = 4096);
 
 // The second-order part of a radial kernel's Taylor expansion. For y = c + d near c,

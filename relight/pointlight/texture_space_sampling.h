@@ -202,6 +202,9 @@ public:
     // The current samples (after merging equal draws) and the map's total flux (mean RGB
     // is the pdf's normaliser).
     size_t uniqueSamples() const { return samples_.size(); }
+    const SampleTerms& samples() const { return samples_; }
+    // The table the global sum evaluates (R_d, or R_d W_g in the hybrid and global modes).
+    const RadialTable& sampleKernel() const { return sampleKernel_; }
     glm::dvec3 totalFlux() const { return totalFlux_; }
     const std::vector<glm::vec3>& texelFlux() const { return texelFlux_; }
     const std::vector<TranslucentShadowMap>& shadowMaps() const { return maps_; }

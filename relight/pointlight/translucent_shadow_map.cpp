@@ -27,6 +27,97 @@ void orthonormalBasis(const glm::dvec3& w, glm::dvec3& a, glm::dvec3& b) {
     b = glm::cross(w, a);
 }
 
+// The map-frame projection of one point's filter taps: tap q = x + o1 e1 + o2 e2 has
+// map-frame coordinates X + o1 E1 + o2 E2 (linear in the offsets).
+struct TapFrame {
+    glm::vec3 X, E1, E2, x;
+    float toPixel;  // pixels per unit of the image plane
+    int resolution;
+    bool perspective;
+};
+
+// Sum over the filter's taps of flux x K(r) x measure, RGB in the first three lanes. In
+// blocks of taps: projections and distances in loops the compiler vectorises, the map
+// and table reads apart; two accumulators (even and odd taps) so that consecutive
+// additions do not wait on each other. Compiled twice, for x86-64 and for AVX2 + FMA,
+// and chosen once per process (cpuHasAvx2Fma), as texture_space_sampling.cpp's sums.
+[[gnu::always_inline]] inline __m128 filterTapsBody(const TapFrame& fr, const ShadowMapTexel* texels,
+                                                    const LocalFilter& filter) {
+    const glm::vec3 X = fr.X, E1 = fr.E1, E2 = fr.E2, xf = fr.x;
+    const bool perspective = fr.perspective;
+    const int resolution = fr.resolution;
+    const float toPixel = fr.toPixel, half = 0.5f * float(resolution);
+    const float res = float(resolution);
+    constexpr size_t kBlock = 128;
+    int index[kBlock];
+    float r2[kBlock], flux[kBlock], t[kBlock];
+    __m128 even = _mm_setzero_ps(), odd = _mm_setzero_ps();
+    const float rMax2 = filter.kernel.rMax2();
+    const size_t taps = filter.tapOffset.size();
+    const int last = resolution - 1;
+    for (size_t begin = 0; begin < taps; begin += kBlock) {
+        const size_t count = std::min(kBlock, taps - begin);
+        const float* o1 = &filter.tapOffset1[begin];
+        const float* o2 = &filter.tapOffset2[begin];
+        // Plain floats, selects and non-short-circuit tests so that GCC vectorises it:
+        // the perspective divide is by qz or by 1.
+        const float zMin = perspective ? 0.0f : -std::numeric_limits<float>::infinity();
+        const float zScale = perspective ? 1.0f : 0.0f, zBias = perspective ? 0.0f : 1.0f;
+        const float lastF = float(last);
+        for (size_t k = 0; k < count; ++k) {
+            const float qx = X.x + o1[k] * E1.x + o2[k] * E2.x;
+            const float qy = X.y + o1[k] * E1.y + o2[k] * E2.y;
+            const float qz = X.z + o1[k] * E1.z + o2[k] * E2.z;
+            const float inv = toPixel / (qz * zScale + zBias);
+            const float px = qx * inv + half, py = qy * inv + half;
+            const bool inside = (qz > zMin) & (px >= 0.0f) & (py >= 0.0f) & (px < res) & (py < res);
+            const int ix = int(std::min(std::max(px, 0.0f), lastF)), iy = int(std::min(std::max(py, 0.0f), lastF));
+            index[k] = inside ? iy * resolution + ix : -1;
+        }
+        // Without branches (a tap off the map or beyond the table reads pixel 0 and
+        // gets flux 0): which taps land on lit pixels does not follow a pattern.
+        for (size_t k = 0; k < count; ++k) {
+            const ShadowMapTexel& tx = texels[size_t(std::max(index[k], 0))];
+            const glm::vec3 d = xf - tx.position;
+            r2[k] = glm::dot(d, d);
+            flux[k] = index[k] >= 0 ? tx.flux : 0.0f;
+        }
+        for (size_t k = 0; k < count; ++k) {
+            t[k] = filter.kernel.position(r2[k]);
+            flux[k] = r2[k] < rMax2 ? flux[k] : 0.0f;
+        }
+        const glm::vec4* area = &filter.tapArea[begin];
+        const auto term = [&](size_t k) {
+            return _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(flux[k]), filter.kernel.atSse(t[k])), _mm_loadu_ps(&area[k].x));
+        };
+        size_t k = 0;
+        for (; k + 1 < count; k += 2) {
+            even = _mm_add_ps(even, term(k));
+            odd = _mm_add_ps(odd, term(k + 1));
+        }
+        if (k < count) even = _mm_add_ps(even, term(k));
+    }
+    return _mm_add_ps(even, odd);
+}
+
+__m128 filterTapsBaseline(const TapFrame& fr, const ShadowMapTexel* texels, const LocalFilter& filter) {
+    return filterTapsBody(fr, texels, filter);
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target("avx2,fma"))) __m128 filterTapsAvx2(const TapFrame& fr, const ShadowMapTexel* texels,
+                                                          const LocalFilter& filter) {
+    return filterTapsBody(fr, texels, filter);
+}
+#endif
+
+__m128 filterTaps(const TapFrame& fr, const ShadowMapTexel* texels, const LocalFilter& filter) {
+#if defined(__x86_64__) && defined(__GNUC__)
+    if (cpuHasAvx2Fma()) return filterTapsAvx2(fr, texels, filter);
+#endif
+    return filterTapsBaseline(fr, texels, filter);
+}
+
 }  // namespace
 
 LocalFilter makeLocalFilter(RadialTable kernel, int rings, int ringSamples) {
@@ -263,58 +354,40 @@ glm::dvec3 TranslucentShadowMap::localExitance(const glm::dvec3& x, const LocalF
     const glm::vec3 X(glm::dot(rel, right_), glm::dot(rel, up_), glm::dot(rel, forward_));
     const glm::vec3 E1(glm::dot(e1, right_), glm::dot(e1, up_), glm::dot(e1, forward_));
     const glm::vec3 E2(glm::dot(e2, right_), glm::dot(e2, up_), glm::dot(e2, forward_));
-    const bool perspective = hasPosition(light_);
-    const float toPixel = float(0.5 * resolution_ / halfExtent_), half = 0.5f * float(resolution_);
-    const float res = float(resolution_);
-    const glm::vec3 xf(x);
-    // In blocks of taps: projections and distances in loops the compiler vectorises,
-    // the map and table reads apart.
-    constexpr size_t kBlock = 128;
-    int index[kBlock];
-    float r2[kBlock], flux[kBlock], t[kBlock];
-    __m128 sum = _mm_setzero_ps();
-    const float rMax2 = filter.kernel.rMax2();
-    const size_t taps = filter.tapOffset.size();
-    const int last = resolution_ - 1;
-    for (size_t begin = 0; begin < taps; begin += kBlock) {
-        const size_t count = std::min(kBlock, taps - begin);
-        const float* o1 = &filter.tapOffset1[begin];
-        const float* o2 = &filter.tapOffset2[begin];
-        // Plain floats, selects and non-short-circuit tests so that GCC vectorises it
-        // (4 taps per SSE op): the perspective divide is by qz or by 1.
-        const float zMin = perspective ? 0.0f : -std::numeric_limits<float>::infinity();
-        const float zScale = perspective ? 1.0f : 0.0f, zBias = perspective ? 0.0f : 1.0f;
-        const float lastF = float(last);
-        for (size_t k = 0; k < count; ++k) {
-            const float qx = X.x + o1[k] * E1.x + o2[k] * E2.x;
-            const float qy = X.y + o1[k] * E1.y + o2[k] * E2.y;
-            const float qz = X.z + o1[k] * E1.z + o2[k] * E2.z;
-            const float inv = toPixel / (qz * zScale + zBias);
-            const float px = qx * inv + half, py = qy * inv + half;
-            const bool inside = (qz > zMin) & (px >= 0.0f) & (py >= 0.0f) & (px < res) & (py < res);
-            const int ix = int(std::min(std::max(px, 0.0f), lastF)), iy = int(std::min(std::max(py, 0.0f), lastF));
-            index[k] = inside ? iy * resolution_ + ix : -1;
-        }
-        // Without branches (a tap off the map or beyond the table reads pixel 0 and
-        // gets flux 0): which taps land on lit pixels does not follow a pattern.
-        for (size_t k = 0; k < count; ++k) {
-            const Texel& tx = texels_[size_t(std::max(index[k], 0))];
-            const glm::vec3 d = xf - tx.position;
-            r2[k] = glm::dot(d, d);
-            flux[k] = index[k] >= 0 ? tx.flux : 0.0f;
-        }
-        for (size_t k = 0; k < count; ++k) {
-            t[k] = filter.kernel.position(r2[k]);
-            flux[k] = r2[k] < rMax2 ? flux[k] : 0.0f;
-        }
-        const glm::vec4* area = &filter.tapArea[begin];
-        for (size_t k = 0; k < count; ++k)  // flux x K(r) x measure, RGB in one SSE register
-            sum = _mm_add_ps(sum, _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(flux[k]), filter.kernel.atSse(t[k])),
-                                             _mm_loadu_ps(&area[k].x)));
-    }
+    const TapFrame frame{X, E1, E2, glm::vec3(x), float(0.5 * resolution_ / halfExtent_), resolution_,
+                         hasPosition(light_)};
+    const __m128 sum = filterTaps(frame, texels_.data(), filter);
     alignas(16) float total[4];
     _mm_store_ps(total, sum);
     return glm::dvec3(glm::vec3(total[0], total[1], total[2]) * fluxScale_) * measureScale;
+}
+
+glm::dvec3 TranslucentShadowMap::localExitanceReference(const glm::dvec3& x, const LocalFilter& filter) const {
+    if (!(filter.rhoMax > 0.0)) return glm::dvec3(0.0);
+    glm::dvec3 w = forward_;
+    double measureScale = 1.0;
+    if (hasPosition(light_)) {
+        const glm::dvec3 d = x - origin_;
+        const double d2 = glm::dot(d, d);
+        if (!(d2 > 0.0)) return glm::dvec3(0.0);
+        w = d / std::sqrt(d2);
+        measureScale = 1.0 / d2;
+    }
+    glm::dvec3 e1, e2;
+    orthonormalBasis(w, e1, e2);
+    glm::dvec3 sum(0.0);
+    for (size_t k = 0; k < filter.tapOffset.size(); ++k) {
+        const glm::dvec3 q = x + double(filter.tapOffset[k].x) * e1 + double(filter.tapOffset[k].y) * e2;
+        double px = 0.0, py = 0.0;
+        if (!project(q, px, py)) continue;
+        const Texel& t = texels_[size_t(py) * size_t(resolution_) + size_t(px)];
+        if (t.flux == 0.0f) continue;
+        const glm::dvec3 d = x - glm::dvec3(t.position);
+        const double r2 = glm::dot(d, d);
+        if (!(r2 < double(filter.kernel.rMax2()))) continue;
+        sum += double(t.flux) * glm::dvec3(filter.kernel(float(r2))) * glm::dvec3(glm::vec3(filter.tapArea[k]));
+    }
+    return sum * glm::dvec3(fluxScale_) * measureScale;
 }
 
 glm::dvec3 TranslucentShadowMap::exitanceAllPixels(const glm::dvec3& x, const RadialTable& kernel) const {

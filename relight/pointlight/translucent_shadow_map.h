@@ -77,6 +77,14 @@ struct LocalFilter {
 // filter with rhoMax = 0 (every tap adds 0).
 LocalFilter makeLocalFilter(RadialTable kernel, int rings, int ringSamples);
 
+// One pixel of a translucent shadow map, together in 16 bytes (the filter's taps are
+// random reads: memory bound): the surface point (only meaningful where lit) and the
+// flux per unit measure divided by the light's colour (0 = nothing).
+struct ShadowMapTexel {
+    glm::vec3 position{0.0f};
+    float flux = 0.0f;
+};
+
 class TranslucentShadowMap {
 public:
     // Renders the map of one light. resolution in [16, 8192]. Throws prt::Error for a
@@ -86,6 +94,9 @@ public:
 
     // The filtered local exitance at x (W/m^2, RGB).
     glm::dvec3 localExitance(const glm::dvec3& x, const LocalFilter& filter) const;
+    // The same taps summed one by one in double precision, projected by project(): the
+    // plain form localExitance's SIMD paths are tested against (slow).
+    glm::dvec3 localExitanceReference(const glm::dvec3& x, const LocalFilter& filter) const;
     // The full cubature over every pixel of the map with kernel k (slow: the reference
     // of the filter in tests).
     glm::dvec3 exitanceAllPixels(const glm::dvec3& x, const RadialTable& kernel) const;
@@ -112,13 +123,7 @@ private:
     glm::dvec3 origin_{0.0};   // point: the light position; directional: the centre of the map plane
     glm::dvec3 forward_{0.0}, right_{0.0}, up_{0.0};
     double halfExtent_ = 0.0;  // point: tan(half angle); directional: half width in mm
-    // Per pixel, together in 16 bytes (the taps are random reads: memory bound): the
-    // surface point (only meaningful where lit) and the flux per unit measure divided
-    // by the light's colour (0 = nothing); fluxScale_ = the light's RGB.
-    struct Texel {
-        glm::vec3 position{0.0f};
-        float flux = 0.0f;
-    };
+    using Texel = ShadowMapTexel;
     glm::vec3 fluxScale_{0.0f};
     std::vector<Texel> texels_;
     size_t litPixels_ = 0;
