@@ -142,6 +142,11 @@ private:
     uint64_t nextPointId_ = 1;
     PointLightComparison comparison_;
     RunningStats pointStats_;
+    // Point-light updates that were a material change alone (the lights standing still):
+    // the worker's time (setMaterial and the per-vertex sums) plus the upload after it,
+    // what the change costs before the frame that shows it.
+    RunningStats pointEditStats_, pointEditMaterialStats_, pointEditSumsStats_;
+    bool pointEditLanded_ = false;
     bool uploadDirty_ = false, uploadedEnvOn_ = true, uploadedPointOn_ = true;
     uint64_t uploadedSpecularId_ = 0;  // the point-light result whose specular is uploaded (0: none)
     std::vector<glm::vec4> combined_;
@@ -308,6 +313,7 @@ void Viewer::exchangeLight() {
             havePoint_ = true;
             uploadDirty_ = true;
             if (!pointFront_.request.lights.empty()) pointStats_.add(pointFront_.totalMs);
+            pointEditLanded_ = pointFront_.materialChanged && !pointFront_.lightsRecomputed;
         }
         std::string text;
         if (pointWorker_->takeComparison(text)) {
@@ -321,6 +327,12 @@ void Viewer::exchangeLight() {
         uploadDirty_ = false;
         uploadedEnvOn_ = state_.environmentLight;
         uploadedPointOn_ = state_.pointLights;
+    }
+    if (pointEditLanded_) {
+        pointEditStats_.add(pointFront_.totalMs + lastUploadMs_);
+        pointEditMaterialStats_.add(pointFront_.materialMs);
+        pointEditSumsStats_.add(pointFront_.evaluationMs);
+        pointEditLanded_ = false;
     }
     if (envLanded) {
         relightStats_.add(front_.lightMs + front_.relightMs + lastUploadMs_);
@@ -521,6 +533,11 @@ void Viewer::printSummary(double seconds) const {
                     "last: %.1f ms, N = %d, %s), min %.1f, max %.1f ms\n",
                     pointStats_.count, pointStats_.mean(), pointFront_.totalMs, pointFront_.request.samples,
                     toString(pointFront_.request.mode), pointStats_.min, pointStats_.max);
+    if (pointEditStats_.count)
+        std::printf("point-light material changes: %zu, mean %.1f ms before the frame (setMaterial %.1f + "
+                    "per-vertex sums %.1f, the rest the worker's other steps and the upload), min %.1f, max %.1f ms\n",
+                    pointEditStats_.count, pointEditStats_.mean(), pointEditMaterialStats_.mean(),
+                    pointEditSumsStats_.mean(), pointEditStats_.min, pointEditStats_.max);
     const PointLightRequest& shown = pointFront_.request;
     if (pointStats_.count && (shown.specular || shown.singleScattering))
         std::printf("point-light surface terms (rays at the vertices): specular %s (GGX alpha %.3g), single "
