@@ -442,6 +442,33 @@ TEST(TextureSpaceSampling, BadOptionsAreErrors) {
 // the draws and the shadow maps: after it the renderer renders exactly as one built
 // with that material and lit with the same lights, N and seed; going back gives the
 // first image again; another eta is refused and leaves the renderer as it was.
+// vertexExitance keeps each chunk's cluster terms between material changes; a new
+// draw (new lights, N or seed) must drop them: after each, a renderer that has
+// evaluated before equals a new one, bit for bit.
+TEST(TextureSpaceSampling, KeptVertexTermsFollowTheDraws) {
+    const Scene s(makeTorus(6.0f, 2.5f, 32, 16), 128, 32);
+    const Material m = materialByName("Skin1");
+    const std::vector<Light> first{pointLight({-20, 25, 30}, {1, 1, 1})}, second{pointLight({25, 10, -30}, {1, 1, 1})};
+    auto fresh = [&](const std::vector<Light>& lights, int samples, uint64_t seed) {
+        TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m, {.samples = samples, .seed = seed});
+        r.setLights(lights);
+        return r.vertexExitance();
+    };
+    TextureSpaceRenderer r(s.mesh, s.scene, s.atlas, m, {.samples = 300, .seed = 7});
+    r.setLights(first);
+    const std::vector<glm::vec3> a = r.vertexExitance();
+    EXPECT_EQ(a, fresh(first, 300, 7));
+    EXPECT_EQ(r.vertexExitance(), a);  // the kept terms
+    r.redraw(300, 8);
+    EXPECT_EQ(r.vertexExitance(), fresh(first, 300, 8));
+    r.redraw(500, 8);
+    EXPECT_EQ(r.vertexExitance(), fresh(first, 500, 8));
+    r.setLights(second);
+    const std::vector<glm::vec3> b = fresh(second, 500, 8);
+    EXPECT_NE(b, a);
+    EXPECT_EQ(r.vertexExitance(), b);
+}
+
 TEST(TextureSpaceSampling, SetMaterialEqualsANewRendererBitForBit) {
     const Scene s(makeTorus(6.0f, 2.5f, 32, 16), 128, 32);
     const Material a = materialByName("Marble"), b = materialByName("Skin1");

@@ -143,6 +143,11 @@ void TextureSpaceRenderer::redraw(int samples, uint64_t seed, bool drawNow) {
 void TextureSpaceRenderer::draw() {
     samples_.clear();
     tree_.reset();
+    {
+        const std::lock_guard<std::mutex> lock(vertexTermsMutex_);
+        vertexTermsValid_ = false;  // the next vertexExitance gathers them anew, in the same memory
+        vertexTermsOverBudget_ = false;
+    }
     if (!usesSamples() || !(sampler_->total() > 0.0)) return;
     std::vector<uint32_t> texels = sampler_->stratifiedSamples(size_t(options_.samples), options_.seed, options_.jitter);
     std::sort(texels.begin(), texels.end());
@@ -371,11 +376,8 @@ void TextureSpaceRenderer::buildClusters() {
     });
 }
 
-void TextureSpaceRenderer::sampleSums(const glm::vec3* points, size_t count, glm::dvec3* out) const {
-    if (!tree_) {
-        kernelSums(sampleKernel_, samples_, points, count, out);
-        return;
-    }
+void TextureSpaceRenderer::gatherTerms(const glm::vec3* points, size_t count, SampleTerms& terms,
+                                       ClusterTerms& clusters) const {
     // The clusters seen from the points' box (see CLUSTERS in the header): whole nodes
     // as one term each, the samples of the opened leaves as they are.
     glm::dvec3 lo(points[0]), hi(points[0]);
@@ -384,8 +386,6 @@ void TextureSpaceRenderer::sampleSums(const glm::vec3* points, size_t count, glm
         hi = glm::max(hi, glm::dvec3(points[p]));
     }
     const double theta2 = options_.clusterAngle * options_.clusterAngle;
-    thread_local SampleTerms terms;
-    thread_local ClusterTerms clusters;
     thread_local std::vector<uint32_t> stack;
     terms.clear();
     clusters.clear();
@@ -406,8 +406,22 @@ void TextureSpaceRenderer::sampleSums(const glm::vec3* points, size_t count, glm
             for (uint32_t c = node.childCount; c-- > 0;) stack.push_back(node.firstChild + c);
         }
     }
-    kernelSums(sampleKernel_, terms, points, count, out);
-    clusterSums(sampleKernel_, sampleCurvature_, clusters, points, count, out);
+}
+
+void TextureSpaceRenderer::sampleSums(const glm::vec3* points, size_t count, glm::dvec3* out) const {
+    if (!tree_) {
+        kernelSums(sampleKernel_, samples_, points, count, out);
+        return;
+    }
+    thread_local GroupTerms group;
+    gatherTerms(points, count, group.samples, group.clusters);
+    kernelSums(sampleKernel_, group.samples, points, count, out);
+    clusterSums(sampleKernel_, sampleCurvature_, group.clusters, points, count, out);
+}
+
+size_t GroupTerms::byteSize() const {
+    return samples.size() * (3 * sizeof(float) + sizeof(glm::vec4)) +
+           clusters.size() * (10 * sizeof(float) + sizeof(glm::vec4));
 }
 
 glm::dvec3 TextureSpaceRenderer::exitance(const glm::dvec3& x) const {
@@ -439,11 +453,27 @@ std::vector<glm::vec3> TextureSpaceRenderer::vertexExitance() const {
     // Vertices sharing each block of samples (and, with clusters, one box: fewer for a
     // tighter box).
     const size_t kChunk = tree_ ? 16 : 64;
-    tbb::parallel_for(size_t(0), (nv + kChunk - 1) / kChunk, [&](size_t c) {
+    const size_t chunks = (nv + kChunk - 1) / kChunk;
+    // With clusters, each chunk's terms are gathered once per draw and kept (see
+    // vertexTerms_ in the header), unless they would take more than the budget.
+    std::unique_lock<std::mutex> lock(vertexTermsMutex_, std::defer_lock);
+    const bool cached = tree_ && usesSamples() && !vertexTermsOverBudget_;
+    bool gather = false;
+    if (cached) {
+        lock.lock();
+        gather = !vertexTermsValid_;
+        if (gather) vertexTerms_.resize(chunks);
+    }
+    tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
         const size_t begin = c * kChunk, count = std::min(kChunk, nv - begin);
         glm::dvec3 m[64];
         const glm::vec3* points = &orderedPositions_[begin];
-        if (usesSamples()) {
+        if (cached) {
+            GroupTerms& t = vertexTerms_[c];
+            if (gather) gatherTerms(points, count, t.samples, t.clusters);
+            kernelSums(sampleKernel_, t.samples, points, count, m);
+            clusterSums(sampleKernel_, sampleCurvature_, t.clusters, points, count, m);
+        } else if (usesSamples()) {
             sampleSums(points, count, m);
         } else {
             for (size_t k = 0; k < count; ++k) m[k] = glm::dvec3(0.0);
@@ -454,6 +484,16 @@ std::vector<glm::vec3> TextureSpaceRenderer::vertexExitance() const {
             out[vertexOrder_[begin + k]] = glm::vec3(m[k]);
         }
     });
+    if (gather) {
+        size_t bytes = 0;
+        for (const GroupTerms& t : vertexTerms_) bytes += t.byteSize();
+        if (bytes > kVertexTermsBudget) {
+            vertexTerms_ = std::vector<GroupTerms>();
+            vertexTermsOverBudget_ = true;
+        } else {
+            vertexTermsValid_ = true;
+        }
+    }
     return out;
 }
 

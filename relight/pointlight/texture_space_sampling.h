@@ -69,6 +69,7 @@
 
 #include <array>
 #include <cstdint>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -136,6 +137,14 @@ struct ClusterTerms : SampleTerms {
     std::vector<float> sxx, syy, szz, sxy, sxz, syz, trace;
     void clear();
     void push(const glm::vec3& position, const glm::vec3& weight, const float covariance[6]);
+};
+
+// The terms of the global sum seen from one group of points (see CLUSTERS above): the
+// samples of the opened leaves and the clusters used whole.
+struct GroupTerms {
+    SampleTerms samples;
+    ClusterTerms clusters;
+    size_t byteSize() const;
 };
 
 // The per-view half of shading per-vertex exitance (renderPerVertex), built once per
@@ -220,6 +229,8 @@ private:
     // The global (sample) sums at `count` points into out[0 .. count): over every
     // sample, or with theta > 0 over the terms of the clusters (see CLUSTERS above).
     void sampleSums(const glm::vec3* points, size_t count, glm::dvec3* out) const;
+    // The terms of the global sum at `count` points (theta > 0: tree_ is set).
+    void gatherTerms(const glm::vec3* points, size_t count, SampleTerms& terms, ClusterTerms& clusters) const;
     // Builds tree_ over the merged samples and puts them in its order.
     void buildClusters();
 
@@ -248,6 +259,17 @@ private:
     // same shadow-map cache lines.
     std::vector<uint32_t> vertexOrder_;
     std::vector<glm::vec3> orderedPositions_;
+    // With clusters, the terms of each chunk of vertexExitance's vertices: they depend
+    // on the draws, theta and the vertices only, so after a material change (which
+    // keeps the draws) the next vertexExitance reuses them and evaluates the new
+    // kernel alone. Gathered by the first vertexExitance after each draw (into the
+    // previous draw's memory); not kept when they would take more than
+    // kVertexTermsBudget bytes. The mutex makes concurrent vertexExitance calls safe
+    // (they take turns).
+    static constexpr size_t kVertexTermsBudget = size_t(256) << 20;
+    mutable std::vector<GroupTerms> vertexTerms_;
+    mutable bool vertexTermsValid_ = false, vertexTermsOverBudget_ = false;
+    mutable std::mutex vertexTermsMutex_;
 };
 
 }  // namespace prt
