@@ -94,8 +94,8 @@ private:
     // Events, a resize, ImGui's frame and the input; false while minimised.
     bool beginFrame(int& fbWidth, int& fbHeight);
     // Submits the lights the state asks for, takes what the workers finished and
-    // uploads it.
-    void exchangeLight();
+    // uploads it; returns whether a result landed.
+    bool exchangeLight();
     // Uploads the environment's per-vertex radiance (if on) plus the point lights' (if
     // on) and makes it the one drawn.
     void uploadCombined();
@@ -142,6 +142,8 @@ private:
     uint64_t nextPointId_ = 1;
     PointLightComparison comparison_;
     RunningStats pointStats_;
+    Stopwatch lastDrawn_;  // since the last frame drawn
+    static constexpr double kIdleRedrawMs = 250.0;
     // Point-light updates that were a material change alone (the lights standing still):
     // the worker's time (setMaterial and the per-vertex sums) plus the upload after it,
     // what the change costs before the frame that shows it.
@@ -288,7 +290,7 @@ PointLightRequest Viewer::currentPointRequest() const {
     return r;
 }
 
-void Viewer::exchangeLight() {
+bool Viewer::exchangeLight() {
     const LightRequest wanted = currentRequest();
     if (nextId_ == 1 || !wanted.sameLight(submitted_) || !wanted.sameMaterial(submitted_)) {
         submitted_ = wanted;
@@ -296,6 +298,7 @@ void Viewer::exchangeLight() {
         worker_->submit(submitted_);
     }
     const bool envLanded = worker_->take(front_);
+    bool pointLanded = false;
     if (envLanded) {
         displayed_ = front_.request;
         haveLight_ = true;
@@ -309,6 +312,7 @@ void Viewer::exchangeLight() {
             pointWorker_->submit(pointSubmitted_);
         }
         if (pointWorker_->take(pointFront_)) {
+            pointLanded = true;
             pointDisplayed_ = pointFront_.request;
             havePoint_ = true;
             uploadDirty_ = true;
@@ -348,6 +352,7 @@ void Viewer::exchangeLight() {
             ++(front_.editPath == LightResult::EditPath::Projected ? projectedEdits_ : recombinedEdits_);
         }
     }
+    return envLanded || pointLanded;
 }
 
 void Viewer::uploadCombined() {
@@ -567,9 +572,10 @@ int Viewer::run() {
     while (!window_->shouldClose()) {
         int fbWidth = 0, fbHeight = 0;
         if (!beginFrame(fbWidth, fbHeight)) continue;
+        const bool input = window_->takeInputSeen();
         script_.step(state_, haveLight_);
         applyScriptedEdit();
-        exchangeLight();
+        const bool landed = exchangeLight();
         const bool pointBusy = pointWorker_ && !comparison_.running && pointWorker_->busy();
         const bool busy = worker_->busy() || pointBusy;
         // The scripted end: the frames are done and the light on screen is the last asked for.
@@ -579,6 +585,17 @@ int Viewer::run() {
                                (!pointWorker_ || (havePoint_ && pointDisplayed_.id == pointSubmitted_.id));
         if (lastFrame && s_.edit && !front_.materialError.empty())
             throw Error("--edit-material", "the relight refused the edit: " + front_.materialError);
+        // While a worker computes and nothing on screen would change (no input, no
+        // result, no scripted motion), the frame would be the last one again: skip it and
+        // wait for input, so that a software rasteriser does not take the workers' cores.
+        // The panel is still redrawn every kIdleRedrawMs.
+        if (busy && !input && !landed && !lastFrame && !script_.moving() &&
+            lastDrawn_.milliseconds() < kIdleRedrawMs) {
+            window_->skipImGuiFrame();
+            window_->waitEvents(0.002);
+            continue;
+        }
+        lastDrawn_.restart();
         drawFrame(fbWidth, fbHeight, lastFrame);
         if (lastFrame) {
             screenshotsDone = true;

@@ -94,6 +94,9 @@ ViewerWindow::ViewerWindow(int width, int height, const std::string& title, bool
     glfwSetKeyCallback(w, keyCallback);
     glfwSetScrollCallback(w, scrollCallback);
     glfwSetFramebufferSizeCallback(w, framebufferSizeCallback);
+    glfwSetCursorPosCallback(w, cursorPosCallback);
+    glfwSetMouseButtonCallback(w, mouseButtonCallback);
+    glfwSetCharCallback(w, charCallback);
 
     IMGUI_CHECKVERSION();
     ImGui::CreateContext();
@@ -147,23 +150,48 @@ void ViewerWindow::renderImGui() {
     ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
 }
 
+void ViewerWindow::skipImGuiFrame() { ImGui::EndFrame(); }
+
+bool ViewerWindow::takeInputSeen() {
+    const bool seen = inputSeen_;
+    inputSeen_ = false;
+    return seen;
+}
+
 // ---------------------------------------------------------------------------
 // Input
 // ---------------------------------------------------------------------------
 
 void ViewerWindow::keyCallback(GLFWwindow* w, int key, int, int action, int mods) {
     auto* v = static_cast<ViewerWindow*>(glfwGetWindowUserPointer(w));
-    if (v && (action == GLFW_PRESS || action == GLFW_REPEAT)) v->keys_.emplace_back(key, mods);
+    if (!v) return;
+    v->inputSeen_ = true;
+    if (action == GLFW_PRESS || action == GLFW_REPEAT) v->keys_.emplace_back(key, mods);
 }
 
 void ViewerWindow::scrollCallback(GLFWwindow* w, double, double dy) {
     auto* v = static_cast<ViewerWindow*>(glfwGetWindowUserPointer(w));
-    if (v) v->scroll_ += dy;
+    if (!v) return;
+    v->inputSeen_ = true;
+    v->scroll_ += dy;
+}
+
+void ViewerWindow::cursorPosCallback(GLFWwindow* w, double, double) {
+    if (auto* v = static_cast<ViewerWindow*>(glfwGetWindowUserPointer(w))) v->inputSeen_ = true;
+}
+
+void ViewerWindow::mouseButtonCallback(GLFWwindow* w, int, int, int) {
+    if (auto* v = static_cast<ViewerWindow*>(glfwGetWindowUserPointer(w))) v->inputSeen_ = true;
+}
+
+void ViewerWindow::charCallback(GLFWwindow* w, unsigned int) {
+    if (auto* v = static_cast<ViewerWindow*>(glfwGetWindowUserPointer(w))) v->inputSeen_ = true;
 }
 
 void ViewerWindow::framebufferSizeCallback(GLFWwindow* w, int width, int height) {
     auto* v = static_cast<ViewerWindow*>(glfwGetWindowUserPointer(w));
     if (!v) return;
+    v->inputSeen_ = true;
     v->pendingResize_ = true;
     v->resizeWidth_ = width;
     v->resizeHeight_ = height;

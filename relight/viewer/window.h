@@ -54,6 +54,11 @@ public:
     // into the current framebuffer.
     void beginImGuiFrame();
     void renderImGui();
+    // Ends a begun ImGui frame without drawing it (a frame the viewer skips).
+    void skipImGuiFrame();
+    // Whether an input event (a key, a character, a mouse button or motion, the wheel, a
+    // resize) arrived since the last call.
+    bool takeInputSeen();
 
     // Applies the keys, drags and wheel turns since the last call to `state` (those
     // ImGui wants go to the panel): the table of docs/viewer.md, "Controls". Esc and Q
@@ -75,6 +80,9 @@ private:
     static void keyCallback(GLFWwindow* w, int key, int scancode, int action, int mods);
     static void scrollCallback(GLFWwindow* w, double dx, double dy);
     static void framebufferSizeCallback(GLFWwindow* w, int width, int height);
+    static void cursorPosCallback(GLFWwindow* w, double x, double y);
+    static void mouseButtonCallback(GLFWwindow* w, int button, int action, int mods);
+    static void charCallback(GLFWwindow* w, unsigned int codepoint);
 
     Session session_;  // first: terminates GLFW after the window is gone
     std::unique_ptr<GLFWwindow, DestroyWindow> window_;
@@ -86,6 +94,7 @@ private:
     std::vector<std::pair<int, int>> keys_;  // key, mods
     bool pendingResize_ = false;
     int resizeWidth_ = 0, resizeHeight_ = 0;
+    bool inputSeen_ = true;
 };
 
 // The camera back at `home`, keeping the current image size (R, the panel's button).
@@ -103,6 +112,8 @@ public:
                    double lightOrbitDegreesPerFrame = 0.0, glm::dvec3 lightPivot = glm::dvec3(0.0));
 
     bool scripted() const { return frames_ > 0; }
+    // Whether it turns anything each frame (spin, orbit or light orbit).
+    bool moving() const { return spin_ != 0.0 || orbit_ != 0.0 || lightOrbit_ != 0.0; }
     // Before a frame: one step of spin and orbit once light is on screen; a scripted
     // run takes exactly `frames` steps, so its final rotation and camera are known.
     void step(ViewState& state, bool lightShown);
