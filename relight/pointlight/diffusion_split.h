@@ -114,6 +114,21 @@ private:
     std::vector<glm::vec4> values_;  // RGB + 0 padding: one 16-byte load per node
 };
 
+// sum_k term(k) for k < count, term returning (R, G, B, 0) in an SSE register: the even
+// and the odd terms in two accumulators, so that consecutive additions (the table loops'
+// critical path) do not wait on each other. Inlined into its caller's target.
+template <class Term>
+[[gnu::always_inline]] inline __m128 sumInPairs(size_t count, const Term& term) {
+    __m128 even = _mm_setzero_ps(), odd = _mm_setzero_ps();
+    size_t k = 0;
+    for (; k + 1 < count; k += 2) {
+        even = _mm_add_ps(even, term(k));
+        odd = _mm_add_ps(odd, term(k + 1));
+    }
+    if (k < count) even = _mm_add_ps(even, term(k));
+    return _mm_add_ps(even, odd);
+}
+
 // The three kernels of a material as functions of r (mm): full R_d, local R_d W_l and
 // global R_d W_g (mm^-2), and tabulated.
 using RadialKernel = std::function<glm::dvec3(double r)>;

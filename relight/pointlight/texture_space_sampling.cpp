@@ -221,15 +221,8 @@ namespace {
             const auto term = [&](size_t j) {
                 return r2[j] < rMax2 ? _mm_mul_ps(_mm_loadu_ps(&w[j].x), kernel.atSse(t[j])) : _mm_setzero_ps();
             };
-            __m128 even = _mm_setzero_ps(), odd = _mm_setzero_ps();
-            size_t j = 0;
-            for (; j + 1 < block; j += 2) {
-                even = _mm_add_ps(even, term(j));
-                odd = _mm_add_ps(odd, term(j + 1));
-            }
-            if (j < block) even = _mm_add_ps(even, term(j));
             alignas(16) float sum[4];
-            _mm_store_ps(sum, _mm_add_ps(even, odd));
+            _mm_store_ps(sum, sumInPairs(block, term));
             out[p] += glm::dvec3(sum[0], sum[1], sum[2]);
         }
     }
@@ -271,15 +264,8 @@ namespace {
                                                        _mm_mul_ps(_mm_set1_ps(tr[j]), curvature.across.lerpSse(i, f))));
                 return _mm_mul_ps(_mm_loadu_ps(&w[j].x), k);
             };
-            __m128 even = _mm_setzero_ps(), odd = _mm_setzero_ps();
-            size_t j = 0;
-            for (; j + 1 < block; j += 2) {
-                even = _mm_add_ps(even, term(j));
-                odd = _mm_add_ps(odd, term(j + 1));
-            }
-            if (j < block) even = _mm_add_ps(even, term(j));
             alignas(16) float sum[4];
-            _mm_store_ps(sum, _mm_add_ps(even, odd));
+            _mm_store_ps(sum, sumInPairs(block, term));
             out[p] += glm::dvec3(sum[0], sum[1], sum[2]);
         }
     }

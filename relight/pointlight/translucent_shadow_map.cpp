@@ -38,8 +38,7 @@ struct TapFrame {
 
 // Sum over the filter's taps of flux x K(r) x measure, RGB in the first three lanes. In
 // blocks of taps: projections and distances in loops the compiler vectorises, the map
-// and table reads apart; two accumulators (even and odd taps) so that consecutive
-// additions do not wait on each other. Compiled twice, for x86-64 and for AVX2 + FMA,
+// and table reads apart, summed in pairs (sumInPairs). Compiled twice, for x86-64 and for AVX2 + FMA,
 // and chosen once per process (cpuHasAvx2Fma), as texture_space_sampling.cpp's sums.
 [[gnu::always_inline]] inline __m128 filterTapsBody(const TapFrame& fr, const ShadowMapTexel* texels,
                                                     const LocalFilter& filter) {
@@ -51,7 +50,7 @@ struct TapFrame {
     constexpr size_t kBlock = 128;
     int index[kBlock];
     float r2[kBlock], flux[kBlock], t[kBlock];
-    __m128 even = _mm_setzero_ps(), odd = _mm_setzero_ps();
+    __m128 sum = _mm_setzero_ps();
     const float rMax2 = filter.kernel.rMax2();
     const size_t taps = filter.tapOffset.size();
     const int last = resolution - 1;
@@ -90,14 +89,9 @@ struct TapFrame {
         const auto term = [&](size_t k) {
             return _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(flux[k]), filter.kernel.atSse(t[k])), _mm_loadu_ps(&area[k].x));
         };
-        size_t k = 0;
-        for (; k + 1 < count; k += 2) {
-            even = _mm_add_ps(even, term(k));
-            odd = _mm_add_ps(odd, term(k + 1));
-        }
-        if (k < count) even = _mm_add_ps(even, term(k));
+        sum = _mm_add_ps(sum, sumInPairs(count, term));
     }
-    return _mm_add_ps(even, odd);
+    return sum;
 }
 
 __m128 filterTapsBaseline(const TapFrame& fr, const ShadowMapTexel* texels, const LocalFilter& filter) {
@@ -333,21 +327,25 @@ double TranslucentShadowMap::pixelMeasure(int x, int y) const {
     return step * step * c * c * c;
 }
 
-glm::dvec3 TranslucentShadowMap::localExitance(const glm::dvec3& x, const LocalFilter& filter) const {
-    if (!(filter.rhoMax > 0.0)) return glm::dvec3(0.0);
-    glm::dvec3 w;  // the light's ray direction at x
-    double measureScale = 1.0;
+bool TranslucentShadowMap::tapPlane(const glm::dvec3& x, glm::dvec3& e1, glm::dvec3& e2,
+                                   double& measureScale) const {
+    glm::dvec3 w = forward_;  // the light's ray direction at x
+    measureScale = 1.0;
     if (hasPosition(light_)) {
         const glm::dvec3 d = x - origin_;
         const double d2 = glm::dot(d, d);
-        if (!(d2 > 0.0)) return glm::dvec3(0.0);
+        if (!(d2 > 0.0)) return false;
         w = d / std::sqrt(d2);
         measureScale = 1.0 / d2;
-    } else {
-        w = forward_;
     }
-    glm::dvec3 e1, e2;
     orthonormalBasis(w, e1, e2);
+    return true;
+}
+
+glm::dvec3 TranslucentShadowMap::localExitance(const glm::dvec3& x, const LocalFilter& filter) const {
+    glm::dvec3 e1, e2;
+    double measureScale = 1.0;
+    if (!(filter.rhoMax > 0.0) || !tapPlane(x, e1, e2, measureScale)) return glm::dvec3(0.0);
     // The projection in float, relative to the map's origin: tap q = x + o1 e1 + o2 e2
     // has map-frame coordinates (a, b, z) = X + o1 E1 + o2 E2 (linear in the offsets).
     const glm::dvec3 rel = x - origin_;
@@ -363,18 +361,9 @@ glm::dvec3 TranslucentShadowMap::localExitance(const glm::dvec3& x, const LocalF
 }
 
 glm::dvec3 TranslucentShadowMap::localExitanceReference(const glm::dvec3& x, const LocalFilter& filter) const {
-    if (!(filter.rhoMax > 0.0)) return glm::dvec3(0.0);
-    glm::dvec3 w = forward_;
-    double measureScale = 1.0;
-    if (hasPosition(light_)) {
-        const glm::dvec3 d = x - origin_;
-        const double d2 = glm::dot(d, d);
-        if (!(d2 > 0.0)) return glm::dvec3(0.0);
-        w = d / std::sqrt(d2);
-        measureScale = 1.0 / d2;
-    }
     glm::dvec3 e1, e2;
-    orthonormalBasis(w, e1, e2);
+    double measureScale = 1.0;
+    if (!(filter.rhoMax > 0.0) || !tapPlane(x, e1, e2, measureScale)) return glm::dvec3(0.0);
     glm::dvec3 sum(0.0);
     for (size_t k = 0; k < filter.tapOffset.size(); ++k) {
         const glm::dvec3 q = x + double(filter.tapOffset[k].x) * e1 + double(filter.tapOffset[k].y) * e2;

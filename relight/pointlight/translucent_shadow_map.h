@@ -117,6 +117,10 @@ private:
     // Continuous pixel coordinates of world point q; false outside the image plane.
     bool project(const glm::dvec3& q, double& px, double& py) const;
     double pixelMeasure(int x, int y) const;  // sr (point) or mm^2 (directional)
+    // The plane of the filter's taps at x (e1, e2 perpendicular to the light's ray) and
+    // the measure's scale (1 / d^2 for a light with a position, else 1); false at the
+    // light's own position.
+    bool tapPlane(const glm::dvec3& x, glm::dvec3& e1, glm::dvec3& e2, double& measureScale) const;
 
     Light light_;
     int resolution_ = 0;
