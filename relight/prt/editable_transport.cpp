@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <emmintrin.h>
 
 #include <algorithm>
 #include <cmath>
@@ -18,6 +19,7 @@ namespace prt {
 namespace {
 
 constexpr double kQuantMax = 32767.0;
+constexpr double kRoundToInteger = 6755399441055744.0;  // 1.5 2^52
 
 RadialBasis storedBasis(const TransportFile& file, const std::string& path) {
     if (!file.radialBasis)
@@ -113,53 +115,83 @@ TransportComponent EditableTransport::recombine() const {
     v.indices = shared.indices;
     v.values.assign(shared.values.size(), 0);
     v.scales.assign(3 * V, 0.0f);
-    // w[c][j] as floats, the order of the sums fixed: deterministic on any thread count.
+    // Per vertex, in loops the compiler vectorises: the P x 3 profile channels as
+    // floats, one array each (k = 3p + profile channel); then each colour's sum over k of
+    // scale x w_ck times them (k in order: deterministic on any thread count), with the
+    // SH scales from the first SH index on; then the quantization.
     tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 64), [&](const tbb::blocked_range<size_t>& r) {
-        std::vector<float> rgb;
+        std::vector<float> f, rgb, rgbFlat;
+        std::vector<float> haarColumn(9 * P), shColumn(9 * P);  // [k][colour]
         for (size_t vi = r.begin(); vi < r.end(); ++vi) {
             const uint32_t begin = shared.offsets[vi], end = shared.offsets[vi + 1];
-            rgb.assign(3 * size_t(end - begin), 0.0f);
+            const size_t count = end - begin;
+            f.resize(3 * P * count);
+            rgbFlat.resize(3 * count);
+            rgb.assign(3 * count, 0.0f);
             for (size_t p = 0; p < P; ++p) {
                 const SparseRgbVectors& u = profiles_[p].vectors;
-                // [profile channel][colour] = scale * w, for the Haar and the SH scales
-                // (the same unless the profiles hold 8-bit Haar values).
-                float scaled[3][3], scaledSh[3][3];
+                // The Haar and the SH scales are the same unless the profiles hold 8-bit
+                // Haar values.
                 const std::vector<float>& shScales = u.shScales.empty() ? u.scales : u.shScales;
-                for (int ch = 0; ch < 3; ++ch)
-                    for (int c = 0; c < 3; ++c) {
-                        const double w = weights_[size_t(c)][3 * p + size_t(ch)];
-                        scaled[ch][c] = float(double(u.scales[3 * vi + size_t(ch)]) * w);
-                        scaledSh[ch][c] = float(double(shScales[3 * vi + size_t(ch)]) * w);
+                for (size_t ch = 0; ch < 3; ++ch)
+                    for (size_t c = 0; c < 3; ++c) {
+                        const double w = weights_[c][3 * p + ch];
+                        haarColumn[3 * (3 * p + ch) + c] = float(double(u.scales[3 * vi + ch]) * w);
+                        shColumn[3 * (3 * p + ch) + c] = float(double(shScales[3 * vi + ch]) * w);
                     }
-                // The SH indices are the last ones (indices increase): two plain loops.
-                uint32_t split = end;
-                while (split > begin && u.indices[split - 1] >= u.shFrom) --split;
-                auto accumulate = [&](uint32_t from, uint32_t to, const float(&sc)[3][3]) {
-                    for (uint32_t n = from; n < to; ++n) {
-                        float* dst = &rgb[3 * size_t(n - begin)];
-                        const int16_t* q = &u.values[3 * size_t(n)];
-                        for (int ch = 0; ch < 3; ++ch)
-                            for (int c = 0; c < 3; ++c) dst[c] += float(q[ch]) * sc[ch][c];
-                    }
-                };
-                accumulate(begin, split, scaled);
-                accumulate(split, end, scaledSh);
+                // Converted in one contiguous pass, then split into the three channels.
+                const int16_t* q = &u.values[3 * size_t(begin)];
+                float* flat = &rgbFlat[0];
+                for (size_t j = 0; j < 3 * count; ++j) flat[j] = float(q[j]);
+                float* f0 = &f[(3 * p) * count];
+                float* f1 = f0 + count;
+                float* f2 = f1 + count;
+                for (size_t n = 0; n < count; ++n) {
+                    f0[n] = flat[3 * n];
+                    f1[n] = flat[3 * n + 1];
+                    f2[n] = flat[3 * n + 2];
+                }
             }
-            // Quantized as SparseRgbVectors::appendVertex does.
-            for (int c = 0; c < 3; ++c) {
-                float maxAbs = 0.0f;
-                for (uint32_t n = begin; n < end; ++n) maxAbs = std::max(maxAbs, std::fabs(rgb[3 * size_t(n - begin) + size_t(c)]));
+            // The SH indices are the last ones (indices increase).
+            const SparseRgbVectors& u0 = profiles_.front().vectors;
+            size_t split = count;
+            while (split > 0 && u0.indices[begin + split - 1] >= u0.shFrom) --split;
+            for (size_t c = 0; c < 3; ++c) {
+                float* o = &rgb[c * count];
+                for (size_t p = 0; p < P; ++p) {  // one profile component's three channels a pass
+                    const float* f0 = &f[(3 * p) * count];
+                    const float *f1 = f0 + count, *f2 = f1 + count;
+                    const float* h = &haarColumn[9 * p + c];
+                    const float* sh = &shColumn[9 * p + c];
+                    for (size_t n = 0; n < split; ++n) o[n] += h[0] * f0[n] + h[3] * f1[n] + h[6] * f2[n];
+                    for (size_t n = split; n < count; ++n) o[n] += sh[0] * f0[n] + sh[3] * f1[n] + sh[6] * f2[n];
+                }
+            }
+            // Quantized as SparseRgbVectors::appendVertex does: nearbyint(x / scale) in the
+            // default rounding mode, written as the addition and subtraction of 1.5 2^52
+            // (exact for |x| < 2^51, here |x| <= 32767), which the compiler inlines where
+            // nearbyint is a library call.
+            for (size_t c = 0; c < 3; ++c) {
+                const float* o = &rgb[c * count];
+                // Four lanes of maxima (a scalar max waits on the previous one).
+                const __m128 absMask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+                __m128 m4 = _mm_setzero_ps();
+                size_t n4 = 0;
+                for (; n4 + 4 <= count; n4 += 4) m4 = _mm_max_ps(m4, _mm_and_ps(_mm_loadu_ps(o + n4), absMask));
+                alignas(16) float lanes[4];
+                _mm_store_ps(lanes, m4);
+                float maxAbs = std::max(std::max(lanes[0], lanes[1]), std::max(lanes[2], lanes[3]));
+                for (; n4 < count; ++n4) maxAbs = std::max(maxAbs, std::fabs(o[n4]));
                 const float scale = double(maxAbs) < kQuantMax * double(std::numeric_limits<float>::min())
                                         ? 0.0f
                                         : float(double(maxAbs) / kQuantMax);
-                v.scales[3 * vi + size_t(c)] = scale;
-                for (uint32_t n = begin; n < end; ++n) {
-                    int q = 0;
-                    if (scale > 0.0f) {
-                        const double x = std::nearbyint(double(rgb[3 * size_t(n - begin) + size_t(c)]) / double(scale));
-                        q = int(std::clamp(x, -kQuantMax, kQuantMax));
-                    }
-                    v.values[3 * size_t(n) + size_t(c)] = int16_t(q);
+                v.scales[3 * vi + c] = scale;
+                int16_t* dst = &v.values[3 * size_t(begin) + c];
+                if (!(scale > 0.0f)) continue;  // the values stay 0
+                const double d = double(scale);
+                for (size_t n = 0; n < count; ++n) {
+                    const double x = (double(o[n]) / d + kRoundToInteger) - kRoundToInteger;
+                    dst[3 * n] = int16_t(std::clamp(x, -kQuantMax, kQuantMax));
                 }
             }
         }
