@@ -180,6 +180,19 @@ TEST(EditableTransport, RecombinationIsTheWeightedSumOfTheProfiles) {
     }
 }
 
+// recombineUnless (the viewer's recombination while idle) gives way when asked and is
+// recombine() when never asked to, bit for bit.
+TEST(EditableTransport, RecombinationGivesWayWhenAsked) {
+    TransportFile file = syntheticFile(2, true);
+    EditableTransport e(file, kObjectMm);
+    e.setMaterial(materialByName("Skin1"), 31.0);
+    const TransportComponent whole = e.recombine();
+    const std::optional<TransportComponent> never = e.recombineUnless([] { return false; });
+    ASSERT_TRUE(never.has_value());
+    EXPECT_EQ(never->vectors, whole.vectors);
+    EXPECT_FALSE(e.recombineUnless([] { return true; }).has_value());
+}
+
 // Relighting the recombined component and the projected-light path agree.
 TEST(EditableTransport, ProjectedLightEqualsRelightingTheRecombination) {
     for (const bool eightBit : {false, true}) {

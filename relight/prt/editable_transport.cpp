@@ -5,6 +5,7 @@
 #include <emmintrin.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 
@@ -104,8 +105,11 @@ bool EditableTransport::isFileMaterial() const {
            sizeMm_ == objectSizeMm_;
 }
 
-TransportComponent EditableTransport::recombine() const {
+TransportComponent EditableTransport::recombine() const { return *recombineUnless({}); }
+
+std::optional<TransportComponent> EditableTransport::recombineUnless(const std::function<bool()>& stop) const {
     if (profiles_.front().blocked()) return recombineBlocked();
+    std::atomic<bool> stopped{false};
     const size_t P = profiles_.size(), V = vertexCount();
     const SparseRgbVectors& shared = profiles_.front().vectors;
     TransportComponent out;
@@ -123,6 +127,10 @@ TransportComponent EditableTransport::recombine() const {
         std::vector<float> f, rgb, rgbFlat;
         std::vector<float> haarColumn(9 * P), shColumn(9 * P);  // [k][colour]
         for (size_t vi = r.begin(); vi < r.end(); ++vi) {
+            if ((vi - r.begin()) % 64 == 0 && (stopped.load(std::memory_order_relaxed) || (stop && stop()))) {
+                stopped.store(true, std::memory_order_relaxed);
+                return;
+            }
             const uint32_t begin = shared.offsets[vi], end = shared.offsets[vi + 1];
             const size_t count = end - begin;
             f.resize(3 * P * count);
@@ -196,6 +204,7 @@ TransportComponent EditableTransport::recombine() const {
             }
         }
     });
+    if (stopped.load()) return std::nullopt;
     return out;
 }
 

@@ -47,6 +47,7 @@
 #include <glm/glm.hpp>
 
 #include <array>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -91,6 +92,10 @@ public:
     // or blocked (the profiles' block order and per-block index lists, 8-bit values with
     // new per-lane scales, blocked_vectors.h) when the file's profiles are blocked.
     TransportComponent recombine() const;
+    // The same, unless stop() returns true (asked every 64 vertices, from any of the
+    // threads): then nothing (a per-vertex file's recombination gives way to newer
+    // work; a blocked one runs to the end).
+    std::optional<TransportComponent> recombineUnless(const std::function<bool()>& stop) const;
 
     // D_vjc = U_j(v) . L_c for every vertex v, profile j, light channel c (the SH part
     // included, as relightVertices).

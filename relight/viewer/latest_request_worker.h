@@ -60,6 +60,12 @@ public:
         cv_.notify_all();
     }
 
+    // A request queued and not yet started (a long job checks it to give way).
+    bool requestPending() const {
+        std::lock_guard<std::mutex> lock(mutex_);
+        return pending_.has_value();
+    }
+
     // A request or job queued or running.
     bool busy() const {
         std::lock_guard<std::mutex> lock(mutex_);

@@ -36,6 +36,16 @@ void RelightWorker::combine(LightResult& out) const {
     out.radiance.terms = ssOnly_.terms;
 }
 
+void RelightWorker::recombineWhileIdle() {
+    if (recombined_ || !object_.editable) return;
+    std::optional<TransportComponent> c = object_.editable->recombineUnless([this] { return worker_.requestPending(); });
+    if (!c) return;  // a request came first; the next light change recombines
+    for (TransportComponent& component : object_.transport.components)
+        if (component.kind == ComponentKind::MultipleScattering) component = std::move(*c);
+    recombined_ = true;
+    ++backgroundRecombines_;
+}
+
 void RelightWorker::compute(const LightRequest& r, LightResult& out) {
     out.request = r;
     out.editPath = LightResult::EditPath::None;
@@ -137,6 +147,9 @@ void RelightWorker::compute(const LightRequest& r, LightResult& out) {
             }
             e.relightProjected(msDiffuse_);
             out.editPath = LightResult::EditPath::Projected;
+            // The next light change would recombine first (about 150 ms on the bunny):
+            // do it now, while no request waits, giving way to the next one.
+            if (!recombined_) worker_.post([this] { recombineWhileIdle(); });
         }
         combine(out);
     }

@@ -15,8 +15,9 @@
 //     (EditableTransport::projectLight, about the cost of one recombination) and each
 //     edit is relightProjected (J multiply-adds per vertex and channel), added to the
 //     cached single-scattering part (which no edit changes). The recombination is
-//     deferred to the next change of light, so a slider drag pays for one projection
-//     and then only for the weights.
+//     deferred, so a slider drag pays for one projection and then only for the weights:
+//     it runs as a job once no request waits (recombineWhileIdle), giving way to the
+//     next request if one comes (then the next change of light recombines first).
 // Both paths give the same radiance up to the 16-bit quantization of the recombined
 // component (editable_transport.h). With a material map (RelightObject::materialMap) the
 // multiple scattering is blended per vertex with the map's material B, relit once per
@@ -32,6 +33,7 @@
 
 #include <glm/glm.hpp>
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -101,11 +103,17 @@ public:
     void submit(const LightRequest& r) { worker_.submit(r); }
     // A request queued or running.
     bool busy() const { return worker_.busy(); }
+    // Recombinations done while idle so far (recombineWhileIdle), from any thread.
+    size_t backgroundRecombines() const { return backgroundRecombines_.load(); }
     // Swaps the newest finished result into `out`; throws the worker's error, if any.
     bool take(LightResult& out) { return worker_.take(out); }
 
 private:
     void compute(const LightRequest& r, LightResult& out);  // on the worker's thread
+    // A job posted after an edit on the projected path: recombines the transport for the
+    // current material while no request waits (EditableTransport::recombineUnless), so
+    // that the next light change does not; gives way to a request that arrives.
+    void recombineWhileIdle();
     // Sets out.radiance from ssOnly_ and msDiffuse_ (editable files).
     void combine(LightResult& out) const;
 
@@ -129,6 +137,7 @@ private:
     std::vector<glm::vec3> mapSecond_;  // with a material map: B's multiple scattering under it
     bool recombined_ = true;   // the transport's MS component is the editable's material
     bool projected_ = false;   // editable->projectLight(light_) is current
+    std::atomic<size_t> backgroundRecombines_{0};  // recombinations recombineWhileIdle completed
 
     LatestRequestWorker<LightRequest, LightResult> worker_;  // last: its thread uses the members above
 };

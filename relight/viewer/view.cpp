@@ -143,6 +143,7 @@ private:
     PointLightComparison comparison_;
     RunningStats pointStats_;
     Stopwatch lastDrawn_;  // since the last frame drawn
+    size_t backgroundRecombines_ = 0;  // the relight worker's, read before it stops
     static constexpr double kIdleRedrawMs = 250.0;
     // Point-light updates that were a material change alone (the lights standing still):
     // the worker's time (setMaterial and the per-vertex sums) plus the upload after it,
@@ -530,9 +531,9 @@ void Viewer::printSummary(double seconds) const {
                     relightStats_.mean(), lightStats_.mean(), kernelStats_.mean(), uploadStats_.mean(),
                     relightStats_.min, relightStats_.max);
     if (editStats_.edits.count)
-        std::printf("material edits: %zu (%zu recombined, %zu projected), mean %.1f ms, min %.1f, max %.1f ms\n",
-                    editStats_.edits.count, recombinedEdits_, projectedEdits_, editStats_.edits.mean(),
-                    editStats_.edits.min, editStats_.edits.max);
+        std::printf("material edits: %zu (%zu recombined, %zu projected), %zu recombinations while idle, mean %.1f ms, min %.1f, max %.1f ms\n",
+                    editStats_.edits.count, recombinedEdits_, projectedEdits_, backgroundRecombines_,
+                    editStats_.edits.mean(), editStats_.edits.min, editStats_.edits.max);
     if (pointStats_.count)
         std::printf("point-light updates: %zu, mean %.1f ms (irradiance map, shadow maps, draws and per-vertex sums; "
                     "last: %.1f ms, N = %d, %s), min %.1f, max %.1f ms\n",
@@ -605,6 +606,7 @@ int Viewer::run() {
         script_.frameShown(haveLight_);
         clock_.frameShown(haveLight_, busy, relightStats_.count);
     }
+    backgroundRecombines_ = worker_->backgroundRecombines();
     worker_.reset();
     pointWorker_.reset();
     printSummary(clock_.seconds());
