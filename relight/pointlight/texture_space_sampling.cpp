@@ -401,8 +401,13 @@ void TextureSpaceRenderer::sampleSums(const glm::vec3* points, size_t count, glm
     }
     thread_local GroupTerms group;
     gatherTerms(points, count, group.samples, group.clusters);
-    kernelSums(sampleKernel_, group.samples, points, count, out);
-    clusterSums(sampleKernel_, sampleCurvature_, group.clusters, points, count, out);
+    sumGroup(group, points, count, out);
+}
+
+void TextureSpaceRenderer::sumGroup(const GroupTerms& terms, const glm::vec3* points, size_t count,
+                                    glm::dvec3* out) const {
+    kernelSums(sampleKernel_, terms.samples, points, count, out);
+    clusterSums(sampleKernel_, sampleCurvature_, terms.clusters, points, count, out);
 }
 
 size_t GroupTerms::byteSize() const {
@@ -443,11 +448,11 @@ std::vector<glm::vec3> TextureSpaceRenderer::vertexExitance() const {
     // With clusters, each chunk's terms are gathered once per draw and kept (see
     // vertexTerms_ in the header), unless they would take more than the budget.
     std::unique_lock<std::mutex> lock(vertexTermsMutex_, std::defer_lock);
-    const bool cached = tree_ && usesSamples() && !vertexTermsOverBudget_;
-    bool gather = false;
-    if (cached) {
+    bool cached = false, gather = false;
+    if (tree_ && usesSamples()) {
         lock.lock();
-        gather = !vertexTermsValid_;
+        cached = !vertexTermsOverBudget_;
+        gather = cached && !vertexTermsValid_;
         if (gather) vertexTerms_.resize(chunks);
     }
     tbb::parallel_for(size_t(0), chunks, [&](size_t c) {
@@ -457,8 +462,7 @@ std::vector<glm::vec3> TextureSpaceRenderer::vertexExitance() const {
         if (cached) {
             GroupTerms& t = vertexTerms_[c];
             if (gather) gatherTerms(points, count, t.samples, t.clusters);
-            kernelSums(sampleKernel_, t.samples, points, count, m);
-            clusterSums(sampleKernel_, sampleCurvature_, t.clusters, points, count, m);
+            sumGroup(t, points, count, m);
         } else if (usesSamples()) {
             sampleSums(points, count, m);
         } else {

@@ -229,8 +229,10 @@ private:
     // The global (sample) sums at `count` points into out[0 .. count): over every
     // sample, or with theta > 0 over the terms of the clusters (see CLUSTERS above).
     void sampleSums(const glm::vec3* points, size_t count, glm::dvec3* out) const;
-    // The terms of the global sum at `count` points (theta > 0: tree_ is set).
+    // The terms of the global sum at `count` points (theta > 0: tree_ is set), and
+    // their sums there (added to out).
     void gatherTerms(const glm::vec3* points, size_t count, SampleTerms& terms, ClusterTerms& clusters) const;
+    void sumGroup(const GroupTerms& terms, const glm::vec3* points, size_t count, glm::dvec3* out) const;
     // Builds tree_ over the merged samples and puts them in its order.
     void buildClusters();
 

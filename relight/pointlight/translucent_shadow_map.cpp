@@ -38,8 +38,9 @@ struct TapFrame {
 
 // Sum over the filter's taps of flux x K(r) x measure, RGB in the first three lanes. In
 // blocks of taps: projections and distances in loops the compiler vectorises, the map
-// and table reads apart, summed in pairs (sumInPairs). Compiled twice, for x86-64 and for AVX2 + FMA,
-// and chosen once per process (cpuHasAvx2Fma), as texture_space_sampling.cpp's sums.
+// and table reads apart, summed in pairs (sumInPairs). Compiled twice, for x86-64 and
+// for AVX2 + FMA, and chosen once per process (cpuHasAvx2Fma), as
+// texture_space_sampling.cpp's sums.
 [[gnu::always_inline]] inline __m128 filterTapsBody(const TapFrame& fr, const ShadowMapTexel* texels,
                                                     const LocalFilter& filter) {
     const glm::vec3 X = fr.X, E1 = fr.E1, E2 = fr.E2, xf = fr.x;

@@ -124,7 +124,7 @@ std::optional<TransportComponent> EditableTransport::recombineUnless(const std::
     // scale x w_ck times them (k in order: deterministic on any thread count), with the
     // SH scales from the first SH index on; then the quantization.
     tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 64), [&](const tbb::blocked_range<size_t>& r) {
-        std::vector<float> f, rgb, rgbFlat;
+        std::vector<float> f, rgb, converted;
         std::vector<float> haarColumn(9 * P), shColumn(9 * P);  // [k][colour]
         for (size_t vi = r.begin(); vi < r.end(); ++vi) {
             if ((vi - r.begin()) % 64 == 0 && (stopped.load(std::memory_order_relaxed) || (stop && stop()))) {
@@ -134,7 +134,7 @@ std::optional<TransportComponent> EditableTransport::recombineUnless(const std::
             const uint32_t begin = shared.offsets[vi], end = shared.offsets[vi + 1];
             const size_t count = end - begin;
             f.resize(3 * P * count);
-            rgbFlat.resize(3 * count);
+            converted.resize(3 * count);
             rgb.assign(3 * count, 0.0f);
             for (size_t p = 0; p < P; ++p) {
                 const SparseRgbVectors& u = profiles_[p].vectors;
@@ -149,7 +149,7 @@ std::optional<TransportComponent> EditableTransport::recombineUnless(const std::
                     }
                 // Converted in one contiguous pass, then split into the three channels.
                 const int16_t* q = &u.values[3 * size_t(begin)];
-                float* flat = &rgbFlat[0];
+                float* flat = converted.data();
                 for (size_t j = 0; j < 3 * count; ++j) flat[j] = float(q[j]);
                 float* f0 = &f[(3 * p) * count];
                 float* f1 = f0 + count;

@@ -147,8 +147,8 @@ void RelightWorker::compute(const LightRequest& r, LightResult& out) {
             }
             e.relightProjected(msDiffuse_);
             out.editPath = LightResult::EditPath::Projected;
-            // The next light change would recombine first (about 150 ms on the bunny):
-            // do it now, while no request waits, giving way to the next one.
+            // The next light change would recombine first: do it now, while no request
+            // waits, giving way to the next one.
             if (!recombined_) worker_.post([this] { recombineWhileIdle(); });
         }
         combine(out);

@@ -149,7 +149,6 @@ private:
     // the worker's time (setMaterial and the per-vertex sums) plus the upload after it,
     // what the change costs before the frame that shows it.
     RunningStats pointEditStats_, pointEditMaterialStats_, pointEditSumsStats_;
-    bool pointEditLanded_ = false;
     bool uploadDirty_ = false, uploadedEnvOn_ = true, uploadedPointOn_ = true;
     uint64_t uploadedSpecularId_ = 0;  // the point-light result whose specular is uploaded (0: none)
     std::vector<glm::vec4> combined_;
@@ -299,7 +298,7 @@ bool Viewer::exchangeLight() {
         worker_->submit(submitted_);
     }
     const bool envLanded = worker_->take(front_);
-    bool pointLanded = false;
+    bool pointLanded = false, pointEdit = false;
     if (envLanded) {
         displayed_ = front_.request;
         haveLight_ = true;
@@ -318,7 +317,7 @@ bool Viewer::exchangeLight() {
             havePoint_ = true;
             uploadDirty_ = true;
             if (!pointFront_.request.lights.empty()) pointStats_.add(pointFront_.totalMs);
-            pointEditLanded_ = pointFront_.materialChanged && !pointFront_.lightsRecomputed;
+            pointEdit = pointFront_.materialChanged && !pointFront_.lightsRecomputed;
         }
         std::string text;
         if (pointWorker_->takeComparison(text)) {
@@ -333,11 +332,10 @@ bool Viewer::exchangeLight() {
         uploadedEnvOn_ = state_.environmentLight;
         uploadedPointOn_ = state_.pointLights;
     }
-    if (pointEditLanded_) {
+    if (pointEdit) {  // after the upload, which it includes
         pointEditStats_.add(pointFront_.totalMs + lastUploadMs_);
         pointEditMaterialStats_.add(pointFront_.materialMs);
         pointEditSumsStats_.add(pointFront_.evaluationMs);
-        pointEditLanded_ = false;
     }
     if (envLanded) {
         relightStats_.add(front_.lightMs + front_.relightMs + lastUploadMs_);
@@ -531,7 +529,8 @@ void Viewer::printSummary(double seconds) const {
                     relightStats_.mean(), lightStats_.mean(), kernelStats_.mean(), uploadStats_.mean(),
                     relightStats_.min, relightStats_.max);
     if (editStats_.edits.count)
-        std::printf("material edits: %zu (%zu recombined, %zu projected), %zu recombinations while idle, mean %.1f ms, min %.1f, max %.1f ms\n",
+        std::printf("material edits: %zu (%zu recombined, %zu projected), %zu recombinations while idle, mean %.1f ms, "
+                    "min %.1f, max %.1f ms\n",
                     editStats_.edits.count, recombinedEdits_, projectedEdits_, backgroundRecombines_,
                     editStats_.edits.mean(), editStats_.edits.min, editStats_.edits.max);
     if (pointStats_.count)
