@@ -9,7 +9,8 @@
 #   - as 4 shards (--shard i/4) joined by prt-merge, as 3 shards loading one pass-1 file
 #     (--pass1-file, written once by --pass1-only), and as 2 shards from a job file;
 #   - under mpirun with 1, 2 and 4 ranks (--oversubscribe: this machine has 2 cores),
-#     and a job file under 2 ranks;
+#     and a job file under 2 ranks, the 4 ranks computing each single-scattering site
+#     once between them (as many sites as one process);
 # and every output must equal the single-process file byte for byte (blocked, the
 # default: shards are per vertex and prt-merge --mesh forms the blocks; and 2 shards of a
 # per-vertex job, --block-coefficients 0, against that job in one process). Then failures: a
@@ -74,7 +75,6 @@ for i in 0 1; do "$PRE" "${job[@]}" --block-coefficients 0 --shard $i/2 -o vpart
 same vmerged.prt "2 shards of a per-vertex job merged" vertexwise.prt
 
 # Errors: one line each, naming the problem.
-one_line "^prt-merge: error: shards: .*blocks of 160 .*--mesh" "$MERGE" -o bad.prt part0.prt part1.prt part2.prt part3.prt
 one_line() {  # one_line PATTERN COMMAND...: exit 1 and exactly one stderr line matching PATTERN
     local pattern=$1; shift
     "$@" > /dev/null 2> err.txt; local code=$?
@@ -84,6 +84,7 @@ one_line() {  # one_line PATTERN COMMAND...: exit 1 and exactly one stderr line 
         echo "ok: $(cat err.txt)"
     fi
 }
+one_line "^prt-merge: error: shards: .*blocks of 160 .*--mesh" "$MERGE" -o bad.prt part0.prt part1.prt part2.prt part3.prt
 one_line "^prt-merge: error: shards: shard 3/4 is missing" "$MERGE" -o bad.prt part0.prt part1.prt part2.prt
 one_line "^prt-merge: error: part1.prt: shard 1/4 is given twice" "$MERGE" -o bad.prt part0.prt part1.prt part1.prt part2.prt part3.prt
 one_line "^prt-relight: error: part1.prt: is shard 1/4 .*prt-merge" "$RELIGHT" render sphere.obj -t part1.prt -e sky.exr -o bad
@@ -105,6 +106,13 @@ if [ "$run_mpi" = 1 ]; then
         same mpi$np.prt "mpirun -np $np"
     done
     grep -q "2 MPI ranks" mpi2.log || fail "the -np 2 summary does not name its ranks: $(head -1 mpi2.log)"
+    # The ranks share the single-scattering sites: each is computed once, as in one process.
+    sites() { grep -oE '^  sites +[0-9]+' "$1" | grep -oE '[0-9]+$'; }
+    if [ -n "$(sites whole.log)" ] && [ "$(sites mpi4.log)" = "$(sites whole.log)" ]; then
+        echo "ok: 4 ranks computed $(sites mpi4.log) single-scattering sites, as one process"
+    else
+        fail "4 ranks computed '$(sites mpi4.log)' single-scattering sites, one process '$(sites whole.log)'"
+    fi
     "${mpi[@]}" -np 2 "$PRE" "${job[@]}" --pass1-file job.pass1 -o mpip1.prt > /dev/null 2>&1 || fail "mpirun with --pass1-file"
     same mpip1.prt "mpirun -np 2 loading the pass-1 file"
     cat > mpijobs.json <<JSON

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -234,5 +235,67 @@ TEST(SingleScatteringSites, EveryVertexGetsTheBlendOfItsSitesInAnyRange) {
     EXPECT_EQ(r.stats.sites, needed.size());
     EXPECT_THROW(computeSingleScattering(ctx, [](size_t, const std::vector<SparseVector>&) {}, nullptr,
                                          VertexRanges{{0, torus.positions.size() + 1}}),
+                 Error);
+}
+
+// The two stages MPI ranks run when they share the sites: each of three parts computes
+// an interleaved share of every site (computeSiteTransport), the shares are put
+// together, and each part blends its own vertices (blendSiteTransport). The vectors
+// equal one call's bit for bit, each site is computed once, and a blend missing one of
+// its sites is an error.
+TEST(SingleScatteringSites, SitesComputedInSharesAndBlendedEqualOneCall) {
+    const TriangleMesh torus = makeTorus(6.0f, 2.0f, 48, 24);
+    const RayScene scene(torus);
+    SingleScatteringOptions o;
+    o.cubemapSize = 8;
+    o.vertexCoefficients = 64;
+    o.siteSpacing = 1.0;
+    const SingleScatteringContext ctx(scene, torus, materialByName("Skin1"), nullptr, o);
+    std::vector<std::vector<SparseVector>> whole;
+    const SingleScatteringResult one = computeSingleScattering(ctx, whole);
+
+    const SingleScatteringSites s = chooseSingleScatteringSites(torus.positions, torus.normals, o.siteSpacing);
+    const size_t count = s.site.size(), block = 7;
+    std::vector<std::vector<SparseVector>> vectors(count);
+    std::vector<uint32_t> held(count);
+    SingleScatteringStats stats;
+    for (int part = 0; part < 3; ++part) {
+        std::vector<uint32_t> numbers;
+        for (size_t b = size_t(part); b * block < count; b += 3)
+            for (size_t i = b * block; i < std::min(count, (b + 1) * block); ++i) numbers.push_back(uint32_t(i));
+        std::vector<std::vector<SparseVector>> mine = computeSiteTransport(ctx, s, numbers, stats);
+        ASSERT_EQ(mine.size(), numbers.size());
+        for (size_t i = 0; i < numbers.size(); ++i) vectors[numbers[i]] = std::move(mine[i]);
+    }
+    for (size_t i = 0; i < count; ++i) held[i] = uint32_t(i);
+    EXPECT_EQ(stats.sites, count);
+    EXPECT_EQ(stats.sites, one.stats.sites);
+    EXPECT_EQ(stats.exitRays, one.stats.exitRays);
+
+    const size_t n = torus.positions.size();
+    const VertexRanges mine = {{n / 2, n}, {0, n / 5}};
+    size_t seen = 0;
+    blendSiteTransport(
+        ctx, s, held, vectors,
+        [&](size_t v, const std::vector<SparseVector>& terms) {
+            ASSERT_EQ(terms.size(), 1u);
+            EXPECT_EQ(terms[0].index, whole[0][v].index) << v;
+            EXPECT_EQ(terms[0].value, whole[0][v].value) << v;
+            ++seen;
+        },
+        nullptr, mine);
+    EXPECT_EQ(seen, n - n / 2 + n / 5);
+
+    // Without the site vertex 0 blends first.
+    const uint32_t missing = s.blendSite[s.offset[0]];
+    std::vector<uint32_t> fewer;
+    std::vector<std::vector<SparseVector>> fewerVectors;
+    for (size_t i = 0; i < count; ++i)
+        if (i != missing) fewer.push_back(uint32_t(i)), fewerVectors.push_back(vectors[i]);
+    EXPECT_THROW(blendSiteTransport(ctx, s, fewer, fewerVectors, [](size_t, const std::vector<SparseVector>&) {},
+                                    nullptr, VertexRanges{{0, 1}}),
+                 Error);
+    EXPECT_THROW(blendSiteTransport(ctx, s, held, fewerVectors, [](size_t, const std::vector<SparseVector>&) {},
+                                    nullptr, VertexRanges{{0, 1}}),
                  Error);
 }

@@ -92,6 +92,18 @@ public:
         (void)total;
         return mine;
     }
+    // Work every process needs the whole of (the single-scattering sites): the indices
+    // of [0, count) this process computes, ascending disjoint ranges; over all processes
+    // they partition [0, count).
+    virtual std::vector<IndexRange> sharedWorkShares(size_t count) const { return {{0, count}}; }
+    // Their exchange: `mine` holds `perIndex` vectors for each index of
+    // sharedWorkShares(count), in index order; returns all count x perIndex vectors in
+    // index order (index i's at [i * perIndex, (i + 1) * perIndex)), on every process.
+    virtual std::vector<SparseVector> gatherSharedWork(std::vector<SparseVector> mine, size_t count,
+                                                       size_t perIndex) {
+        (void)count, (void)perIndex;
+        return mine;
+    }
     // One component's vectors of vertexShares(vertices) (concatenated in that order) ->
     // all `vertices` of them, on
     // the process that writes (writes()); other processes get an empty result.

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 #include <string>
 
 #include "common/error.h"
@@ -163,30 +164,16 @@ public:
     }
 
     std::vector<SparseVector> gatherSamples(std::vector<SparseVector> mine, size_t total) override {
-        Buffer out;
-        for (const SparseVector& v : mine) {
+        for (const SparseVector& v : mine)
             if (v.channels != 1) throw Error("MPI", "pass-1 vectors must have one channel");
-            out.putArray(v.index);
-            out.putArray(v.value);
-        }
-        mine.clear();
-        std::vector<SparseVector> all;
-        all.reserve(total);
-        for (int r = 0; r < ranks_; ++r) {
-            std::vector<char> bytes = r == rank_ ? std::move(out.bytes) : std::vector<char>();
-            broadcast(bytes, r);
-            Reader in(bytes.data(), bytes.size());
-            for (size_t i = 0, n = sampleShare_(total, r).size(); i < n; ++i) {
-                SparseVector v;
-                in.getArray(v.index);
-                in.getArray(v.value);
-                all.push_back(std::move(v));
-            }
-            if (!in.done()) throw Error("MPI", "rank " + std::to_string(r) + " sent more pass-1 vectors than its share");
-        }
-        if (all.size() != total) throw Error("MPI", "gathered " + std::to_string(all.size()) + " of " +
-                                                        std::to_string(total) + " pass-1 vectors");
-        return all;
+        return gather(std::move(mine), total, 1, [&](int r) { return std::vector<IndexRange>{sampleShare_(total, r)}; },
+                      "pass-1 vectors");
+    }
+
+    std::vector<IndexRange> sharedWorkShares(size_t count) const override { return sharedWorkShares_(count, rank_); }
+    std::vector<SparseVector> gatherSharedWork(std::vector<SparseVector> mine, size_t count, size_t perIndex) override {
+        return gather(std::move(mine), count, perIndex, [&](int r) { return sharedWorkShares_(count, r); },
+                      "shared vectors");
     }
 
     SparseRgbVectors gatherVertices(SparseRgbVectors mine, size_t vertices) override {
@@ -252,6 +239,37 @@ public:
     }
 
 private:
+    // Every rank's vectors of its shares of [0, count) (perIndex each, in its shares'
+    // order), broadcast in turn and placed in index order, on every rank.
+    std::vector<SparseVector> gather(std::vector<SparseVector> mine, size_t count, size_t perIndex,
+                                     const std::function<std::vector<IndexRange>(int)>& sharesOf,
+                                     const char* what) {
+        Buffer out;
+        for (const SparseVector& v : mine) {
+            out.put<int32_t>(v.channels);
+            out.putArray(v.index);
+            out.putArray(v.value);
+        }
+        mine.clear();
+        std::vector<SparseVector> all(count * perIndex);
+        for (int r = 0; r < ranks_; ++r) {
+            std::vector<char> bytes = r == rank_ ? std::move(out.bytes) : std::vector<char>();
+            broadcast(bytes, r);
+            Reader in(bytes.data(), bytes.size());
+            for (const IndexRange& range : sharesOf(r))
+                for (size_t i = range.begin * perIndex; i < range.end * perIndex; ++i) {
+                    SparseVector& v = all[i];
+                    v.channels = in.get<int32_t>();
+                    in.getArray(v.index);
+                    in.getArray(v.value);
+                    if (v.channels < 1 || v.value.size() != v.index.size() * size_t(v.channels))
+                        throw Error("MPI", "rank " + std::to_string(r) + " sent a malformed vector");
+                }
+            if (!in.done()) throw Error("MPI", "rank " + std::to_string(r) + " sent more " + what + " than its share");
+        }
+        return all;
+    }
+
     // Fault injection for tests/cluster_test.sh: PRT_MPI_FAIL=R:S makes rank R fail in
     // its S-th stage (1-based), as a rank that runs out of memory or disk would.
     void injectFailure() const {
@@ -263,6 +281,11 @@ private:
 
     int stage_ = 0;
     IndexRange sampleShare_(size_t samples, int r) const { return evenRange(samples, r, ranks_); }
+    // Shared work in interleaved blocks too (a site's cost follows the local thickness,
+    // as a vertex's does), of at most 64 indices.
+    std::vector<IndexRange> sharedWorkShares_(size_t count, int r) const {
+        return interleavedBlocks(count, std::clamp<size_t>(count / (16 * size_t(ranks_)), 1, 64), r, ranks_);
+    }
     std::vector<IndexRange> vertexShares_(size_t vertices, int r) const {
         return interleavedBlocks(vertices, vertexBlock(vertices, ranks_), r, ranks_);
     }

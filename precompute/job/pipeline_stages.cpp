@@ -179,9 +179,10 @@ Pass1Output runPass1(const JobContext& job, const PreparedJob& prepared, const P
         out.busySeconds = pass1.seconds;
     });
     const Stopwatch exchangeStart;
-    // What MpiDistribution::gatherSamples sends: two 8-byte counts + 8 bytes per coefficient.
+    // What MpiDistribution::gatherSamples sends: the channel count, two 8-byte counts and
+    // 8 bytes per coefficient.
     double exchangeBytes = 0;
-    for (const SparseVector& v : pass1.vectors) exchangeBytes += 16 + 8 * double(v.size());
+    for (const SparseVector& v : pass1.vectors) exchangeBytes += 20 + 8 * double(v.size());
     if (!fromFile) pass1.vectors = dist.gatherSamples(std::move(pass1.vectors), sampleCount);
     out.summary.exchangeBytes = dist.ranks() > 1 ? dist.sum(exchangeBytes) : 0.0;
     out.summary.exchangeSeconds = exchangeStart.seconds();
@@ -372,7 +373,21 @@ SingleScatteringOutput runSingleScattering(const JobContext& job, const Prepared
     SingleScatteringOutput out;
     SingleScatteringSummary& summary = out.summary;
     std::optional<PhaseFactorization> phase;
+    std::optional<RayScene> scene;
+    std::optional<SingleScatteringContext> context;
     SingleScatteringResult result;
+    VertexRanges ranges;
+    for (const IndexRange& r : prepared.vertexShares) ranges.push_back({r.begin, r.end});
+    const auto appendVertex = [&](size_t, const std::vector<SparseVector>& vectors) {
+        for (size_t k = 0; k < vectors.size(); ++k) out.components[k].vectors.appendVertex(vectors[k].index, vectors[k].value);
+    };
+    // MPI ranks share the sites: each computes its share of all of them, they exchange
+    // them, and each blends its own vertices. A shard or a single process computes the
+    // sites its vertices blend (all of them for a whole mesh).
+    const bool shareSites = dist.ranks() > 1 && s.singleScattering.siteSpacing > 0.0;
+    SingleScatteringSites sites;
+    SingleScatteringStats siteStats;
+    std::vector<SparseVector> mySites;  // [site of my share][term]
     dist.stage([&] {
         // Isotropic for g = 0, else the K-term SVD of HG(g) (phase_factoring.h).
         if (s.material.g != 0.0) {
@@ -384,33 +399,57 @@ SingleScatteringOutput runSingleScattering(const JobContext& job, const Prepared
         }
         // Its own scene with robust traversal, traced in coherent packets (fewer rays slip
         // through shared edges; docs/single-scattering.md, "Speed").
-        const RayScene scene(prepared.mesh, RaySceneOptions{RayBuildQuality::High, true});
-        const SingleScatteringContext context(scene, prepared.mesh, s.material, phase ? &*phase : nullptr,
-                                              s.singleScattering);
-        const int terms = context.terms();
+        scene.emplace(prepared.mesh, RaySceneOptions{RayBuildQuality::High, true});
+        context.emplace(*scene, prepared.mesh, s.material, phase ? &*phase : nullptr, s.singleScattering);
+        const int terms = context->terms();
         out.components.resize(size_t(terms));
         for (int k = 0; k < terms; ++k) {
             TransportComponent& c = out.components[size_t(k)];
-            c.kind = context.isotropic() ? ComponentKind::SingleScatteringIsotropic : ComponentKind::SingleScatteringTerm;
-            c.term = context.isotropic() ? 0 : uint32_t(k);
+            c.kind = context->isotropic() ? ComponentKind::SingleScatteringIsotropic : ComponentKind::SingleScatteringTerm;
+            c.term = context->isotropic() ? 0 : uint32_t(k);
             c.vectors.reserve(prepared.myVertices, prepared.myVertices * s.vertexCoefficients);
         }
-        Progress p((context.isotropic() ? "single scattering (isotropic)"
-                                        : "single scattering (" + std::to_string(terms) + " terms)") +
-                       job.share,
-                   prepared.myVertices, "vertices");
+        const std::string label = context->isotropic() ? "single scattering (isotropic)"
+                                                       : "single scattering (" + std::to_string(terms) + " terms)";
+        if (shareSites) {
+            const Stopwatch siteStart;
+            sites = chooseSingleScatteringSites(prepared.mesh.positions, prepared.mesh.normals,
+                                                s.singleScattering.siteSpacing);
+            std::vector<uint32_t> numbers;
+            for (const IndexRange& r : dist.sharedWorkShares(sites.site.size()))
+                for (size_t i = r.begin; i < r.end; ++i) numbers.push_back(uint32_t(i));
+            Progress p(label + ", sites" + job.share, numbers.size(), "sites");
+            for (std::vector<SparseVector>& v : computeSiteTransport(*context, sites, numbers, siteStats, &p, numbers.size()))
+                for (SparseVector& t : v) mySites.push_back(std::move(t));
+            out.busySeconds = siteStart.seconds();
+            return;
+        }
+        Progress p(label + job.share, prepared.myVertices, "vertices");
         // All of this process's shares in one call, so the sites they share are computed once.
-        VertexRanges ranges;
-        for (const IndexRange& r : prepared.vertexShares) ranges.push_back({r.begin, r.end});
-        result = computeSingleScattering(
-            context,
-            [&](size_t, const std::vector<SparseVector>& vectors) {
-                for (int k = 0; k < terms; ++k)
-                    out.components[size_t(k)].vectors.appendVertex(vectors[size_t(k)].index, vectors[size_t(k)].value);
-            },
-            &p, ranges);
+        result = computeSingleScattering(*context, appendVertex, &p, ranges);
         out.busySeconds = result.seconds;
     });
+    if (shareSites) {
+        const Stopwatch exchangeStart;
+        const size_t terms = out.components.size();
+        std::vector<SparseVector> all = dist.gatherSharedWork(std::move(mySites), sites.site.size(), terms);
+        const double exchangeSeconds = exchangeStart.seconds();
+        dist.stage([&] {
+            const Stopwatch blendStart;
+            std::vector<std::vector<SparseVector>> vectors(sites.site.size());
+            std::vector<uint32_t> held(sites.site.size());
+            for (size_t i = 0; i < vectors.size(); ++i) {
+                held[i] = uint32_t(i);
+                for (size_t k = 0; k < terms; ++k) vectors[i].push_back(std::move(all[i * terms + k]));
+            }
+            all = {};
+            Progress p("single scattering, blend" + job.share, prepared.myVertices, "vertices");
+            result = blendSiteTransport(*context, sites, held, vectors, appendVertex, &p, ranges);
+            result.stats.add(siteStats);
+            result.seconds += out.busySeconds + exchangeSeconds;
+            out.busySeconds += blendStart.seconds();
+        });
+    }
     const Stopwatch gatherStart;
     for (TransportComponent& c : out.components)
         c.vectors = dist.gatherVertices(std::move(c.vectors), prepared.mesh.vertexCount());

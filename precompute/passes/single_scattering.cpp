@@ -773,6 +773,126 @@ double compressSingleScattering(const SingleScatteringContext& ctx, float* dense
 // All vertices
 // ---------------------------------------------------------------------------------
 
+namespace {
+
+struct ThreadState {
+    SingleScatteringScratch scratch;
+    std::vector<float> dense;
+    SingleScatteringStats stats;
+};
+
+// The vertices of `ranges` in blocks: `vertex(v, dense, stats, out)` computes one
+// (returning its retained energy fraction) in parallel within a block, and the block is
+// handed to the sink in order. A block is a few seconds of work, so the barrier at its
+// end costs little.
+template <typename VertexFunction>
+SingleScatteringResult forEachVertexInOrder(const SingleScatteringContext& ctx, const VertexRanges& ranges,
+                                            const SingleScatteringSink& sink, Progress* progress,
+                                            VertexFunction&& vertex) {
+    const TriangleMesh& mesh = ctx.mesh();
+    size_t vertexCount = 0;
+    for (const auto& [first, end] : ranges) {
+        if (first > end || end > mesh.positions.size()) throw Error("single scattering", "vertex range out of bounds");
+        vertexCount += end - first;
+    }
+    SingleScatteringResult result;
+    result.isotropic = ctx.isotropic();
+    result.terms = ctx.terms();
+    tbb::combinable<ThreadState> states;
+    constexpr size_t kBlock = 512;
+    std::vector<std::vector<SparseVector>> block(kBlock);
+    std::vector<double> retained(kBlock, 1.0);
+    double retainedSum = 0.0;
+    const Stopwatch start;
+    VertexRanges blocks;
+    for (const auto& [first, last] : ranges)
+        for (size_t base = first; base < last; base += kBlock) blocks.push_back({base, std::min(last, base + kBlock)});
+    for (const auto& [base, end] : blocks) {
+        tbb::parallel_for(tbb::blocked_range<size_t>(base, end, 1), [&](const tbb::blocked_range<size_t>& r) {
+            ThreadState& st = states.local();
+            st.dense.resize(ctx.denseSize());
+            for (size_t v = r.begin(); v != r.end(); ++v) retained[v - base] = vertex(v, st, block[v - base]);
+            if (progress) progress->advance(r.size());
+        });
+        for (size_t v = base; v < end; ++v) {
+            retainedSum += retained[v - base];
+            sink(v, block[v - base]);
+        }
+    }
+    result.seconds = start.seconds();
+    states.combine_each([&](const ThreadState& st) { result.stats.add(st.stats); });
+    result.retainedEnergyFraction = vertexCount > 0 ? retainedSum / double(vertexCount) : 1.0;
+    return result;
+}
+
+}  // namespace
+
+std::vector<std::vector<SparseVector>> computeSiteTransport(const SingleScatteringContext& ctx,
+                                                            const SingleScatteringSites& sites,
+                                                            std::span<const uint32_t> numbers,
+                                                            SingleScatteringStats& stats, Progress* progress,
+                                                            size_t progressUnits) {
+    const TriangleMesh& mesh = ctx.mesh();
+    std::vector<std::vector<SparseVector>> out(numbers.size());
+    const size_t keep = ctx.options().vertexCoefficients * size_t(std::max(1, ctx.options().siteCoefficientFactor));
+    const auto share = [&](size_t i) { return numbers.empty() ? 0 : i * progressUnits / numbers.size(); };
+    tbb::combinable<ThreadState> states;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, numbers.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+        ThreadState& st = states.local();
+        st.dense.resize(ctx.denseSize());
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            if (numbers[i] >= sites.site.size()) throw Error("single scattering", "site number out of range");
+            const uint32_t v = sites.site[numbers[i]];
+            singleScatteringVertex(ctx, ctx.pathOrigin(v), mesh.normals[v], st.dense.data(), st.scratch, st.stats);
+            st.stats.sites += 1;
+            haarSingleScattering(ctx, st.dense.data());
+            out[i].resize(size_t(ctx.terms()));
+            for (int k = 0; k < ctx.terms(); ++k)
+                out[i][size_t(k)] =
+                    truncateLargest(st.dense.data() + size_t(k) * ctx.texelCount() * 3, ctx.texelCount(), 3, keep);
+        }
+        if (progress) progress->advance(share(r.end()) - share(r.begin()));
+    });
+    states.combine_each([&](const ThreadState& st) { stats.add(st.stats); });
+    return out;
+}
+
+SingleScatteringResult blendSiteTransport(const SingleScatteringContext& ctx, const SingleScatteringSites& sites,
+                                          std::span<const uint32_t> held,
+                                          const std::vector<std::vector<SparseVector>>& vectors,
+                                          const SingleScatteringSink& sink, Progress* progress,
+                                          const VertexRanges& ranges) {
+    if (held.size() != vectors.size()) throw Error("single scattering", "one vector set per held site needed");
+    if (sites.vertexCount() != ctx.mesh().positions.size())
+        throw Error("single scattering", "the sites were chosen for another mesh");
+    std::vector<uint32_t> slotOfSite(sites.site.size(), UINT32_MAX);
+    for (size_t i = 0; i < held.size(); ++i) {
+        if (held[i] >= sites.site.size()) throw Error("single scattering", "site number out of range");
+        slotOfSite[held[i]] = uint32_t(i);
+    }
+    for (const auto& [first, end] : ranges)
+        for (size_t v = first; v < std::min(end, sites.vertexCount()); ++v)
+            for (uint32_t b = sites.offset[v]; b < sites.offset[v + 1]; ++b)
+                if (slotOfSite[sites.blendSite[b]] == UINT32_MAX)
+                    throw Error("single scattering", "vertex " + std::to_string(v) + " blends a site not held");
+    const size_t texels = ctx.texelCount();
+    return forEachVertexInOrder(ctx, ranges, sink, progress, [&](size_t v, ThreadState& st, std::vector<SparseVector>& out) {
+        // The blend, in the Haar domain (the transform is linear).
+        std::fill(st.dense.begin(), st.dense.end(), 0.0f);
+        for (uint32_t b = sites.offset[v]; b < sites.offset[v + 1]; ++b) {
+            const float w = sites.blendWeight[b];
+            const std::vector<SparseVector>& sv = vectors[slotOfSite[sites.blendSite[b]]];
+            for (int k = 0; k < ctx.terms(); ++k) {
+                const SparseVector& t = sv[size_t(k)];
+                float* d = st.dense.data() + size_t(k) * texels * 3;
+                for (size_t e = 0; e < t.index.size(); ++e)
+                    for (int c = 0; c < 3; ++c) d[size_t(t.index[e]) * 3 + size_t(c)] += w * t.value[e * 3 + size_t(c)];
+            }
+        }
+        return truncateSingleScattering(ctx, st.dense.data(), out);
+    });
+}
+
 SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ctx,
                                                const SingleScatteringSink& sink,
                                                Progress* progress,
@@ -784,104 +904,26 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
         if (first > end || end > mesh.positions.size()) throw Error("single scattering", "vertex range out of bounds");
         vertexCount += end - first;
     }
-    SingleScatteringResult result;
-    result.isotropic = ctx.isotropic();
-    result.terms = ctx.terms();
-
-    struct ThreadState {
-        SingleScatteringScratch scratch;
-        std::vector<float> dense;
-        SingleScatteringStats stats;
-    };
-    tbb::combinable<ThreadState> states;
-
-    // Blocks of vertices: computed in parallel, handed to the sink in order. A block
-    // is a few seconds of work, so the barrier at its end costs little.
-    constexpr size_t kBlock = 512;
-    std::vector<std::vector<SparseVector>> block(kBlock);
-    std::vector<double> retained(kBlock, 1.0);
-    double retainedSum = 0.0;
-
-    const Stopwatch start;
     const double spacing = ctx.options().siteSpacing;
-    // Sites: the transport of every site the range blends, each truncated to its
+    if (!(spacing > 0.0) || vertexCount == 0)
+        return forEachVertexInOrder(ctx, ranges, sink, progress, [&](size_t v, ThreadState& st, std::vector<SparseVector>& out) {
+            singleScatteringVertex(ctx, ctx.pathOrigin(v), mesh.normals[v], st.dense.data(), st.scratch, st.stats);
+            st.stats.sites += 1;
+            return compressSingleScattering(ctx, st.dense.data(), out);
+        });
+
+    // Sites: the transport of every site the ranges blend, each truncated to its
     // largest coefficients, held until the end. Progress counts them as the vertices
-    // they stand for.
-    SingleScatteringSites sites;
-    std::vector<uint32_t> needed;                       // site numbers, increasing
-    std::vector<uint32_t> slotOfSite;                   // site number -> index into siteVectors
-    std::vector<std::vector<SparseVector>> siteVectors;  // [slot][term]
-    if (spacing > 0.0 && vertexCount > 0) {
-        sites = chooseSingleScatteringSites(mesh.positions, mesh.normals, spacing);
-        needed = sites.sitesOf(ranges);
-        slotOfSite.assign(sites.site.size(), UINT32_MAX);
-        for (size_t i = 0; i < needed.size(); ++i) slotOfSite[needed[i]] = uint32_t(i);
-        siteVectors.resize(needed.size());
-        const size_t siteKeep = ctx.options().vertexCoefficients * size_t(std::max(1, ctx.options().siteCoefficientFactor));
-        const auto share = [&](size_t i) { return i * vertexCount / needed.size(); };
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, needed.size(), 1),
-                          [&](const tbb::blocked_range<size_t>& r) {
-                              ThreadState& st = states.local();
-                              st.dense.resize(ctx.denseSize());
-                              for (size_t i = r.begin(); i != r.end(); ++i) {
-                                  const uint32_t v = sites.site[needed[i]];
-                                  singleScatteringVertex(ctx, ctx.pathOrigin(v), mesh.normals[v],
-                                                         st.dense.data(), st.scratch, st.stats);
-                                  st.stats.sites += 1;
-                                  haarSingleScattering(ctx, st.dense.data());
-                                  std::vector<SparseVector>& out = siteVectors[i];
-                                  out.resize(size_t(ctx.terms()));
-                                  for (int k = 0; k < ctx.terms(); ++k)
-                                      out[size_t(k)] = truncateLargest(
-                                          st.dense.data() + size_t(k) * ctx.texelCount() * 3, ctx.texelCount(), 3, siteKeep);
-                              }
-                              if (progress) progress->advance(share(r.end()) - share(r.begin()));
-                          });
-    }
-    const size_t texels = ctx.texelCount();
-    VertexRanges blocks;
-    for (const auto& [first, last] : ranges)
-        for (size_t base = first; base < last; base += kBlock) blocks.push_back({base, std::min(last, base + kBlock)});
-    for (const auto& [base, end] : blocks) {
-        tbb::parallel_for(tbb::blocked_range<size_t>(base, end, 1),
-                          [&](const tbb::blocked_range<size_t>& r) {
-                              ThreadState& st = states.local();
-                              st.dense.resize(ctx.denseSize());
-                              for (size_t v = r.begin(); v != r.end(); ++v) {
-                                  if (spacing > 0.0) {
-                                      // The blend, in the Haar domain (the transform is linear).
-                                      std::fill(st.dense.begin(), st.dense.end(), 0.0f);
-                                      for (uint32_t b = sites.offset[v]; b < sites.offset[v + 1]; ++b) {
-                                          const float w = sites.blendWeight[b];
-                                          const std::vector<SparseVector>& sv = siteVectors[slotOfSite[sites.blendSite[b]]];
-                                          for (int k = 0; k < ctx.terms(); ++k) {
-                                              const SparseVector& t = sv[size_t(k)];
-                                              float* d = st.dense.data() + size_t(k) * texels * 3;
-                                              for (size_t e = 0; e < t.index.size(); ++e)
-                                                  for (int c = 0; c < 3; ++c)
-                                                      d[size_t(t.index[e]) * 3 + size_t(c)] += w * t.value[e * 3 + size_t(c)];
-                                          }
-                                      }
-                                      retained[v - base] = truncateSingleScattering(ctx, st.dense.data(), block[v - base]);
-                                      continue;
-                                  }
-                                  singleScatteringVertex(ctx, ctx.pathOrigin(v), mesh.normals[v],
-                                                         st.dense.data(), st.scratch, st.stats);
-                                  st.stats.sites += 1;
-                                  retained[v - base] =
-                                      compressSingleScattering(ctx, st.dense.data(), block[v - base]);
-                              }
-                              if (progress && !(spacing > 0.0)) progress->advance(r.size());
-                          });
-        for (size_t v = base; v < end; ++v) {
-            retainedSum += retained[v - base];
-            sink(v, block[v - base]);
-        }
-    }
-    result.seconds =
-        start.seconds();
-    states.combine_each([&](const ThreadState& st) { result.stats.add(st.stats); });
-    result.retainedEnergyFraction = vertexCount > 0 ? retainedSum / double(vertexCount) : 1.0;
+    // they stand for; the blend, which is quick, does not advance it.
+    const Stopwatch start;
+    const SingleScatteringSites sites = chooseSingleScatteringSites(mesh.positions, mesh.normals, spacing);
+    const std::vector<uint32_t> needed = sites.sitesOf(ranges);
+    SingleScatteringStats siteStats;
+    const std::vector<std::vector<SparseVector>> vectors =
+        computeSiteTransport(ctx, sites, needed, siteStats, progress, vertexCount);
+    SingleScatteringResult result = blendSiteTransport(ctx, sites, needed, vectors, sink, nullptr, ranges);
+    result.stats.add(siteStats);
+    result.seconds = start.seconds();
     return result;
 }
 

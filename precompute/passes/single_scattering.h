@@ -57,6 +57,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -66,6 +67,7 @@
 #include "precompute/passes/irradiance_transport.h"
 #include "common/raytrace.h"
 #include "common/scattering_path.h"
+#include "precompute/passes/single_scattering_sites.h"
 
 namespace prt {
 
@@ -382,6 +384,33 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
                                                const SingleScatteringSink& sink,
                                                Progress* progress = nullptr,
                                                std::optional<VertexRanges> vertices = {});
+
+// The same computation in its two stages, for processes that share the sites between
+// them (MPI ranks: each computes some of the sites, all exchange them, each blends its
+// own vertices). computeSingleScattering with sites is chooseSingleScatteringSites,
+// then computeSiteTransport of the sites its ranges blend, then blendSiteTransport.
+
+// The transport of the sites `numbers` (indices into sites.site, increasing): for each,
+// its K vectors (channels = 3) truncated to vertexCoefficients x siteCoefficientFactor
+// entries, out[i][k] for numbers[i]. In parallel (TBB); a site's vectors depend on it
+// alone. Adds the work to `stats` (sites counts the sites computed); `progress`
+// advances by `progressUnits` in all, spread evenly over the sites.
+std::vector<std::vector<SparseVector>> computeSiteTransport(const SingleScatteringContext& ctx,
+                                                            const SingleScatteringSites& sites,
+                                                            std::span<const uint32_t> numbers,
+                                                            SingleScatteringStats& stats,
+                                                            Progress* progress = nullptr, size_t progressUnits = 0);
+
+// Each vertex of `ranges` (as in computeSingleScattering) as the blend of its sites'
+// vectors (single_scattering_sites.h), truncated to the vertex's coefficients, to the
+// sink in order. `held` (increasing site numbers) and `vectors` (out of
+// computeSiteTransport, one per held site) must hold every site the ranges blend
+// (prt::Error otherwise). The result's stats hold no rays: the sites' are the caller's.
+SingleScatteringResult blendSiteTransport(const SingleScatteringContext& ctx, const SingleScatteringSites& sites,
+                                          std::span<const uint32_t> held,
+                                          const std::vector<std::vector<SparseVector>>& vectors,
+                                          const SingleScatteringSink& sink, Progress* progress,
+                                          const VertexRanges& ranges);
 
 // Convenience: collects the vectors, out[k][vertex].
 SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ctx,
