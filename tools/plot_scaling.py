@@ -71,10 +71,11 @@ SERIES = {
         ],
     },
     "ss_mesh": {
-        "title": "Isotropic single scattering vs mesh size (--components ss)",
+        "title": "Isotropic single scattering vs mesh size (--components ss, at sites)",
         "x": "vertices", "xlabel": "vertices",
         "metrics": [
             ("ss_seconds", "single scattering", "s", "precompute time [s]", "loglog"),
+            ("ss_sites", "sites", "", "sites", "loglog"),
             ("relight_ms_median", "relight kernel", "ms", "per frame [ms] / size [MB]", "loglog"),
             ("relight_cold_ms_median", "relight kernel, cold", "ms", "per frame [ms] / size [MB]", "loglog"),
             ("file_MB", "file", "MB", "per frame [ms] / size [MB]", "loglog"),
@@ -99,6 +100,8 @@ TABLE_COLUMNS = [
     ("mean_nodes_visited", "nodes/vertex", "{:,.0f}"),
     ("ss_seconds", "SS s", "{:.3g}"),
     ("ss_ms_per_vertex", "SS ms/vertex", "{:.3g}"),
+    ("ss_sites", "SS sites", "{:,.0f}"),
+    ("ss_ms_per_site", "SS ms/site", "{:.3g}"),
     ("total_seconds", "total s", "{:.3g}"),
     ("file_MB", "file MB", "{:.3g}"),
     ("file_bytes_per_vertex", "bytes/vertex", "{:,.0f}"),
@@ -139,6 +142,7 @@ def flatten(run):
     row["peak_MB"] = get("peak_memory_bytes") / 1e6 if get("peak_memory_bytes") is not None else None
     row["pass2_us_per_vertex"] = 1e6 * get("pass2_seconds_per_vertex") if get("pass2_seconds_per_vertex") else None
     row["ss_ms_per_vertex"] = 1e3 * get("ss_seconds_per_vertex") if get("ss_seconds_per_vertex") else None
+    row["ss_ms_per_site"] = 1e3 * get("ss_seconds") / get("ss_sites") if get("ss_seconds") and get("ss_sites") else None
     row["relight_stream_MB"] = get("relight_stream_bytes") / 1e6 if get("relight_stream_bytes") else None
     row["precompute_command"] = run["precompute_command"]
     row["relight_command"] = run["relight_command"]

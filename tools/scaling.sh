@@ -12,7 +12,7 @@
 #   ms_cubemap       cubemap 32, 64 (res3)
 #   ms_coefficients  coefficients kept per vertex 64, 128, 192, 256 (res3; -k alone: per-vertex files)
 #   ms_samples       --samples 5000, 10000, 20000, 40000 (+ the default 9,732) (res3)
-#   ss_mesh          isotropic single scattering (--components ss): res4, res3
+#   ss_mesh          isotropic single scattering (--components ss, at sites): res4, res3, res2, full
 #   ss_path_samples  --path-samples 2, 3, the default 4, 6, 8 and 32 (res4; Gauss-Legendre rule, adaptive directions)
 #   relight          relight time per frame of every file against its bytes
 #   pointlights      point lights vs mesh size (dragon res4, res3, res2; 30 mm, Skin2, one
@@ -27,7 +27,7 @@ usage() {
   cat <<'EOF'
 Usage: tools/scaling.sh [--quick] [--no-build] [--keep] [--out DIR] [--plots DIR]
 
-Full run: about 15-20 minutes on 2 quiet cores (the single-scattering jobs take most of
+Full run: about 20-25 minutes on 2 quiet cores (the single-scattering jobs take most of
 it). --quick: dragon res4 only with tiny variants (about 2 minutes), to test the
 chain; its plots go to DIR/images, not docs/images.
 
@@ -101,6 +101,8 @@ else
     "ss_res4_p3|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 3"
     "ss_res4_p6|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 6"
     "ss_res3|ss_mesh|$m/dragon_vrip_res3.ply.gz|--components ss"
+    "ss_res2|ss_mesh|$m/dragon_vrip_res2.ply.gz|--components ss"
+    "ss_full|ss_mesh|$m/dragon_vrip.ply.gz|--components ss"
     "ss_res4_p8|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 8"
     "ss_res4_p32|ss_path_samples|$m/dragon_vrip_res4.ply.gz|--components ss --path-samples 32"
   )
