@@ -116,7 +116,7 @@ double dot(const SparseVector& a, const SparseVector& b);
 
 // Sum of squares of all stored values (all channels).
 double energy(const SparseVector& a);
-// Sum of squares of `count` floats.
+// Sum of squares of `count` floats (in double, four partial sums).
 double energy(const float* values, size_t count);
 
 }  // namespace prt

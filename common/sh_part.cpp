@@ -199,8 +199,7 @@ SparseVector truncateWithShPart(float* dense, size_t count, int channels, int te
                                    std::to_string(terms) + " SH terms");
     const size_t ch = size_t(channels);
     if (terms == 0) {
-        double before = 0.0;
-        for (size_t e = 0; e < count * ch; ++e) before += double(dense[e]) * double(dense[e]);
+        const double before = energy(dense, count * ch);
         SparseVector kept = truncateLargest(dense, count, channels, keep);
         if (retained) *retained = before > 0.0 ? energy(kept) / before : 1.0;
         return kept;
