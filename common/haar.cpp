@@ -234,6 +234,8 @@ inline double squaredNorm(const float* v, int channels) {
 
 }  // namespace
 
+namespace {
+
 // e when e > 0, else 0 (NaN included), without a branch: zero entries come at random,
 // and a compiler's `e > 0 ? e : 0` is a jump mispredicted about as often.
 inline double positiveOrZero(double e) {
@@ -260,6 +262,8 @@ void keysOf(const float* dense, size_t count, int channels, double* keys, Adjust
         keys[idx] = positiveOrZero(e);
     }
 }
+
+}  // namespace
 
 SparseVector truncateLargest(const float* dense, size_t count, int channels, size_t keep,
                              const float* weights) {

@@ -299,3 +299,34 @@ TEST(SingleScatteringSites, SitesComputedInSharesAndBlendedEqualOneCall) {
                                     nullptr, VertexRanges{{0, 1}}),
                  Error);
 }
+
+// A held site's vectors of another shape (phase terms, channels, cubemap) are refused.
+TEST(SingleScatteringSites, BlendRefusesSiteVectorsOfAnotherShape) {
+    const TriangleMesh torus = makeTorus(6.0f, 2.0f, 24, 12);
+    const RayScene scene(torus);
+    SingleScatteringOptions o;
+    o.cubemapSize = 4;
+    o.vertexCoefficients = 32;
+    o.siteSpacing = 1.0;
+    const SingleScatteringContext ctx(scene, torus, materialByName("Skin1"), nullptr, o);
+    const SingleScatteringSites s = chooseSingleScatteringSites(torus.positions, torus.normals, o.siteSpacing);
+    std::vector<uint32_t> held(s.site.size());
+    for (size_t i = 0; i < held.size(); ++i) held[i] = uint32_t(i);
+    SingleScatteringStats stats;
+    const std::vector<std::vector<SparseVector>> good = computeSiteTransport(ctx, s, held, stats);
+    const auto blend = [&](const std::vector<std::vector<SparseVector>>& v) {
+        blendSiteTransport(ctx, s, held, v, [](size_t, const std::vector<SparseVector>&) {}, nullptr,
+                           VertexRanges{{0, torus.positions.size()}});
+    };
+    EXPECT_NO_THROW(blend(good));
+    std::vector<std::vector<SparseVector>> bad = good;
+    bad[0].push_back(bad[0][0]);  // two phase terms for an isotropic context
+    EXPECT_THROW(blend(bad), Error);
+    bad = good;
+    bad[1][0].channels = 1;
+    EXPECT_THROW(blend(bad), Error);
+    bad = good;
+    bad[2][0].index.push_back(uint32_t(ctx.texelCount()));  // past the cubemap
+    bad[2][0].value.insert(bad[2][0].value.end(), {1.0f, 1.0f, 1.0f});
+    EXPECT_THROW(blend(bad), Error);
+}

@@ -12,7 +12,9 @@
 //                         of the other vertices empty) that prt-merge joins
 //   MpiDistribution       (precompute/job/mpi_distribution.h) samples and vertices split over
 //                         the ranks of MPI_COMM_WORLD, sample vectors all-gathered, vertex
-//                         vectors gathered at rank 0, which writes the file
+//                         vectors gathered at rank 0, which writes the file; the
+//                         single-scattering sites split too and all-gathered
+//                         (sharedWorkShares, gatherSharedWork)
 //
 // Samples split into even contiguous ranges (evenRange). Vertices: a shard takes one
 // contiguous range (a shard file holds one vertex range); MPI ranks take interleaved

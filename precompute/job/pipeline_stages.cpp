@@ -388,6 +388,7 @@ SingleScatteringOutput runSingleScattering(const JobContext& job, const Prepared
     SingleScatteringSites sites;
     SingleScatteringStats siteStats;
     std::vector<SparseVector> mySites;  // [site of my share][term]
+    std::string label;
     dist.stage([&] {
         // Isotropic for g = 0, else the K-term SVD of HG(g) (phase_factoring.h).
         if (s.material.g != 0.0) {
@@ -409,8 +410,8 @@ SingleScatteringOutput runSingleScattering(const JobContext& job, const Prepared
             c.term = context->isotropic() ? 0 : uint32_t(k);
             c.vectors.reserve(prepared.myVertices, prepared.myVertices * s.vertexCoefficients);
         }
-        const std::string label = context->isotropic() ? "single scattering (isotropic)"
-                                                       : "single scattering (" + std::to_string(terms) + " terms)";
+        label = context->isotropic() ? "single scattering (isotropic)"
+                                     : "single scattering (" + std::to_string(terms) + " terms)";
         if (shareSites) {
             const Stopwatch siteStart;
             sites = chooseSingleScatteringSites(prepared.mesh.positions, prepared.mesh.normals,
@@ -443,13 +444,17 @@ SingleScatteringOutput runSingleScattering(const JobContext& job, const Prepared
                 for (size_t k = 0; k < terms; ++k) vectors[i].push_back(std::move(all[i * terms + k]));
             }
             all = {};
-            Progress p("single scattering, blend" + job.share, prepared.myVertices, "vertices");
+            Progress p(label + ", blend" + job.share, prepared.myVertices, "vertices");
             result = blendSiteTransport(*context, sites, held, vectors, appendVertex, &p, ranges);
             result.stats.add(siteStats);
             result.seconds += out.busySeconds + exchangeSeconds;
             out.busySeconds += blendStart.seconds();
         });
     }
+    // The scene, the context and the sites are done with: not held while rank 0 gathers.
+    context.reset();
+    scene.reset();
+    sites = {};
     const Stopwatch gatherStart;
     for (TransportComponent& c : out.components)
         c.vectors = dist.gatherVertices(std::move(c.vectors), prepared.mesh.vertexCount());

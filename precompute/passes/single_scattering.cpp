@@ -866,16 +866,22 @@ SingleScatteringResult blendSiteTransport(const SingleScatteringContext& ctx, co
     if (sites.vertexCount() != ctx.mesh().positions.size())
         throw Error("single scattering", "the sites were chosen for another mesh");
     std::vector<uint32_t> slotOfSite(sites.site.size(), UINT32_MAX);
+    const size_t texels = ctx.texelCount();
     for (size_t i = 0; i < held.size(); ++i) {
         if (held[i] >= sites.site.size()) throw Error("single scattering", "site number out of range");
         slotOfSite[held[i]] = uint32_t(i);
+        if (vectors[i].size() != size_t(ctx.terms()))
+            throw Error("single scattering", "a site's vectors do not have the context's phase terms");
+        for (const SparseVector& t : vectors[i])
+            if (t.channels != 3 || t.value.size() != t.index.size() * 3 ||
+                (!t.index.empty() && t.index.back() >= texels))
+                throw Error("single scattering", "a site's vector is not an RGB vector of the context's cubemap");
     }
     for (const auto& [first, end] : ranges)
         for (size_t v = first; v < std::min(end, sites.vertexCount()); ++v)
             for (uint32_t b = sites.offset[v]; b < sites.offset[v + 1]; ++b)
                 if (slotOfSite[sites.blendSite[b]] == UINT32_MAX)
                     throw Error("single scattering", "vertex " + std::to_string(v) + " blends a site not held");
-    const size_t texels = ctx.texelCount();
     return forEachVertexInOrder(ctx, ranges, sink, progress, [&](size_t v, ThreadState& st, std::vector<SparseVector>& out) {
         // The blend, in the Haar domain (the transform is linear).
         std::fill(st.dense.begin(), st.dense.end(), 0.0f);

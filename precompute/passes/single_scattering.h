@@ -390,7 +390,7 @@ SingleScatteringResult computeSingleScattering(const SingleScatteringContext& ct
 // own vertices). computeSingleScattering with sites is chooseSingleScatteringSites,
 // then computeSiteTransport of the sites its ranges blend, then blendSiteTransport.
 
-// The transport of the sites `numbers` (indices into sites.site, increasing): for each,
+// The transport of the sites `numbers` (indices into sites.site): for each,
 // its K vectors (channels = 3) truncated to vertexCoefficients x siteCoefficientFactor
 // entries, out[i][k] for numbers[i]. In parallel (TBB); a site's vectors depend on it
 // alone. Adds the work to `stats` (sites counts the sites computed); `progress`
@@ -403,9 +403,10 @@ std::vector<std::vector<SparseVector>> computeSiteTransport(const SingleScatteri
 
 // Each vertex of `ranges` (as in computeSingleScattering) as the blend of its sites'
 // vectors (single_scattering_sites.h), truncated to the vertex's coefficients, to the
-// sink in order. `held` (increasing site numbers) and `vectors` (out of
-// computeSiteTransport, one per held site) must hold every site the ranges blend
-// (prt::Error otherwise). The result's stats hold no rays: the sites' are the caller's.
+// sink in order. `held` (site numbers) and `vectors` (out of computeSiteTransport, one
+// per held site: the context's K RGB vectors of its cubemap) must hold every site the
+// ranges blend (prt::Error otherwise, and for vectors of another shape). The result's
+// stats hold no rays: the sites' are the caller's.
 SingleScatteringResult blendSiteTransport(const SingleScatteringContext& ctx, const SingleScatteringSites& sites,
                                           std::span<const uint32_t> held,
                                           const std::vector<std::vector<SparseVector>>& vectors,
