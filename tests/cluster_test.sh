@@ -110,6 +110,8 @@ if [ "$run_mpi" = 1 ]; then
     sites() { grep -oE '^  sites +[0-9]+' "$1" | grep -oE '[0-9]+$'; }
     if [ -n "$(sites whole.log)" ] && [ "$(sites mpi4.log)" = "$(sites whole.log)" ]; then
         echo "ok: 4 ranks computed $(sites mpi4.log) single-scattering sites, as one process"
+        grep -qE "^  sites .*shared between the ranks: [0-9.e+]+ MB" mpi4.log ||
+            fail "the -np 4 summary does not report the sites' exchange: $(grep '^  sites' mpi4.log)"
     else
         fail "4 ranks computed '$(sites mpi4.log)' single-scattering sites, one process '$(sites whole.log)'"
     fi

@@ -433,8 +433,14 @@ SingleScatteringOutput runSingleScattering(const JobContext& job, const Prepared
     if (shareSites) {
         const Stopwatch exchangeStart;
         const size_t terms = out.components.size();
+        // What MpiDistribution::gatherSharedWork sends: the channel count, two 8-byte
+        // counts and 16 bytes per RGB entry.
+        double exchangeBytes = 0;
+        for (const SparseVector& v : mySites) exchangeBytes += 20 + 16 * double(v.size());
         std::vector<SparseVector> all = dist.gatherSharedWork(std::move(mySites), sites.site.size(), terms);
         const double exchangeSeconds = exchangeStart.seconds();
+        summary.siteExchangeBytes = dist.sum(exchangeBytes);
+        summary.siteExchangeSeconds = exchangeSeconds;
         dist.stage([&] {
             const Stopwatch blendStart;
             std::vector<std::vector<SparseVector>> vectors(sites.site.size());

@@ -85,7 +85,12 @@ std::string PrecomputeSummary::format() const {
                 formatDuration(s.phaseSeconds).c_str());
         add("single scattering %s, %.3g rays, %.3g rays/s, retained energy %.4f",
             formatDuration(s.seconds).c_str(), double(s.rays), s.raysPerSecond, s.retainedEnergy);
-        if (s.siteSpacing > 0)
+        if (s.siteSpacing > 0 && s.siteExchangeBytes > 0)
+            add("  sites           %llu, about %g mm apart, blended into the vertices; shared between the ranks: "
+                "%.3g MB in %s",
+                (unsigned long long)s.sites, s.siteSpacing, s.siteExchangeBytes / 1e6,
+                formatDuration(s.siteExchangeSeconds).c_str());
+        else if (s.siteSpacing > 0)
             add("  sites           %llu, about %g mm apart, blended into the vertices", (unsigned long long)s.sites,
                 s.siteSpacing);
         add("  rays            %.3g exit, %.3g occlusion, %.3g culled (throughput), %.3g escaping, "

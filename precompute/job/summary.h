@@ -81,6 +81,8 @@ struct SingleScatteringSummary {
     uint64_t tracedTexels = 0, interpolatedTexels = 0;
     uint64_t sites = 0;          // points whose transport was computed (the vertices unless --ss-site-spacing)
     double siteSpacing = 0;      // mm, 0: every vertex
+    // MPI ranks sharing the sites: the bytes all ranks sent and the exchange's time.
+    double siteExchangeBytes = 0, siteExchangeSeconds = 0;
     uint64_t splitsByStake = 0, splitsByThroughput = 0, splitsByExitKind = 0;  // adaptive cells split, per rule
     uint64_t escapedRays = 0, reversedHits = 0, outsideSamples = 0;
     uint64_t flippedNormals = 0, cappedDepths = 0;

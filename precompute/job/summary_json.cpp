@@ -139,6 +139,8 @@ Json summaryJson(const PrecomputeSummary& r) {
     j["ss_traced_texels"] = ssOnly(ss.tracedTexels);
     j["ss_interpolated_texels"] = ssOnly(ss.interpolatedTexels);
     j["ss_sites"] = ssOnly(ss.sites);
+    j["ss_site_exchange_bytes"] = ssOnly(ss.siteExchangeBytes);
+    j["ss_site_exchange_seconds"] = ssOnly(ss.siteExchangeSeconds);
     j["ss_splits_by_stake"] = ssOnly(ss.splitsByStake);
     j["ss_splits_by_throughput"] = ssOnly(ss.splitsByThroughput);
     j["ss_splits_by_exit_kind"] = ssOnly(ss.splitsByExitKind);
