@@ -41,6 +41,7 @@
 #include "relight/prt/light_vector.h"
 #include "relight/prt/relight_kernel.h"
 #include "relight/prt/relight_object.h"
+#include "relight/prt/sun_split_frame.h"
 #include "relight/prt/translucent_shader.h"
 #include "relight/render/gbuffer.h"
 #include "relight/render/supersample.h"
@@ -59,6 +60,8 @@ struct RenderOptions {
     FrameSettings frame;
     int turntable = 0, envSpin = 0;
     int threads = 0;
+    bool sunSplit = false;
+    SunSplitOptions sun;
 };
 
 void addRenderOptions(CLI::App& app, RenderOptions& o) {
@@ -83,6 +86,16 @@ void addRenderOptions(CLI::App& app, RenderOptions& o) {
                                 "Render N frames of the environment turning 360 degrees about +Y")
                      ->group("Sequences");
     tt->excludes(spin);
+    const char* sun = "Sun split (docs/relight.md, \"The sun split\")";
+    app.add_flag("--sun-split", o.sunSplit,
+                 "Take the environment's brightest texels (sun, lamps) out as directional lights rendered by "
+                 "Jensen-Buhler; the transport relights the rest")
+        ->group(sun);
+    app.add_option("--sun-threshold", o.sun.threshold,
+                   "k: texels brighter than k times the environment's mean luminance give the excess to the lights")
+        ->capture_default_str()->group(sun);
+    app.add_option("--sun-cell", o.sun.cellDegrees, "Degrees: the excess of each cell this wide becomes one light")
+        ->capture_default_str()->group(sun);
     addThreadsOption(app, o.threads);
 }
 
@@ -117,8 +130,14 @@ int runRender(const RenderOptions& o) {
     const int count = std::max(frames, 1);
     // A sequence prepares the environment once (EnvironmentLight, light_vector.h;
     // docs/relight.md, "Turning the environment: the fast path").
-    EnvironmentFrameRenderer renderer(object, loadEnvironment(o.environment, NonFinitePolicy::ClampNegative), look,
-                                      components, count > 1);
+    if (o.sunSplit) validateSunSplitOptions(o.sun);
+    Image environment = loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
+    std::optional<EnvironmentFrameRenderer> plain;
+    std::optional<SunSplitFrameRenderer> split;
+    if (o.sunSplit)
+        split.emplace(object, environment, look, components, o.sun, o.transport, count > 1);
+    else
+        plain.emplace(object, std::move(environment), look, components, count > 1);
     const double loadMs = loadStart.milliseconds();
 
     const std::filesystem::path parent = std::filesystem::path(output).parent_path();
@@ -145,10 +164,11 @@ int runRender(const RenderOptions& o) {
                 components.multipleScattering && components.singleScattering ? "," : "",
                 components.singleScattering ? "ss" : "", ssPath, look.specular ? " + specular" : "",
                 look.lightTerms ? std::to_string(look.lightTerms).c_str() : "all", loadMs);
+    if (split) std::printf("%s\n", split->describe().c_str());
     std::fflush(stdout);
 
     const glm::dmat3 baseRotation = rotationY(look.envRotation);
-    double totalLight = 0, totalRelight = 0, totalRays = 0, totalShade = 0, totalWrite = 0;
+    double totalLight = 0, totalRelight = 0, totalRays = 0, totalShade = 0, totalWrite = 0, totalSun = 0;
     std::vector<std::string> written;
     const Stopwatch runStart;
 
@@ -166,8 +186,11 @@ int runRender(const RenderOptions& o) {
         }
 
         EnvironmentFrameTimes t;
-        const Image image = boxDownsample(renderer.render(supersampledCamera(frameCamera, subpixels), rotation, &t),
-                                          subpixels);
+        SunSplitFrameTimes st;
+        const Camera traced = supersampledCamera(frameCamera, subpixels);
+        const Image image =
+            boxDownsample(split ? split->render(traced, rotation, &st) : plain->render(traced, rotation, &t), subpixels);
+        if (split) t = st.environment;
 
         const Stopwatch writeClock;
         const std::string base = frameName(output, f, frames);
@@ -188,14 +211,21 @@ int runRender(const RenderOptions& o) {
                     "shading %.1f ms, write %.1f ms; %zu object pixels -> %s.exr/.png\n",
                     t.light, t.lightTerms, t.lightRelativeL2, t.relight, t.rays, t.shade, writeMs,
                     t.objectPixels, base.c_str());
+        if (split)
+            std::printf("  sun split: %zu lights, irradiance %.1f ms, Jensen-Buhler %.1f ms, single scattering %.1f ms\n",
+                        st.lights, st.lightsIrradiance, st.lightsDiffusion, st.lightsSingleScattering);
+        totalSun += st.lightsIrradiance + st.lightsDiffusion + st.lightsSingleScattering;
         std::fflush(stdout);
     }
 
     const double totalMs = runStart.milliseconds();
+    char sunPart[64] = "";
+    if (split) std::snprintf(sunPart, sizeof sunPart, "sun split %.1f ms, ", totalSun / count);
     std::printf("done: %d frame%s in %s (mean per frame: light %.1f ms, relight %.1f ms, rays %.1f ms, "
-                "shading %.1f ms, write %.1f ms)\n",
+                "shading %.1f ms, %swrite %.1f ms)\n",
                 count, count == 1 ? "" : "s", formatDuration(totalMs / 1000.0).c_str(), totalLight / count,
-                totalRelight / count, totalRays / count, totalShade / count, totalWrite / count);
+                totalRelight / count, totalRays / count, totalShade / count,
+                sunPart, totalWrite / count);
     if (count == 1)
         std::printf("wrote %s.exr and %s.png\n", written[0].c_str(), written[0].c_str());
     else
@@ -375,11 +405,7 @@ int runView(const ViewOptions& o) {
     setup.vsync = !o.noVsync;
     setup.showPanel = !o.hidePanel;
     // The point lights render the object's current material (an editable file's edit).
-    setup.material = setup.object.editable
-                         ? std::optional<Material>(scaledMaterial(setup.object.editable->material(),
-                                                                  setup.object.editable->sizeMm() /
-                                                                      setup.object.editable->objectSizeMm()))
-                         : readTransportParameters(setup.object.transport.parameters, o.transport).material;
+    setup.material = shownMaterial(setup.object, o.transport);
     if (!o.lightsFile.empty()) setup.pointLights = loadLightScene(o.lightsFile);
     for (const std::string& text : o.lights) setup.pointLights.push_back(parseLight(text));
     if (!setup.pointLights.empty() && !setup.material)

@@ -1,5 +1,6 @@
 #include "relight/prt/environment_frame.h"
 
+#include "common/error.h"
 #include "common/util.h"
 #include "relight/render/specular.h"
 
@@ -7,9 +8,10 @@ namespace prt {
 
 EnvironmentFrameRenderer::EnvironmentFrameRenderer(const RelightObject& object, Image environment,
                                                    const FrameSettings& look,
-                                                   const ScatteringComponents& components, bool sequence)
+                                                   const ScatteringComponents& components, bool sequence, Image lighting)
     : object_(object),
       environment_(std::move(environment)),
+      lighting_(std::move(lighting)),
       look_(look),
       components_(components),
       objectAndGround_(object.ground ? std::optional<TriangleMesh>(withGround(object.mesh, object.ground->mesh))
@@ -20,12 +22,15 @@ EnvironmentFrameRenderer::EnvironmentFrameRenderer(const RelightObject& object, 
               EyePathTable(object.eta, parseSingleScatteringView(look.ssPath))) {
     if (look_.specular)
         prefiltered_ = prefilterEnvironment(environment_, specularBlurFactor(look_.specularBlur, environment_));
-    if (sequence) prepared_.emplace(environment_, int(object_.transport.cubemapSize));
+    if (!lighting_.empty() && (lighting_.width != environment_.width || lighting_.height != environment_.height ||
+                               lighting_.channels != environment_.channels))
+        throw Error("environment", "the lighting environment differs in size from the background");
+    if (sequence) prepared_.emplace(lightingEnvironment(), int(object_.transport.cubemapSize));
 }
 
 LightVector EnvironmentFrameRenderer::lightVector(const glm::dmat3& rotation) const {
     return prepared_ ? prepared_->lightVector(rotation, look_.lightTerms)
-                     : makeLightVector(environment_, int(object_.transport.cubemapSize), rotation, look_.lightTerms);
+                     : makeLightVector(lightingEnvironment(), int(object_.transport.cubemapSize), rotation, look_.lightTerms);
 }
 
 Image EnvironmentFrameRenderer::render(const Camera& camera, const glm::dmat3& rotation,

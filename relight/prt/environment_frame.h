@@ -44,8 +44,11 @@ public:
     // applies the edit and passes the rotation per frame). `sequence` prepares the environment once for many
     // rotations (EnvironmentLight, the fast path of a turntable or a spin); a single
     // frame builds its light vector directly, as `render` does without a sequence.
+    // `lighting`, when not empty, is what the light vector is made of instead of
+    // `environment`, which stays the background and the specular layer's light (the sun
+    // split's residual, sun_split_frame.h); the same size as `environment`.
     EnvironmentFrameRenderer(const RelightObject& object, Image environment, const FrameSettings& look,
-                             const ScatteringComponents& components, bool sequence = false);
+                             const ScatteringComponents& components, bool sequence = false, Image lighting = {});
 
     // The frame seen by `camera` with the environment rotated by `rotation`. Primary
     // rays are traced again only when the camera changed since the last frame.
@@ -62,6 +65,8 @@ public:
 private:
     const RelightObject& object_;
     Image environment_;
+    Image lighting_;  // empty: environment_
+    const Image& lightingEnvironment() const { return lighting_.empty() ? environment_ : lighting_; }
     FrameSettings look_;
     ScatteringComponents components_;
     // What primary rays see: the object's mesh, or withGround(object, ground) when the

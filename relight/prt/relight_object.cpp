@@ -66,6 +66,12 @@ std::string attachGround(RelightObject& object, const std::string& groundPath, c
 
 double objectSizeMm(const RelightObject& object) { return double(object.box.diagonal()); }
 
+std::optional<Material> shownMaterial(const RelightObject& object, const std::string& transportPath) {
+    if (object.editable)
+        return scaledMaterial(object.editable->material(), object.editable->sizeMm() / object.editable->objectSizeMm());
+    return readTransportParameters(object.transport.parameters, transportPath).material;
+}
+
 bool setObjectMaterial(RelightObject& object, const Material& material, double sizeMm,
                        const std::string& transportPath) {
     if (!object.editable)

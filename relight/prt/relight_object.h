@@ -60,6 +60,12 @@ double objectSizeMm(const RelightObject& object);
 bool setObjectMaterial(RelightObject& object, const Material& material, double sizeMm,
                        const std::string& transportPath = "transport file");
 
+// The material the object shows, for the renderers that need the coefficients (the
+// point lights, the sun split): an editable file's current material at its current
+// size, as the material at the placed mesh's size (scaledMaterial); otherwise the
+// file's (sigma_s_prime, sigma_a, eta), or none when the file does not name them.
+std::optional<Material> shownMaterial(const RelightObject& object, const std::string& transportPath);
+
 // --material / --size-mm (frame_settings.h) applied to the object: nothing when both are
 // unset; else the material text parsed with the file's eta (parseMaterial; the file's
 // material when empty) at sizeMm (the file's size when 0), by setObjectMaterial.

@@ -1,0 +1,75 @@
+#pragma once
+// One frame under an environment with the sun split (environment_lights.h; docs/relight.md,
+// "The sun split"): the precomputed transport relights the residual environment, and
+// the lights taken out of it (the sun, lamps) are rendered by the point-light path,
+// exactly as prt-pointlight --method jb renders directional lights:
+//
+//   frame = EnvironmentFrameRenderer(background and specular: the environment;
+//                                    light vector: the residual)
+//         + Jensen-Buhler over face-centroid samples lit by the lights turned with the
+//           environment (multiple scattering, when the frame shows it)
+//         + the lights' single scattering along the refracted view ray
+//           (point_single_scattering.h, when the frame shows single scattering)
+//
+// each tinted by the object's base colour. The three parts are linear in the light, so
+// the sum is the frame of the whole environment up to each part's own error; the
+// transport's truncation then only sees the residual, whose luminance is bounded.
+//
+// Frames, units and the image: as EnvironmentFrameRenderer (RGBA float, A = 1 on the
+// object; the background is the whole environment). The material of the point-light
+// parts is the object's shown material (shownMaterial: an editable file's edit
+// included); the index of refraction the object's.
+//
+// Not supported (prt::Error naming the transport file): an object with a ground or a
+// material map (their transport would still need the sun), and a file that names no
+// material.
+
+#include <glm/glm.hpp>
+
+#include <optional>
+#include <string>
+
+#include "common/camera.h"
+#include "common/image.h"
+#include "common/raytrace.h"
+#include "relight/pointlight/environment_lights.h"
+#include "relight/pointlight/point_animation.h"
+#include "relight/prt/environment_frame.h"
+
+namespace prt {
+
+struct SunSplitFrameTimes {
+    EnvironmentFrameTimes environment;  // the residual's frame
+    double lightsIrradiance = 0;        // pass 1: the lights at the samples (ms)
+    double lightsDiffusion = 0;         // the Jensen-Buhler sum (ms)
+    double lightsSingleScattering = 0;  // ms
+    size_t lights = 0;
+};
+
+class SunSplitFrameRenderer {
+public:
+    // `object` must outlive the renderer. `look`, `components` and `sequence` as
+    // EnvironmentFrameRenderer's; `transportPath` names the object's file in errors.
+    SunSplitFrameRenderer(const RelightObject& object, const Image& environment, const FrameSettings& look,
+                          const ScatteringComponents& components, const SunSplitOptions& options,
+                          const std::string& transportPath, bool sequence = false);
+
+    // The frame seen by `camera` with the environment turned by `rotation`.
+    Image render(const Camera& camera, const glm::dmat3& rotation, SunSplitFrameTimes* times = nullptr);
+
+    const SunSplit& split() const { return split_; }
+    // One line for the tools: the lights, their share of the light, the threshold.
+    std::string describe() const;
+
+private:
+    const RelightObject& object_;
+    ScatteringComponents components_;
+    SunSplit split_;
+    EnvironmentFrameRenderer environment_;
+    PointRenderSettings settings_;
+    RayScene scene_;
+    IrradianceSamples placed_;
+    std::optional<SampleCells> cells_;
+};
+
+}  // namespace prt
