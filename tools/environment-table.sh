@@ -11,7 +11,7 @@ set -euo pipefail
 
 usage() {
   cat <<'EOF'
-Usage: tools/environment-table.sh [--out DIR] [--reuse] [--size W] [--precompute OPTIONS] [SCENE ...]
+Usage: tools/environment-table.sh [--out DIR] [--reuse] [--size W] [--precompute OPTIONS] [--render OPTIONS] [SCENE ...]
 
 SCENE is MESH:MATERIAL, MESH a file stem in data/meshes (bunny, dragon_vrip_res3, ...),
 MATERIAL a name of prt-precompute --material. Default scenes: bunny:Marble bunny:Skin1
@@ -26,6 +26,9 @@ data/envmaps/*.exr.
   --precompute OPTIONS
               more prt-precompute options for every scene, one word list (e.g.
               "--sh-terms 25"); the references do not depend on them
+  --render OPTIONS
+              more prt-relight render options for every frame, one word list (e.g.
+              "--sun-split"); the references do not depend on them
 
 About 30 s per reference on the bunny at 256 x 256 on 2 cores (AVX2); the default set
 (5 scenes x 8 environments) takes about 20-25 minutes. Needs a build (tools/build.sh)
@@ -39,6 +42,7 @@ out=$root/out/environments
 reuse=0
 size=256
 extra=()
+render_extra=()
 scenes=()
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -47,6 +51,8 @@ while [ $# -gt 0 ]; do
     --size) [ $# -ge 2 ] || { echo "environment-table: --size needs a number" >&2; exit 2; }; size=$2; shift ;;
     --precompute) [ $# -ge 2 ] || { echo "environment-table: --precompute needs options" >&2; exit 2; }
                   read -r -a extra <<< "$2"; shift ;;
+    --render) [ $# -ge 2 ] || { echo "environment-table: --render needs options" >&2; exit 2; }
+              read -r -a render_extra <<< "$2"; shift ;;
     -h|--help) usage; exit 0 ;;
     -*) echo "environment-table: unknown option '$1' (see --help)" >&2; exit 2 ;;
     *) scenes+=("$1") ;;
@@ -92,7 +98,7 @@ for k in "${!scenes[@]}"; do
     cell=$((cell + 1))
     frame=$out/${tag}_$e
     ref=$out/${tag}_${e}_reference
-    "$build/bin/prt-relight" render "$mesh" -t "$prt" -e "$env" -W "$size" -H "$size" -o "$frame" > "$frame.log" 2>&1 \
+    "$build/bin/prt-relight" render "$mesh" -t "$prt" -e "$env" -W "$size" -H "$size" "${render_extra[@]}" -o "$frame" > "$frame.log" 2>&1 \
       || { echo "environment-table: prt-relight failed ($frame.log)" >&2; exit 1; }
     reused=no
     if [ "$reuse" = 1 ] && [ -f "$ref.exr" ] && [ -f "$ref.log" ]; then
@@ -116,9 +122,9 @@ for k in "${!scenes[@]}"; do
 done
 mv "$tsv.tmp" "$tsv"
 
-python3 - "$tsv" "$out/table.md" "$size" <<'PY'
+python3 - "$tsv" "$out/table.md" "$size" "${extra[*]}" "${render_extra[*]}" <<'PY'
 import csv, os, sys
-tsv, md, size = sys.argv[1:]
+tsv, md, size, precompute, render = sys.argv[1:]
 rows = list(csv.DictReader(open(tsv), delimiter="\t"))
 envs = sorted({r["environment"] for r in rows})
 scenes = []
@@ -126,7 +132,8 @@ for r in rows:
     if (r["mesh"], r["material"]) not in scenes:
         scenes.append((r["mesh"], r["material"]))
 cell = {(r["mesh"], r["material"], r["environment"]): r for r in rows}
-lines = [f"prt-relight render against prt-reference, {size} x {size}, 30 mm, defaults: overall linear "
+options = "".join(f"; {tool} {opts}" for tool, opts in (("prt-precompute", precompute), ("prt-relight render", render)) if opts)
+lines = [f"prt-relight render against prt-reference, {size} x {size}, 30 mm, defaults{options}: overall linear "
          "relative RMSE over the object's pixels (prt-compare). * = reference reused from an earlier run.", "",
          "| mesh | material | " + " | ".join(envs) + " | worst |",
          "|---|---|" + "---|" * (len(envs) + 1)]

@@ -14,6 +14,7 @@
 #include "relight/prt/environment_frame.h"
 #include "relight/prt/frame_settings.h"
 #include "relight/prt/light_vector.h"
+#include "relight/prt/sun_split_frame.h"
 #include "relight/render/supersample.h"
 
 namespace prt::python {
@@ -378,7 +379,7 @@ void bindRendering(py::module_& m) {
            const py::object& up, double fov, int width, int height, double azimuth, double elevation, double fill,
            const py::object& envRotation, const std::string& components, size_t lightTerms, bool specular,
            int specularBlur, const py::object& material, std::optional<double> sizeMm, int spp,
-           const std::string& ssPath) {
+           const std::string& ssPath, bool sunSplit, double sunThreshold, double sunCell) {
             const int subpixels = subpixelGridSize(spp);
             FrameSettings look;
             look.components = components;
@@ -406,6 +407,8 @@ void bindRendering(py::module_& m) {
             const glm::dmat3 rotation = rotationOf(envRotation);
             const std::string materialText = material.is_none() ? "" : stringArgument(material, "material");
             if (sizeMm && !(*sizeMm > 0.0 && std::isfinite(*sizeMm))) throw Error("--size-mm", "must be a size in mm > 0");
+            const SunSplitOptions sun{.threshold = sunThreshold, .cellDegrees = sunCell};
+            if (sunSplit) validateSunSplitOptions(sun);
             py::gil_scoped_release release;
             std::lock_guard lock(o.transport->mutex);
             // Checked before the edit, which stays the object's: a refused frame leaves it as it was.
@@ -422,8 +425,14 @@ void bindRendering(py::module_& m) {
                 if (!materialText.empty()) applyMaterialEdit(*o.object, materialText, size, o.transportPath);
                 else setObjectMaterial(*o.object, e.material(), size, o.transportPath);
             }
-            EnvironmentFrameRenderer renderer(*o.object, environment.image, look, which);
-            Image image = boxDownsample(renderer.render(cam, rotation), subpixels);
+            Image image;
+            if (sunSplit) {
+                SunSplitFrameRenderer renderer(*o.object, environment.image, look, which, sun, o.transportPath);
+                image = boxDownsample(renderer.render(cam, rotation), subpixels);
+            } else {
+                EnvironmentFrameRenderer renderer(*o.object, environment.image, look, which);
+                image = boxDownsample(renderer.render(cam, rotation), subpixels);
+            }
             py::gil_scoped_acquire acquire;
             return imageArray(std::move(image));
         },
@@ -433,13 +442,16 @@ void bindRendering(py::module_& m) {
         py::arg("fill") = 0.9, py::arg("env_rotation") = 0.0, py::arg("components") = "all",
         py::arg("light_terms") = 0, py::arg("specular") = false, py::arg("specular_blur") = 0,
         py::arg("material") = py::none(), py::arg("size_mm") = py::none(), py::arg("spp") = 1,
-        py::arg("ss_path") = "refracted",
+        py::arg("ss_path") = "refracted", py::arg("sun_split") = false,
+        py::arg("sun_threshold") = SunSplitOptions{}.threshold, py::arg("sun_cell") = SunSplitOptions{}.cellDegrees,
         "prt-relight render's frame as an (H, W, 4) float32 linear RGBA array (A = 1 on the object), the same "
         "bit for bit as its EXR for the same arguments. Camera: eye/target/up in mm (default: the object framed "
         "from azimuth/elevation to fill that share of the image), fov in degrees; spp: anti-aliasing samples per "
         "pixel (a square number; render's --spp). material/size_mm: as "
         "set_material, and they stay the object's. ss_path: single scattering along the eye's refracted ray "
-        "('refracted') or the inward normal as precomputed ('normal'; render's --ss-path).");
+        "('refracted') or the inward normal as precomputed ('normal'; render's --ss-path). sun_split, "
+        "sun_threshold, sun_cell: render's --sun-split, --sun-threshold, --sun-cell (the environment's brightest "
+        "texels as directional lights by Jensen-Buhler; docs/relight.md).");
 }
 
 }  // namespace prt::python

@@ -7,15 +7,16 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/materials.h"
+#include "common/transport_params.h"
 
 namespace prt {
 
 void validateSunSplitOptions(const SunSplitOptions& options) {
     if (!std::isfinite(options.threshold) || options.threshold < 1.0)
         throw Error("--sun-threshold", "must be a finite number >= 1 (times the environment's mean luminance), got " +
-                                           std::to_string(options.threshold));
+                                           formatParameter(options.threshold));
     if (!std::isfinite(options.cellDegrees) || options.cellDegrees <= 0.0 || options.cellDegrees > 90.0)
-        throw Error("--sun-cell", "must be in (0, 90] degrees, got " + std::to_string(options.cellDegrees));
+        throw Error("--sun-cell", "must be in (0, 90] degrees, got " + formatParameter(options.cellDegrees));
 }
 
 SunSplit splitSun(const Image& latLong, const SunSplitOptions& options) {

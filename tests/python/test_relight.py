@@ -117,6 +117,7 @@ def test_constant_environment_gives_the_rotation_invariant_answer(scene):
         ["--env-rotation", "40", "--specular", "--components", "ms,ss", "-L", "50"],
         ["--azimuth", "60", "--elevation", "-20", "--fov", "25"],
         ["--ss-path", "normal", "--components", "ss"],
+        ["--sun-split", "--sun-threshold", "2", "--components", "ms,ss"],
     ],
 )
 def test_render_equals_prt_relight_render_bit_for_bit(scene, tmp_path, extra):
@@ -129,10 +130,12 @@ def test_render_equals_prt_relight_render_bit_for_bit(scene, tmp_path, extra):
     flags = iter(extra)
     names = {"--env-rotation": ("env_rotation", float), "--components": ("components", str),
              "-L": ("light_terms", int), "--azimuth": ("azimuth", float), "--elevation": ("elevation", float),
-             "--fov": ("fov", float), "--ss-path": ("ss_path", str)}
+             "--fov": ("fov", float), "--ss-path": ("ss_path", str), "--sun-threshold": ("sun_threshold", float)}
     for flag in flags:
         if flag == "--specular":
             options["specular"] = True
+        elif flag == "--sun-split":
+            options["sun_split"] = True
         else:
             key, kind = names[flag]
             options[key] = kind(next(flags))
