@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The error budget of docs/fidelity.md: the bunny (30 mm) precomputed with the defaults,
-# with one approximation relaxed at a time, and swept over coefficients per vertex and
+# with one approximation relaxed at a time, with the sun split (prt-relight render --sun-split)
+# at three thresholds, and swept over coefficients per vertex and
 # over sample density; each rendered at 256 x 256 under forest and city (or the
 # environments --envs names) and compared with prt-reference's independent render (made
 # once per environment, about half a minute each, kept in OUT_DIR). Prints one line per
@@ -18,7 +19,7 @@ while [[ ${1:-} == -* ]]; do
     case $1 in
         --reuse) reuse=1 ;;
         --envs) [[ $# -ge 2 ]] || { echo "fidelity-budget: --envs needs a list" >&2; exit 2; }; envs=$2; shift ;;
-        -h|--help) sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "fidelity-budget: unknown option '$1' (see --help)" >&2; exit 2 ;;
     esac
     shift
@@ -55,7 +56,7 @@ done
 spacing=$(awk '/^samples  / {gsub(/[(),]/, ""); print $4}' "$out/${tag}_default.log")
 scaled() { awk -v s="$spacing" -v f="$1" 'BEGIN { printf "%.5f", s * f }'; }
 
-# kind|name|value|options
+# kind|name|value|prt-precompute options|prt-relight render options
 runs=(
     "budget|default|0|"
     "budget|Haar only, sh-terms 0|0|--sh-terms 0"
@@ -76,28 +77,40 @@ runs=(
     "density|spacing x2|$(scaled 2)|--sample-spacing $(scaled 2)"
     "density|spacing x1|$spacing|"
     "density|spacing x0.5|$(scaled 0.5)|--sample-spacing $(scaled 0.5)"
+    "sun|sun split|16||--sun-split"
+    "sun|sun split k 8|8||--sun-split --sun-threshold 8"
+    "sun|sun split k 32|32||--sun-split --sun-threshold 32"
+    "sun|sun split, sh-terms 25|25|--sh-terms 25|--sun-split"
+    "sun|sun split, all truncations 1024|1024|--coefficients 1024 --sample-coefficients 1024 --node-coefficients 1024|--sun-split"
 )
+declare -A made
 for r in "${runs[@]}"; do
-    IFS='|' read -r kind name value options <<< "$r"
+    IFS='|' read -r kind name value options render_options <<< "$r"
     read -r -a opts <<< "$options"
-    slug=$(echo "$name" | tr ' +.' '___')
-    file=$out/${tag}_$slug.prt
+    read -r -a ropts <<< "$render_options"
+    slug=$(echo "$name" | tr ' +.,' '____')
+    # One transport file per set of precompute options (variants that differ only in
+    # how they render share it).
+    file=$out/${tag}_$(echo "$options" | tr -c 'a-zA-Z0-9\n' '_').prt
     if [[ -z $options ]]; then
         file=$out/${tag}_default.prt
         log=$out/${tag}_default.log
     else
-        log=$out/${tag}_$slug.log
+        log=${file%.prt}.log
         if [[ $reuse == 1 && -f $file ]]; then
             echo "fidelity-budget: reusing $file (--reuse)"
+        elif [[ -n ${made[$file]:-} ]]; then
+            echo "fidelity-budget: $file made above for another variant (same options)"
         else
             precompute -o "$file" "${opts[@]}" > "$log"
+            made[$file]=1
         fi
     fi
     seconds=$(awk '/^total/ { t = $2; if ($3 == "min") t = t * 60 + $4; print t }' "$log")
     for env in $envs; do
         img=$out/r_${tag}_${slug}_$env
         "$build/bin/prt-relight" render "$mesh" -t "$file" -e "$root/data/envmaps/$env.exr" \
-            -W 256 -H 256 -o "$img" > /dev/null
+            -W 256 -H 256 "${ropts[@]}" -o "$img" > /dev/null
         err=$("$build/bin/prt-compare" "$img.exr" "$out/ref_${tag}_$env.exr" | awk '/^overall/ {print $2}')
         printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$mat" "$kind" "$name" "$value" "$env" "$err" "$seconds" >> "$tsv"
         printf '%-10s %-13s %-36s %-7s rel RMSE %s  precompute %s s\n' "$mat" "$kind" "$name" "$env" "$err" "$seconds"

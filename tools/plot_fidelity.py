@@ -24,7 +24,7 @@ def print_budget_table(paths):
     for path in paths:
         with open(path, newline="") as f:
             for row in csv.DictReader(f, delimiter="\t"):
-                if row["kind"] != "budget":
+                if row["kind"] not in ("budget", "sun"):
                     continue
                 if row["name"] not in variants:
                     variants.append(row["name"])
