@@ -40,10 +40,10 @@ namespace prt {
 struct SunSplitOptions {
     // k: the residual's luminance bound in units of the environment's mean luminance.
     // >= 1 (docs/relight.md, "The sun split", for the choice of the default).
-    double threshold = 16.0;
+    double threshold = 2.0;
     // The lights' cells: about this many degrees of latitude and longitude, rounded to
     // whole texels (at least one). In (0, 90].
-    double cellDegrees = 1.4;
+    double cellDegrees = 8.0;
 };
 
 struct SunSplit {
