@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The error budget of docs/fidelity.md: the bunny (30 mm) precomputed with the defaults,
 # with one approximation relaxed at a time, with the sun split (prt-relight render --sun-split)
-# at three thresholds, and swept over coefficients per vertex and
+# at three thresholds and two cell sizes, and swept over coefficients per vertex and
 # over sample density; each rendered at 256 x 256 under forest and city (or the
 # environments --envs names) and compared with prt-reference's independent render (made
 # once per environment, about half a minute each, kept in OUT_DIR). Prints one line per
@@ -77,9 +77,10 @@ runs=(
     "density|spacing x2|$(scaled 2)|--sample-spacing $(scaled 2)"
     "density|spacing x1|$spacing|"
     "density|spacing x0.5|$(scaled 0.5)|--sample-spacing $(scaled 0.5)"
-    "sun|sun split|16||--sun-split"
+    "sun|sun split (k 2, cells of 8 degrees)|2||--sun-split"
     "sun|sun split k 8|8||--sun-split --sun-threshold 8"
     "sun|sun split k 32|32||--sun-split --sun-threshold 32"
+    "sun|sun split, cells of 2 degrees|2||--sun-split --sun-cell 2"
     "sun|sun split, sh-terms 25|25|--sh-terms 25|--sun-split"
     "sun|sun split, all truncations 1024|1024|--coefficients 1024 --sample-coefficients 1024 --node-coefficients 1024|--sun-split"
 )
