@@ -187,8 +187,8 @@ expect "render: zero width" "-W" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e "
 expect "render: zero fov" "--fov" $F.exr $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --fov 0 -o $F
 expect "render: component the file lacks" "torus\.prt: has no single-scattering component" $F.exr \
     $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --components ss -o $F
-expect "render: sun threshold below the mean" "--sun-threshold: must be a finite number >= 1" $F.exr \
-    $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --sun-split --sun-threshold 0.5 -o $F
+expect "render: sun threshold of zero" "--sun-threshold: must be a finite number > 0" $F.exr \
+    $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --sun-split --sun-threshold 0 -o $F
 expect "render: sun cell of zero degrees" "--sun-cell: must be in \(0, 90\] degrees" $F.exr \
     $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --sun-split --sun-cell 0 -o $F
 

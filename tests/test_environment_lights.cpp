@@ -173,7 +173,8 @@ TEST(SunSplit, RotatedLightsAreTheLightsOfTheRotatedMap) {
 
 TEST(SunSplit, BadOptionsAndImagesAreRefused) {
     const Image env = testSky(32);
-    EXPECT_THROW(splitSun(env, {.threshold = 0.5}), Error);
+    EXPECT_THROW(splitSun(env, {.threshold = 0.0}), Error);
+    EXPECT_THROW(splitSun(env, {.threshold = -2.0}), Error);
     EXPECT_THROW(splitSun(env, {.threshold = std::nan("")}), Error);
     EXPECT_THROW(splitSun(env, {.cellDegrees = 0.0}), Error);
     EXPECT_THROW(splitSun(env, {.cellDegrees = 91.0}), Error);
@@ -187,7 +188,7 @@ TEST(SunSplit, BadOptionsAndImagesAreRefused) {
     nan.at(3, 4, 2) = std::nanf("");
     EXPECT_THROW(splitSun(nan), Error);
     try {
-        splitSun(env, {.threshold = 0.5});
+        splitSun(env, {.threshold = 0.0});
     } catch (const Error& e) {
         EXPECT_NE(std::string(e.what()).find("--sun-threshold"), std::string::npos) << e.what();
     }

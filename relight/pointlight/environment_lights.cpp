@@ -12,8 +12,8 @@
 namespace prt {
 
 void validateSunSplitOptions(const SunSplitOptions& options) {
-    if (!std::isfinite(options.threshold) || options.threshold < 1.0)
-        throw Error("--sun-threshold", "must be a finite number >= 1 (times the environment's mean luminance), got " +
+    if (!std::isfinite(options.threshold) || options.threshold <= 0.0)
+        throw Error("--sun-threshold", "must be a finite number > 0 (times the environment's mean luminance), got " +
                                            formatParameter(options.threshold));
     if (!std::isfinite(options.cellDegrees) || options.cellDegrees <= 0.0 || options.cellDegrees > 90.0)
         throw Error("--sun-cell", "must be in (0, 90] degrees, got " + formatParameter(options.cellDegrees));

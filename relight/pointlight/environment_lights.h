@@ -39,7 +39,8 @@ namespace prt {
 
 struct SunSplitOptions {
     // k: the residual's luminance bound in units of the environment's mean luminance.
-    // >= 1 (docs/relight.md, "The sun split", for the choice of the default).
+    // > 0; below 1 even texels dimmer than the mean give part of their light to the
+    // lights (docs/relight.md, "The sun split", for the choice of the default).
     double threshold = 2.0;
     // The lights' cells: about this many degrees of latitude and longitude, rounded to
     // whole texels (at least one). In (0, 90].
