@@ -62,6 +62,7 @@ struct RenderOptions {
     int threads = 0;
     bool sunSplit = false;
     SunSplitOptions sun;
+    std::string sunMethod = "jb";
 };
 
 void addRenderOptions(CLI::App& app, RenderOptions& o) {
@@ -95,6 +96,9 @@ void addRenderOptions(CLI::App& app, RenderOptions& o) {
                    "k: texels brighter than k times the environment's mean luminance give the excess to the lights")
         ->capture_default_str()->group(sun);
     app.add_option("--sun-cell", o.sun.cellDegrees, "Degrees: the excess of each cell this wide becomes one light")
+        ->capture_default_str()->group(sun);
+    app.add_option("--sun-method", o.sunMethod,
+                   "The lights' multiple scattering: jb (Jensen-Buhler), cache (the irradiance cache: faster) or brute")
         ->capture_default_str()->group(sun);
     addThreadsOption(app, o.threads);
 }
@@ -130,12 +134,14 @@ int runRender(const RenderOptions& o) {
     const int count = std::max(frames, 1);
     // A sequence prepares the environment once (EnvironmentLight, light_vector.h;
     // docs/relight.md, "Turning the environment: the fast path").
+    const PointMethod sunMethod = parseSunSplitMethod(o.sunMethod);
     if (o.sunSplit) validateSunSplitOptions(o.sun);
     Image environment = loadEnvironment(o.environment, NonFinitePolicy::ClampNegative);
     std::optional<EnvironmentFrameRenderer> plain;
     std::optional<SunSplitFrameRenderer> split;
     if (o.sunSplit)
-        split.emplace(object, environment, look, components, o.sun, o.transport, count > 1);
+        split.emplace(object, environment, look, components, o.sun, o.transport, count > 1,
+                      sunMethod);
     else
         plain.emplace(object, std::move(environment), look, components, count > 1);
     const double loadMs = loadStart.milliseconds();
@@ -212,7 +218,7 @@ int runRender(const RenderOptions& o) {
                     t.light, t.lightTerms, t.lightRelativeL2, t.relight, t.rays, t.shade, writeMs,
                     t.objectPixels, base.c_str());
         if (split)
-            std::printf("  sun split: %zu lights, irradiance %.1f ms, Jensen-Buhler %.1f ms, single scattering %.1f ms\n",
+            std::printf("  sun split: %zu lights, irradiance %.1f ms, diffusion %.1f ms, single scattering %.1f ms\n",
                         st.lights, st.lightsIrradiance, st.lightsDiffusion, st.lightsSingleScattering);
         totalSun += st.lightsIrradiance + st.lightsDiffusion + st.lightsSingleScattering;
         std::fflush(stdout);

@@ -191,6 +191,8 @@ expect "render: sun threshold of zero" "--sun-threshold: must be a finite number
     $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --sun-split --sun-threshold 0 -o $F
 expect "render: sun cell of zero degrees" "--sun-cell: must be in \(0, 90\] degrees" $F.exr \
     $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --sun-split --sun-cell 0 -o $F
+expect "render: unknown sun method" "--sun-method: must be jb, cache or brute, got 'tsis'" $F.exr \
+    $R "$S/torus.ply" -t "$S/torus.prt" -e "$S/sky.exr" --sun-split --sun-method tsis -o $F
 
 # --- a sample count far below the convergence rule: a warning with the rule's count ------
 # (runs, exit 0, one warning line naming the rule's count; the good job above, at half

@@ -33,7 +33,8 @@ Image testSky(int width = 128) {
     const glm::dvec3 toward = glm::normalize(glm::dvec3(0.6, 0.7, 0.4));
     for (int y = 0; y < env.height; ++y)
         for (int x = 0; x < env.width; ++x)
-            if (glm::dot(latLongPixelDirection(x, y, env.width, env.height), toward) > std::cos(10.0 * 3.14159265 / 180))
+            if (glm::dot(latLongPixelDirection(x, y, env.width, env.height), toward) >
+                std::cos(10.0 * 3.14159265 / 180))
                 for (int c = 0; c < 3; ++c) env.at(x, y, c) += 40.0f;
     return env;
 }
@@ -139,7 +140,8 @@ TEST(SunSplit, CellsMergeLightsAndKeepTheirSum) {
     const double cellRadians = 6.0 * 2.0 * 3.14159265358979323846 / 256 * std::sqrt(2.0);
     for (const Light& l : coarse.lights) {
         double nearest = 1e9;
-        for (const Light& f : fine.lights) nearest = std::min(nearest, std::acos(std::min(1.0, glm::dot(l.direction, f.direction))));
+        for (const Light& f : fine.lights)
+            nearest = std::min(nearest, std::acos(std::min(1.0, glm::dot(l.direction, f.direction))));
         EXPECT_LT(nearest, cellRadians);
     }
 }
@@ -165,7 +167,10 @@ TEST(SunSplit, RotatedLightsAreTheLightsOfTheRotatedMap) {
         double best = 1e9;
         const Light* match = nullptr;
         for (const Light& g : got)
-            if (glm::length(g.direction - e.direction) < best) best = glm::length(g.direction - e.direction), match = &g;
+            if (glm::length(g.direction - e.direction) < best) {
+                best = glm::length(g.direction - e.direction);
+                match = &g;
+            }
         ASSERT_LT(best, 1e-12);
         for (int c = 0; c < 3; ++c) EXPECT_NEAR(match->rgb[c], e.rgb[c], 1e-9 * e.rgb[c]);
     }

@@ -379,7 +379,8 @@ void bindRendering(py::module_& m) {
            const py::object& up, double fov, int width, int height, double azimuth, double elevation, double fill,
            const py::object& envRotation, const std::string& components, size_t lightTerms, bool specular,
            int specularBlur, const py::object& material, std::optional<double> sizeMm, int spp,
-           const std::string& ssPath, bool sunSplit, double sunThreshold, double sunCell) {
+           const std::string& ssPath, bool sunSplit, double sunThreshold, double sunCell,
+           const std::string& sunMethod) {
             const int subpixels = subpixelGridSize(spp);
             FrameSettings look;
             look.components = components;
@@ -408,6 +409,7 @@ void bindRendering(py::module_& m) {
             const std::string materialText = material.is_none() ? "" : stringArgument(material, "material");
             if (sizeMm && !(*sizeMm > 0.0 && std::isfinite(*sizeMm))) throw Error("--size-mm", "must be a size in mm > 0");
             const SunSplitOptions sun{.threshold = sunThreshold, .cellDegrees = sunCell};
+            const PointMethod lightsMethod = parseSunSplitMethod(sunMethod);
             if (sunSplit) validateSunSplitOptions(sun);
             py::gil_scoped_release release;
             std::lock_guard lock(o.transport->mutex);
@@ -427,7 +429,8 @@ void bindRendering(py::module_& m) {
             }
             Image image;
             if (sunSplit) {
-                SunSplitFrameRenderer renderer(*o.object, environment.image, look, which, sun, o.transportPath);
+                SunSplitFrameRenderer renderer(*o.object, environment.image, look, which, sun, o.transportPath, false,
+                                               lightsMethod);
                 image = boxDownsample(renderer.render(cam, rotation), subpixels);
             } else {
                 EnvironmentFrameRenderer renderer(*o.object, environment.image, look, which);
@@ -444,13 +447,15 @@ void bindRendering(py::module_& m) {
         py::arg("material") = py::none(), py::arg("size_mm") = py::none(), py::arg("spp") = 1,
         py::arg("ss_path") = "refracted", py::arg("sun_split") = false,
         py::arg("sun_threshold") = SunSplitOptions{}.threshold, py::arg("sun_cell") = SunSplitOptions{}.cellDegrees,
+        py::arg("sun_method") = "jb",
         "prt-relight render's frame as an (H, W, 4) float32 linear RGBA array (A = 1 on the object), the same "
         "bit for bit as its EXR for the same arguments. Camera: eye/target/up in mm (default: the object framed "
         "from azimuth/elevation to fill that share of the image), fov in degrees; spp: anti-aliasing samples per "
         "pixel (a square number; render's --spp). material/size_mm: as "
         "set_material, and they stay the object's. ss_path: single scattering along the eye's refracted ray "
         "('refracted') or the inward normal as precomputed ('normal'; render's --ss-path). sun_split, "
-        "sun_threshold, sun_cell: render's --sun-split, --sun-threshold, --sun-cell (the environment's brightest "
+        "sun_threshold, sun_cell, sun_method: render's --sun-split, --sun-threshold, --sun-cell, --sun-method "
+        "(the environment's brightest "
         "texels as directional lights by Jensen-Buhler; docs/relight.md).");
 }
 

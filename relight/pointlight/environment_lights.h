@@ -5,9 +5,10 @@
 //
 // WHY. A small, very bright source puts its light in the finest Haar levels of the
 // light vector, and the per-sample and per-vertex truncations of the transport drop
-// those levels first: the sun's light is then misplaced. A directional light is relit exactly by the point-light renderers (pass 1's shadow
-// rays at the irradiance samples, then the dipole sum), so what the transport vectors
-// must carry is only the residual, which is bounded.
+// those levels first: the sun's light is then misplaced. A directional light is
+// relit without truncation by the point-light renderers (pass 1's shadow rays at the
+// irradiance samples, then the dipole sum), so what the transport vectors must carry
+// is only the residual, which is bounded.
 //
 // THE SPLIT (exact, per texel). Y(t) = the Rec. 709 luminance of texel t, Ybar the
 // environment's mean luminance over the sphere (sum Y(t) Omega(t) / 4 pi, with the

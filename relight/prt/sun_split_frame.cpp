@@ -11,7 +11,8 @@ namespace {
 
 Material requireMaterial(const RelightObject& object, const std::string& transportPath) {
     if (object.ground)
-        throw Error(transportPath, "the sun split does not support a ground yet (the ground's transport still needs the sun)");
+        throw Error(transportPath,
+                    "the sun split does not support a ground yet (the ground's transport still needs the sun)");
     if (object.materialMap)
         throw Error(transportPath, "the sun split does not support a material map yet");
     const std::optional<Material> material = shownMaterial(object, transportPath);
@@ -22,10 +23,17 @@ Material requireMaterial(const RelightObject& object, const std::string& transpo
 
 }  // namespace
 
+PointMethod parseSunSplitMethod(const std::string& text) {
+    if (text == "jb") return PointMethod::JensenBuhler;
+    if (text == "cache") return PointMethod::Cache;
+    if (text == "brute") return PointMethod::Brute;
+    throw Error("--sun-method", "must be jb, cache or brute, got '" + text + "'");
+}
+
 SunSplitFrameRenderer::SunSplitFrameRenderer(const RelightObject& object, const Image& environment,
                                              const FrameSettings& look, const ScatteringComponents& components,
                                              const SunSplitOptions& options, const std::string& transportPath,
-                                             bool sequence)
+                                             bool sequence, PointMethod method)
     : object_(object),
       components_(components),
       split_(splitSun(environment, options)),
@@ -33,7 +41,9 @@ SunSplitFrameRenderer::SunSplitFrameRenderer(const RelightObject& object, const 
       scene_(object.mesh),
       placed_(faceCentroidSamples(object.mesh)) {
     settings_.material = requireMaterial(object, transportPath);
-    settings_.method = PointMethod::JensenBuhler;
+    if (method == PointMethod::TextureSpace)
+        throw Error("--sun-method", "must be jb, cache or brute (texture-space sampling is the viewer's)");
+    settings_.method = method;
     settings_.baseColour = object.baseColour.enabled() ? &object.baseColour : nullptr;
     settings_.surface.singleScattering = components.singleScattering;
     if (components_.multipleScattering) cells_ = nearFieldCells(object.mesh, placed_, settings_);
@@ -43,10 +53,14 @@ std::string SunSplitFrameRenderer::describe() const {
     char line[256];
     std::snprintf(line, sizeof line,
                   "sun split: %zu directional lights (%zu texels above %.4g = %g x the mean luminance, cells of %d "
-                  "texels) carry %.1f%% of the light; Jensen-Buhler over %zu face centroids",
+                  "texels) carry %.1f%% of the light; %s over %zu face centroids",
                   split_.lights.size(), split_.texelsAbove, split_.thresholdLuminance,
                   split_.meanLuminance > 0 ? split_.thresholdLuminance / split_.meanLuminance : 0.0,
-                  split_.cellTexels, 100.0 * split_.lightFraction, placed_.size());
+                  split_.cellTexels, 100.0 * split_.lightFraction,
+                  settings_.method == PointMethod::Cache   ? "the irradiance cache"
+                  : settings_.method == PointMethod::Brute ? "the brute-force sum"
+                                                           : "Jensen-Buhler",
+                  placed_.size());
     return line;
 }
 

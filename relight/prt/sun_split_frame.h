@@ -6,8 +6,9 @@
 //
 //   frame = EnvironmentFrameRenderer(background and specular: the environment;
 //                                    light vector: the residual)
-//         + Jensen-Buhler over face-centroid samples lit by the lights turned with the
-//           environment (multiple scattering, when the frame shows it)
+//         + Jensen-Buhler (or the irradiance cache) over face-centroid samples lit by
+//           the lights turned with the environment (multiple scattering, when the
+//           frame shows it)
 //         + the lights' single scattering along the refracted view ray
 //           (point_single_scattering.h, when the frame shows single scattering)
 //
@@ -46,13 +47,20 @@ struct SunSplitFrameTimes {
     size_t lights = 0;
 };
 
+// --sun-method: "jb", "cache" or "brute"; prt::Error("--sun-method", ...) otherwise.
+PointMethod parseSunSplitMethod(const std::string& text);
+
 class SunSplitFrameRenderer {
 public:
     // `object` must outlive the renderer. `look`, `components` and `sequence` as
     // EnvironmentFrameRenderer's; `transportPath` names the object's file in errors.
+    // `method`: how the lights' multiple scattering is summed, JensenBuhler (the
+    // default), Cache (Keng et al.'s irradiance cache over the same samples: faster, a
+    // little less accurate) or Brute; TextureSpace is refused (prt::Error("--sun-method")).
     SunSplitFrameRenderer(const RelightObject& object, const Image& environment, const FrameSettings& look,
                           const ScatteringComponents& components, const SunSplitOptions& options,
-                          const std::string& transportPath, bool sequence = false);
+                          const std::string& transportPath, bool sequence = false,
+                          PointMethod method = PointMethod::JensenBuhler);
 
     // The frame seen by `camera` with the environment turned by `rotation`.
     Image render(const Camera& camera, const glm::dmat3& rotation, SunSplitFrameTimes* times = nullptr);

@@ -118,6 +118,7 @@ def test_constant_environment_gives_the_rotation_invariant_answer(scene):
         ["--azimuth", "60", "--elevation", "-20", "--fov", "25"],
         ["--ss-path", "normal", "--components", "ss"],
         ["--sun-split", "--sun-threshold", "2", "--components", "ms,ss"],
+        ["--sun-split", "--sun-method", "cache", "--sun-cell", "20"],
     ],
 )
 def test_render_equals_prt_relight_render_bit_for_bit(scene, tmp_path, extra):
@@ -130,7 +131,8 @@ def test_render_equals_prt_relight_render_bit_for_bit(scene, tmp_path, extra):
     flags = iter(extra)
     names = {"--env-rotation": ("env_rotation", float), "--components": ("components", str),
              "-L": ("light_terms", int), "--azimuth": ("azimuth", float), "--elevation": ("elevation", float),
-             "--fov": ("fov", float), "--ss-path": ("ss_path", str), "--sun-threshold": ("sun_threshold", float)}
+             "--fov": ("fov", float), "--ss-path": ("ss_path", str), "--sun-threshold": ("sun_threshold", float),
+             "--sun-cell": ("sun_cell", float), "--sun-method": ("sun_method", str)}
     for flag in flags:
         if flag == "--specular":
             options["specular"] = True
