@@ -88,18 +88,18 @@ void addRenderOptions(CLI::App& app, RenderOptions& o) {
                      ->group("Sequences");
     tt->excludes(spin);
     const char* sun = "Sun split (docs/relight.md, \"The sun split\")";
-    app.add_flag("--sun-split", o.sunSplit,
+    auto* sunFlag = app.add_flag("--sun-split", o.sunSplit,
                  "Take the environment's brightest texels (sun, lamps) out as directional lights rendered by "
                  "Jensen-Buhler; the transport relights the rest")
         ->group(sun);
     app.add_option("--sun-threshold", o.sun.threshold,
                    "k: texels brighter than k times the environment's mean luminance give the excess to the lights")
-        ->capture_default_str()->group(sun);
+        ->capture_default_str()->group(sun)->needs(sunFlag);
     app.add_option("--sun-cell", o.sun.cellDegrees, "Degrees: the excess of each cell this wide becomes one light")
-        ->capture_default_str()->group(sun);
+        ->capture_default_str()->group(sun)->needs(sunFlag);
     app.add_option("--sun-method", o.sunMethod,
                    "The lights' multiple scattering: jb (Jensen-Buhler), cache (the irradiance cache: faster) or brute")
-        ->capture_default_str()->group(sun);
+        ->capture_default_str()->group(sun)->needs(sunFlag);
     addThreadsOption(app, o.threads);
 }
 
@@ -140,7 +140,7 @@ int runRender(const RenderOptions& o) {
     std::optional<EnvironmentFrameRenderer> plain;
     std::optional<SunSplitFrameRenderer> split;
     if (o.sunSplit)
-        split.emplace(object, environment, look, components, o.sun, o.transport, count > 1,
+        split.emplace(object, std::move(environment), look, components, o.sun, o.transport, count > 1,
                       sunMethod);
     else
         plain.emplace(object, std::move(environment), look, components, count > 1);

@@ -82,6 +82,7 @@ runs=(
     "sun|sun split k 32|32||--sun-split --sun-threshold 32"
     "sun|sun split, cells of 2 degrees|2||--sun-split --sun-cell 2"
     "sun|sun split, sh-terms 25|25|--sh-terms 25|--sun-split"
+    "sun|sun split, half spacing|$(scaled 0.5)|--sample-spacing $(scaled 0.5)|--sun-split"
     "sun|sun split, all truncations 1024|1024|--coefficients 1024 --sample-coefficients 1024 --node-coefficients 1024|--sun-split"
 )
 declare -A made

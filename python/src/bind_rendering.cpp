@@ -409,8 +409,9 @@ void bindRendering(py::module_& m) {
             const std::string materialText = material.is_none() ? "" : stringArgument(material, "material");
             if (sizeMm && !(*sizeMm > 0.0 && std::isfinite(*sizeMm))) throw Error("--size-mm", "must be a size in mm > 0");
             const SunSplitOptions sun{.threshold = sunThreshold, .cellDegrees = sunCell};
+            // Checked whether or not the split is asked for: no argument is silently ignored.
             const PointMethod lightsMethod = parseSunSplitMethod(sunMethod);
-            if (sunSplit) validateSunSplitOptions(sun);
+            validateSunSplitOptions(sun);
             py::gil_scoped_release release;
             std::lock_guard lock(o.transport->mutex);
             // Checked before the edit, which stays the object's: a refused frame leaves it as it was.
@@ -418,6 +419,7 @@ void bindRendering(py::module_& m) {
                 supersampledCamera(makeCamera(camera, o.object->sphereCentre, o.object->sphereRadius), subpixels);
             const ScatteringComponents which =
                 selectComponents(look.components, componentsOf(o.object->transport), o.transportPath);
+            if (sunSplit) sunSplitMaterial(*o.object, o.transportPath);  // refused before the edit
             if (!materialText.empty() || sizeMm) {
                 // As set_material: the current size unless size_mm, the current material
                 // unless material.

@@ -50,7 +50,9 @@ SunSplit splitSun(const Image& latLong, const SunSplitOptions& options) {
     const int n = split.cellTexels;
     const int cellsX = (W + n - 1) / n, cellsY = (H + n - 1) / n;
     struct Cell {
-        glm::dvec3 irradiance{0.0}, direction{0.0};
+        glm::dvec3 flux[3] = {glm::dvec3(0.0), glm::dvec3(0.0), glm::dvec3(0.0)};  // sum excess_c Omega d, per channel
+        glm::dvec3 direction{0.0};  // sum Y_excess Omega d
+        bool any = false;
     };
     std::vector<Cell> cells(size_t(cellsX) * size_t(cellsY));
     const double tau = split.thresholdLuminance;
@@ -70,23 +72,28 @@ SunSplit splitSun(const Image& latLong, const SunSplitOptions& options) {
                 // a float of L s <= L never exceeds L, so the excess is >= 0.
                 const glm::dvec3 excess = L - glm::dvec3(r[0], r[1], r[2]);
                 Cell& cell = cells[size_t(y / n) * size_t(cellsX) + size_t(x / n)];
-                cell.irradiance += excess * omega;
+                const glm::dvec3 d = latLongPixelDirection(x, y, W, H);
+                for (int c = 0; c < 3; ++c) cell.flux[c] += excess[c] * omega * d;
                 const double yExcess = luminance(excess) * omega;
-                cell.direction += yExcess * latLongPixelDirection(x, y, W, H);
+                cell.direction += yExcess * d;
+                cell.any = cell.any || excess.r > 0.0 || excess.g > 0.0 || excess.b > 0.0;
                 excessIntegral += yExcess;
             }
         }
     }
     for (size_t k = 0; k < cells.size(); ++k) {
         const Cell& cell = cells[k];
-        if (!(cell.irradiance.r > 0.0 || cell.irradiance.g > 0.0 || cell.irradiance.b > 0.0)) continue;
+        if (!cell.any) continue;
         const int cx = int(k % size_t(cellsX)), cy = int(k / size_t(cellsX));
         // A cell's excess of (near-)zero luminance still has a direction: its centre texel's.
-        const glm::dvec3 d = glm::length(cell.direction) > 0.0
-                                 ? cell.direction
-                                 : latLongPixelDirection(std::min(cx * n + n / 2, W - 1),
-                                                         std::min(cy * n + n / 2, H - 1), W, H);
-        split.lights.push_back(directionalLight(glm::normalize(d), cell.irradiance,
+        const glm::dvec3 d = glm::normalize(glm::length(cell.direction) > 0.0
+                                                ? cell.direction
+                                                : latLongPixelDirection(std::min(cx * n + n / 2, W - 1),
+                                                                        std::min(cy * n + n / 2, H - 1), W, H));
+        // What a surface facing d receives from the cell's texels (cosine-weighted).
+        glm::dvec3 irradiance(0.0);
+        for (int c = 0; c < 3; ++c) irradiance[c] = std::max(0.0, glm::dot(cell.flux[c], d));
+        split.lights.push_back(directionalLight(d, irradiance,
                                                 "sun split cell " + std::to_string(cx) + "," + std::to_string(cy)));
     }
     split.lightFraction = integral > 0.0 ? excessIntegral / integral : 0.0;

@@ -18,11 +18,14 @@
 // so residual + excess = L texel by texel, in every channel. The excess of the texels
 // of one cell (cellTexels x cellTexels lat-long texels, about cellDegrees wide) becomes
 // one directional light:
-//   irradiance E_perp = sum excess(t) Omega(t)      (RGB, W/m^2 when L is W/(m^2 sr))
-//   direction        = normalize(sum Y_excess(t) Omega(t) d(t)),  d(t) = the texel's centre
-// so the lights carry exactly the excess's integral over the sphere, and the only
-// approximation of the split is each cell's light arriving from one direction instead
-// of from its texels' (docs/relight.md measures it).
+//   direction        w = normalize(sum Y_excess(t) Omega(t) d(t)),  d(t) = the texel's centre
+//   irradiance E_perp = sum excess(t) Omega(t) (d(t) . w)   (RGB, W/m^2 when L is W/(m^2 sr))
+// i.e. what a surface facing w receives from the cell's texels, so a surface that sees
+// the whole cell receives from the light what it receives from the texels, to first
+// order in the cell's angular size (exactly, for cells of one texel seen along w). The
+// only approximation of the split is each cell's light arriving from one direction
+// instead of from its texels' (docs/relight.md measures it); the lights' sum is the
+// excess's integral over the sphere times the mean cosine within each cell.
 //
 // FRAMES. Directions are the environment's own (envmap.h's lat-long convention, the
 // unrotated map). An environment rotated by R (L'(d) = L(R^T d)) has the lights
@@ -55,7 +58,8 @@ struct SunSplit {
     double thresholdLuminance = 0;  // tau = k Ybar
     size_t texelsAbove = 0;     // texels with Y > tau
     int cellTexels = 1;         // the cells' side in texels
-    // The lights' share of the environment's luminance integral, in [0, 1].
+    // The excess's share of the environment's luminance integral (what the residual no
+    // longer holds), in [0, 1].
     double lightFraction = 0;
 };
 

@@ -7,9 +7,7 @@
 
 namespace prt {
 
-namespace {
-
-Material requireMaterial(const RelightObject& object, const std::string& transportPath) {
+Material sunSplitMaterial(const RelightObject& object, const std::string& transportPath) {
     if (object.ground)
         throw Error(transportPath,
                     "the sun split does not support a ground yet (the ground's transport still needs the sun)");
@@ -21,8 +19,6 @@ Material requireMaterial(const RelightObject& object, const std::string& transpo
     return *material;
 }
 
-}  // namespace
-
 PointMethod parseSunSplitMethod(const std::string& text) {
     if (text == "jb") return PointMethod::JensenBuhler;
     if (text == "cache") return PointMethod::Cache;
@@ -30,19 +26,21 @@ PointMethod parseSunSplitMethod(const std::string& text) {
     throw Error("--sun-method", "must be jb, cache or brute, got '" + text + "'");
 }
 
-SunSplitFrameRenderer::SunSplitFrameRenderer(const RelightObject& object, const Image& environment,
+SunSplitFrameRenderer::SunSplitFrameRenderer(const RelightObject& object, Image environment,
                                              const FrameSettings& look, const ScatteringComponents& components,
                                              const SunSplitOptions& options, const std::string& transportPath,
                                              bool sequence, PointMethod method)
     : object_(object),
       components_(components),
+      material_(sunSplitMaterial(object, transportPath)),
       split_(splitSun(environment, options)),
-      environment_(object, environment, look, components, sequence, split_.residual),
+      environment_(object, std::move(environment), look, components, sequence, std::move(split_.residual)),
       scene_(object.mesh),
       placed_(faceCentroidSamples(object.mesh)) {
-    settings_.material = requireMaterial(object, transportPath);
+    split_.residual = Image();
     if (method == PointMethod::TextureSpace)
         throw Error("--sun-method", "must be jb, cache or brute (texture-space sampling is the viewer's)");
+    settings_.material = material_;
     settings_.method = method;
     settings_.baseColour = object.baseColour.enabled() ? &object.baseColour : nullptr;
     settings_.surface.singleScattering = components.singleScattering;

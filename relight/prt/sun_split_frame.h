@@ -50,6 +50,11 @@ struct SunSplitFrameTimes {
 // --sun-method: "jb", "cache" or "brute"; prt::Error("--sun-method", ...) otherwise.
 PointMethod parseSunSplitMethod(const std::string& text);
 
+// The object's shown material (shownMaterial), or prt::Error naming transportPath when
+// the sun split cannot render the object (a ground, a material map, no material): the
+// renderer's own check, for callers that must refuse before changing anything.
+Material sunSplitMaterial(const RelightObject& object, const std::string& transportPath);
+
 class SunSplitFrameRenderer {
 public:
     // `object` must outlive the renderer. `look`, `components` and `sequence` as
@@ -57,7 +62,7 @@ public:
     // `method`: how the lights' multiple scattering is summed, JensenBuhler (the
     // default), Cache (Keng et al.'s irradiance cache over the same samples: faster, a
     // little less accurate) or Brute; TextureSpace is refused (prt::Error("--sun-method")).
-    SunSplitFrameRenderer(const RelightObject& object, const Image& environment, const FrameSettings& look,
+    SunSplitFrameRenderer(const RelightObject& object, Image environment, const FrameSettings& look,
                           const ScatteringComponents& components, const SunSplitOptions& options,
                           const std::string& transportPath, bool sequence = false,
                           PointMethod method = PointMethod::JensenBuhler);
@@ -65,6 +70,7 @@ public:
     // The frame seen by `camera` with the environment turned by `rotation`.
     Image render(const Camera& camera, const glm::dmat3& rotation, SunSplitFrameTimes* times = nullptr);
 
+    // The split; its residual is moved into the renderer (empty here).
     const SunSplit& split() const { return split_; }
     // One line for the tools: the lights, their share of the light, the threshold.
     std::string describe() const;
@@ -72,6 +78,7 @@ public:
 private:
     const RelightObject& object_;
     ScatteringComponents components_;
+    Material material_;  // checked first: nothing is built for an object the split refuses
     SunSplit split_;
     EnvironmentFrameRenderer environment_;
     PointRenderSettings settings_;
