@@ -41,7 +41,7 @@
 #include "relight/prt/light_vector.h"
 #include "relight/prt/relight_kernel.h"
 #include "relight/prt/relight_object.h"
-#include "relight/prt/sun_split_frame.h"
+#include "relight/combined/sun_split_frame.h"
 #include "relight/prt/translucent_shader.h"
 #include "relight/render/gbuffer.h"
 #include "relight/render/supersample.h"

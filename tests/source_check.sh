@@ -30,7 +30,7 @@ cd "$root" 2> /dev/null || { echo "source_check.sh: cannot enter $root" >&2; exi
 sourceDirs=(common precompute relight tools tests)
 codeDirs=(common precompute relight tools)
 moduleDirs=(common precompute/passes precompute/job relight/render relight/prt relight/pointlight
-            relight/viewer tools/reference)
+            relight/combined relight/viewer tools/reference)
 sourceExt='h|hpp|cpp|cc|c|glsl|vert|frag|sh|cmake|py'  # what a bare name is checked for
 pathExt="$sourceExt|md"                                 # what a path outside the top folders is
 
@@ -217,7 +217,8 @@ allowedIncludes() {  # room -> the folders it may include
         relight/render) echo "common relight/render" ;;
         relight/prt) echo "common relight/render relight/prt" ;;
         relight/pointlight) echo "common relight/render relight/pointlight" ;;
-        relight/viewer) echo "common relight/render relight/prt relight/pointlight relight/viewer" ;;
+        relight/combined) echo "common relight/render relight/prt relight/pointlight relight/combined" ;;
+        relight/viewer) echo "common relight/render relight/prt relight/pointlight relight/combined relight/viewer" ;;
         tools/reference) echo "common relight/render relight/pointlight tools/reference" ;;
     esac
 }

@@ -19,7 +19,7 @@
 #include "relight/prt/relight_kernel.h"
 #include "relight/render/gbuffer.h"
 #include "relight/prt/relight_object.h"
-#include "relight/prt/sun_split_frame.h"
+#include "relight/combined/sun_split_frame.h"
 #include "relight/prt/eye_path.h"
 #include "relight/prt/translucent_shader.h"
 #include "common/sampling.h"
@@ -179,7 +179,7 @@ TEST(Validation, WithoutTruncationTheErrorIsInterpolationAndHierarchyOnly) {
 }
 
 // ---------------------------------------------------------------------------------
-// The sun split (relight/prt/sun_split_frame.h) at its defaults on the default-truncation
+// The sun split (relight/combined/sun_split_frame.h) at its defaults on the default-truncation
 // file of the test above: the one-texel sun becomes a directional light relit by
 // Jensen-Buhler over the face centroids, and the transport relights the residual sky.
 // The reference shares with it the mesh, Embree, the dipole formula and the exact

@@ -14,7 +14,7 @@
 #include "relight/prt/environment_frame.h"
 #include "relight/prt/frame_settings.h"
 #include "relight/prt/light_vector.h"
-#include "relight/prt/sun_split_frame.h"
+#include "relight/combined/sun_split_frame.h"
 #include "relight/render/supersample.h"
 
 namespace prt::python {

@@ -46,7 +46,7 @@ public:
     // frame builds its light vector directly, as `render` does without a sequence.
     // `lighting`, when not empty, is what the light vector is made of instead of
     // `environment`, which stays the background and the specular layer's light (the sun
-    // split's residual, sun_split_frame.h); the same size as `environment`.
+    // split's residual, relight/combined/sun_split_frame.h); the same size as `environment`.
     EnvironmentFrameRenderer(const RelightObject& object, Image environment, const FrameSettings& look,
                              const ScatteringComponents& components, bool sequence = false, Image lighting = {});
 

@@ -1,4 +1,4 @@
-#include "relight/prt/sun_split_frame.h"
+#include "relight/combined/sun_split_frame.h"
 
 #include <cstdio>
 
