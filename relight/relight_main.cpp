@@ -218,9 +218,10 @@ int runRender(const RenderOptions& o) {
                     t.light, t.lightTerms, t.lightRelativeL2, t.relight, t.rays, t.shade, writeMs,
                     t.objectPixels, base.c_str());
         if (split)
-            std::printf("  sun split: %zu lights, irradiance %.1f ms, diffusion %.1f ms, single scattering %.1f ms\n",
-                        st.lights, st.lightsIrradiance, st.lightsDiffusion, st.lightsSingleScattering);
-        totalSun += st.lightsIrradiance + st.lightsDiffusion + st.lightsSingleScattering;
+            std::printf("  sun split: %zu lights, irradiance %.1f ms, diffusion %.1f ms, single scattering %.1f ms, "
+                        "ground %.1f ms\n",
+                        st.lights, st.lightsIrradiance, st.lightsDiffusion, st.lightsSingleScattering, st.lightsGround);
+        totalSun += st.lightsIrradiance + st.lightsDiffusion + st.lightsSingleScattering + st.lightsGround;
         std::fflush(stdout);
     }
 

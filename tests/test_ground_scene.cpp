@@ -19,6 +19,7 @@
 #include "common/util.h"
 #include "precompute/job/pipeline.h"
 #include "precompute/passes/diffuse_baseline.h"
+#include "relight/combined/sun_split_frame.h"
 #include "relight/prt/environment_frame.h"
 #include "relight/prt/light_vector.h"
 #include "relight/prt/relight_kernel.h"
@@ -293,5 +294,69 @@ TEST(GroundScene, PrecomputeWritesBothFilesAndTheRendererDrawsThePlane) {
     PrecomputeSettings huge = s;
     huge.ground->halfExtentPerDiagonal = 1000.0;
     EXPECT_THROW(precomputeTransport(huge, true), Error);
+    fs::remove_all(dir);
+}
+
+// The sun split with a ground (relight/combined/sun_split_frame.h): under a one-texel
+// sun the lights carry nearly all the light, and a ground pixel is the Lambertian
+// albedo / pi E_perp cos(theta) where the sphere does not shadow it and nearly nothing
+// where it does (the analytic shadow of the sphere; pixels within 0.6 mm of its edge,
+// where the faceted sphere of 162 vertices differs, are skipped). Tolerance: 1% plus
+// the residual's share of the light, which the ground's transport still carries.
+TEST(GroundScene, SunSplitLightsTheGroundAndCastsTheSpheresShadow) {
+    Progress::setEnabled(false);
+    const fs::path dir = tempDir();
+    PrecomputeSettings s;
+    s.meshPath = (dir / "sphere.obj").string();
+    saveMesh(makeIcosphere(2, 5.0f), s.meshPath);
+    s.outputPath = (dir / "sphere.prt").string();
+    s.scale.mmPerUnit = 1.0;
+    s.material = materialByName("Skin1");
+    s.cubemapSize = 16;
+    s.samples.count = 300;
+    s.ground = GroundSettings{};
+    s.ground->cells = 40;
+    s.ground->albedo = {0.2, 0.4, 0.8};
+    precomputeTransport(s, /*force=*/true);
+    RelightObject object = loadRelightObject(s.meshPath, s.outputPath);
+    attachGround(object, groundTransportPath(s.outputPath), s.outputPath);
+
+    const glm::dvec3 toSun = glm::normalize(glm::dvec3(1.0, 0.7, 0.3));  // low: a long shadow
+    const Image sky = sunEnvironment(128, toSun, {5000.0f, 5000.0f, 5000.0f});
+    SunSplitFrameRenderer renderer(object, sky, FrameSettings{}, ScatteringComponents{true, false}, {},
+                                   s.outputPath);
+    ASSERT_EQ(renderer.split().lights.size(), 1u);
+    const Light& sun = renderer.split().lights[0];
+    const double residualShare = 1.0 - renderer.split().lightFraction;
+    EXPECT_LT(residualShare, 0.01);
+    Camera camera;
+    camera.eye = {0.0, 30.0, 0.1};
+    camera.target = {0.0, 0.0, 0.0};
+    camera.fovY = 90.0;
+    camera.width = camera.height = 96;
+    const Image image = renderer.render(camera, glm::dmat3(1.0));
+    const glm::dvec3 d = sun.direction;  // the sun texel's centre
+    const TriangleMesh traced = withGround(object.mesh, object.ground->mesh);
+    const GBuffer g = traceGBuffer(RayScene(traced), traced, camera);
+    size_t lit = 0, shadowed = 0;
+    for (size_t i = 0; i < g.pixels.size(); ++i) {
+        const GBufferPixel& p = g.pixels[i];
+        if (!p.hit || !isGroundTriangle(p.triangle, object.mesh.triangleCount())) continue;
+        // The ray from the ground point toward the sun against the sphere of radius 5.
+        const glm::dvec3 o(p.position);
+        const double b = glm::dot(o, d), miss = std::sqrt(std::max(0.0, glm::dot(o, o) - b * b));
+        if (std::abs(miss - 5.0) < 0.6) continue;
+        const bool inShadow = b < 0.0 && miss < 5.0;
+        for (int ch = 0; ch < 3; ++ch) {
+            const double fromLight = object.ground->albedo[ch] / kPi * sun.rgb[ch] * d.y;
+            const double wholeSun = fromLight / (1.0 - residualShare);
+            ASSERT_NEAR(image.pixels[i * 4 + size_t(ch)], inShadow ? 0.0 : fromLight,
+                        (0.01 + 1.5 * residualShare) * wholeSun)
+                << "pixel " << i << (inShadow ? " (shadowed)" : " (lit)");
+        }
+        ++(inShadow ? shadowed : lit);
+    }
+    EXPECT_GT(lit, 500u);
+    EXPECT_GT(shadowed, 30u);
     fs::remove_all(dir);
 }

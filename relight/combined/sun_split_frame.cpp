@@ -2,15 +2,15 @@
 
 #include <cstdio>
 
+#include <tbb/parallel_for.h>
+
 #include "common/error.h"
+#include "common/ground.h"
 #include "common/util.h"
 
 namespace prt {
 
 Material sunSplitMaterial(const RelightObject& object, const std::string& transportPath) {
-    if (object.ground)
-        throw Error(transportPath,
-                    "the sun split does not support a ground yet (the ground's transport still needs the sun)");
     if (object.materialMap)
         throw Error(transportPath, "the sun split does not support a material map yet");
     const std::optional<Material> material = shownMaterial(object, transportPath);
@@ -35,7 +35,9 @@ SunSplitFrameRenderer::SunSplitFrameRenderer(const RelightObject& object, Image 
       material_(sunSplitMaterial(object, transportPath)),
       split_(splitSun(environment, options)),
       environment_(object, std::move(environment), look, components, sequence, std::move(split_.residual)),
-      scene_(object.mesh),
+      objectAndGround_(object.ground ? std::optional<TriangleMesh>(withGround(object.mesh, object.ground->mesh))
+                                     : std::nullopt),
+      scene_(objectAndGround_ ? *objectAndGround_ : object.mesh),
       placed_(faceCentroidSamples(object.mesh)) {
     split_.residual = Image();
     if (method == PointMethod::TextureSpace)
@@ -45,6 +47,22 @@ SunSplitFrameRenderer::SunSplitFrameRenderer(const RelightObject& object, Image 
     settings_.baseColour = object.baseColour.enabled() ? &object.baseColour : nullptr;
     settings_.surface.singleScattering = components.singleScattering;
     if (components_.multipleScattering) cells_ = nearFieldCells(object.mesh, placed_, settings_);
+    if (object.ground && components_.singleScattering) objectScene_.emplace(object.mesh);
+}
+
+void SunSplitFrameRenderer::addGroundLight(const GBuffer& g, const std::vector<Light>& lights, Image& image) const {
+    const GroundReceiver& ground = *object_.ground;
+    const size_t objectTriangles = object_.mesh.triangleCount();
+    const glm::vec3 up(0.0f, 1.0f, 0.0f);
+    const size_t channels = size_t(image.channels);
+    tbb::parallel_for(size_t(0), g.pixels.size(), [&](size_t i) {
+        const GBufferPixel& p = g.pixels[i];
+        // Seen from below, the plane's back receives nothing (groundRadiance).
+        if (!p.hit || !isGroundTriangle(p.triangle, objectTriangles) || p.toViewer.y <= 0.0f) return;
+        // eta 1: no interface, so the transmittance is 1 and this is the plain shadowed irradiance.
+        const glm::dvec3 E = directIrradiance(scene_, lights, {p.position, up, up}, 1.0, FresnelModel::Exact);
+        for (size_t c = 0; c < 3; ++c) image.pixels[i * channels + c] += float(ground.albedo[c] * E[c] / kPi);
+    });
 }
 
 std::string SunSplitFrameRenderer::describe() const {
@@ -68,7 +86,15 @@ Image SunSplitFrameRenderer::render(const Camera& camera, const glm::dmat3& rota
     t.lights = split_.lights.size();
     if (!split_.lights.empty()) {
         const std::vector<Light> lights = rotatedLights(split_.lights, rotation);
-        const GBuffer& g = environment_.gbuffer();
+        const GBuffer& traced = environment_.gbuffer();
+        // The point-light parts see the object's pixels only: ground pixels become misses.
+        std::optional<GBuffer> objectOnly;
+        if (object_.ground) {
+            objectOnly = traced;
+            for (GBufferPixel& p : objectOnly->pixels)
+                if (p.hit && isGroundTriangle(p.triangle, object_.mesh.triangleCount())) p = GBufferPixel{};
+        }
+        const GBuffer& g = objectOnly ? *objectOnly : traced;
         if (components_.multipleScattering) {
             const LitSamples lit = lightSamples(placed_, scene_, lights, settings_);
             t.lightsIrradiance = 1000.0 * (lit.irradianceSeconds + lit.octreeSeconds);
@@ -82,10 +108,17 @@ Image SunSplitFrameRenderer::render(const Camera& camera, const glm::dmat3& rota
                 for (size_t c = 0; c < 3; ++c) image.pixels[i * a + c] += frame.image.pixels[i * b + c];
         }
         if (components_.singleScattering) {
-            const SurfaceTerms terms = renderSurfaceTerms(g, object_.mesh, scene_, lights, settings_.material,
+            // Its paths run inside the object and index the object's triangles: the object's scene.
+            const SurfaceTerms terms = renderSurfaceTerms(g, object_.mesh, objectScene_ ? *objectScene_ : scene_,
+                                                          lights, settings_.material,
                                                           settings_.surface, settings_.baseColour);
             t.lightsSingleScattering = 1000.0 * terms.seconds();
             addSurfaceTerms(image, terms);
+        }
+        if (object_.ground) {
+            const Stopwatch clock;
+            addGroundLight(traced, lights, image);
+            t.lightsGround = clock.milliseconds();
         }
     }
     if (times) *times = t;

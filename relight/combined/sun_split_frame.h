@@ -11,8 +11,12 @@
 //           frame shows it)
 //         + the lights' single scattering along the refracted view ray
 //           (point_single_scattering.h, when the frame shows single scattering)
+//         + on a ground (RelightObject::ground), the lights' direct light on it:
+//           albedo / pi sum_l E_l max(0, n . w_l) V_l per pixel, V_l a shadow ray
+//           against the object (the ground's transport is direct light only too)
 //
-// each tinted by the object's base colour. The three parts are linear in the light, so
+// the object's parts tinted by its base colour. Pass 1's shadow rays see the ground
+// when there is one, as the object's precompute did. The three parts are linear in the light, so
 // the sum is the frame of the whole environment up to each part's own error; the
 // transport's truncation then only sees the residual, whose luminance is bounded.
 //
@@ -21,9 +25,8 @@
 // parts is the object's shown material (shownMaterial: an editable file's edit
 // included); the index of refraction the object's.
 //
-// Not supported (prt::Error naming the transport file): an object with a ground or a
-// material map (their transport would still need the sun), and a file that names no
-// material.
+// Not supported (prt::Error naming the transport file): an object with a material map
+// (its second transport would still need the sun), and a file that names no material.
 
 #include <glm/glm.hpp>
 
@@ -44,6 +47,7 @@ struct SunSplitFrameTimes {
     double lightsIrradiance = 0;        // pass 1: the lights at the samples (ms)
     double lightsDiffusion = 0;         // the Jensen-Buhler sum (ms)
     double lightsSingleScattering = 0;  // ms
+    double lightsGround = 0;            // the ground's direct light (ms)
     size_t lights = 0;
 };
 
@@ -51,8 +55,8 @@ struct SunSplitFrameTimes {
 PointMethod parseSunSplitMethod(const std::string& text);
 
 // The object's shown material (shownMaterial), or prt::Error naming transportPath when
-// the sun split cannot render the object (a ground, a material map, no material): the
-// renderer's own check, for callers that must refuse before changing anything.
+// the sun split cannot render the object (a material map, no material): the renderer's
+// own check, for callers that must refuse before changing anything.
 Material sunSplitMaterial(const RelightObject& object, const std::string& transportPath);
 
 class SunSplitFrameRenderer {
@@ -82,9 +86,14 @@ private:
     SunSplit split_;
     EnvironmentFrameRenderer environment_;
     PointRenderSettings settings_;
-    RayScene scene_;
+    std::optional<TriangleMesh> objectAndGround_;  // withGround(object, ground) when there is a ground
+    RayScene scene_;                               // over objectAndGround_ or the object's mesh
+    std::optional<RayScene> objectScene_;          // the object alone, for single scattering beside a ground
     IrradianceSamples placed_;
     std::optional<SampleCells> cells_;
+
+    // The lights' direct light on the ground's pixels of g, added to image.
+    void addGroundLight(const GBuffer& g, const std::vector<Light>& lights, Image& image) const;
 };
 
 }  // namespace prt
