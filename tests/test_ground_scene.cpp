@@ -68,6 +68,34 @@ fs::path tempDir() {
     return d;
 }
 
+// The job of the tests below: a sphere of radius 5 mm (162 vertices, Skin1) on a plane
+// of 40 x 40 cells and albedo (0.2, 0.4, 0.8), 6 x 16 x 16 cubemap, 128 terms.
+PrecomputeSettings sphereOnPlaneJob(const fs::path& dir) {
+    PrecomputeSettings s;
+    s.meshPath = (dir / "sphere.obj").string();
+    saveMesh(makeIcosphere(2, 5.0f), s.meshPath);
+    s.outputPath = (dir / "sphere.prt").string();
+    s.scale.mmPerUnit = 1.0;
+    s.material = materialByName("Skin1");
+    s.cubemapSize = 16;
+    s.samples.count = 300;
+    s.pass1.sampleCoefficients = s.pass2.nodeCoefficients = s.vertexCoefficients = 128;
+    s.ground = GroundSettings{};
+    s.ground->cells = 40;
+    s.ground->albedo = {0.2, 0.4, 0.8};
+    return s;
+}
+
+// Looking straight down at the plane from 30 mm, 90 degrees, `size` pixels square.
+Camera topCamera(int size) {
+    Camera camera;
+    camera.eye = {0.0, 30.0, 0.1};
+    camera.target = {0.0, 0.0, 0.0};
+    camera.fovY = 90.0;
+    camera.width = camera.height = size;
+    return camera;
+}
+
 }  // namespace
 
 // A point of the plane sees a sphere resting on it wholly above its horizon, so the
@@ -155,18 +183,7 @@ TEST(GroundScene, ShadowUnderASunMatchesTheMonteCarloTrace) {
 TEST(GroundScene, PrecomputeWritesBothFilesAndTheRendererDrawsThePlane) {
     Progress::setEnabled(false);
     const fs::path dir = tempDir();
-    PrecomputeSettings s;
-    s.meshPath = (dir / "sphere.obj").string();
-    saveMesh(makeIcosphere(2, 5.0f), s.meshPath);
-    s.outputPath = (dir / "sphere.prt").string();
-    s.scale.mmPerUnit = 1.0;
-    s.material = materialByName("Skin1");
-    s.cubemapSize = 16;
-    s.samples.count = 300;
-    s.pass1.sampleCoefficients = s.pass2.nodeCoefficients = s.vertexCoefficients = 128;
-    s.ground = GroundSettings{};
-    s.ground->cells = 40;
-    s.ground->albedo = {0.2, 0.4, 0.8};
+    const PrecomputeSettings s = sphereOnPlaneJob(dir);
     const PrecomputeSummary first = precomputeTransport(s, /*force=*/true);
     const std::string groundPath = groundTransportPath(s.outputPath);
     EXPECT_EQ(first.ground.path, groundPath);
@@ -190,11 +207,7 @@ TEST(GroundScene, PrecomputeWritesBothFilesAndTheRendererDrawsThePlane) {
     const glm::vec3 L(1.0f, 2.0f, 4.0f);
     FrameSettings look;
     EnvironmentFrameRenderer renderer(object, constantEnvironment(64, L), look, ScatteringComponents{true, false});
-    Camera camera;
-    camera.eye = {0.0, 30.0, 0.1};
-    camera.target = {0.0, 0.0, 0.0};
-    camera.fovY = 90.0;
-    camera.width = camera.height = 64;
+    const Camera camera = topCamera(64);
     const Image image = renderer.render(camera, glm::dmat3(1.0));
     const GBuffer& g = renderer.gbuffer();
     size_t groundPixels = 0, objectPixels = 0;
@@ -306,17 +319,7 @@ TEST(GroundScene, PrecomputeWritesBothFilesAndTheRendererDrawsThePlane) {
 TEST(GroundScene, SunSplitLightsTheGroundAndCastsTheSpheresShadow) {
     Progress::setEnabled(false);
     const fs::path dir = tempDir();
-    PrecomputeSettings s;
-    s.meshPath = (dir / "sphere.obj").string();
-    saveMesh(makeIcosphere(2, 5.0f), s.meshPath);
-    s.outputPath = (dir / "sphere.prt").string();
-    s.scale.mmPerUnit = 1.0;
-    s.material = materialByName("Skin1");
-    s.cubemapSize = 16;
-    s.samples.count = 300;
-    s.ground = GroundSettings{};
-    s.ground->cells = 40;
-    s.ground->albedo = {0.2, 0.4, 0.8};
+    const PrecomputeSettings s = sphereOnPlaneJob(dir);
     precomputeTransport(s, /*force=*/true);
     RelightObject object = loadRelightObject(s.meshPath, s.outputPath);
     attachGround(object, groundTransportPath(s.outputPath), s.outputPath);
@@ -329,11 +332,7 @@ TEST(GroundScene, SunSplitLightsTheGroundAndCastsTheSpheresShadow) {
     const Light& sun = renderer.split().lights[0];
     const double residualShare = 1.0 - renderer.split().lightFraction;
     EXPECT_LT(residualShare, 0.01);
-    Camera camera;
-    camera.eye = {0.0, 30.0, 0.1};
-    camera.target = {0.0, 0.0, 0.0};
-    camera.fovY = 90.0;
-    camera.width = camera.height = 96;
+    const Camera camera = topCamera(96);
     const Image image = renderer.render(camera, glm::dmat3(1.0));
     const glm::dvec3 d = sun.direction;  // the sun texel's centre
     const TriangleMesh traced = withGround(object.mesh, object.ground->mesh);
