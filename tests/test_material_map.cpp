@@ -17,6 +17,7 @@
 #include "common/progress.h"
 #include "common/shapes.h"
 #include "precompute/job/pipeline.h"
+#include "relight/combined/sun_split_frame.h"
 #include "relight/prt/environment_frame.h"
 #include "relight/prt/material_map.h"
 #include "relight/prt/relight_object.h"
@@ -64,16 +65,31 @@ std::string constantMap(const std::string& name, float t) {
     return path;
 }
 
-Image renderWith(RelightObject& object) {
+Camera mapCamera() {
     Camera camera;
     camera.eye = {0.0, 5.0, 25.0};
     camera.width = camera.height = 48;
-    // A sky and a sun (radiance 3000 over one pixel of about 0.01 sr).
+    return camera;
+}
+
+// A sky and a sun (radiance 3000 over one pixel of about 0.01 sr).
+Image skyAndSun() {
     Image sky = constantEnvironment(64, {0.5f, 0.6f, 0.8f});
     const Image sun = sunEnvironment(64, glm::normalize(glm::dvec3(0.3, 1, 0.4)), {3000, 2800, 2500});
     for (size_t i = 0; i < sky.pixels.size(); ++i) sky.pixels[i] += sun.pixels[i];
-    EnvironmentFrameRenderer r(object, sky, FrameSettings{}, ScatteringComponents{true, false});
-    return r.render(camera, glm::dmat3(1.0));
+    return sky;
+}
+
+Image renderWith(RelightObject& object) {
+    EnvironmentFrameRenderer r(object, skyAndSun(), FrameSettings{}, ScatteringComponents{true, false});
+    return r.render(mapCamera(), glm::dmat3(1.0));
+}
+
+// The same frame with the sun split (relight/combined/sun_split_frame.h).
+Image renderSplitWith(RelightObject& object) {
+    SunSplitFrameRenderer r(object, skyAndSun(), FrameSettings{}, ScatteringComponents{true, false}, {}, scene().prt);
+    EXPECT_FALSE(r.split().lights.empty());
+    return r.render(mapCamera(), glm::dmat3(1.0));
 }
 
 }  // namespace
@@ -171,4 +187,45 @@ TEST(MaterialMap, ReferenceBlendIsTheConvexCombination) {
         EXPECT_DOUBLE_EQ(r.value.x, (1 - t) * 1.0 + t * 5.0);
         EXPECT_NEAR(r.variance.x, std::pow((1 - t) * 0.2 + t * 0.4, 2), 1e-12);
     }
+}
+
+// With the sun split the lights' sum is made for A and B and blended with the same t:
+// a map of 0 is A's split frame exactly, a map of 1 B's to float rounding, a map of 1/2
+// their mean.
+TEST(MaterialMap, SunSplitBlendsTheLightsLikeTheTransport) {
+    const Scene& s = scene();
+    RelightObject a = loadRelightObject(s.glb, s.prt);
+    const Image plainA = renderSplitWith(a);
+    RelightObject zero = loadRelightObject(s.glb, s.prt);
+    zero.materialMap = loadMaterialMap(zero, s.glb, constantMap("split_zero.exr", 0.0f), "Ketchup", s.prt);
+    EXPECT_EQ(renderSplitWith(zero).pixels, plainA.pixels);
+
+    RelightObject b = loadRelightObject(s.glb, s.prt);
+    setObjectMaterial(b, parseMaterial("Ketchup", b.eta), objectSizeMm(b), s.prt);
+    const Image plainB = renderSplitWith(b);
+    RelightObject one = loadRelightObject(s.glb, s.prt);
+    one.materialMap = loadMaterialMap(one, s.glb, constantMap("split_one.exr", 1.0f), "Ketchup", s.prt);
+    {
+        // t interpolated at a pixel is 1 to float rounding (the barycentrics' sum).
+        const Image oneFrame = renderSplitWith(one);
+        double d = 0.0, pk = 0.0;
+        for (size_t k = 0; k < oneFrame.pixels.size(); ++k) {
+            d = std::max(d, double(std::abs(oneFrame.pixels[k] - plainB.pixels[k])));
+            pk = std::max(pk, double(std::abs(plainB.pixels[k])));
+        }
+        EXPECT_LE(d, 1e-6 * pk);
+    }
+
+    RelightObject half = loadRelightObject(s.glb, s.prt);
+    half.materialMap = loadMaterialMap(half, s.glb, constantMap("split_half.exr", 0.5f), "Ketchup", s.prt);
+    const Image mean = renderSplitWith(half);
+    double worst = 0.0, peak = 0.0, apart = 0.0;
+    for (size_t k = 0; k < mean.pixels.size(); ++k) {
+        if (k % 4 == 3 || mean.pixels[k - k % 4 + 3] != 1.0f) continue;  // object pixels' RGB
+        worst = std::max(worst, double(std::abs(mean.pixels[k] - 0.5f * (plainA.pixels[k] + plainB.pixels[k]))));
+        peak = std::max(peak, double(plainA.pixels[k]));
+        apart = std::max(apart, double(std::abs(plainA.pixels[k] - plainB.pixels[k])));
+    }
+    EXPECT_LT(worst, 1e-5 * peak);
+    EXPECT_GT(apart, 0.05 * peak) << "the two materials differ, so the test can fail";
 }

@@ -6,13 +6,13 @@
 
 #include "common/error.h"
 #include "common/ground.h"
+#include "common/material_edit.h"
+#include "common/transport_params.h"
 #include "common/util.h"
 
 namespace prt {
 
 Material sunSplitMaterial(const RelightObject& object, const std::string& transportPath) {
-    if (object.materialMap)
-        throw Error(transportPath, "the sun split does not support a material map yet");
     const std::optional<Material> material = shownMaterial(object, transportPath);
     if (!material)
         throw Error(transportPath, "names no material (sigma_s_prime, sigma_a, eta): the sun split needs one");
@@ -43,11 +43,36 @@ SunSplitFrameRenderer::SunSplitFrameRenderer(const RelightObject& object, Image 
     if (method == PointMethod::TextureSpace)
         throw Error("--sun-method", "must be jb, cache or brute (texture-space sampling is the viewer's)");
     settings_.material = material_;
+    // The transport's single scattering keeps the file's material under an edit; so do the lights'.
+    singleScatteringMaterial_ =
+        readTransportParameters(object.transport.parameters, transportPath).material.value_or(material_);
     settings_.method = method;
     settings_.baseColour = object.baseColour.enabled() ? &object.baseColour : nullptr;
     settings_.surface.singleScattering = components.singleScattering;
     if (components_.multipleScattering) cells_ = nearFieldCells(object.mesh, placed_, settings_);
+    if (object.materialMap && components_.multipleScattering) {
+        // B at the object's current size, as A (shownMaterial): a size edit is a material
+        // edit at the placed mesh (material_edit.h).
+        const EditableTransport& e = *object.editable;
+        secondSettings_ = settings_;
+        secondSettings_->material = scaledMaterial(object.materialMap->second, e.sizeMm() / e.objectSizeMm());
+        secondCells_ = nearFieldCells(object.mesh, placed_, *secondSettings_);
+    }
     if (object.ground && components_.singleScattering) objectScene_.emplace(object.mesh);
+}
+
+void SunSplitFrameRenderer::blendMaterialMapPixels(const GBuffer& g, const Image& second, Image& first) const {
+    const MaterialMap& map = *object_.materialMap;
+    const size_t a = size_t(first.channels), b = size_t(second.channels);
+    for (size_t i = 0; i < g.pixels.size(); ++i) {
+        const GBufferPixel& p = g.pixels[i];
+        if (!p.hit) continue;
+        const glm::uvec3 tri = object_.mesh.triangles[p.triangle];
+        const float t = p.barycentric[0] * map.vertexT[tri[0]] + p.barycentric[1] * map.vertexT[tri[1]] +
+                        p.barycentric[2] * map.vertexT[tri[2]];
+        for (size_t c = 0; c < 3; ++c)
+            first.pixels[i * a + c] = (1.0f - t) * first.pixels[i * a + c] + t * second.pixels[i * b + c];
+    }
 }
 
 void SunSplitFrameRenderer::addGroundLight(const GBuffer& g, const std::vector<Light>& lights, Image& image) const {
@@ -98,7 +123,14 @@ Image SunSplitFrameRenderer::render(const Camera& camera, const glm::dmat3& rota
         if (components_.multipleScattering) {
             const LitSamples lit = lightSamples(placed_, scene_, lights, settings_);
             t.lightsIrradiance = 1000.0 * (lit.irradianceSeconds + lit.octreeSeconds);
-            const PointFrame frame = renderPointFrame(*lit.tree, g, settings_, false, cells_);
+            PointFrame frame = renderPointFrame(*lit.tree, g, settings_, false, cells_);
+            if (secondSettings_) {
+                // A material map: B's sum too, blended per pixel with t interpolated from
+                // the vertices' t_v, as the transport's M_v = (1 - t_v) M_A + t_v M_B is.
+                const PointFrame second = renderPointFrame(*lit.tree, g, *secondSettings_, false, secondCells_);
+                frame.renderSeconds += second.renderSeconds;
+                blendMaterialMapPixels(g, second.image, frame.image);
+            }
             t.lightsDiffusion = 1000.0 * frame.renderSeconds;
             if (frame.image.width != image.width || frame.image.height != image.height || frame.image.channels < 3)
                 throw Error("sun split", "the lights' frame differs in size from the environment's");
@@ -110,7 +142,7 @@ Image SunSplitFrameRenderer::render(const Camera& camera, const glm::dmat3& rota
         if (components_.singleScattering) {
             // Its paths run inside the object and index the object's triangles: the object's scene.
             const SurfaceTerms terms = renderSurfaceTerms(g, object_.mesh, objectScene_ ? *objectScene_ : scene_,
-                                                          lights, settings_.material,
+                                                          lights, singleScatteringMaterial_,
                                                           settings_.surface, settings_.baseColour);
             t.lightsSingleScattering = 1000.0 * terms.seconds();
             addSurfaceTerms(image, terms);

@@ -10,7 +10,8 @@
 //           the lights turned with the environment (multiple scattering, when the
 //           frame shows it)
 //         + the lights' single scattering along the refracted view ray
-//           (point_single_scattering.h, when the frame shows single scattering)
+//           (point_single_scattering.h, when the frame shows single scattering; with
+//           the file's material, as the transport's single scattering under an edit)
 //         + on a ground (RelightObject::ground), the lights' direct light on it:
 //           albedo / pi sum_l E_l max(0, n . w_l) V_l per pixel, V_l a shadow ray
 //           against the object (the ground's transport is direct light only too)
@@ -25,8 +26,10 @@
 // parts is the object's shown material (shownMaterial: an editable file's edit
 // included); the index of refraction the object's.
 //
-// Not supported (prt::Error naming the transport file): an object with a material map
-// (its second transport would still need the sun), and a file that names no material.
+// A material map (material_map.h): the lights' sum is made for A and for B and blended
+// per pixel with t interpolated from the vertices' t_v, as the transport's per-vertex
+// blend is. Not supported (prt::Error naming the transport file): a file that names no
+// material.
 
 #include <glm/glm.hpp>
 
@@ -55,8 +58,8 @@ struct SunSplitFrameTimes {
 PointMethod parseSunSplitMethod(const std::string& text);
 
 // The object's shown material (shownMaterial), or prt::Error naming transportPath when
-// the sun split cannot render the object (a material map, no material): the renderer's
-// own check, for callers that must refuse before changing anything.
+// the sun split cannot render the object (no material): the renderer's own check, for
+// callers that must refuse before changing anything.
 Material sunSplitMaterial(const RelightObject& object, const std::string& transportPath);
 
 class SunSplitFrameRenderer {
@@ -83,6 +86,7 @@ private:
     const RelightObject& object_;
     ScatteringComponents components_;
     Material material_;  // checked first: nothing is built for an object the split refuses
+    Material singleScatteringMaterial_;  // the file's: single scattering is not edited
     SunSplit split_;
     EnvironmentFrameRenderer environment_;
     PointRenderSettings settings_;
@@ -91,7 +95,11 @@ private:
     std::optional<RayScene> objectScene_;          // the object alone, for single scattering beside a ground
     IrradianceSamples placed_;
     std::optional<SampleCells> cells_;
+    std::optional<PointRenderSettings> secondSettings_;  // a material map's B
+    std::optional<SampleCells> secondCells_;
 
+    // first = (1 - t) first + t second at g's object pixels, t interpolated from the map's t_v.
+    void blendMaterialMapPixels(const GBuffer& g, const Image& second, Image& first) const;
     // The lights' direct light on the ground's pixels of g, added to image.
     void addGroundLight(const GBuffer& g, const std::vector<Light>& lights, Image& image) const;
 };
