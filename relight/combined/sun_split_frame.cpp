@@ -26,13 +26,33 @@ PointMethod parseSunSplitMethod(const std::string& text) {
     throw Error("--sun-method", "must be jb, cache or brute, got '" + text + "'");
 }
 
+namespace {
+
+// The point-light path's settings for the lights, checked before anything is built.
+PointRenderSettings lightSettings(const RelightObject& object, const std::string& transportPath,
+                                  const ScatteringComponents& components, PointMethod method) {
+    if (method == PointMethod::TextureSpace)
+        throw Error("--sun-method", "must be jb, cache or brute (texture-space sampling is the viewer's)");
+    PointRenderSettings settings;
+    settings.material = sunSplitMaterial(object, transportPath);
+    settings.method = method;
+    settings.baseColour = object.baseColour.enabled() ? &object.baseColour : nullptr;
+    settings.surface.singleScattering = components.singleScattering;
+    return settings;
+}
+
+}  // namespace
+
 SunSplitFrameRenderer::SunSplitFrameRenderer(const RelightObject& object, Image environment,
                                              const FrameSettings& look, const ScatteringComponents& components,
                                              const SunSplitOptions& options, const std::string& transportPath,
                                              bool sequence, PointMethod method)
     : object_(object),
       components_(components),
-      material_(sunSplitMaterial(object, transportPath)),
+      settings_(lightSettings(object, transportPath, components, method)),
+      // The transport's single scattering keeps the file's material under an edit; so do the lights'.
+      singleScatteringMaterial_(
+          readTransportParameters(object.transport.parameters, transportPath).material.value_or(settings_.material)),
       split_(splitSun(environment, options)),
       environment_(object, std::move(environment), look, components, sequence, std::move(split_.residual)),
       objectAndGround_(object.ground ? std::optional<TriangleMesh>(withGround(object.mesh, object.ground->mesh))
@@ -40,15 +60,6 @@ SunSplitFrameRenderer::SunSplitFrameRenderer(const RelightObject& object, Image 
       scene_(objectAndGround_ ? *objectAndGround_ : object.mesh),
       placed_(faceCentroidSamples(object.mesh)) {
     split_.residual = Image();
-    if (method == PointMethod::TextureSpace)
-        throw Error("--sun-method", "must be jb, cache or brute (texture-space sampling is the viewer's)");
-    settings_.material = material_;
-    // The transport's single scattering keeps the file's material under an edit; so do the lights'.
-    singleScatteringMaterial_ =
-        readTransportParameters(object.transport.parameters, transportPath).material.value_or(material_);
-    settings_.method = method;
-    settings_.baseColour = object.baseColour.enabled() ? &object.baseColour : nullptr;
-    settings_.surface.singleScattering = components.singleScattering;
     if (components_.multipleScattering) cells_ = nearFieldCells(object.mesh, placed_, settings_);
     if (object.materialMap && components_.multipleScattering) {
         // B at the object's current size, as A (shownMaterial): a size edit is a material
@@ -94,14 +105,10 @@ std::string SunSplitFrameRenderer::describe() const {
     char line[256];
     std::snprintf(line, sizeof line,
                   "sun split: %zu directional lights (%zu texels above %.4g = %g x the mean luminance, cells of %d "
-                  "texels) carry %.1f%% of the light; %s over %zu face centroids",
+                  "texels) carry %.1f%% of the light; --sun-method %s over %zu face centroids",
                   split_.lights.size(), split_.texelsAbove, split_.thresholdLuminance,
                   split_.meanLuminance > 0 ? split_.thresholdLuminance / split_.meanLuminance : 0.0,
-                  split_.cellTexels, 100.0 * split_.lightFraction,
-                  settings_.method == PointMethod::Cache   ? "the irradiance cache"
-                  : settings_.method == PointMethod::Brute ? "the brute-force sum"
-                                                           : "Jensen-Buhler",
-                  placed_.size());
+                  split_.cellTexels, 100.0 * split_.lightFraction, toString(settings_.method), placed_.size());
     return line;
 }
 

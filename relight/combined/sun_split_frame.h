@@ -85,11 +85,10 @@ public:
 private:
     const RelightObject& object_;
     ScatteringComponents components_;
-    Material material_;  // checked first: nothing is built for an object the split refuses
+    PointRenderSettings settings_;       // the lights': checked first, nothing is built for what is refused
     Material singleScatteringMaterial_;  // the file's: single scattering is not edited
     SunSplit split_;
     EnvironmentFrameRenderer environment_;
-    PointRenderSettings settings_;
     std::optional<TriangleMesh> objectAndGround_;  // withGround(object, ground) when there is a ground
     RayScene scene_;                               // over objectAndGround_ or the object's mesh
     std::optional<RayScene> objectScene_;          // the object alone, for single scattering beside a ground
