@@ -252,6 +252,37 @@ TEST(PointSingleScattering, MatchesBruteForceOnASlab) {
     EXPECT_LT(worst32, 5e-5);
 }
 
+// A mesh with triangles wound against their vertex normals (as scanned meshes have) is
+// read the way the normals face, at x_o and at the light's entry x_i, as prt-reference
+// reads it: a sphere with every third triangle reversed, its vertex normals kept, gives
+// the consistent sphere's single scattering (to 1e-7: the rounding of the hits). Before the orientation was read from the
+// normals, the reversed triangles darkened it: x_o on one returned 0, and paths whose
+// light entered through one were dropped as "seen from outside".
+TEST(PointSingleScattering, ReadsTrianglesWoundAgainstTheirNormalsTheWayTheNormalsFace) {
+    const TriangleMesh good = makeIcosphere(4, 10.0f);
+    TriangleMesh reversed = good;
+    for (size_t f = 0; f < reversed.triangles.size(); f += 3) std::swap(reversed.triangles[f].y, reversed.triangles[f].z);
+    const RayScene goodScene(good), reversedScene(reversed);
+    const Material m = customMaterial({0.2, 0.3, 0.4}, {0.02, 0.03, 0.05}, 1.3, 0.2);
+    const std::vector<Light> lights = {parseLight("dir:0.3,1,0.2:100,100,100"), parseLight("point:-20,5,30:2")};
+    size_t compared = 0, onReversed = 0;
+    for (size_t f = 0; f < good.triangles.size(); f += 97) {
+        const glm::uvec3 t = good.triangles[f];
+        const glm::vec3 centroid = (good.positions[t.x] + good.positions[t.y] + good.positions[t.z]) / 3.0f;
+        const glm::vec3 n = glm::normalize(good.normals[t.x] + good.normals[t.y] + good.normals[t.z]);
+        const glm::dvec3 wo = glm::normalize(glm::dvec3(n) + glm::dvec3(0.3, 0.2, -0.1));
+        const glm::dvec3 want = pointSingleScattering(goodScene, good, lights, m, {centroid, n, faceNormal(good, f)}, wo);
+        const glm::dvec3 got =
+            pointSingleScattering(reversedScene, reversed, lights, m, {centroid, n, faceNormal(reversed, f)}, wo);
+        if (!(want.x > 0.0)) continue;  // x_o turned away from both lights
+        ++compared;
+        onReversed += f % 3 == 0;
+        EXPECT_LT(relError(got, want), 1e-6) << "triangle " << f;  // Embree's barycentrics in the other vertex order
+    }
+    EXPECT_GE(compared, 20u);
+    EXPECT_GE(onReversed, 5u);
+}
+
 // Linear in sigma_s at a fixed sigma_t (the same path samples, the same attenuation),
 // and in the light's intensity; nothing when the light is shadowed at every entry point
 // or the viewer is below the horizon.

@@ -16,18 +16,25 @@ namespace prt {
 
 namespace {
 
-// n_i at a hit: the vertex normals interpolated with its barycentrics, or the triangle's
-// normal where the mesh has none or they do not face the light (as the precompute).
-glm::dvec3 entryNormal(const TriangleMesh& mesh, const Hit& h, const glm::dvec3& toLight) {
+// The light's entry point as the reference reads the mesh (tools/reference/reference.h,
+// SingleScatteringReference): the hit triangle's normal turned to the side of the
+// vertex normals interpolated there (a triangle wound against its neighbours is read
+// the way they face), and n_i the interpolated normal. Without vertex normals both are
+// the triangle's own.
+struct EntryPoint {
+    glm::dvec3 geometricNormal;  // unit, oriented
+    glm::dvec3 normal;           // n_i, unit; may face away from the light
+};
+EntryPoint entryPoint(const TriangleMesh& mesh, const Hit& h) {
     const glm::dvec3 ng(h.geometricNormal);
-    if (mesh.normals.size() != mesh.positions.size()) return ng;
+    if (mesh.normals.size() != mesh.positions.size()) return {ng, ng};
     const glm::uvec3 t = mesh.triangles[h.triangle];
     const double u = h.u, v = h.v;
     const glm::dvec3 s = (1.0 - u - v) * glm::dvec3(mesh.normals[t.x]) + u * glm::dvec3(mesh.normals[t.y]) +
                          v * glm::dvec3(mesh.normals[t.z]);
     const double len = glm::length(s);
-    if (!(len > 1e-12) || !(glm::dot(s, toLight) > 0.0)) return ng;
-    return s / len;
+    if (!(len > 1e-12)) return {ng, ng};
+    return {glm::dot(ng, s) < 0.0 ? -ng : ng, s / len};
 }
 
 }  // namespace
@@ -66,19 +73,22 @@ glm::dvec3 singleScatteringAlongRay(const RayScene& scene, const TriangleMesh& m
             const float tfar = std::isfinite(atP.distance) ? float(atP.distance)
                                                            : std::numeric_limits<float>::infinity();
             const Hit h = scene.intersect(glm::vec3(xp), w, 0.0f, tfar);
-            // No surface toward the light (an open mesh), or x_p seen from outside (the
-            // first surface faces the other way): no light enters toward x_p here.
-            if (!h.hit || !(glm::dot(h.geometricNormal, w) > 0.0f)) continue;
-            const glm::dvec3 xi = xp + double(h.t) * atP.toLight;
-            const glm::dvec3 ni = entryNormal(mesh, h, atP.toLight);
+            if (!h.hit) continue;  // no surface toward the light (an open mesh)
+            // x_p seen from outside (the first surface faces the other way), or a
+            // smooth surface that faces away from the light there: no light enters.
+            const EntryPoint entry = entryPoint(mesh, h);
+            if (!(glm::dot(entry.geometricNormal, atP.toLight) > 0.0)) continue;
+            const glm::dvec3& ni = entry.normal;
             const double cosI = glm::dot(ni, atP.toLight);
+            if (!(cosI > 0.0)) continue;
+            const glm::dvec3 xi = xp + double(h.t) * atP.toLight;
             const double sPrime = refractedPathLength(double(h.t), cosI, eta);  // Jensen 2001 Eq. 5
             if (sPrime < 0.0) continue;
             IncidentLight atI;
             if (!incidentLight(l, xi, atI) || !(glm::dot(atI.irradiance, glm::dvec3(1.0)) > 0.0)) continue;
             glm::dvec3 wiRefracted;
             if (!refractDirection(atP.toLight, ni, eta, wiRefracted)) continue;
-            if (!lightUnoccluded(scene, glm::vec3(xi), h.geometricNormal, atI)) continue;
+            if (!lightUnoccluded(scene, glm::vec3(xi), glm::vec3(entry.geometricNormal), atI)) continue;
             const double phase = henyeyGreensteinDirections(material.g, wiRefracted, -woRefracted);
             const double ftIn = fresnelTransmittance(eta, cosI);
             for (int c = 0; c < 3; ++c)
@@ -93,7 +103,10 @@ glm::dvec3 pointSingleScattering(const RayScene& scene, const TriangleMesh& mesh
                                  const Material& material, const SurfacePoint& xo, const glm::dvec3& toViewer,
                                  const PointSingleScatteringOptions& options) {
     const double eta = material.eta;
-    const glm::dvec3 n(xo.normal), ng(xo.geometricNormal);
+    const glm::dvec3 n(xo.normal);
+    // A triangle wound against its vertex normals is read the way they face (as at x_i).
+    const glm::dvec3 ng = glm::dot(glm::dvec3(xo.geometricNormal), n) < 0.0 ? -glm::dvec3(xo.geometricNormal)
+                                                                           : glm::dvec3(xo.geometricNormal);
     const double cosO = glm::dot(n, toViewer);
     if (!(cosO > 0.0) || !(glm::dot(ng, toViewer) > 0.0)) return glm::dvec3(0.0);
     glm::dvec3 woRefracted;

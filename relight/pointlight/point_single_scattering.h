@@ -15,12 +15,13 @@
 //           light (precompute/passes/single_scattering.h): the first surface point on
 //           the STRAIGHT line from x_p toward the light (direction w, as incidentLight
 //           at x_p), s_i = |x_i - x_p| the observed length, n_i the vertex normals
-//           interpolated there (the triangle normal where they do not face w); the
+//           interpolated there (the triangle normal on a mesh without them); the
 //           light's refracted path inside is taken as Jensen's Eq. 5 estimate
 //           s_i' = s_i |w . n_i| / sqrt(1 - (1/eta)^2 (1 - |w . n_i|^2))
 //           (refractedPathLength, common/scattering_path.h). A first hit on a
 //           triangle facing against w means x_p lies outside the object (a
-//           concavity): that sample adds nothing;
+//           concavity), and n_i . w <= 0 a surface turned away from the light:
+//           either sample adds nothing;
 //   w_i'    refractDirection(w, n_i, eta), the light's propagation direction inside;
 //   p       the Henyey-Greenstein phase function with the material's g,
 //           henyeyGreensteinDirections(g, w_i', -w_o') (the product's convention);
@@ -34,7 +35,10 @@
 // the sampled mass of the exponential pdf of |sigma_t| (luminance),
 // s = -ln(1 - lambda xi) / |sigma_t|, lambda = 1 - e^(-|sigma_t| d_m).
 //
-// Nothing where n_o . w_o <= 0 or n_g . w_o <= 0. Like the diffusion, it is light that
+// Triangles wound against their vertex normals (scanned meshes; dragon_vrip_res4 has
+// 458 of 11,102) face the way the interpolated normal does, at x_o and at x_i: the
+// reading of the mesh prt-reference's single scattering makes. Nothing where
+// n_o . w_o <= 0 or n_g . w_o <= 0. Like the diffusion, it is light that
 // left the medium at x_o, so the frame's --base-colour tints it (base_colour.h: the
 // translucent exitance at the exit point; prt-relight render tints its single scattering
 // the same way); the specular term is not tinted.
