@@ -113,7 +113,7 @@ for c in "${cases[@]}"; do
   run "$out/$tag.own.compare" "$build/bin/prt-compare" "$out/$tag.normal.exr" "$out/$tag.reference_normal.exr"
   run "$out/$tag.paths.compare" "$build/bin/prt-compare" "$out/$tag.reference_normal.exr" \
     "$out/$tag.reference_refracted.exr"
-  ssTime=$(grep -oE '^single scattering [0-9]+( min [0-9]+)? s' "$out/$file.precompute.log" | head -1 | sed 's/^single scattering //' || true)
+  ssTime=$(grep -oE '^single scattering ([0-9]+ min )?[0-9.]+ s' "$out/$file.precompute.log" | head -1 | sed 's/^single scattering //' || true)
   lightsTime=$(grep -oE '^done: 1 frame in [0-9.]+ s' "$out/$tag.lights.log" | grep -oE '[0-9.]+ s$' | sed 's/ s$//' || true)
   printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$stem" "$env" "$g" "${terms:-}" "$size" \
     "$(rmse "$out/$tag.lights.compare")" "$(ratio "$out/$tag.lights.compare")" "${lightsTime:-?}" \
