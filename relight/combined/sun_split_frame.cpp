@@ -26,11 +26,8 @@ PointMethod parseSunSplitMethod(const std::string& text) {
     throw Error("--sun-method", "must be jb, cache or brute, got '" + text + "'");
 }
 
-namespace {
-
-// The point-light path's settings for the lights, checked before anything is built.
-PointRenderSettings lightSettings(const RelightObject& object, const std::string& transportPath,
-                                  const ScatteringComponents& components, PointMethod method) {
+PointRenderSettings sunSplitLightSettings(const RelightObject& object, const std::string& transportPath,
+                                          const ScatteringComponents& components, PointMethod method) {
     if (method == PointMethod::TextureSpace)
         throw Error("--sun-method", "must be jb, cache or brute (texture-space sampling is the viewer's)");
     PointRenderSettings settings;
@@ -41,15 +38,13 @@ PointRenderSettings lightSettings(const RelightObject& object, const std::string
     return settings;
 }
 
-}  // namespace
-
 SunSplitFrameRenderer::SunSplitFrameRenderer(const RelightObject& object, Image environment,
                                              const FrameSettings& look, const ScatteringComponents& components,
                                              const SunSplitOptions& options, const std::string& transportPath,
                                              bool sequence, PointMethod method)
     : object_(object),
       components_(components),
-      settings_(lightSettings(object, transportPath, components, method)),
+      settings_(sunSplitLightSettings(object, transportPath, components, method)),
       // The transport's single scattering keeps the file's material under an edit; so do the lights'.
       singleScatteringMaterial_(
           readTransportParameters(object.transport.parameters, transportPath).material.value_or(settings_.material)),

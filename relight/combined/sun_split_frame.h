@@ -62,6 +62,12 @@ PointMethod parseSunSplitMethod(const std::string& text);
 // callers that must refuse before changing anything.
 Material sunSplitMaterial(const RelightObject& object, const std::string& transportPath);
 
+// The point-light path's settings for the lights, checked before anything is built: the
+// shown material (sunSplitMaterial), `method` (prt::Error("--sun-method", ...) for
+// TextureSpace), the object's base colour, single scattering when `components` shows it.
+PointRenderSettings sunSplitLightSettings(const RelightObject& object, const std::string& transportPath,
+                                          const ScatteringComponents& components, PointMethod method);
+
 class SunSplitFrameRenderer {
 public:
     // `object` must outlive the renderer. `look`, `components` and `sequence` as

@@ -1,0 +1,96 @@
+#include "relight/combined/sun_split_vertices.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "common/error.h"
+#include "common/util.h"
+#include "relight/combined/sun_split_frame.h"
+#include "relight/pointlight/jensen_buhler.h"
+#include "relight/pointlight/vertex_surface_terms.h"
+
+namespace prt {
+
+namespace {
+
+const RelightObject& checkedObject(const RelightObject& object, const std::string& transportPath) {
+    if (object.editable)
+        throw Error(transportPath, "is editable: the viewer's sun split does not follow material edits yet");
+    if (object.materialMap) throw Error(transportPath, "has a material map: the viewer's sun split cannot blend it yet");
+    if (object.ground) throw Error(transportPath, "has a ground: the viewer's sun split does not light one yet");
+    return object;
+}
+
+// environment - residual, texel by texel: what the lights carry.
+Image excessOf(const Image& environment, const Image& residual) {
+    Image excess = environment;
+    for (size_t i = 0; i < excess.pixels.size(); ++i) excess.pixels[i] -= residual.pixels[i];
+    return excess;
+}
+
+}  // namespace
+
+SunSplitVertexLighting::SunSplitVertexLighting(const RelightObject& object, const Image& environment,
+                                               const SunSplitOptions& options, const std::string& transportPath)
+    : object_(checkedObject(object, transportPath)),
+      settings_(sunSplitLightSettings(object, transportPath, ScatteringComponents::all(), PointMethod::JensenBuhler)),
+      split_(splitSun(environment, options)),
+      excess_(excessOf(environment, split_.residual), int(object.transport.cubemapSize)),
+      scene_(object.mesh),
+      placed_(faceCentroidSamples(object.mesh)) {
+    split_.residual = Image();
+    cells_ = nearFieldCells(object.mesh, placed_, settings_);
+}
+
+std::vector<glm::vec3> SunSplitVertexLighting::lights(const glm::dmat3& rotation,
+                                                      const ScatteringComponents& components, const glm::dvec3& eye,
+                                                      SunSplitVertexTimes* times) const {
+    const TriangleMesh& mesh = object_.mesh;
+    std::vector<glm::vec3> out(mesh.vertexCount(), glm::vec3(0.0f));
+    if (split_.lights.empty()) return out;
+    const std::vector<Light> lights = rotatedLights(split_.lights, rotation);
+    if (components.multipleScattering) {
+        LitSamples lit = lightSamples(placed_, scene_, lights, settings_);
+        if (times) times->lightsIrradiance = 1000.0 * (lit.irradianceSeconds + lit.octreeSeconds);
+        const Stopwatch clock;
+        const JensenBuhler jb(settings_.material, std::move(*lit.tree),
+                              JensenBuhlerOptions{.epsilon = settings_.epsilon, .fresnel = settings_.fresnel}, cells_);
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, out.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t v = r.begin(); v != r.end(); ++v)
+                out[v] = glm::vec3(jb.exitance(glm::dvec3(mesh.positions[v])) / kPi);
+        });
+        if (times) times->lightsDiffusion = clock.milliseconds();
+    }
+    if (components.singleScattering) {
+        const Stopwatch clock;
+        const std::vector<glm::vec3> t = vertexSingleScattering(scene_, mesh, lights, settings_.material, eye,
+                                                                settings_.surface.singleScatteringOptions);
+        for (size_t v = 0; v < out.size(); ++v) out[v] += t[v];
+        if (times) times->lightsSingleScattering = clock.milliseconds();
+    }
+    return out;
+}
+
+VertexRadiance SunSplitVertexLighting::correction(const glm::dmat3& rotation, const ScatteringComponents& components,
+                                                  size_t lightTerms, const glm::dvec3& eye,
+                                                  SunSplitVertexTimes* times) const {
+    SunSplitVertexTimes t;
+    Stopwatch clock;
+    const LightVector light = excess_.lightVector(rotation, lightTerms);
+    t.lightVector = clock.milliseconds();
+    clock.restart();
+    VertexRadiance excess;
+    relightVertices(object_.transport, light, components, excess);
+    t.transport = clock.milliseconds();
+    VertexRadiance out;
+    out.diffuse = lights(rotation, components, eye, &t);
+    if (excess.diffuse.size() == out.diffuse.size())
+        for (size_t v = 0; v < out.diffuse.size(); ++v) out.diffuse[v] -= excess.diffuse[v];
+    out.terms = std::move(excess.terms);
+    for (std::vector<glm::vec3>& term : out.terms)
+        for (glm::vec3& x : term) x = -x;
+    if (times) *times = t;
+    return out;
+}
+
+}  // namespace prt

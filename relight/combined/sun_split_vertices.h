@@ -1,0 +1,89 @@
+#pragma once
+// The sun split at the mesh's vertices (prt-relight view --sun-split; docs/viewer.md,
+// "The sun split"): what turns the transport's per-vertex radiance under the WHOLE
+// environment into the split's,
+//
+//   correction(v) = lights(v) - transport(excess)(v)
+//   lights(v)     = M(x_v) / pi                      (Jensen-Buhler over face centroids
+//                                                     lit by the lights, as
+//                                                     sun_split_frame.h's; with
+//                                                     multiple scattering)
+//                 + T(v)                             (the lights' single scattering seen
+//                                                     from the eye, vertex_surface_terms.h;
+//                                                     with single scattering)
+//   transport(excess) = relightVertices of the excess environment (the texels above the
+//                   threshold, environment - residual), diffuse and view terms
+//
+// so that transport(environment) + correction = transport(residual) + lights, since the
+// relight is linear in the light (exactly so when the light vector keeps every term:
+// lightTerms 0; a largest-L cut of each light is not linear). The viewer adds it to the
+// relight worker's result for the same environment and rotation, and its shader
+// multiplies the sum by F_t(eta, n . w_o) and the base colour, as it does the
+// transport's; the view terms' slots carry -transport(excess)'s terms.
+//
+// What it does not do: the ground (its transport keeps the whole environment), a
+// material map and an editable file's edits (refused at construction with
+// prt::Error(transportPath, ...)). The lights' material is the file's (shownMaterial).
+//
+// Threads: correction() is const and runs in parallel inside (TBB); the object and its
+// transport must not change while it runs (the viewer's relight worker changes them
+// only for editable files, which are refused here).
+
+#include <glm/glm.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/image.h"
+#include "common/raytrace.h"
+#include "common/transport_params.h"
+#include "relight/pointlight/environment_lights.h"
+#include "relight/pointlight/point_animation.h"
+#include "relight/prt/light_vector.h"
+#include "relight/prt/relight_kernel.h"
+#include "relight/prt/relight_object.h"
+
+namespace prt {
+
+struct SunSplitVertexTimes {
+    double lightVector = 0;        // the excess's light vector (ms)
+    double transport = 0;          // its relight (ms)
+    double lightsIrradiance = 0;   // pass 1: the lights at the face centroids (ms)
+    double lightsDiffusion = 0;    // the Jensen-Buhler sum at the vertices (ms)
+    double lightsSingleScattering = 0;  // ms
+    double total() const { return lightVector + transport + lightsIrradiance + lightsDiffusion + lightsSingleScattering; }
+};
+
+class SunSplitVertexLighting {
+public:
+    // `object` must outlive this and hold no editable transport, material map or ground
+    // (prt::Error(transportPath, ...)); it must name a material (sunSplitMaterial).
+    // Splits `environment` (splitSun's errors for bad options).
+    SunSplitVertexLighting(const RelightObject& object, const Image& environment, const SunSplitOptions& options,
+                           const std::string& transportPath);
+
+    const SunSplit& split() const { return split_; }
+
+    // The correction above for the environment turned by `rotation`, the components
+    // shown and the light vector's kept terms (0: all), single scattering seen from `eye`
+    // (mm). diffuse has one entry per vertex; terms as relightVertices gives the file's
+    // view terms (empty without them or without single scattering).
+    VertexRadiance correction(const glm::dmat3& rotation, const ScatteringComponents& components, size_t lightTerms,
+                              const glm::dvec3& eye, SunSplitVertexTimes* times = nullptr) const;
+
+    // lights(v) alone (the correction's first part), for tests.
+    std::vector<glm::vec3> lights(const glm::dmat3& rotation, const ScatteringComponents& components,
+                                  const glm::dvec3& eye, SunSplitVertexTimes* times = nullptr) const;
+
+private:
+    const RelightObject& object_;
+    PointRenderSettings settings_;
+    SunSplit split_;               // its residual dropped after the excess is made
+    EnvironmentLight excess_;      // environment - residual, prepared for turning
+    RayScene scene_;
+    IrradianceSamples placed_;
+    std::optional<SampleCells> cells_;
+};
+
+}  // namespace prt
