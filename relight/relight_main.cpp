@@ -65,6 +65,24 @@ struct RenderOptions {
     std::string sunMethod = "jb";
 };
 
+// --sun-split and its settings, render's and view's; `method`: render's --sun-method
+// (null: the option is not offered).
+void addSunSplitOptions(CLI::App& app, bool& on, SunSplitOptions& options, std::string* method,
+                        const char* what) {
+    const char* sun = "Sun split (docs/relight.md, \"The sun split\")";
+    auto* sunFlag = app.add_flag("--sun-split", on, what)->group(sun);
+    app.add_option("--sun-threshold", options.threshold,
+                   "k: texels brighter than k times the environment's mean luminance give the excess to the lights")
+        ->capture_default_str()->group(sun)->needs(sunFlag);
+    app.add_option("--sun-cell", options.cellDegrees, "Degrees: the excess of each cell this wide becomes one light")
+        ->capture_default_str()->group(sun)->needs(sunFlag);
+    if (method)
+        app.add_option("--sun-method", *method,
+                       "The lights' multiple scattering: jb (Jensen-Buhler), cache (the irradiance cache: faster) or "
+                       "brute")
+            ->capture_default_str()->group(sun)->needs(sunFlag);
+}
+
 void addRenderOptions(CLI::App& app, RenderOptions& o) {
     app.add_option("mesh", o.mesh, "Mesh file the transport file was computed for (.obj .ply .off .stl, .gz)")
         ->required();
@@ -87,19 +105,9 @@ void addRenderOptions(CLI::App& app, RenderOptions& o) {
                                 "Render N frames of the environment turning 360 degrees about +Y")
                      ->group("Sequences");
     tt->excludes(spin);
-    const char* sun = "Sun split (docs/relight.md, \"The sun split\")";
-    auto* sunFlag = app.add_flag("--sun-split", o.sunSplit,
-                 "Take the environment's brightest texels (sun, lamps) out as directional lights rendered by "
-                 "Jensen-Buhler; the transport relights the rest")
-        ->group(sun);
-    app.add_option("--sun-threshold", o.sun.threshold,
-                   "k: texels brighter than k times the environment's mean luminance give the excess to the lights")
-        ->capture_default_str()->group(sun)->needs(sunFlag);
-    app.add_option("--sun-cell", o.sun.cellDegrees, "Degrees: the excess of each cell this wide becomes one light")
-        ->capture_default_str()->group(sun)->needs(sunFlag);
-    app.add_option("--sun-method", o.sunMethod,
-                   "The lights' multiple scattering: jb (Jensen-Buhler), cache (the irradiance cache: faster) or brute")
-        ->capture_default_str()->group(sun)->needs(sunFlag);
+    addSunSplitOptions(app, o.sunSplit, o.sun, &o.sunMethod,
+                       "Take the environment's brightest texels (sun, lamps) out as directional lights rendered by "
+                       "Jensen-Buhler; the transport relights the rest");
     addThreadsOption(app, o.threads);
 }
 
@@ -267,6 +275,8 @@ struct ViewOptions {
     bool pointSpecular = false, pointSingleScattering = false;
     double pointSpecularRoughness = kDefaultSpecularRoughness;
     int pointSingleScatteringSamples = PointSingleScatteringOptions{}.pathSamples;
+    bool sunSplit = false;
+    SunSplitOptions sun;
 };
 
 void addViewOptions(CLI::App& app, ViewOptions& o) {
@@ -354,6 +364,9 @@ void addViewOptions(CLI::App& app, ViewOptions& o) {
     app.add_option("--point-single-scattering-samples", o.pointSingleScatteringSamples,
                    "Gauss-Legendre samples along each vertex's refracted view ray, 1 to 256")
         ->capture_default_str()->group(group);
+    addSunSplitOptions(app, o.sunSplit, o.sun, nullptr,
+                       "Take the environment's brightest texels (sun, lamps) out as directional lights, Jensen-Buhler "
+                       "at the vertices, shown once computed for the light on screen (the plain relight meanwhile)");
 }
 
 int runView(const ViewOptions& o) {
@@ -374,6 +387,7 @@ int runView(const ViewOptions& o) {
     validatePointSingleScattering({.pathSamples = o.pointSingleScatteringSamples}, "--point-single-scattering-samples");
     for (const std::string& path : o.screenshots)
         if (path.empty()) throw Error("--screenshot", "empty path");
+    if (o.sunSplit) validateSunSplitOptions(o.sun);
     // Cheap checks first: the display, the environments' paths.
     checkViewerDisplay();
     ViewerSetup setup;
@@ -427,6 +441,7 @@ int runView(const ViewOptions& o) {
     setup.pointSingleScattering = o.pointSingleScattering;
     setup.pointSingleScatteringSamples = o.pointSingleScatteringSamples;
     setup.environmentLight = !o.noEnvironmentLight;
+    if (o.sunSplit) setup.sunSplit = o.sun;
     return runViewer(std::move(setup));
 #endif
 }

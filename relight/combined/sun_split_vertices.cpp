@@ -14,10 +14,15 @@ namespace prt {
 namespace {
 
 const RelightObject& checkedObject(const RelightObject& object, const std::string& transportPath) {
+    const char* offline = " (prt-relight render --sun-split does)";
     if (object.editable)
-        throw Error(transportPath, "is editable: the viewer's sun split does not follow material edits yet");
-    if (object.materialMap) throw Error(transportPath, "has a material map: the viewer's sun split cannot blend it yet");
-    if (object.ground) throw Error(transportPath, "has a ground: the viewer's sun split does not light one yet");
+        throw Error(transportPath, std::string("is editable: the viewer's sun split does not follow material edits yet") +
+                                       offline);
+    if (object.materialMap)
+        throw Error(transportPath, std::string("with a material map: the viewer's sun split does not blend one yet") +
+                                       offline);
+    if (object.ground)
+        throw Error(transportPath, std::string("with a ground: the viewer's sun split does not light one yet") + offline);
     return object;
 }
 
@@ -71,17 +76,24 @@ std::vector<glm::vec3> SunSplitVertexLighting::lights(const glm::dmat3& rotation
     return out;
 }
 
+VertexRadiance SunSplitVertexLighting::excessRelight(const glm::dmat3& rotation,
+                                                     const ScatteringComponents& components, size_t lightTerms,
+                                                     SunSplitVertexTimes* times) const {
+    Stopwatch clock;
+    const LightVector light = excess_.lightVector(rotation, lightTerms);
+    if (times) times->lightVector = clock.milliseconds();
+    clock.restart();
+    VertexRadiance excess;
+    relightVertices(object_.transport, light, components, excess);
+    if (times) times->transport = clock.milliseconds();
+    return excess;
+}
+
 VertexRadiance SunSplitVertexLighting::correction(const glm::dmat3& rotation, const ScatteringComponents& components,
                                                   size_t lightTerms, const glm::dvec3& eye,
                                                   SunSplitVertexTimes* times) const {
     SunSplitVertexTimes t;
-    Stopwatch clock;
-    const LightVector light = excess_.lightVector(rotation, lightTerms);
-    t.lightVector = clock.milliseconds();
-    clock.restart();
-    VertexRadiance excess;
-    relightVertices(object_.transport, light, components, excess);
-    t.transport = clock.milliseconds();
+    VertexRadiance excess = excessRelight(rotation, components, lightTerms, &t);
     VertexRadiance out;
     out.diffuse = lights(rotation, components, eye, &t);
     if (excess.diffuse.size() == out.diffuse.size())

@@ -72,7 +72,12 @@ public:
     VertexRadiance correction(const glm::dmat3& rotation, const ScatteringComponents& components, size_t lightTerms,
                               const glm::dvec3& eye, SunSplitVertexTimes* times = nullptr) const;
 
-    // lights(v) alone (the correction's first part), for tests.
+    // The correction's two parts, for callers that keep one while the other changes (the
+    // viewer's worker redoes only the lights' single scattering when the eye moves):
+    // transport(excess), diffuse and view terms (times: lightVector and transport) ...
+    VertexRadiance excessRelight(const glm::dmat3& rotation, const ScatteringComponents& components,
+                                 size_t lightTerms, SunSplitVertexTimes* times = nullptr) const;
+    // ... and lights(v) (times: the lights' fields).
     std::vector<glm::vec3> lights(const glm::dmat3& rotation, const ScatteringComponents& components,
                                   const glm::dvec3& eye, SunSplitVertexTimes* times = nullptr) const;
 

@@ -373,6 +373,7 @@ void drawPanel(const PanelInputs& in, ViewState& state, PointLightWorker* pointW
         ImGui::Text("relight %.0f ms = light %.0f + kernel %.1f + upload %.1f",
                     in.light->lightMs + in.light->relightMs + in.uploadMs, in.light->lightMs, in.light->relightMs,
                     in.uploadMs);
+    if (!in.sunSplit.empty()) ImGui::TextWrapped("%s", in.sunSplit.c_str());
     if (in.light && in.light->editPath == LightResult::EditPath::None && in.light->recombineMs > 0.0)
         ImGui::TextDisabled("(kernel includes recombining the edited material: %.0f ms)", in.light->recombineMs);
     ImGui::Text("%zu relights (%.0f per second completed), mean %.0f ms%s", in.relights.count,

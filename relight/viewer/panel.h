@@ -47,6 +47,7 @@ struct PanelInputs {
     const RunningStats& pointUpdates;             // point-light updates with lights (ms)
     const MaterialEditStats& edits;               // editable files
     const std::string& status;                    // the last screenshot's outcome
+    const std::string& sunSplit;                  // the sun split's line (--sun-split; empty without)
     std::function<std::string()> renderCommand;   // the prt-relight render command of the view
 };
 

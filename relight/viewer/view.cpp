@@ -34,6 +34,7 @@
 #include "relight/viewer/point_light_worker.h"
 #include "relight/viewer/relight_worker.h"
 #include "relight/viewer/scene_gl.h"
+#include "relight/viewer/sun_split_worker.h"
 #include "relight/viewer/view_state.h"
 #include "relight/viewer/window.h"
 
@@ -105,6 +106,10 @@ private:
     void writeKeyScreenshot();
     std::string renderCommand() const;
     LightRequest currentRequest() const;
+    SunSplitRequest currentSunRequest() const;
+    // The sun split's correction is for the relight on screen (its light).
+    bool sunMatchesFront() const;
+    std::string sunSplitLine() const;
     PointLightRequest currentPointRequest() const;
     void printSummary(double seconds) const;
     // The scripted edit, once its frame has come: through the panel's edit (editMaterial),
@@ -153,6 +158,15 @@ private:
     uint64_t uploadedSpecularId_ = 0;  // the point-light result whose specular is uploaded (0: none)
     std::vector<glm::vec4> combined_;
 
+    // The sun split (--sun-split): the correction at the vertices, added to the relight
+    // on screen when made for its light.
+    std::unique_ptr<SunSplitWorker> sunWorker_;
+    SunSplitResult sunFront_;
+    bool haveSun_ = false, sunShown_ = false;
+    SunSplitRequest sunSubmitted_;
+    uint64_t nextSunId_ = 1;
+    RunningStats sunStats_;
+
     // The window first: the scene's GL objects go before its context.
     std::unique_ptr<ViewerWindow> window_;
     std::unique_ptr<SceneGl> scene_;
@@ -162,6 +176,7 @@ private:
 };
 
 Viewer::~Viewer() {
+    sunWorker_.reset();
     worker_.reset();
     pointWorker_.reset();
     if (window_) window_->makeCurrent();
@@ -217,6 +232,15 @@ void Viewer::start() {
                              s_.lightOrbitDegreesPerFrame, glm::dvec3(bounds(s_.object.mesh).centre()));
 
     loadEnvironments();
+    // Before the window: its refusals (editable files, grounds, material maps) come first.
+    if (s_.sunSplit) {
+        sunWorker_ = std::make_unique<SunSplitWorker>(s_.object, environments_, *s_.sunSplit, s_.transportPath,
+                                                      state_.environment);
+        std::printf("sun split: the brightest texels (above %g x the mean luminance, cells of %g degrees) as "
+                    "directional lights at the vertices, shown once they land for the light on screen\n",
+                    s_.sunSplit->threshold, s_.sunSplit->cellDegrees);
+        std::fflush(stdout);
+    }
     window_ = std::make_unique<ViewerWindow>(s_.camera.width, s_.camera.height,
                                              "prt-relight view - " + fs::path(s_.meshPath).filename().string(),
                                              s_.vsync);
@@ -273,6 +297,36 @@ LightRequest Viewer::currentRequest() const {
     return r;
 }
 
+SunSplitRequest Viewer::currentSunRequest() const {
+    const LightRequest l = currentRequest();
+    SunSplitRequest r;
+    r.environment = l.environment;
+    r.rotation = l.rotation;
+    r.lightTerms = l.lightTerms;
+    r.multipleScattering = l.multipleScattering;
+    r.singleScattering = l.singleScattering;
+    r.eye = state_.camera.eye;
+    return r;
+}
+
+bool Viewer::sunMatchesFront() const {
+    const LightRequest& l = front_.request;
+    return haveSun_ && haveLight_ &&
+           sunFront_.request.sameLight(l.environment, l.rotation, l.lightTerms, l.multipleScattering,
+                                       l.singleScattering) &&
+           sunFront_.correction.diffuse.size() == s_.object.mesh.vertexCount();
+}
+
+std::string Viewer::sunSplitLine() const {
+    if (!sunWorker_) return "";
+    char line[256];
+    if (!haveSun_) return "sun split: splitting ...";
+    std::snprintf(line, sizeof line, "sun split: %zu lights carry %.1f%% of the light; %s (last update %.0f ms)",
+                  sunFront_.lights, 100.0 * sunFront_.lightFraction,
+                  sunShown_ ? "shown" : "refining (the plain relight meanwhile)", sunFront_.totalMs);
+    return line;
+}
+
 PointLightRequest Viewer::currentPointRequest() const {
     PointLightRequest r;
     if (state_.pointLights) r.lights = state_.lights;
@@ -303,6 +357,21 @@ bool Viewer::exchangeLight() {
         displayed_ = front_.request;
         haveLight_ = true;
         uploadDirty_ = true;
+    }
+    bool sunLanded = false;
+    if (sunWorker_) {
+        const SunSplitRequest sw = currentSunRequest();
+        if (nextSunId_ == 1 || !sw.sameAs(sunSubmitted_)) {
+            sunSubmitted_ = sw;
+            sunSubmitted_.id = nextSunId_++;
+            sunWorker_->submit(sunSubmitted_);
+        }
+        if (sunWorker_->take(sunFront_)) {
+            haveSun_ = true;
+            sunLanded = true;
+            uploadDirty_ = true;
+            sunStats_.add(sunFront_.totalMs);
+        }
     }
     if (pointWorker_) {
         const PointLightRequest pw = currentPointRequest();
@@ -351,7 +420,7 @@ bool Viewer::exchangeLight() {
             ++(front_.editPath == LightResult::EditPath::Projected ? projectedEdits_ : recombinedEdits_);
         }
     }
-    return envLanded || pointLanded;
+    return envLanded || pointLanded || sunLanded;
 }
 
 void Viewer::uploadCombined() {
@@ -363,6 +432,16 @@ void Viewer::uploadCombined() {
     const int slots = std::max(envSlots, 1);
     combined_.assign(size_t(slots) * V, glm::vec4(0.0f));
     if (env) std::copy(front_.packed.begin(), front_.packed.begin() + ptrdiff_t(size_t(slots) * V), combined_.begin());
+    // The split's correction only with the relight it was made for: the screen shows the
+    // plain relight or the split, never one rotation's relight with another's lights.
+    sunShown_ = env && sunMatchesFront();
+    if (sunShown_) {
+        const VertexRadiance& c = sunFront_.correction;
+        for (size_t v = 0; v < V; ++v) combined_[v] += glm::vec4(c.diffuse[v], 0.0f);
+        for (size_t k = 0; k + 1 < size_t(slots) && k < c.terms.size(); ++k)
+            if (c.terms[k].size() == V)
+                for (size_t v = 0; v < V; ++v) combined_[(k + 1) * V + v] += glm::vec4(c.terms[k][v], 0.0f);
+    }
     if (point)
         for (size_t v = 0; v < V; ++v) combined_[v] += glm::vec4(pointFront_.radiance[v], 0.0f);
     scene_->uploadRadiance(combined_, slots, env ? front_.ground : std::vector<glm::vec3>());
@@ -439,6 +518,7 @@ void Viewer::drawFrame(int fbWidth, int fbHeight, bool lastFrame) {
                              .pointUpdates = pointStats_,
                              .edits = editStats_,
                              .status = status_,
+                             .sunSplit = sunSplitLine(),
                              .renderCommand = [this] { return renderCommand(); }};
         drawPanel(in, state_, pointWorker_.get(), comparison_);
     }
@@ -479,6 +559,12 @@ std::string Viewer::renderCommand() const {
     frame.mapMaterial = s_.frame.mapMaterial;
     frame.lightTerms = size_t(std::max(state_.lightTerms, 0));
     const LightRequest r = currentRequest();
+    if (s_.sunSplit) {
+        char sun[96];
+        std::snprintf(sun, sizeof sun, " --sun-split --sun-threshold %.9g --sun-cell %.9g", s_.sunSplit->threshold,
+                      s_.sunSplit->cellDegrees);
+        cmd += sun;
+    }
     if (r.multipleScattering != available_.multipleScattering || r.singleScattering != available_.singleScattering)
         frame.components = r.multipleScattering && r.singleScattering ? "ms,ss"
                            : r.multipleScattering                      ? "ms"
@@ -538,6 +624,14 @@ void Viewer::printSummary(double seconds) const {
                     "last: %.1f ms, N = %d, %s), min %.1f, max %.1f ms\n",
                     pointStats_.count, pointStats_.mean(), pointFront_.totalMs, pointFront_.request.samples,
                     toString(pointFront_.request.mode), pointStats_.min, pointStats_.max);
+    if (sunStats_.count)
+        std::printf("sun split: %zu lights carry %.1f%% of the light; %zu updates, mean %.1f ms (last: light vector "
+                    "%.1f + relight %.1f of the excess, pass 1 %.1f, Jensen-Buhler at the vertices %.1f, single "
+                    "scattering %.1f ms), min %.1f, max %.1f ms; the last frame %s\n",
+                    sunFront_.lights, 100.0 * sunFront_.lightFraction, sunStats_.count, sunStats_.mean(),
+                    sunFront_.times.lightVector, sunFront_.times.transport, sunFront_.times.lightsIrradiance,
+                    sunFront_.times.lightsDiffusion, sunFront_.times.lightsSingleScattering, sunStats_.min,
+                    sunStats_.max, sunShown_ ? "showed the split" : "showed the plain relight");
     if (pointEditStats_.count)
         std::printf("point-light material changes: %zu, mean %.1f ms before the frame (setMaterial %.1f + "
                     "per-vertex sums %.1f, the rest the worker's other steps and the upload), min %.1f, max %.1f ms\n",
@@ -577,12 +671,14 @@ int Viewer::run() {
         applyScriptedEdit();
         const bool landed = exchangeLight();
         const bool pointBusy = pointWorker_ && !comparison_.running && pointWorker_->busy();
-        const bool busy = worker_->busy() || pointBusy;
+        const bool busy = worker_->busy() || pointBusy || (sunWorker_ && sunWorker_->busy());
         // The scripted end: the frames are done and the light on screen is the last asked for.
         // The scripted edit goes out before the frames are done (K < frames), so waiting
         // for the last request's result waits for the edit's.
         const bool lastFrame = script_.finishing() && !busy && displayed_.id == submitted_.id &&
-                               (!pointWorker_ || (havePoint_ && pointDisplayed_.id == pointSubmitted_.id));
+                               (!pointWorker_ || (havePoint_ && pointDisplayed_.id == pointSubmitted_.id)) &&
+                               (!sunWorker_ || (haveSun_ && sunFront_.request.id == sunSubmitted_.id &&
+                                                (sunShown_ || !state_.environmentLight)));
         if (lastFrame && s_.edit && !front_.materialError.empty())
             throw Error("--edit-material", "the relight refused the edit: " + front_.materialError);
         // While a worker computes and nothing on screen would change (no input, no
@@ -606,6 +702,7 @@ int Viewer::run() {
         clock_.frameShown(haveLight_, busy, relightStats_.count);
     }
     backgroundRecombines_ = worker_->backgroundRecombines();
+    sunWorker_.reset();
     worker_.reset();
     pointWorker_.reset();
     printSummary(clock_.seconds());

@@ -18,6 +18,7 @@
 #include "common/camera.h"
 #include "common/materials.h"
 #include "common/transport_params.h"
+#include "relight/pointlight/environment_lights.h"
 #include "relight/pointlight/point_lights.h"
 #include "relight/pointlight/texture_space_sampling.h"
 #include "relight/prt/frame_settings.h"
@@ -60,6 +61,9 @@ struct ViewerSetup {
     bool pointSingleScattering = false;
     int pointSingleScatteringSamples = 8;
     bool environmentLight = true;      // the environment's light (and background) on at start
+    // --sun-split: the environment's brightest texels as directional lights at the
+    // vertices (sun_split_worker.h), refining the relight once they land; nullopt: off.
+    std::optional<SunSplitOptions> sunSplit;
 
     // Scripting. frames > 0: render this many frames once the first relight has landed
     // (and, after them, until no relight is in flight), write the screenshots, exit.

@@ -1,0 +1,59 @@
+// The viewer's sun-split worker: see sun_split_worker.h.
+#include "relight/viewer/sun_split_worker.h"
+
+#include "common/envmap.h"
+#include "common/error.h"
+#include "common/util.h"
+
+namespace prt {
+
+SunSplitWorker::SunSplitWorker(const RelightObject& object, const std::vector<Image>& environments,
+                               const SunSplitOptions& options, const std::string& transportPath,
+                               int firstEnvironment)
+    : object_(object), environments_(environments), options_(options), transportPath_(transportPath) {
+    // The refusals here, on the caller's thread, before the thread starts.
+    lighting_ = std::make_unique<SunSplitVertexLighting>(object_, environments_.at(size_t(firstEnvironment)), options_,
+                                                         transportPath_);
+    lightingEnvironment_ = firstEnvironment;
+    worker_.emplace("sun split", [this](const SunSplitRequest& r, SunSplitResult& out) { compute(r, out); });
+}
+
+void SunSplitWorker::compute(const SunSplitRequest& r, SunSplitResult& out) {
+    const Stopwatch clock;
+    out.request = r;
+    out.times = SunSplitVertexTimes{};
+    if (!lighting_ || lightingEnvironment_ != r.environment) {
+        lighting_.reset();  // free the old split before making the new one
+        lighting_ = std::make_unique<SunSplitVertexLighting>(object_, environments_.at(size_t(r.environment)),
+                                                             options_, transportPath_);
+        lightingEnvironment_ = r.environment;
+        last_.reset();
+    }
+    const glm::dmat3 rotation = rotationY(r.rotation);
+    const bool lightKept =
+        last_ && last_->sameLight(r.environment, r.rotation, r.lightTerms, r.multipleScattering, r.singleScattering);
+    if (!lightKept) {
+        VertexRadiance excess = lighting_->excessRelight(rotation, {r.multipleScattering, r.singleScattering},
+                                                         r.lightTerms, &out.times);
+        withoutSingleScattering_ = lighting_->lights(rotation, {r.multipleScattering, false}, r.eye, &out.times);
+        if (excess.diffuse.size() == withoutSingleScattering_.size())
+            for (size_t v = 0; v < excess.diffuse.size(); ++v) withoutSingleScattering_[v] -= excess.diffuse[v];
+        terms_ = std::move(excess.terms);
+        for (std::vector<glm::vec3>& term : terms_)
+            for (glm::vec3& x : term) x = -x;
+    }
+    if (r.singleScattering && (!lightKept || r.eye != last_->eye))
+        singleScattering_ = lighting_->lights(rotation, {false, true}, r.eye, &out.times);
+    else if (!r.singleScattering)
+        singleScattering_.clear();
+    out.correction.diffuse = withoutSingleScattering_;
+    if (singleScattering_.size() == out.correction.diffuse.size())
+        for (size_t v = 0; v < singleScattering_.size(); ++v) out.correction.diffuse[v] += singleScattering_[v];
+    out.correction.terms = terms_;
+    out.lights = lighting_->split().lights.size();
+    out.lightFraction = lighting_->split().lightFraction;
+    last_ = r;
+    out.totalMs = clock.milliseconds();
+}
+
+}  // namespace prt

@@ -1,0 +1,95 @@
+#pragma once
+// The viewer's sun-split worker (prt-relight view --sun-split; docs/viewer.md, "The sun
+// split"): SunSplitVertexLighting (relight/combined/sun_split_vertices.h) on a thread of
+// its own, beside the relight worker. Per request (environment, rotation, light terms,
+// components, eye) it computes the per-vertex correction that turns the relight
+// worker's radiance under the whole environment into the split's: the lights' Jensen-
+// Buhler exitance / pi and single scattering from the eye, minus the transport's relight
+// of the excess. The viewer adds it to the relight worker's result only when both were
+// made for the same light (sameLight), so a frame is either the plain relight or the
+// split, never a mix of two rotations.
+//
+// Each environment is split when a request first asks for it (on the worker's thread);
+// the split of the latest environment is kept. The single scattering of the lights
+// depends on the eye: a camera move redoes it, and only it, when single scattering is
+// shown (the lights' diffusion and the excess's relight are kept).
+//
+// Contract as the other workers (latest_request_worker.h): submit() replaces a request
+// not yet started; take() hands over the newest result and rethrows a failure as
+// prt::Error("sun split", ...). The constructor refuses what SunSplitVertexLighting
+// refuses (editable files, material maps, grounds, no material) by building the first
+// environment's split, prt::Error naming the transport file. The object and the
+// environments must outlive the worker; the object's transport must not change.
+
+#include <glm/glm.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/image.h"
+#include "relight/combined/sun_split_vertices.h"
+#include "relight/viewer/latest_request_worker.h"
+
+namespace prt {
+
+struct SunSplitRequest {
+    int environment = 0;
+    double rotation = 0.0;  // degrees about +Y, as LightRequest's
+    size_t lightTerms = 0;
+    bool multipleScattering = true, singleScattering = true;
+    glm::dvec3 eye{0.0};    // mm: single scattering's viewpoint
+    uint64_t id = 0;
+
+    // The light alike: what must match the relight worker's result (LightRequest::sameLight).
+    bool sameLight(int environment, double rotation, size_t lightTerms, bool ms, bool ss) const {
+        return this->environment == environment && this->rotation == rotation && this->lightTerms == lightTerms &&
+               multipleScattering == ms && singleScattering == ss;
+    }
+    bool sameAs(const SunSplitRequest& o) const {
+        return o.sameLight(environment, rotation, lightTerms, multipleScattering, singleScattering) &&
+               (!singleScattering || eye == o.eye);
+    }
+};
+
+struct SunSplitResult {
+    SunSplitRequest request;
+    VertexRadiance correction;     // per vertex; terms as the file's view terms
+    SunSplitVertexTimes times;     // of what this request computed
+    double totalMs = 0.0;          // everything this request needed, the split included
+    size_t lights = 0;
+    double lightFraction = 0.0;    // the lights' share of the environment's light
+};
+
+class SunSplitWorker {
+public:
+    SunSplitWorker(const RelightObject& object, const std::vector<Image>& environments, const SunSplitOptions& options,
+                   const std::string& transportPath, int firstEnvironment);
+    SunSplitWorker(const SunSplitWorker&) = delete;
+    SunSplitWorker& operator=(const SunSplitWorker&) = delete;
+
+    void submit(const SunSplitRequest& r) { worker_->submit(r); }
+    bool busy() const { return worker_->busy(); }
+    bool take(SunSplitResult& out) { return worker_->take(out); }
+
+private:
+    void compute(const SunSplitRequest& r, SunSplitResult& out);  // on the worker's thread
+
+    const RelightObject& object_;
+    const std::vector<Image>& environments_;
+    SunSplitOptions options_;
+    std::string transportPath_;
+    std::unique_ptr<SunSplitVertexLighting> lighting_;
+    int lightingEnvironment_ = -1;
+    // The last request's parts, kept while their inputs stand: the correction without
+    // the lights' single scattering, and the lights' single scattering alone.
+    std::optional<SunSplitRequest> last_;
+    std::vector<glm::vec3> withoutSingleScattering_, singleScattering_;
+    std::vector<std::vector<glm::vec3>> terms_;
+    // Last: its thread uses the members above.
+    std::optional<LatestRequestWorker<SunSplitRequest, SunSplitResult>> worker_;
+};
+
+}  // namespace prt
