@@ -13,43 +13,17 @@
 #include "common/error.h"
 #include "common/mesh_io.h"
 #include "common/shapes.h"
-#include "tests/test_support.h"
+#include "tests/sun_split_support.h"
 
 using namespace prt;
 
-namespace {
-
-// test_environment_frame's synthetic sphere, with or without a material in its file.
-RelightObject sphereObject(const std::string& name, bool withMaterial) {
-    const std::filesystem::path dir = std::filesystem::current_path() / "test_sun_split_frame_scratch" / name;
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    saveMesh(makeIcosphere(3, 2.0f), (dir / "sphere.obj").string());
-    const TriangleMesh fileMesh = loadMesh((dir / "sphere.obj").string());
-    TransportFile file = test::syntheticFaceTransport(fileMesh, 8, 5.0, 2.0f);
-    if (withMaterial) {
-        file.parameters.push_back({"sigma_s_prime", "2.19,2.62,3.00"});
-        file.parameters.push_back({"sigma_a", "0.0021,0.0041,0.0071"});
-    }
-    saveTransportFile((dir / "sphere.prt").string(), file);
-    return loadRelightObject((dir / "sphere.obj").string(), (dir / "sphere.prt").string());
-}
-
-Image skyWithSun() {
-    Image env = twoToneEnvironment(64, {1.2f, 1.0f, 0.8f}, {0.1f, 0.2f, 0.3f});
-    const Image sun = sunEnvironment(64, glm::normalize(glm::dvec3(1, 1, 0.3)), {300.0f, 280.0f, 250.0f});
-    for (size_t i = 0; i < env.pixels.size(); ++i) env.pixels[i] += sun.pixels[i];
-    return env;
-}
-
-}  // namespace
 
 // The frame is its stages composed: the environment frame lit by the residual (the
 // background the whole map), plus Jensen-Buhler over the face centroids lit by the
 // split's lights turned with the environment.
 TEST(SunSplitFrame, FrameIsTheResidualFramePlusTheLightsFrame) {
-    const RelightObject object = sphereObject("stages", true);
-    const Image env = skyWithSun();
+    const RelightObject object = test::sunSplitSphere("test_sun_split_frame_scratch", "stages", true);
+    const Image env = test::skyWithSun();
     const FrameSettings look;
     const ScatteringComponents ms{true, false};
     const SunSplitOptions options{.threshold = 2.0, .cellDegrees = 8.0};
@@ -89,8 +63,8 @@ TEST(SunSplitFrame, FrameIsTheResidualFramePlusTheLightsFrame) {
 }
 
 TEST(SunSplitFrame, RefusesAFileWithoutAMaterialAndAnUnknownMethod) {
-    const RelightObject bare = sphereObject("bare", false);
-    const Image env = skyWithSun();
+    const RelightObject bare = test::sunSplitSphere("test_sun_split_frame_scratch", "bare", false);
+    const Image env = test::skyWithSun();
     try {
         SunSplitFrameRenderer renderer(bare, env, FrameSettings{}, {true, false}, {}, "bare.prt");
         FAIL() << "a file without a material was accepted";
@@ -98,7 +72,7 @@ TEST(SunSplitFrame, RefusesAFileWithoutAMaterialAndAnUnknownMethod) {
         EXPECT_NE(std::string(e.what()).find("bare.prt"), std::string::npos) << e.what();
         EXPECT_NE(std::string(e.what()).find("names no material"), std::string::npos) << e.what();
     }
-    const RelightObject object = sphereObject("methods", true);
+    const RelightObject object = test::sunSplitSphere("test_sun_split_frame_scratch", "methods", true);
     EXPECT_THROW(SunSplitFrameRenderer(object, env, FrameSettings{}, {true, false}, {}, "sphere.prt", false,
                                        PointMethod::TextureSpace),
                  Error);

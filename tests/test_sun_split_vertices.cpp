@@ -20,32 +20,11 @@
 #include "relight/combined/sun_split_frame.h"
 #include "relight/prt/translucent_shader.h"
 #include "relight/render/gbuffer.h"
-#include "tests/test_support.h"
+#include "tests/sun_split_support.h"
 
 using namespace prt;
 
 namespace {
-
-// test_sun_split_frame's sphere (4 mm across, 642 vertices) with a material in its file.
-RelightObject sphereObject(const std::string& name, int subdivisions = 3) {
-    const std::filesystem::path dir = std::filesystem::current_path() / "test_sun_split_vertices_scratch" / name;
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    saveMesh(makeIcosphere(subdivisions, 2.0f), (dir / "sphere.obj").string());
-    const TriangleMesh fileMesh = loadMesh((dir / "sphere.obj").string());
-    TransportFile file = test::syntheticFaceTransport(fileMesh, 8, 5.0, 2.0f);
-    file.parameters.push_back({"sigma_s_prime", "2.19,2.62,3.00"});
-    file.parameters.push_back({"sigma_a", "0.0021,0.0041,0.0071"});
-    saveTransportFile((dir / "sphere.prt").string(), file);
-    return loadRelightObject((dir / "sphere.obj").string(), (dir / "sphere.prt").string());
-}
-
-Image skyWithSun() {
-    Image env = twoToneEnvironment(64, {1.2f, 1.0f, 0.8f}, {0.1f, 0.2f, 0.3f});
-    const Image sun = sunEnvironment(64, glm::normalize(glm::dvec3(1, 1, 0.3)), {300.0f, 280.0f, 250.0f});
-    for (size_t i = 0; i < env.pixels.size(); ++i) env.pixels[i] += sun.pixels[i];
-    return env;
-}
 
 VertexRadiance relit(const RelightObject& object, const Image& env, const glm::dmat3& rotation) {
     VertexRadiance r;
@@ -60,8 +39,8 @@ VertexRadiance relit(const RelightObject& object, const Image& env, const glm::d
 // the relight is linear in the light, so the excess's relight takes out exactly what the
 // lights put back (to float rounding of the two sums).
 TEST(SunSplitVertices, CorrectionTurnsTheWholeEnvironmentIntoTheResidualPlusTheLights) {
-    const RelightObject object = sphereObject("linear");
-    const Image env = skyWithSun();
+    const RelightObject object = test::sunSplitSphere("test_sun_split_vertices_scratch", "linear", true);
+    const Image env = test::skyWithSun();
     const SunSplitOptions options{.threshold = 2.0, .cellDegrees = 8.0};
     const SunSplitVertexLighting lighting(object, env, options, "sphere.prt");
     ASSERT_FALSE(lighting.split().lights.empty());
@@ -100,8 +79,9 @@ TEST(SunSplitVertices, CorrectionTurnsTheWholeEnvironmentIntoTheResidualPlusTheL
 // plain frame (no split; this synthetic transport is no physical one) is 10.5% off.
 TEST(SunSplitVertices, ShadedFrameIsTheOfflineSplitFrameUpToInterpolation) {
     for (int subdivisions : {3, 4}) {
-        const RelightObject object = sphereObject("frame" + std::to_string(subdivisions), subdivisions);
-        const Image env = skyWithSun();
+        const RelightObject object = test::sunSplitSphere("test_sun_split_vertices_scratch",
+                                                          "frame" + std::to_string(subdivisions), true, subdivisions);
+        const Image env = test::skyWithSun();
         const SunSplitOptions options;
         const ScatteringComponents ms{true, false};
         const glm::dmat3 rotation = rotationY(30.0);
@@ -129,11 +109,11 @@ TEST(SunSplitVertices, ShadedFrameIsTheOfflineSplitFrameUpToInterpolation) {
 }
 
 TEST(SunSplitVertices, RefusesWhatItCannotShow) {
-    RelightObject object = sphereObject("refusals");
-    const Image env = skyWithSun();
+    RelightObject object = test::sunSplitSphere("test_sun_split_vertices_scratch", "refusals", true);
+    const Image env = test::skyWithSun();
     object.transport.parameters.clear();  // no material
     test::expectErrorSubject([&] { SunSplitVertexLighting(object, env, {}, "sphere.prt"); }, "sphere.prt");
-    const RelightObject good = sphereObject("refusals2");
+    const RelightObject good = test::sunSplitSphere("test_sun_split_vertices_scratch", "refusals2", true);
     const std::string bad = test::errorOf([&] { SunSplitVertexLighting(good, env, {.threshold = -1.0}, "sphere.prt"); });
     EXPECT_NE(bad.find("threshold"), std::string::npos) << bad;
 }
