@@ -42,7 +42,7 @@ TEST(SunSplitVertices, CorrectionTurnsTheWholeEnvironmentIntoTheResidualPlusTheL
     const RelightObject object = test::sunSplitSphere("test_sun_split_vertices_scratch", "linear", true);
     const Image env = test::skyWithSun();
     const SunSplitOptions options{.threshold = 2.0, .cellDegrees = 8.0};
-    const SunSplitVertexLighting lighting(object, env, options, "sphere.prt");
+    SunSplitVertexLighting lighting(object, env, options, "sphere.prt");
     ASSERT_FALSE(lighting.split().lights.empty());
     const glm::dmat3 rotation = rotationY(57.0);
     const ScatteringComponents ms{true, false};
@@ -88,7 +88,7 @@ TEST(SunSplitVertices, ShadedFrameIsTheOfflineSplitFrameUpToInterpolation) {
         const Camera camera = frameSphere(object.sphereCentre, object.sphereRadius, 20, 10, 30, 96, 96);
         SunSplitFrameRenderer offline(object, env, FrameSettings{}, ms, options, "sphere.prt");
         const Image want = offline.render(camera, rotation);
-        const SunSplitVertexLighting lighting(object, env, options, "sphere.prt");
+        SunSplitVertexLighting lighting(object, env, options, "sphere.prt");
         VertexRadiance radiance = relit(object, env, rotation);
         const VertexRadiance plain = radiance;
         const VertexRadiance correction = lighting.correction(rotation, ms, 0, camera.eye);

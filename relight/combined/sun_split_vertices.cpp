@@ -4,6 +4,8 @@
 #include <tbb/parallel_for.h>
 
 #include "common/error.h"
+#include "common/material_edit.h"
+#include "common/transport_params.h"
 #include "common/util.h"
 #include "relight/combined/sun_split_frame.h"
 #include "relight/pointlight/jensen_buhler.h"
@@ -15,9 +17,6 @@ namespace {
 
 const RelightObject& checkedObject(const RelightObject& object, const std::string& transportPath) {
     const char* offline = " (prt-relight render --sun-split does)";
-    if (object.editable)
-        throw Error(transportPath, std::string("is editable: the viewer's sun split does not follow material edits yet") +
-                                       offline);
     if (object.materialMap)
         throw Error(transportPath, std::string("with a material map: the viewer's sun split does not blend one yet") +
                                        offline);
@@ -44,7 +43,23 @@ SunSplitVertexLighting::SunSplitVertexLighting(const RelightObject& object, cons
       scene_(object.mesh),
       placed_(faceCentroidSamples(object.mesh)) {
     split_.residual = Image();
+    // The transport's single scattering keeps the file's material under an edit; so do the lights'.
+    singleScatteringMaterial_ =
+        readTransportParameters(object.transport.parameters, transportPath).material.value_or(settings_.material);
+    if (object.editable) {
+        editable_ = *object.editable;
+        unedited_ = object.transport;
+        std::erase_if(unedited_->components,
+                      [](const TransportComponent& c) { return c.kind == ComponentKind::MultipleScattering; });
+    }
     cells_ = nearFieldCells(object.mesh, placed_, settings_);
+}
+
+void SunSplitVertexLighting::setMaterial(const Material& material, double sizeMm) {
+    if (!editable_) throw Error("sun split", "the material of a file that is not editable cannot change");
+    editable_->setMaterial(material, sizeMm);  // throws for what the basis does not cover
+    settings_.material = scaledMaterial(editable_->material(), sizeMm / editable_->objectSizeMm());
+    cells_ = nearFieldCells(object_.mesh, placed_, settings_);
 }
 
 std::vector<glm::vec3> SunSplitVertexLighting::lights(const glm::dmat3& rotation,
@@ -68,7 +83,7 @@ std::vector<glm::vec3> SunSplitVertexLighting::lights(const glm::dmat3& rotation
     }
     if (components.singleScattering) {
         const Stopwatch clock;
-        const std::vector<glm::vec3> t = vertexSingleScattering(scene_, mesh, lights, settings_.material, eye,
+        const std::vector<glm::vec3> t = vertexSingleScattering(scene_, mesh, lights, singleScatteringMaterial_, eye,
                                                                 settings_.surface.singleScatteringOptions);
         for (size_t v = 0; v < out.size(); ++v) out[v] += t[v];
         if (times) times->lightsSingleScattering = clock.milliseconds();
@@ -78,20 +93,33 @@ std::vector<glm::vec3> SunSplitVertexLighting::lights(const glm::dmat3& rotation
 
 VertexRadiance SunSplitVertexLighting::excessRelight(const glm::dmat3& rotation,
                                                      const ScatteringComponents& components, size_t lightTerms,
-                                                     SunSplitVertexTimes* times) const {
+                                                     SunSplitVertexTimes* times) {
     Stopwatch clock;
     const LightVector light = excess_.lightVector(rotation, lightTerms);
     if (times) times->lightVector = clock.milliseconds();
     clock.restart();
     VertexRadiance excess;
-    relightVertices(object_.transport, light, components, excess);
+    if (!editable_) {
+        relightVertices(object_.transport, light, components, excess);
+    } else {
+        // As the viewer's relight worker splits an editable file's relight: what no edit
+        // changes, then the multiple scattering of the current material.
+        relightVertices(*unedited_, light, {false, components.singleScattering}, excess);
+        if (components.multipleScattering) {
+            editable_->projectLight(light);
+            std::vector<glm::vec3> ms;
+            editable_->relightProjected(ms);
+            if (excess.diffuse.size() != ms.size()) excess.diffuse.assign(ms.size(), glm::vec3(0.0f));
+            for (size_t v = 0; v < ms.size(); ++v) excess.diffuse[v] += ms[v];
+        }
+    }
     if (times) times->transport = clock.milliseconds();
     return excess;
 }
 
 VertexRadiance SunSplitVertexLighting::correction(const glm::dmat3& rotation, const ScatteringComponents& components,
                                                   size_t lightTerms, const glm::dvec3& eye,
-                                                  SunSplitVertexTimes* times) const {
+                                                  SunSplitVertexTimes* times) {
     SunSplitVertexTimes t;
     VertexRadiance excess = excessRelight(rotation, components, lightTerms, &t);
     VertexRadiance out;

@@ -21,13 +21,21 @@
 // multiplies the sum by F_t(eta, n . w_o) and the base colour, as it does the
 // transport's; the view terms' slots carry -transport(excess)'s terms.
 //
-// What it does not do: the ground (its transport keeps the whole environment), a
-// material map and an editable file's edits (refused at construction with
-// prt::Error(transportPath, ...)). The lights' material is the file's (shownMaterial).
+// Editable files (prt-precompute --editable): setMaterial makes a material and size the
+// lights' (scaled for the size, material_edit.h, as the point lights' in the viewer) and
+// the excess's multiple scattering (its own copy of the profiles, relit on the projected
+// path: EditableTransport::projectLight + relightProjected, equal to the recombined
+// relight up to its 16-bit quantization). The lights' single scattering keeps the file's
+// material, as the transport's does under an edit.
 //
-// Threads: correction() is const and runs in parallel inside (TBB); the object and its
-// transport must not change while it runs (the viewer's relight worker changes them
-// only for editable files, which are refused here).
+// What it does not do: the ground (its transport keeps the whole environment) and a
+// material map (refused at construction with prt::Error(transportPath, ...)).
+//
+// Threads: correction() is const and runs in parallel inside (TBB). The constructor
+// copies what an edit changes (an editable file's profiles) and the components it
+// relights from an editable file, so the object's transport may change afterwards (the
+// viewer's relight worker recombines it); for other files the object's transport is
+// read and must not change.
 
 #include <glm/glm.hpp>
 
@@ -65,27 +73,38 @@ public:
 
     const SunSplit& split() const { return split_; }
 
+    // Editable files: the material and size of the next corrections (their eta is the
+    // file's). prt::Error for a file that is not editable, and EditableTransport's for a
+    // material or size the basis does not cover (the current one is then kept).
+    void setMaterial(const Material& material, double sizeMm);
+
     // The correction above for the environment turned by `rotation`, the components
     // shown and the light vector's kept terms (0: all), single scattering seen from `eye`
     // (mm). diffuse has one entry per vertex; terms as relightVertices gives the file's
     // view terms (empty without them or without single scattering).
     VertexRadiance correction(const glm::dmat3& rotation, const ScatteringComponents& components, size_t lightTerms,
-                              const glm::dvec3& eye, SunSplitVertexTimes* times = nullptr) const;
+                              const glm::dvec3& eye, SunSplitVertexTimes* times = nullptr);
 
     // The correction's two parts, for callers that keep one while the other changes (the
     // viewer's worker redoes only the lights' single scattering when the eye moves):
     // transport(excess), diffuse and view terms (times: lightVector and transport) ...
+    // Not const for editable files (the projected light is kept).
     VertexRadiance excessRelight(const glm::dmat3& rotation, const ScatteringComponents& components,
-                                 size_t lightTerms, SunSplitVertexTimes* times = nullptr) const;
+                                 size_t lightTerms, SunSplitVertexTimes* times = nullptr);
     // ... and lights(v) (times: the lights' fields).
     std::vector<glm::vec3> lights(const glm::dmat3& rotation, const ScatteringComponents& components,
                                   const glm::dvec3& eye, SunSplitVertexTimes* times = nullptr) const;
 
 private:
     const RelightObject& object_;
-    PointRenderSettings settings_;
+    PointRenderSettings settings_;      // the lights' multiple scattering: the current material
+    Material singleScatteringMaterial_;  // the file's
     SunSplit split_;               // its residual dropped after the excess is made
     EnvironmentLight excess_;      // environment - residual, prepared for turning
+    // Editable files: the profiles (a copy) and the components no edit changes (single
+    // scattering), relit in place of the object's transport.
+    std::optional<EditableTransport> editable_;
+    std::optional<TransportFile> unedited_;
     RayScene scene_;
     IrradianceSamples placed_;
     std::optional<SampleCells> cells_;

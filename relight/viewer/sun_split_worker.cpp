@@ -30,8 +30,23 @@ void SunSplitWorker::compute(const SunSplitRequest& r, SunSplitResult& out) {
         last_.reset();
     }
     const glm::dmat3 rotation = rotationY(r.rotation);
-    const bool lightKept =
-        last_ && last_->sameLight(r.environment, r.rotation, r.lightTerms, r.multipleScattering, r.singleScattering);
+    out.materialError.clear();
+    bool materialKept = !last_ || last_->sameMaterial(r.material, r.sizeMm);
+    if (r.material && (!last_ || !materialKept)) {
+        try {
+            lighting_->setMaterial(*r.material, r.sizeMm);
+        } catch (const Error& e) {  // the relight worker refuses it too: no correction for it
+            out.materialError = e.what();
+            out.correction = VertexRadiance{};
+            last_.reset();
+            out.totalMs = clock.milliseconds();
+            return;
+        }
+        materialKept = false;
+    }
+    const bool lightKept = last_ && materialKept &&
+                           last_->sameLight(r.environment, r.rotation, r.lightTerms, r.multipleScattering,
+                                            r.singleScattering);
     if (!lightKept) {
         VertexRadiance excess = lighting_->excessRelight(rotation, {r.multipleScattering, r.singleScattering},
                                                          r.lightTerms, &out.times);
@@ -42,7 +57,10 @@ void SunSplitWorker::compute(const SunSplitRequest& r, SunSplitResult& out) {
         for (std::vector<glm::vec3>& term : terms_)
             for (glm::vec3& x : term) x = -x;
     }
-    if (r.singleScattering && (!lightKept || r.eye != last_->eye))
+    const bool singleScatteringKept = last_ && last_->sameLight(r.environment, r.rotation, r.lightTerms,
+                                                                r.multipleScattering, r.singleScattering) &&
+                                      r.eye == last_->eye && !singleScattering_.empty();
+    if (r.singleScattering && !singleScatteringKept)
         singleScattering_ = lighting_->lights(rotation, {false, true}, r.eye, &out.times);
     else if (!r.singleScattering)
         singleScattering_.clear();

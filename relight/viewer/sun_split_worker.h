@@ -17,9 +17,13 @@
 // Contract as the other workers (latest_request_worker.h): submit() replaces a request
 // not yet started; take() hands over the newest result and rethrows a failure as
 // prt::Error("sun split", ...). The constructor refuses what SunSplitVertexLighting
-// refuses (editable files, material maps, grounds, no material) by building the first
+// refuses (material maps, grounds, no material) by building the first
 // environment's split, prt::Error naming the transport file. The object and the
-// environments must outlive the worker; the object's transport must not change.
+// environments must outlive the worker; construct it before the relight worker, which
+// changes an editable object's transport (SunSplitVertexLighting copies what it needs).
+// An editable file's request carries the material and size; a new one redoes the
+// lights' pass 1 and diffusion and the excess's relight, and keeps the lights' single
+// scattering (the file's material, as the transport's under an edit).
 
 #include <glm/glm.hpp>
 
@@ -30,6 +34,7 @@
 #include <vector>
 
 #include "common/image.h"
+#include "common/materials.h"
 #include "relight/combined/sun_split_vertices.h"
 #include "relight/viewer/latest_request_worker.h"
 
@@ -41,7 +46,18 @@ struct SunSplitRequest {
     size_t lightTerms = 0;
     bool multipleScattering = true, singleScattering = true;
     glm::dvec3 eye{0.0};    // mm: single scattering's viewpoint
+    // Editable files: the material and size of the relight it goes with (nullopt: the
+    // file's, and for other files).
+    std::optional<Material> material;
+    double sizeMm = 0.0;
     uint64_t id = 0;
+
+    // Coefficients and size equal (LightRequest::sameMaterial's rule).
+    bool sameMaterial(const std::optional<Material>& m, double size) const {
+        if (material.has_value() != m.has_value()) return false;
+        return !material || (material->sigmaA == m->sigmaA && material->sigmaSPrime == m->sigmaSPrime &&
+                             material->g == m->g && sizeMm == size);
+    }
 
     // The light alike: what must match the relight worker's result (LightRequest::sameLight).
     bool sameLight(int environment, double rotation, size_t lightTerms, bool ms, bool ss) const {
@@ -50,7 +66,7 @@ struct SunSplitRequest {
     }
     bool sameAs(const SunSplitRequest& o) const {
         return o.sameLight(environment, rotation, lightTerms, multipleScattering, singleScattering) &&
-               (!singleScattering || eye == o.eye);
+               o.sameMaterial(material, sizeMm) && (!singleScattering || eye == o.eye);
     }
 };
 
@@ -61,6 +77,7 @@ struct SunSplitResult {
     double totalMs = 0.0;          // everything this request needed, the split included
     size_t lights = 0;
     double lightFraction = 0.0;    // the lights' share of the environment's light
+    std::string materialError;     // a material the basis does not cover: no correction
 };
 
 class SunSplitWorker {

@@ -306,6 +306,8 @@ SunSplitRequest Viewer::currentSunRequest() const {
     r.multipleScattering = l.multipleScattering;
     r.singleScattering = l.singleScattering;
     r.eye = state_.camera.eye;
+    r.material = l.material;
+    r.sizeMm = l.sizeMm;
     return r;
 }
 
@@ -314,6 +316,8 @@ bool Viewer::sunMatchesFront() const {
     return haveSun_ && haveLight_ &&
            sunFront_.request.sameLight(l.environment, l.rotation, l.lightTerms, l.multipleScattering,
                                        l.singleScattering) &&
+           // An editable file's: the material the relight shows (the previous one when it refused an edit).
+           sunFront_.request.sameMaterial(front_.material, front_.sizeMm) &&
            sunFront_.correction.diffuse.size() == s_.object.mesh.vertexCount();
 }
 
@@ -321,6 +325,7 @@ std::string Viewer::sunSplitLine() const {
     if (!sunWorker_) return "";
     char line[256];
     if (!haveSun_) return "sun split: splitting ...";
+    if (!sunFront_.materialError.empty()) return "sun split: not for this material: " + sunFront_.materialError;
     std::snprintf(line, sizeof line, "sun split: %zu lights carry %.1f%% of the light; %s (last update %.0f ms)",
                   sunFront_.lights, 100.0 * sunFront_.lightFraction,
                   sunShown_ ? "shown" : "refining (the plain relight meanwhile)", sunFront_.totalMs);
