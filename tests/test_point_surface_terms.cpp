@@ -255,7 +255,7 @@ TEST(PointSingleScattering, MatchesBruteForceOnASlab) {
 // A mesh with triangles wound against their vertex normals (as scanned meshes have) is
 // read the way the normals face, at x_o and at the light's entry x_i, as prt-reference
 // reads it: a sphere with every third triangle reversed, its vertex normals kept, gives
-// the consistent sphere's single scattering (to 1e-7: the rounding of the hits). Before the orientation was read from the
+// the consistent sphere's single scattering (to 1e-6: the rounding of the hits). Before the orientation was read from the
 // normals, the reversed triangles darkened it: x_o on one returned 0, and paths whose
 // light entered through one were dropped as "seen from outside".
 TEST(PointSingleScattering, ReadsTrianglesWoundAgainstTheirNormalsTheWayTheNormalsFace) {

@@ -15,6 +15,7 @@
 #include "common/envmap.h"
 #include "common/error.h"
 #include "common/image_compare.h"
+#include "common/materials.h"
 #include "common/mesh_io.h"
 #include "common/shapes.h"
 #include "relight/combined/sun_split_frame.h"
@@ -106,6 +107,30 @@ TEST(SunSplitVertices, ShadedFrameIsTheOfflineSplitFrameUpToInterpolation) {
         EXPECT_LT(split, subdivisions == 3 ? 0.003 : 0.001);
         EXPECT_LT(split, 0.1 * unsplit);
     }
+}
+
+// Switching environments (the viewer's N / B keys) re-splits from the object's copies:
+// the correction is a fresh lighting's for that environment, bit for bit.
+TEST(SunSplitVertices, AnotherEnvironmentEqualsAFreshSplit) {
+    const RelightObject object = test::sunSplitSphere("test_sun_split_vertices_scratch", "switch", true);
+    const Image first = test::skyWithSun();
+    Image second = twoToneEnvironment(64, {0.3f, 0.5f, 0.9f}, {0.2f, 0.1f, 0.05f});
+    const Image sun = sunEnvironment(64, glm::normalize(glm::dvec3(-1, 0.5, 0.2)), {500.0f, 400.0f, 300.0f});
+    for (size_t i = 0; i < second.pixels.size(); ++i) second.pixels[i] += sun.pixels[i];
+    SunSplitVertexLighting switched(object, first, {}, "sphere.prt");
+    switched.setEnvironment(second);
+    SunSplitVertexLighting fresh(object, second, {}, "sphere.prt");
+    EXPECT_EQ(switched.split().lights.size(), fresh.split().lights.size());
+    const glm::dmat3 rotation = rotationY(20.0);
+    const ScatteringComponents ms{true, false};
+    const VertexRadiance a = switched.correction(rotation, ms, 0, glm::dvec3(0, 0, 30));
+    const VertexRadiance b = fresh.correction(rotation, ms, 0, glm::dvec3(0, 0, 30));
+    EXPECT_EQ(a.diffuse, b.diffuse);
+    SunSplitVertexLighting unswitched(object, first, {}, "sphere.prt");
+    EXPECT_NE(unswitched.correction(rotation, ms, 0, glm::dvec3(0, 0, 30)).diffuse, a.diffuse);
+    // A file that is not editable keeps its material.
+    const std::string refused = test::errorOf([&] { switched.setMaterial(materialByName("Ketchup"), 30.0); });
+    EXPECT_NE(refused.find("not editable"), std::string::npos) << refused;
 }
 
 TEST(SunSplitVertices, RefusesWhatItCannotShow) {

@@ -38,6 +38,9 @@ SunSplitVertexLighting::SunSplitVertexLighting(const RelightObject& object, cons
                                                const SunSplitOptions& options, const std::string& transportPath)
     : object_(checkedObject(object, transportPath)),
       settings_(sunSplitLightSettings(object, transportPath, ScatteringComponents::all(), PointMethod::JensenBuhler)),
+      options_(options),
+      cubemapSize_(int(object.transport.cubemapSize)),
+      folded_(componentsOf(object.transport).folded),
       split_(splitSun(environment, options)),
       excess_(excessOf(environment, split_.residual), int(object.transport.cubemapSize)),
       scene_(object.mesh),
@@ -53,6 +56,14 @@ SunSplitVertexLighting::SunSplitVertexLighting(const RelightObject& object, cons
                       [](const TransportComponent& c) { return c.kind == ComponentKind::MultipleScattering; });
     }
     cells_ = nearFieldCells(object.mesh, placed_, settings_);
+}
+
+void SunSplitVertexLighting::setEnvironment(const Image& environment) {
+    SunSplit split = splitSun(environment, options_);
+    EnvironmentLight excess(excessOf(environment, split.residual), cubemapSize_);
+    split.residual = Image();
+    split_ = std::move(split);
+    excess_ = std::move(excess);
 }
 
 void SunSplitVertexLighting::setMaterial(const Material& material, double sizeMm) {
@@ -123,7 +134,9 @@ VertexRadiance SunSplitVertexLighting::correction(const glm::dmat3& rotation, co
     SunSplitVertexTimes t;
     VertexRadiance excess = excessRelight(rotation, components, lightTerms, &t);
     VertexRadiance out;
-    out.diffuse = lights(rotation, components, eye, &t);
+    ScatteringComponents lit = components;
+    if (folded_ && lit.multipleScattering) lit.singleScattering = true;  // removed with the excess's
+    out.diffuse = lights(rotation, lit, eye, &t);
     if (excess.diffuse.size() == out.diffuse.size())
         for (size_t v = 0; v < out.diffuse.size(); ++v) out.diffuse[v] -= excess.diffuse[v];
     out.terms = std::move(excess.terms);

@@ -31,11 +31,17 @@
 // What it does not do: the ground (its transport keeps the whole environment) and a
 // material map (refused at construction with prt::Error(transportPath, ...)).
 //
-// Threads: correction() is const and runs in parallel inside (TBB). The constructor
-// copies what an edit changes (an editable file's profiles) and the components it
-// relights from an editable file, so the object's transport may change afterwards (the
-// viewer's relight worker recombines it); for other files the object's transport is
-// read and must not change.
+// A file with folded single scattering (prt-precompute --fold-ss): the excess's relight
+// removes its single scattering with its multiple scattering, so the lights' single
+// scattering goes with the multiple scattering (as render's split adds it).
+//
+// Threads: the calls run in parallel inside (TBB); one call at a time. The constructor
+// reads the object's transport and editable state and copies what an edit changes (an
+// editable file's profiles) and the components it relights, so for an editable file it
+// must run before anything edits the object (the viewer's relight worker), and the
+// object's transport may change afterwards; setEnvironment and the rest read only the
+// copies and what no edit changes (the mesh). For other files the object's transport is
+// read by every relight and must not change.
 
 #include <glm/glm.hpp>
 
@@ -65,13 +71,17 @@ struct SunSplitVertexTimes {
 
 class SunSplitVertexLighting {
 public:
-    // `object` must outlive this and hold no editable transport, material map or ground
-    // (prt::Error(transportPath, ...)); it must name a material (sunSplitMaterial).
-    // Splits `environment` (splitSun's errors for bad options).
+    // `object` must outlive this and hold no material map or ground (prt::Error(
+    // transportPath, ...)); it must name a material (sunSplitMaterial). Splits
+    // `environment` (splitSun's errors for bad options).
     SunSplitVertexLighting(const RelightObject& object, const Image& environment, const SunSplitOptions& options,
                            const std::string& transportPath);
 
+    // Splits another environment with the same options (the material is kept).
+    void setEnvironment(const Image& environment);
     const SunSplit& split() const { return split_; }
+    // The file's single scattering is folded into its multiple scattering.
+    bool foldedSingleScattering() const { return folded_; }
 
     // Editable files: the material and size of the next corrections (their eta is the
     // file's). prt::Error for a file that is not editable, and EditableTransport's for a
@@ -81,17 +91,19 @@ public:
     // The correction above for the environment turned by `rotation`, the components
     // shown and the light vector's kept terms (0: all), single scattering seen from `eye`
     // (mm). diffuse has one entry per vertex; terms as relightVertices gives the file's
-    // view terms (empty without them or without single scattering).
+    // view terms (empty without them or without single scattering). Not const for
+    // editable files (the projected light is kept).
     VertexRadiance correction(const glm::dmat3& rotation, const ScatteringComponents& components, size_t lightTerms,
                               const glm::dvec3& eye, SunSplitVertexTimes* times = nullptr);
 
     // The correction's two parts, for callers that keep one while the other changes (the
     // viewer's worker redoes only the lights' single scattering when the eye moves):
     // transport(excess), diffuse and view terms (times: lightVector and transport) ...
-    // Not const for editable files (the projected light is kept).
     VertexRadiance excessRelight(const glm::dmat3& rotation, const ScatteringComponents& components,
                                  size_t lightTerms, SunSplitVertexTimes* times = nullptr);
-    // ... and lights(v) (times: the lights' fields).
+    // ... and lights(v) (times: the lights' fields): the parts `components` names (a
+    // caller of a folded file asks for single scattering with multiple scattering, as
+    // correction() does).
     std::vector<glm::vec3> lights(const glm::dmat3& rotation, const ScatteringComponents& components,
                                   const glm::dvec3& eye, SunSplitVertexTimes* times = nullptr) const;
 
@@ -99,6 +111,9 @@ private:
     const RelightObject& object_;
     PointRenderSettings settings_;      // the lights' multiple scattering: the current material
     Material singleScatteringMaterial_;  // the file's
+    SunSplitOptions options_;
+    int cubemapSize_ = 0;
+    bool folded_ = false;
     SunSplit split_;               // its residual dropped after the excess is made
     EnvironmentLight excess_;      // environment - residual, prepared for turning
     // Editable files: the profiles (a copy) and the components no edit changes (single

@@ -22,10 +22,9 @@ void SunSplitWorker::compute(const SunSplitRequest& r, SunSplitResult& out) {
     const Stopwatch clock;
     out.request = r;
     out.times = SunSplitVertexTimes{};
-    if (!lighting_ || lightingEnvironment_ != r.environment) {
-        lighting_.reset();  // free the old split before making the new one
-        lighting_ = std::make_unique<SunSplitVertexLighting>(object_, environments_.at(size_t(r.environment)),
-                                                             options_, transportPath_);
+    if (lightingEnvironment_ != r.environment) {
+        // From the copies the constructor made: nothing the relight worker edits is read here.
+        lighting_->setEnvironment(environments_.at(size_t(r.environment)));
         lightingEnvironment_ = r.environment;
         last_.reset();
     }
@@ -57,12 +56,16 @@ void SunSplitWorker::compute(const SunSplitRequest& r, SunSplitResult& out) {
         for (std::vector<glm::vec3>& term : terms_)
             for (glm::vec3& x : term) x = -x;
     }
-    const bool singleScatteringKept = last_ && last_->sameLight(r.environment, r.rotation, r.lightTerms,
-                                                                r.multipleScattering, r.singleScattering) &&
-                                      r.eye == last_->eye && !singleScattering_.empty();
-    if (r.singleScattering && !singleScatteringKept)
+    // The lights' single scattering depends on the lights and the eye only (the file's material).
+    const bool singleScatteringKept = last_ && last_->environment == r.environment &&
+                                      last_->rotation == r.rotation && r.eye == last_->eye &&
+                                      !singleScattering_.empty();
+    // A folded file's excess takes its single scattering with the multiple scattering.
+    const bool lightsSingleScattering =
+        r.singleScattering || (lighting_->foldedSingleScattering() && r.multipleScattering);
+    if (lightsSingleScattering && !singleScatteringKept)
         singleScattering_ = lighting_->lights(rotation, {false, true}, r.eye, &out.times);
-    else if (!r.singleScattering)
+    else if (!lightsSingleScattering)
         singleScattering_.clear();
     out.correction.diffuse = withoutSingleScattering_;
     if (singleScattering_.size() == out.correction.diffuse.size())

@@ -6,11 +6,13 @@
 // worker's radiance under the whole environment into the split's: the lights' Jensen-
 // Buhler exitance / pi and single scattering from the eye, minus the transport's relight
 // of the excess. The viewer adds it to the relight worker's result only when both were
-// made for the same light (sameLight), so a frame is either the plain relight or the
-// split, never a mix of two rotations.
+// made for the same light and material, so a frame is either the plain relight or the
+// split, never one rotation's relight with another's lights. After a camera move the
+// lights' single scattering of the previous eye stays on screen until the new one lands
+// (as the point lights' does).
 //
-// Each environment is split when a request first asks for it (on the worker's thread);
-// the split of the latest environment is kept. The single scattering of the lights
+// Each environment is split when a request first asks for it (on the worker's thread,
+// from the copies made at construction); the split of the latest environment is kept. The single scattering of the lights
 // depends on the eye: a camera move redoes it, and only it, when single scattering is
 // shown (the lights' diffusion and the excess's relight are kept).
 //

@@ -232,7 +232,9 @@ void Viewer::start() {
                              s_.lightOrbitDegreesPerFrame, glm::dvec3(bounds(s_.object.mesh).centre()));
 
     loadEnvironments();
-    // Before the window: its refusals (editable files, grounds, material maps) come first.
+    // Before the window, so its refusals (grounds, material maps, no material) come first,
+    // and before the relight worker, which edits an editable object (the split copies
+    // what it needs here).
     if (s_.sunSplit) {
         sunWorker_ = std::make_unique<SunSplitWorker>(s_.object, environments_, *s_.sunSplit, s_.transportPath,
                                                       state_.environment);
@@ -683,7 +685,8 @@ int Viewer::run() {
         const bool lastFrame = script_.finishing() && !busy && displayed_.id == submitted_.id &&
                                (!pointWorker_ || (havePoint_ && pointDisplayed_.id == pointSubmitted_.id)) &&
                                (!sunWorker_ || (haveSun_ && sunFront_.request.id == sunSubmitted_.id &&
-                                                (sunShown_ || !state_.environmentLight)));
+                                                (sunShown_ || !state_.environmentLight ||
+                                                 !sunFront_.materialError.empty())));
         if (lastFrame && s_.edit && !front_.materialError.empty())
             throw Error("--edit-material", "the relight refused the edit: " + front_.materialError);
         // While a worker computes and nothing on screen would change (no input, no
