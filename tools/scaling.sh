@@ -25,7 +25,7 @@ set -euo pipefail
 
 usage() {
   cat <<'EOF'
-Usage: tools/scaling.sh [--quick] [--no-build] [--keep] [--out DIR] [--plots DIR]
+Usage: tools/scaling.sh [--quick] [--no-build] [--keep] [--repeat N] [--out DIR] [--plots DIR]
 
 Full run: about 20-25 minutes on 2 quiet cores (the single-scattering jobs take most of
 it). --quick: dragon res4 only with tiny variants (about 2 minutes), to test the
@@ -34,6 +34,9 @@ chain; its plots go to DIR/images, not docs/images.
   --quick       res4 + tiny variants only
   --no-build    use the binaries already in $BUILD_DIR (default build/)
   --keep        keep the transport files (DIR/prt/*.prt; the full set is ~1 GB)
+  --repeat N    run every precompute and relight job N times (default 1; the tables
+                show the median and the min..max of each time, the plots the medians;
+                N times as long)
   --out DIR     output directory (default out/scaling)
   --plots DIR   where the PNG plots go (default docs/images; --quick: DIR/images)
 EOF
@@ -46,11 +49,13 @@ plots=
 quick=0
 do_build=1
 keep=0
+repeat=1
 while [ $# -gt 0 ]; do
   case "$1" in
     --quick) quick=1 ;;
     --no-build) do_build=0 ;;
     --keep) keep=1 ;;
+    --repeat) [ $# -ge 2 ] || { echo "scaling: --repeat needs a count" >&2; exit 2; }; repeat=$2; shift ;;
     --out) [ $# -ge 2 ] || { echo "scaling: --out needs a directory" >&2; exit 2; }; out=$2; shift ;;
     --plots) [ $# -ge 2 ] || { echo "scaling: --plots needs a directory" >&2; exit 2; }; plots=$2; shift ;;
     -h|--help) usage; exit 0 ;;
@@ -58,6 +63,7 @@ while [ $# -gt 0 ]; do
   esac
   shift
 done
+[[ "$repeat" =~ ^[1-9][0-9]*$ ]] || { echo "scaling: --repeat must be a positive integer, not '$repeat'" >&2; exit 2; }
 case "$build" in /*) ;; *) build=$PWD/$build ;; esac
 case "$out" in /*) ;; *) out=$PWD/$out ;; esac
 if [ -z "$plots" ]; then
@@ -148,33 +154,40 @@ done
 mkdir -p "$out/json" "$out/prt" "$out/logs"
 o=${out#"$root"/}
 manifest=$out/manifest.tsv
-printf 'name\tseries\tprecompute\trelight\n' >"$manifest"
+printf 'name\tseries\tprecompute\trelight\trepeats\n' >"$manifest"
 failed=0
 i=0
 start_all=$SECONDS
 for r in "${runs[@]}"; do
   IFS='|' read -r name series mesh extra <<<"$r"
   i=$((i + 1))
-  json=$o/json/$name.json
-  rjson=$o/json/$name.relight.json
   prt=$o/prt/$name.prt
-  log=$out/logs/$name.log
-  rm -f "$json" "$rjson"
   # shellcheck disable=SC2206
   extra_args=($extra)
-  pre_cmd=("$precompute" "$mesh" --size-mm 30 --material Marble "${extra_args[@]}" -f -q
-           --summary-json "$json" -o "$prt")
-  rel_cmd=("$bench_file" "$prt" -e "$env" --json "$rjson")
-  printf '%s\t%s\t%s\t%s\n' "$name" "$series" "${pre_cmd[*]}" "${rel_cmd[*]}" >>"$manifest"
-  started=$SECONDS
-  printf 'scaling: [%d/%d] %s: %s\n' "$i" "${#runs[@]}" "$name" "${pre_cmd[*]}"
-  if "${pre_cmd[@]}" >"$log" 2>&1 && "${rel_cmd[@]}" >>"$log" 2>&1; then
-    printf 'scaling: [%d/%d] %s done in %d s\n' "$i" "${#runs[@]}" "$name" $((SECONDS - started))
-  else
-    echo "scaling: [$i/${#runs[@]}] $name FAILED; last lines of $log:" >&2
-    tail -n 10 "$log" >&2
-    failed=$((failed + 1))
-  fi
+  # Repeat k writes NAME.json (k = 1) or NAME.rK.json, and the relight's beside it.
+  ok=1
+  for k in $(seq 1 "$repeat"); do
+    tag=$name; [ "$k" = 1 ] || tag=$name.r$k
+    json=$o/json/$tag.json
+    rjson=$o/json/$tag.relight.json
+    log=$out/logs/$tag.log
+    rm -f "$json" "$rjson"
+    pre_cmd=("$precompute" "$mesh" --size-mm 30 --material Marble "${extra_args[@]}" -f -q
+             --summary-json "$json" -o "$prt")
+    rel_cmd=("$bench_file" "$prt" -e "$env" --json "$rjson")
+    [ "$k" = 1 ] && printf '%s\t%s\t%s\t%s\t%s\n' "$name" "$series" "${pre_cmd[*]}" "${rel_cmd[*]}" "$repeat" >>"$manifest"
+    started=$SECONDS
+    printf 'scaling: [%d/%d] %s (run %d of %d): %s\n' "$i" "${#runs[@]}" "$name" "$k" "$repeat" "${pre_cmd[*]}"
+    if "${pre_cmd[@]}" >"$log" 2>&1 && "${rel_cmd[@]}" >>"$log" 2>&1; then
+      printf 'scaling: [%d/%d] %s (run %d of %d) done in %d s\n' "$i" "${#runs[@]}" "$name" "$k" "$repeat" \
+        $((SECONDS - started))
+    else
+      echo "scaling: [$i/${#runs[@]}] $name (run $k) FAILED; last lines of $log:" >&2
+      tail -n 10 "$log" >&2
+      ok=0
+    fi
+  done
+  [ "$ok" = 1 ] || failed=$((failed + 1))
   [ "$keep" = 1 ] || rm -f "$prt"
 done
 
