@@ -12,9 +12,10 @@
 // (as the point lights' does).
 //
 // Each environment is split when a request first asks for it (on the worker's thread,
-// from the copies made at construction); the split of the latest environment is kept. The single scattering of the lights
-// depends on the eye: a camera move redoes it, and only it, when single scattering is
-// shown (the lights' diffusion and the excess's relight are kept).
+// from the copies made at construction); the split of the latest environment is kept.
+// The lights' single scattering depends on the lights and the eye: a camera move redoes
+// it, and only it, when single scattering is shown (the lights' diffusion and the
+// excess's relight are kept); toggling multiple scattering or the light terms keeps it.
 //
 // Contract as the other workers (latest_request_worker.h): submit() replaces a request
 // not yet started; take() hands over the newest result and rethrows a failure as
