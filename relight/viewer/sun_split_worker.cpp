@@ -10,10 +10,10 @@ namespace prt {
 SunSplitWorker::SunSplitWorker(const RelightObject& object, const std::vector<Image>& environments,
                                const SunSplitOptions& options, const std::string& transportPath,
                                int firstEnvironment)
-    : object_(object), environments_(environments), options_(options), transportPath_(transportPath) {
+    : environments_(environments) {
     // The refusals here, on the caller's thread, before the thread starts.
-    lighting_ = std::make_unique<SunSplitVertexLighting>(object_, environments_.at(size_t(firstEnvironment)), options_,
-                                                         transportPath_);
+    lighting_ = std::make_unique<SunSplitVertexLighting>(object, environments_.at(size_t(firstEnvironment)), options,
+                                                         transportPath);
     lightingEnvironment_ = firstEnvironment;
     worker_.emplace("sun split", [this](const SunSplitRequest& r, SunSplitResult& out) { compute(r, out); });
 }

@@ -97,10 +97,7 @@ public:
 private:
     void compute(const SunSplitRequest& r, SunSplitResult& out);  // on the worker's thread
 
-    const RelightObject& object_;
     const std::vector<Image>& environments_;
-    SunSplitOptions options_;
-    std::string transportPath_;
     std::unique_ptr<SunSplitVertexLighting> lighting_;
     int lightingEnvironment_ = -1;
     // The last request's parts, kept while their inputs stand: the correction without
