@@ -669,6 +669,91 @@ __attribute__((target("avx512f,avx512bw,avx512vl,avx2,fma"))) bool relightBlocks
 }
 #endif
 
+#if PRT_RELIGHT_AVX512
+// AVX-512 per-vertex components: four coefficients per zmm, one coefficient per 128-bit
+// lane (R, G, B, 0). The AVX2 loop spends three FP-unit operations on every coefficient
+// (widen, convert, multiply-add); here the four coefficients' twelve int16 values are one
+// masked load widened to int32, one permutation into the four lanes (the fourth value of
+// each zeroed by the mask) and one conversion, and the four light coefficients are one
+// load and three 128-bit inserts, then one multiply-add: seven operations for four.
+// Masked loads do not fault on masked-off elements, so nothing is read past the
+// component's last coefficient and VertexSpan::safe is not needed. Two accumulators (8
+// partial sums per channel), summed pairwise at the end.
+#define PRT_AVX512 __attribute__((target("avx512f,avx512bw,avx512vl,avx2,fma")))
+// Four coefficients' values in their lanes: (q0, q1, q2, 0, q3, q4, q5, 0, ...).
+PRT_AVX512 inline __m512 values4Avx512(const int16_t* p) {
+    const __m512i perm = _mm512_setr_epi32(0, 1, 2, 0, 3, 4, 5, 0, 6, 7, 8, 0, 9, 10, 11, 0);
+    const __m256i w = _mm256_maskz_loadu_epi16(__mmask16(0x0FFF), p);
+    return _mm512_maskz_cvtepi32_ps(
+        __mmask16(0xFFFF), _mm512_maskz_permutexvar_epi32(__mmask16(0x7777), perm,
+                                                          _mm512_maskz_cvtepi16_epi32(__mmask16(0xFFFF), w)));
+}
+
+// The four coefficients' light, one per 128-bit lane. Lane 3 of each (0 with stride 4,
+// the next coefficient's R with stride 3) meets a zeroed value.
+template <int Stride>
+PRT_AVX512 inline __m512 light4Avx512(const float* light, const uint16_t* k) {
+    const __m512 l = _mm512_castps128_ps512(_mm_loadu_ps(light + size_t(k[0]) * Stride));
+    const __m512 l1 = _mm512_insertf32x4(l, _mm_loadu_ps(light + size_t(k[1]) * Stride), 1);
+    const __m512 l2 = _mm512_insertf32x4(l1, _mm_loadu_ps(light + size_t(k[2]) * Stride), 2);
+    return _mm512_insertf32x4(l2, _mm_loadu_ps(light + size_t(k[3]) * Stride), 3);
+}
+
+template <int Stride>
+PRT_AVX512 __attribute__((always_inline)) inline void dotAvx512(const VertexSpan& span, const float* light, float out[3]) {
+    const uint16_t* idx = span.idx;
+    const int16_t* q = span.q;
+    __m512 a0 = _mm512_setzero_ps(), a1 = a0;
+    size_t n = 0;
+    for (; n + 8 <= span.count; n += 8) {
+        // _mm_prefetch directly: GCC 12 drops prefetchAhead's prefetches once this
+        // function is inlined into its caller of another target, which halves the speed.
+        _mm_prefetch(reinterpret_cast<const char*>(reinterpret_cast<uintptr_t>(q + 3 * n) + 3 * sizeof(int16_t) * kPrefetchAhead), _MM_HINT_T0);
+        _mm_prefetch(reinterpret_cast<const char*>(reinterpret_cast<uintptr_t>(idx + n) + sizeof(uint16_t) * kPrefetchAhead), _MM_HINT_T0);
+        a0 = _mm512_fmadd_ps(values4Avx512(q + 3 * n), light4Avx512<Stride>(light, idx + n), a0);
+        a1 = _mm512_fmadd_ps(values4Avx512(q + 3 * n + 12), light4Avx512<Stride>(light, idx + n + 4), a1);
+    }
+    if (n + 4 <= span.count) {
+        a0 = _mm512_fmadd_ps(values4Avx512(q + 3 * n), light4Avx512<Stride>(light, idx + n), a0);
+        n += 4;
+    }
+    __m128 t = _mm_setzero_ps();
+    for (; n < span.count; ++n)
+        t = _mm_fmadd_ps(_mm_cvtepi32_ps(_mm_cvtepi16_epi32(_mm_maskz_loadu_epi16(__mmask8(0x7), q + 3 * n))),
+                         _mm_loadu_ps(light + size_t(idx[n]) * Stride), t);
+    const __m512 a = _mm512_add_ps(a0, a1);
+    const __m256 h = _mm256_add_ps(_mm256_castpd_ps(_mm512_maskz_extractf64x4_pd(__mmask8(0xF), _mm512_castps_pd(a), 0)),
+                                    _mm256_castpd_ps(_mm512_maskz_extractf64x4_pd(__mmask8(0xF), _mm512_castps_pd(a), 1)));
+    const __m128 s = _mm_add_ps(_mm_add_ps(_mm256_castps256_ps128(h), _mm256_extractf128_ps(h, 1)), t);
+    alignas(16) float sum[4];
+    _mm_store_ps(sum, s);
+    for (int c = 0; c < 3; ++c) out[c] = sum[c];
+}
+
+template <int Stride, bool Add>
+PRT_AVX512 bool relightRangeAvx512(
+    const Stream& s, size_t first, size_t last, const float* light, uint32_t lightCount, glm::vec3* out,
+    size_t& badVertex) {
+    for (size_t v = first; v < last; ++v) {
+        VertexSpan span;
+        if (!vertexSpan(s, v, lightCount, span)) {
+            badVertex = v;
+            return false;
+        }
+        float sum[3];
+        const VertexSpan sh = s.shScales ? splitShSpan(span, s.shFrom) : VertexSpan{};
+        dotAvx512<Stride>(span, light, sum);
+        store<Add>(s, v, sum, out);
+        if (s.shScales) {
+            dotAvx512<Stride>(sh, light, sum);
+            addSh(s, v, sum, out);
+        }
+    }
+    return true;
+}
+#undef PRT_AVX512
+#endif
+
 
 
 using RangeFn = bool (*)(const Stream&, size_t, size_t, const float*, uint32_t, glm::vec3*,
@@ -681,8 +766,7 @@ struct Kernels {
     BlockRangeFn blockAssign, blockAdd;  // blocked components
 };
 
-// The kernels an isa resolves to. Per-vertex components have no AVX-512 kernel (their
-// loads are 4 floats wide), so Avx512 runs them with the AVX2 one.
+// The kernels an isa resolves to.
 enum class Chosen { Baseline, Avx2, Avx512 };
 
 Chosen chooseIsa(RelightIsa isa) {
@@ -718,6 +802,8 @@ Kernels kernelsFor(Chosen isa) {
 #endif
 #if PRT_RELIGHT_AVX512
     if (isa == Chosen::Avx512) {
+        k.assign = relightRangeAvx512<Stride, false>;
+        k.add = relightRangeAvx512<Stride, true>;
         k.blockAssign = relightBlocksAvx512<Stride, false>;
         k.blockAdd = relightBlocksAvx512<Stride, true>;
     }

@@ -49,8 +49,9 @@ struct VertexRadiance {
 // (a few small per-call allocations remain: the light in gather layout, ~100 KB at N=32).
 //
 // PRECISION. Per vertex, component and channel the sum of q_n * L_n (int16 value times
-// float light) is accumulated in float in four interleaved partial sums, then multiplied
-// by the vertex's scale. Against the exact sum of the dequantized products the error is
+// float light) is accumulated in float in four interleaved partial sums (eight with
+// AVX-512), then multiplied by the vertex's scale. Against the exact sum of the
+// dequantized products the error is
 // at most about (n/4 + 3) * 2^-24 * sum_n |v_n L_n| for n coefficients (plus the float
 // rounding of the scale): ~2e-6 of the absolute sum for n = 128, far below the 16-bit
 // quantization error (kQuantizationMaxRelativeError ~ 1.5e-5 of the vertex's maximum).
@@ -89,8 +90,10 @@ void relightVertices(const TransportFile& file, const LightVector& light,
 //     encodings (blocked: 16 lanes = four xmm per channel); Avx2Fma is compiled with a
 //     target attribute and needs a CPU with AVX2 and FMA (x86-64-v3), 16 lanes = two ymm
 //     per channel for blocked components;
-//     Avx512 needs AVX-512 F, BW and VL besides AVX2 + FMA and changes only the blocked
-//     kernel (16 lanes = one zmm per channel; per-vertex components run the AVX2 kernel);
+//     Avx512 needs AVX-512 F, BW and VL besides AVX2 + FMA: blocked components take 16
+//     lanes = one zmm per channel, per-vertex ones four coefficients per zmm (one per
+//     128-bit lane, values widened and placed by one masked load, one permutation and one
+//     conversion per four);
 //     Best takes the best of these the CPU has. FMA rounds once per product-sum, so the
 //     kernels differ in the last bits (all within the PRECISION bounds above); the
 //     choice is fixed per process, so results are reproducible on one machine.

@@ -226,25 +226,27 @@ void relightLoop(benchmark::State& state, const prt::TransportFile& file, const 
 }
 
 // range(0): layout (3 or 4 floats per light coefficient); range(1): kernel (0 baseline
-// SSE2, 1 AVX2 + FMA); range(2): threads (0 = all, TBB's default).
+// SSE2, 1 AVX2 + FMA, 2 AVX-512); range(2): threads (0 = all, TBB's default).
 void BM_Relight(benchmark::State& state) {
     const Workload& w = workload();
     prt::RelightOptions options;
     options.layout = state.range(0) == 3 ? prt::RelightLayout::Rgb3 : prt::RelightLayout::Rgb4;
-    options.isa = state.range(1) == 1 ? prt::RelightIsa::Avx2Fma : prt::RelightIsa::Baseline;
+    const prt::RelightIsa isas[] = {prt::RelightIsa::Baseline, prt::RelightIsa::Avx2Fma, prt::RelightIsa::Avx512};
+    const char* names[] = {"sse2", "avx2+fma", "avx512"};
+    options.isa = isas[state.range(1)];
     if (!prt::relightIsaSupported(options.isa)) {
-        state.SkipWithError("AVX2 + FMA not supported on this CPU");
+        state.SkipWithError("kernel not supported on this CPU");
         return;
     }
     const int threads = int(state.range(2));
     relightLoop(state, w.file, w.light, options, threads, w.streamBytes);
-    state.SetLabel(std::string(state.range(1) == 1 ? "avx2+fma, " : "sse2, ") +
+    state.SetLabel(std::string(names[state.range(1)]) + ", " +
                    (options.layout == prt::RelightLayout::Rgb3 ? "rgb3" : "rgb4") +
                    (threads > 0 ? ", " + std::to_string(threads) + " thread(s)" : ", all threads"));
 }
 BENCHMARK(BM_Relight)
-    ->ArgNames({"layout", "avx2", "threads"})
-    ->ArgsProduct({{4, 3}, {1, 0}, {0, 1}})
+    ->ArgNames({"layout", "isa", "threads"})
+    ->ArgsProduct({{4, 3}, {2, 1, 0}, {0, 1}})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 
@@ -779,8 +781,9 @@ int main(int argc, char** argv) {
         std::printf("time to stream %.1f MB at that bandwidth: %.3f ms\n",
                     double(w.streamBytes) / 1e6, 1e3 * double(w.streamBytes) / bw);
         for (const char* variant :
-             {"BM_Relight/layout:4/avx2:1/threads:0", "BM_Relight/layout:3/avx2:1/threads:0",
-              "BM_Relight/layout:4/avx2:0/threads:0", "BM_Relight/layout:3/avx2:0/threads:0"}) {
+             {"BM_Relight/layout:4/isa:2/threads:0", "BM_Relight/layout:3/isa:2/threads:0",
+              "BM_Relight/layout:4/isa:1/threads:0", "BM_Relight/layout:3/isa:1/threads:0",
+              "BM_Relight/layout:4/isa:0/threads:0", "BM_Relight/layout:3/isa:0/threads:0"}) {
             const double t = get(variant);
             if (t <= 0) continue;
             std::printf("%s: %.3f ms per relight (best run), ratio %.2f (warm vs same-size array: %.2f)\n",

@@ -86,6 +86,11 @@ int main(int argc, char** argv) {
         app.add_option("--cold-iterations", coldIterations,
                        "Relight runs each after reading a 1 GiB array (caches flushed; 0: none)")
             ->capture_default_str();
+        std::string isaName = "best";
+        app.add_option("--isa", isaName,
+                       "Relight kernel: best (the CPU's best, what prt-relight runs), baseline (SSE2), avx2 or avx512")
+            ->check(CLI::IsMember({"best", "baseline", "avx2", "avx512"}))
+            ->capture_default_str();
         addThreadsOption(app, threads);
         app.add_option("--json", jsonPath, "Also write the results as JSON to this file");
         if (const auto exitCode = parseCommandLine(app, argc, argv, "prt-bench-relight-file")) return *exitCode;
@@ -93,6 +98,12 @@ int main(int argc, char** argv) {
         if (lightIterations < 1) throw Error("--light-iterations", "must be >= 1");
         if (coldIterations < 0) throw Error("--cold-iterations", "must be >= 0");
         const ThreadLimit limit(threads);
+        RelightOptions kernel;
+        kernel.isa = isaName == "baseline" ? RelightIsa::Baseline
+                     : isaName == "avx2"   ? RelightIsa::Avx2Fma
+                     : isaName == "avx512" ? RelightIsa::Avx512
+                                           : RelightIsa::Best;
+        if (!relightIsaSupported(kernel.isa)) throw Error("--isa", isaName + " is not supported on this CPU or build");
 
         // Load (whatever the page cache holds: a file just written is cached).
         auto t0 = Clock::now();
@@ -158,12 +169,12 @@ int main(int argc, char** argv) {
 
         // Relight: one warm-up (allocates the output), then timed runs.
         VertexRadiance out;
-        relightVertices(file, light, set, out);
+        relightVertices(file, light, set, out, kernel);
         std::vector<double> times;
         const auto start = Clock::now();
         while (int(times.size()) < iterations || secondsSince(start) < minSeconds) {
             t0 = Clock::now();
-            relightVertices(file, light, set, out);
+            relightVertices(file, light, set, out, kernel);
             times.push_back(secondsSince(t0));
             if (times.size() >= 100000) break;
         }
@@ -175,7 +186,7 @@ int main(int argc, char** argv) {
             for (int i = 0; i < coldIterations; ++i) {
                 gSink = gSink + sumAll(flush);
                 t0 = Clock::now();
-                relightVertices(file, light, set, out);
+                relightVertices(file, light, set, out, kernel);
                 coldTimes.push_back(secondsSince(t0));
             }
         }
@@ -193,7 +204,7 @@ int main(int argc, char** argv) {
                 const LightVector turned = fromImage ? makeLightVector(env, n, r, lightTerms)
                                                      : prepared->lightVector(r, lightTerms);
                 (fromImage ? changeImageLightTimes : changeLightTimes).push_back(secondsSince(t0));
-                relightVertices(file, turned, set, out);
+                relightVertices(file, turned, set, out, kernel);
                 (fromImage ? changeImageTimes : changeTimes).push_back(secondsSince(t0));
                 if (changeTimes.size() >= 100000) break;
             }
