@@ -721,6 +721,7 @@ PRT_AVX512 __attribute__((always_inline)) inline void dotAvx512(const VertexSpan
     for (; n < span.count; ++n)
         t = _mm_fmadd_ps(_mm_cvtepi32_ps(_mm_cvtepi16_epi32(_mm_maskz_loadu_epi16(__mmask8(0x7), q + 3 * n))),
                          _mm_loadu_ps(light + size_t(idx[n]) * Stride), t);
+    // (maskz extracts with an all-ones mask, as in dotBlockAvx512: the plain ones warn.)
     const __m512 a = _mm512_add_ps(a0, a1);
     const __m256 h = _mm256_add_ps(_mm256_castpd_ps(_mm512_maskz_extractf64x4_pd(__mmask8(0xF), _mm512_castps_pd(a), 0)),
                                     _mm256_castpd_ps(_mm512_maskz_extractf64x4_pd(__mmask8(0xF), _mm512_castps_pd(a), 1)));
@@ -730,6 +731,7 @@ PRT_AVX512 __attribute__((always_inline)) inline void dotAvx512(const VertexSpan
     for (int c = 0; c < 3; ++c) out[c] = sum[c];
 }
 
+// relightRangeAvx2's vertex loop compiled for AVX-512 (copied for the same reason).
 template <int Stride, bool Add>
 PRT_AVX512 bool relightRangeAvx512(
     const Stream& s, size_t first, size_t last, const float* light, uint32_t lightCount, glm::vec3* out,
@@ -753,8 +755,6 @@ PRT_AVX512 bool relightRangeAvx512(
 }
 #undef PRT_AVX512
 #endif
-
-
 
 using RangeFn = bool (*)(const Stream&, size_t, size_t, const float*, uint32_t, glm::vec3*,
                          size_t&);

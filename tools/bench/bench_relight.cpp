@@ -205,6 +205,9 @@ const BlockedWorkload& blockedWorkload(int terms = 0) {
     return built.emplace(terms, std::move(b)).first->second;
 }
 
+// The kernels BM_Relight and BM_BlockedRelight take by number (0, 1, 2).
+const prt::RelightIsa kIsas[] = {prt::RelightIsa::Baseline, prt::RelightIsa::Avx2Fma, prt::RelightIsa::Avx512};
+
 // The timed loop of BM_Relight and BM_BlockedRelight: relight `file` (all components)
 // on `threads` threads (0 = all, TBB's default), bytes per iteration = streamBytes.
 void relightLoop(benchmark::State& state, const prt::TransportFile& file, const prt::LightVector& light,
@@ -231,9 +234,8 @@ void BM_Relight(benchmark::State& state) {
     const Workload& w = workload();
     prt::RelightOptions options;
     options.layout = state.range(0) == 3 ? prt::RelightLayout::Rgb3 : prt::RelightLayout::Rgb4;
-    const prt::RelightIsa isas[] = {prt::RelightIsa::Baseline, prt::RelightIsa::Avx2Fma, prt::RelightIsa::Avx512};
     const char* names[] = {"sse2", "avx2+fma", "avx512"};
-    options.isa = isas[state.range(1)];
+    options.isa = kIsas[state.range(1)];
     if (!prt::relightIsaSupported(options.isa)) {
         state.SkipWithError("kernel not supported on this CPU");
         return;
@@ -257,9 +259,8 @@ void BM_BlockedRelight(benchmark::State& state) {
     const BlockedWorkload& b = blockedWorkload();
     const Workload& w = workload();
     prt::RelightOptions options;
-    const prt::RelightIsa isas[] = {prt::RelightIsa::Baseline, prt::RelightIsa::Avx2Fma, prt::RelightIsa::Avx512};
     const char* names[] = {"baseline (sse2)", "avx2+fma", "avx512"};
-    options.isa = isas[state.range(0)];
+    options.isa = kIsas[state.range(0)];
     if (!prt::relightIsaSupported(options.isa)) {
         state.SkipWithError("kernel not supported on this CPU");
         return;
