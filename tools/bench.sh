@@ -18,12 +18,15 @@
 #      its time T_cache and Jensen-Buhler's T_JB on the same samples and octree in the
 #      same run, their ratio, and the cache's distance from Jensen-Buhler.
 # Prints one Markdown table (with the command of each row) and writes it to
-# out/bench/summary.md; raw outputs are kept in out/bench/*.log and *.json.
+# out/bench/summary.md; raw outputs are kept in out/bench/*.log and *.json. With
+# --repeat N the benchmarks that run once per process (2, 3, 4 and 6) run N times
+# (NAME.rK.log / .json for K > 1) and the table shows their medians with (min..max);
+# 1 and 5 repeat inside their own process and report their own medians.
 set -euo pipefail
 
 usage() {
   cat <<'EOF'
-Usage: tools/bench.sh [--no-build] [--out DIR]
+Usage: tools/bench.sh [--no-build] [--repeat N] [--out DIR]
 
 Builds (Release, into $BUILD_DIR, default build/) the benchmark tools, runs every
 benchmark of SPEC section 8 and prints one Markdown table of the results, also
@@ -31,6 +34,9 @@ written to DIR/summary.md (DIR default out/bench). Takes about 4 minutes on 2 co
 plus the build. Needs the fetched data (tools/fetch-data.sh) and python3.
 
   --no-build   use the binaries already in $BUILD_DIR
+  --repeat N   run pass 1, the precomputes, the file relights and the cache N times
+               (default 1); the table shows each figure's median and (min..max).
+               bench_relight and prt-bench-tsis repeat inside one run already.
   --out DIR    where logs, JSON and summary.md go (default out/bench)
 EOF
 }
@@ -39,15 +45,18 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build=${BUILD_DIR:-$root/build}
 out=$root/out/bench
 do_build=1
+repeat=1
 while [ $# -gt 0 ]; do
   case "$1" in
     --no-build) do_build=0 ;;
+    --repeat) [ $# -ge 2 ] || { echo "bench: --repeat needs a count" >&2; exit 2; }; repeat=$2; shift ;;
     --out) [ $# -ge 2 ] || { echo "bench: --out needs a directory" >&2; exit 2; }; out=$2; shift ;;
     -h|--help) usage; exit 0 ;;
     *) echo "bench: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
   shift
 done
+[[ "$repeat" =~ ^[1-9][0-9]*$ ]] || { echo "bench: --repeat must be a positive integer, not '$repeat'" >&2; exit 2; }
 case "$build" in /*) ;; *) build=$PWD/$build ;; esac
 case "$out" in /*) ;; *) out=$PWD/$out ;; esac
 cd "$root"
@@ -93,6 +102,7 @@ o=${out#"$root"/}
   echo "memory_gib=$(awk '/MemTotal/ {printf "%.0f", $2 / 1048576}' /proc/meminfo 2>/dev/null)"
   echo "commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet HEAD -- 2>/dev/null || echo '+changes')"
   echo "load_start=$(cut -d' ' -f1-3 /proc/loadavg)"
+  echo "repeat=$repeat"
 } >"$out/meta.txt"
 
 # run NAME CMD...: runs CMD from the repository root, output to $out/NAME.log.
@@ -112,19 +122,24 @@ run() {
 
 run relight "$bench_relight" '--benchmark_filter=RelightVsStream|LoadTransportFile' \
   "--tmp-dir=$o" "--summary-json=$o/relight.json"
-run pass1 "$bench_pass1" data/meshes/dragon_vrip_res3.ply.gz --samples 2000
-rm -f "$out/precompute.json"
-run precompute "$precompute" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 --material Marble \
-  --components ms,ss -f -q --summary-json "$o/precompute.json" -o "$o/dragon4_ms_ss.prt"
-run relight_file "$bench_file" "$o/dragon4_ms_ss.prt" -e data/envmaps/forest.exr --json "$o/relight_file.json"
-run precompute_folded "$precompute" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 --material Marble \
-  --components ms,ss --fold-ss -f -q -o "$o/dragon4_folded.prt"
-run relight_file_folded "$bench_file" "$o/dragon4_folded.prt" -e data/envmaps/forest.exr \
-  --json "$o/relight_file_folded.json"
+# Run K of the once-per-process benchmarks: its logs and JSON carry ".rK" for K > 1.
+for k in $(seq 1 "$repeat"); do
+  r=; [ "$k" = 1 ] || r=.r$k
+  [ "$repeat" = 1 ] || echo "bench: run $k of $repeat of pass 1, the precomputes, the file relights and the cache"
+  run "pass1$r" "$bench_pass1" data/meshes/dragon_vrip_res3.ply.gz --samples 2000
+  rm -f "$out/precompute$r.json"
+  run "precompute$r" "$precompute" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 --material Marble \
+    --components ms,ss -f -q --summary-json "$o/precompute$r.json" -o "$o/dragon4_ms_ss.prt"
+  run "relight_file$r" "$bench_file" "$o/dragon4_ms_ss.prt" -e data/envmaps/forest.exr --json "$o/relight_file$r.json"
+  run "precompute_folded$r" "$precompute" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 --material Marble \
+    --components ms,ss --fold-ss -f -q -o "$o/dragon4_folded.prt"
+  run "relight_file_folded$r" "$bench_file" "$o/dragon4_folded.prt" -e data/envmaps/forest.exr \
+    --json "$o/relight_file_folded$r.json"
+  run "cache$r" "$pointlight" data/meshes/bunny.off --size-mm 40 -m Marble --light point:30,40,30:0.01 \
+    -W 1024 -H 1024 --exposure -1 --method cache --compare-jb -o "$o/cache"
+done
 run tsis "$bench_tsis" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 -m Skin2 --light point:-20,40,-60:0.04 \
   -W 512 -H 512 --split hybrid --samples 3600 --repeat 7 --material-change Skin1 --json "$o/tsis.json"
-run cache "$pointlight" data/meshes/bunny.off --size-mm 40 -m Marble --light point:30,40,30:0.01 \
-  -W 1024 -H 1024 --exposure -1 --method cache --compare-jb -o "$o/cache"
 echo "load_end=$(cut -d' ' -f1-3 /proc/loadavg)" >>"$out/meta.txt"
 rm -f "$out/dragon4_ms_ss.prt" "$out/dragon4_folded.prt"
 

@@ -5,21 +5,38 @@ Usage: tools/bench_report.py OUT_DIR
 
 Reads OUT_DIR/{meta.txt, commands.tsv, relight.json, pass1.log, precompute.json,
 relight_file.json, relight_file_folded.json, tsis.json, cache.log}, prints one Markdown
-table with the command of each row and writes it to OUT_DIR/summary.md.
+table with the command of each row and writes it to OUT_DIR/summary.md. When meta.txt
+says repeat=N (tools/bench.sh --repeat N), the once-per-process benchmarks' files of
+runs 2..N (NAME.rK.log / NAME.rK.json) are read too: the table shows each figure's
+median over the runs, the headline figures with (min..max).
 """
 
 import json
 import os
 import re
 import shlex
+import statistics
 import sys
 
 from pointlight_log import parse_cache_log
+from repeats import median_tree, spread_of
 
 
 def load_json(path):
-    with open(path) as f:
-        return json.load(f)
+    """The JSON at path; a missing or unreadable file ends the report with one line naming it."""
+    try:
+        with open(path) as f:
+            return json.load(f)
+    except (OSError, ValueError) as e:
+        sys.exit(f"bench_report: {path}: {getattr(e, 'strerror', None) or e}")
+
+
+def read_text(path):
+    try:
+        with open(path) as f:
+            return f.read()
+    except OSError as e:
+        sys.exit(f"bench_report: {path}: {e.strerror}")
 
 
 def fmt(v, digits=3):
@@ -58,24 +75,49 @@ def main():
             # pipes of a Markdown table cell (GitHub shows \| in a code span as |).
             args = [a for a in cmd.split("\x1f") if a != ""] if "\x1f" in cmd else cmd.split()
             commands[name] = shlex.join(args).replace("|", "\\|")
+    repeat = int(meta.get("repeat") or 1)
+
+    def runs_of(name, ext):
+        """The paths of NAME's runs: NAME.EXT, then NAME.rK.EXT for K = 2..repeat."""
+        return [os.path.join(out, name + ("" if k == 1 else f".r{k}") + ext) for k in range(1, repeat + 1)]
+
     relight = load_json(os.path.join(out, "relight.json"))
-    pre = load_json(os.path.join(out, "precompute.json"))
+    pres = [load_json(p) for p in runs_of("precompute", ".json")]
+    pre = median_tree(pres)
     s = pre["summary"]
-    rf = load_json(os.path.join(out, "relight_file.json"))
-    with open(os.path.join(out, "pass1.log")) as f:
-        pass1_log = f.read()
+    rfs = [load_json(p) for p in runs_of("relight_file", ".json")]
+    rf = median_tree(rfs)
+    pass1_logs = []
+    for path in runs_of("pass1", ".log"):
+        pass1_logs.append(read_text(path))
 
     def grab(pattern):
-        m = re.search(pattern, pass1_log, re.M)
-        return float(m.group(1)) if m else None
+        """The pattern's number in every pass-1 log: their median, or None when a log lacks it."""
+        vals = []
+        for text in pass1_logs:
+            m = re.search(pattern, text, re.M)
+            if not m:
+                return None
+            vals.append(float(m.group(1)))
+        return statistics.median(vals)
 
-    pass1_ratio_packet = grab(r"^ratio\s+([0-9.]+) pass 1 / raw packet")
+    def grab_spread(pattern):
+        vals = [float(m.group(1)) for m in (re.search(pattern, t, re.M) for t in pass1_logs) if m]
+        return (min(vals), max(vals), len(vals)) if len(vals) > 1 and len(vals) == len(pass1_logs) else None
+
+    def sp(spread, scale=1.0):
+        """ " (min..max)" of a headline figure over the runs, empty for one run."""
+        return "" if not spread else f" ({fmt(scale * spread[0])}..{fmt(scale * spread[1])})"
+
+    ratio_packet_pattern = r"^ratio\s+([0-9.]+) pass 1 / raw packet"
+    pass1_ratio_packet = grab(ratio_packet_pattern)
     pass1_ratio_single = grab(r"pass 1 / raw packet, ([0-9.]+) pass 1 / raw single")
     pass1_rate = grab(r"^pass 1(?:, every)?\s+([0-9.e+]+) rays/s")
     pass1_coherent_ratio = grab(r"^ratio, coherent\s+([0-9.]+) effective / raw packet")
     pass1_coherent_speedup = grab(r"^ratio, coherent .*\(([0-9.]+)x every's time\)")
     pass1_coherent_change = grab(r"^coherent vs every .*relative L2 change ([0-9.e+-]+) over all samples")
     packet_rate = grab(r"^raw Embree packet\s+([0-9.e+]+) rays/s")
+    pass1_log = pass1_logs[0]
     m = re.search(r"^samples\s+(\d+), cubemap (\S+), (\S+) sub-directions", pass1_log, re.M)
     pass1_setup = f"{int(m.group(1)):,} samples, {m.group(2)}, {m.group(3)}" if m else ""
     m = re.search(r"^mesh\s+(\S+) \((\d+) triangles", pass1_log, re.M)
@@ -133,7 +175,8 @@ def main():
             f"{fmt(l['ms'])} ms ({fmt(l['MBps'])} MB/s{note})", "", "relight")
 
     row(f"pass 1: achieved occlusion rays/s / raw Embree packet rays/s on the same rays ({pass1_mesh}, {pass1_setup})",
-        f"{pass1_ratio_packet:.3f}" if pass1_ratio_packet is not None else "n/a", ">= 0.8", "pass1")
+        f"{pass1_ratio_packet:.3f}{sp(grab_spread(ratio_packet_pattern))}" if pass1_ratio_packet is not None
+        else "n/a", ">= 0.8", "pass1")
     row("pass 1 / raw single-ray Embree (rtcOccluded1) on the same rays",
         f"{pass1_ratio_single:.3f}" if pass1_ratio_single is not None else "n/a", "", "pass1")
     row("pass 1 rays/s (raw packet rays/s)", f"{sci(pass1_rate)} ({sci(packet_rate)})", "", "pass1")
@@ -147,15 +190,18 @@ def main():
     mesh = os.path.basename(pre["settings"]["mesh"])
     where = f"{mesh}, {v:,} vertices, {s['samples']:,} samples, 30 mm Marble, ms + isotropic ss"
     row(f"precompute {where}: total (setup, samples, pass 1, pass 2, single scattering, write)",
-        f"{fmt(s['total_seconds'])} s ({fmt(s['setup_seconds'])}, {fmt(s['samples_seconds'])}, "
+        f"{fmt(s['total_seconds'])} s{sp(spread_of(pres, 'summary', 'total_seconds'))}: "
+        f"{fmt(s['setup_seconds'])}, {fmt(s['samples_seconds'])}, "
         f"{fmt(s['pass1_seconds'])}, {fmt(s['pass2_seconds'])}, {fmt(s['ss_seconds'])}, "
-        f"{fmt(s['write_seconds'])} s)", "", "precompute")
+        f"{fmt(s['write_seconds'])} s", "", "precompute")
     row("pass 1 time per sample; rays/s",
         f"{fmt(1e3 * s['pass1_seconds_per_sample'])} ms; {sci(s['pass1_rays_per_second'])}", "", "precompute")
     row("pass 2 time per vertex; kd-tree nodes visited per vertex",
-        f"{fmt(1e6 * s['pass2_seconds_per_vertex'])} us; {fmt(s['mean_nodes_visited'])}", "", "precompute")
+        f"{fmt(1e6 * s['pass2_seconds_per_vertex'])} us{sp(spread_of(pres, 'summary', 'pass2_seconds_per_vertex'), 1e6)}; "
+        f"{fmt(s['mean_nodes_visited'])}", "", "precompute")
     row("single scattering time per vertex; rays per vertex; rays/s",
-        f"{fmt(1e3 * s['ss_seconds_per_vertex'])} ms; {fmt(s['ss_rays_per_vertex'])}; "
+        f"{fmt(1e3 * s['ss_seconds_per_vertex'])} ms{sp(spread_of(pres, 'summary', 'ss_seconds_per_vertex'), 1e3)}; "
+        f"{fmt(s['ss_rays_per_vertex'])}; "
         f"{sci(s['ss_rays_per_second'])}", "", "precompute")
     row("peak memory (process peak so far, ru_maxrss) after setup / samples / pass 1 / pass 2 / single scattering",
         " / ".join(fmt(mb(s[k])) for k in (
@@ -169,20 +215,24 @@ def main():
     row(f"file size per vertex (ms + isotropic ss: {comps}, {layout})",
         f"{fmt(s['file_bytes_per_vertex'])} bytes ({fmt(mb(s['file_bytes']))} MB)", "", "precompute")
     row(f"relight of that file (ms + ss, {rf['vertices']:,} vertices): time per frame; light vector (forest)",
-        f"{fmt(rf['relight_ms_median'])} ms ({fmt(rf['relight_GBps_effective'])} GB/s effective); "
+        f"{fmt(rf['relight_ms_median'])} ms{sp(spread_of(rfs, 'relight_ms_median'))}, "
+        f"{fmt(rf['relight_GBps_effective'])} GB/s effective; "
         f"{fmt(rf['light_ms_median'])} ms", "", "relight_file")
     if rf.get("light_changes_per_second"):
         row(f"light changes per second ({rf['vertices']:,} vertices; each a new light vector at a fresh angle "
             "+ the relight kernel, back to back)",
-            f"{fmt(rf['light_changes_per_second'])} per second ({fmt(rf['light_change_ms_median'])} ms: "
-            f"light vector {fmt(rf['light_change_light_ms_median'])} ms)",
+            f"{fmt(rf['light_changes_per_second'])} per second{sp(spread_of(rfs, 'light_changes_per_second'))}; "
+            f"{fmt(rf['light_change_ms_median'])} ms: "
+            f"light vector {fmt(rf['light_change_light_ms_median'])} ms",
             ">= 600 at 31K vertices", "relight_file")
-    folded_path = os.path.join(out, "relight_file_folded.json")
-    if os.path.exists(folded_path) and rf.get("light_changes_per_second"):
-        ff = load_json(folded_path)
+    folded_paths = runs_of("relight_file_folded", ".json")
+    if all(os.path.exists(p) for p in folded_paths) and rf.get("light_changes_per_second"):
+        ffs = [load_json(p) for p in folded_paths]
+        ff = median_tree(ffs)
         row("light changes per second of the same job with --fold-ss (ss folded into the ms vectors: 1 component)",
-            f"{fmt(ff['light_changes_per_second'])} per second ({fmt(ff['light_change_ms_median'])} ms: light "
-            f"vector {fmt(ff['light_change_light_ms_median'])} ms); "
+            f"{fmt(ff['light_changes_per_second'])} per second{sp(spread_of(ffs, 'light_changes_per_second'))}; "
+            f"{fmt(ff['light_change_ms_median'])} ms: light "
+            f"vector {fmt(ff['light_change_light_ms_median'])} ms; "
             f"{ff['light_changes_per_second'] / rf['light_changes_per_second']:.2f}x the 2-component file",
             ">= 100 at 437,645 vertices (full dragon)", "relight_file_folded")
     if rf.get("light_ms_median_from_image"):
@@ -213,22 +263,27 @@ def main():
                 + (f" + {fmt(sums['median_ms'])} ms" if sums else ""),
                 "<= 20 ms before the next frame", "tsis")
 
-    cache_path = os.path.join(out, "cache.log")
-    if os.path.exists(cache_path):
-        with open(cache_path) as f:
-            c = parse_cache_log(f.read())
-        if c:
+    cache_paths = runs_of("cache", ".log")
+    if all(os.path.exists(p) for p in cache_paths):
+        cs = []
+        for path in cache_paths:
+            cs.append(parse_cache_log(read_text(path)))
+        if all(cs):
+            c = median_tree(cs)
             row("point light by the translucent irradiance cache (Keng et al. 2006; bunny, Marble, 40 mm, "
                 "1024 x 1024, defaults): T_cache / T_JB on the same samples and octree, speedup in the same run; "
                 "caches per hit pixel; relative RMSE against Jensen-Buhler",
-                f"{fmt(c['cache_seconds'])} s / {fmt(c['jb_seconds'])} s, **{fmt(c['speedup'])}x**; "
+                f"{fmt(c['cache_seconds'])} s / {fmt(c['jb_seconds'])} s, **{fmt(c['speedup'])}x**"
+                f"{sp(spread_of(cs, 'speedup'))}; "
                 f"{c['cache_share']}% ({c['caches']:,} of {c['hit_pixels']:,}); {100 * c['vs_jb']:.2f}%",
                 ">= 10x faster than Jensen-Buhler", "cache")
 
     lines = [
         f"Measured {meta.get('date', '?')} on {meta.get('cpu', '?')} ({meta.get('threads', '?')} threads, "
         f"{meta.get('memory_gib', '?')} GiB), commit {meta.get('commit', '?')}; load average "
-        f"{meta.get('load_start', '?')} at the start, {meta.get('load_end', '?')} at the end.",
+        f"{meta.get('load_start', '?')} at the start, {meta.get('load_end', '?')} at the end."
+        + (f" Pass 1, the precomputes, the file relights and the cache: medians of {repeat} runs, "
+           "(min..max) after the headline figures." if repeat > 1 else ""),
         "",
         "| what | measured | goal | command |",
         "|---|---|---|---|",

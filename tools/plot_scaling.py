@@ -17,12 +17,12 @@ slightly above 1 over a decade or so: n log n; 0: independent of x).
 import argparse
 import csv
 import json
-import statistics
 import math
 import os
 import sys
 
 from pointlight_log import parse_cache_log
+from repeats import aggregate, number
 
 # Each series: what is on the x axis and which metrics to plot and tabulate.
 # A metric: (key, label, unit, panel, fit) with fit "loglog" (slope) or "doubling"
@@ -150,10 +150,6 @@ def flatten(run):
     return row
 
 
-def number(v):
-    return v if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) else None
-
-
 def fit(xs, ys, kind):
     """(value, text) of the fit over the points with positive numbers, or (None, "")."""
     pts = [(x, y) for x, y in zip(xs, ys) if number(x) and number(y) is not None and x > 0]
@@ -203,7 +199,7 @@ def load_point_lights(d):
                 "name": m["name"], "vertices": t["vertices"], "triangles": t["triangles"],
                 "tsis_frame_ms": frame["frame_ms"], "tsis_irradiance_ms": frame["irradiance_ms"],
                 "tsis_shadow_maps_ms": frame["shadow_maps_ms"], "tsis_draws_ms": frame["draws_ms"],
-                "tsis_sums_ms": frame["sums_ms"],
+                "tsis_sums_ms": frame["sums_ms"], "tsis_samples": frame["samples"],
                 "cache_seconds": c.get("cache_seconds"), "jb_seconds": c.get("jb_seconds"),
                 "cache_speedup": c.get("speedup"), "cache_vs_jb": c.get("vs_jb"), "cache_share": c.get("cache_share"),
                 "tsis_command": m["tsis"], "cache_command": m["cache"],
@@ -213,8 +209,9 @@ def load_point_lights(d):
 
 def point_light_table(pl):
     """Markdown section and fitted slopes of the point-light runs."""
+    samples = ", ".join(sorted({f"{r['tsis_samples']:,}" for r in pl})) or "?"
     out = ["## Point lights vs mesh size (dragon, 30 mm, Skin2, one point light)", "",
-           "Texture-space sampling: hybrid, N = 900, 512 x 512, per vertex, median of 5 new light "
+           f"Texture-space sampling: hybrid, N = {samples}, 512 x 512, per vertex, median of 5 new light "
            "positions (irradiance map + shadow maps + draws + per-vertex sums). Irradiance cache: "
            "defaults, 1024 x 1024, T_cache and Jensen-Buhler's T_JB on the same samples and octree "
            "in the same run.", "",
@@ -237,25 +234,6 @@ def point_light_table(pl):
         if value is not None:
             slopes.append(("Point lights vs mesh size", label, text, len(pl)))
     return out, slopes
-
-
-def aggregate(flats):
-    """One row from the repeats of a run: a number that differs between the repeats (a
-    time, a load average) becomes their median, with (min, max, count) in row["_spread"];
-    everything else is the first repeat's."""
-    row = dict(flats[0])
-    row["repeats"] = len(flats)
-    if len(flats) == 1:
-        return row
-    spread = {}
-    for k in row:
-        vals = [f.get(k) for f in flats]
-        if k == "repeats" or any(number(v) is None for v in vals) or len(set(vals)) == 1:
-            continue
-        row[k] = statistics.median(vals)
-        spread[k] = (min(vals), max(vals), len(vals))
-    row["_spread"] = spread
-    return row
 
 
 def load_runs(d):
