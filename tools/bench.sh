@@ -30,9 +30,8 @@ Usage: tools/bench.sh [--no-build] [--repeat N] [--out DIR]
 
 Builds (Release, into $BUILD_DIR, default build/) the benchmark tools, runs every
 benchmark of SPEC section 8 and prints one Markdown table of the results, also
-written to DIR/summary.md (DIR default out/bench). Takes 2.5-4 minutes on 2 cores
-plus the build (--repeat 5: about 6.5 on a fast host). Needs the fetched data
-(tools/fetch-data.sh) and python3.
+written to DIR/summary.md (DIR default out/bench); docs/tools.md gives how long it
+takes. Needs the fetched data (tools/fetch-data.sh) and python3.
 
   --no-build   use the binaries already in $BUILD_DIR
   --repeat N   run pass 1, the precomputes, the file relights and the cache N times

@@ -15,7 +15,6 @@ import json
 import os
 import re
 import shlex
-import statistics
 import sys
 
 from pointlight_log import parse_cache_log
@@ -87,36 +86,36 @@ def main():
     s = pre["summary"]
     rfs = [load_json(p) for p in runs_of("relight_file", ".json")]
     rf = median_tree(rfs)
-    pass1_logs = []
-    for path in runs_of("pass1", ".log"):
-        pass1_logs.append(read_text(path))
+    pass1_logs = [read_text(p) for p in runs_of("pass1", ".log")]
+    pass1_patterns = {
+        "ratio_packet": r"^ratio\s+([0-9.]+) pass 1 / raw packet",
+        "ratio_single": r"pass 1 / raw packet, ([0-9.]+) pass 1 / raw single",
+        "rate": r"^pass 1(?:, every)?\s+([0-9.e+]+) rays/s",
+        "coherent_ratio": r"^ratio, coherent\s+([0-9.]+) effective / raw packet",
+        "coherent_speedup": r"^ratio, coherent .*\(([0-9.]+)x every's time\)",
+        "coherent_change": r"^coherent vs every .*relative L2 change ([0-9.e+-]+) over all samples",
+        "packet_rate": r"^raw Embree packet\s+([0-9.e+]+) rays/s",
+    }
 
-    def grab(pattern):
-        """The pattern's number in every pass-1 log: their median, or None when a log lacks it."""
-        vals = []
-        for text in pass1_logs:
-            m = re.search(pattern, text, re.M)
-            if not m:
-                return None
-            vals.append(float(m.group(1)))
-        return statistics.median(vals)
+    def parse_pass1(text):
+        """Each pattern's number in one pass-1 log, None where the log lacks it."""
+        found = {k: re.search(v, text, re.M) for k, v in pass1_patterns.items()}
+        return {k: float(m.group(1)) if m else None for k, m in found.items()}
 
-    def grab_spread(pattern):
-        vals = [float(m.group(1)) for m in (re.search(pattern, t, re.M) for t in pass1_logs) if m]
-        return (min(vals), max(vals), len(vals)) if len(vals) > 1 and len(vals) == len(pass1_logs) else None
+    pass1s = [parse_pass1(t) for t in pass1_logs]
+    p1 = median_tree(pass1s)
 
     def sp(spread, scale=1.0):
         """ " (min..max)" of a headline figure over the runs, empty for one run."""
         return "" if not spread else f" ({fmt(scale * spread[0])}..{fmt(scale * spread[1])})"
 
-    ratio_packet_pattern = r"^ratio\s+([0-9.]+) pass 1 / raw packet"
-    pass1_ratio_packet = grab(ratio_packet_pattern)
-    pass1_ratio_single = grab(r"pass 1 / raw packet, ([0-9.]+) pass 1 / raw single")
-    pass1_rate = grab(r"^pass 1(?:, every)?\s+([0-9.e+]+) rays/s")
-    pass1_coherent_ratio = grab(r"^ratio, coherent\s+([0-9.]+) effective / raw packet")
-    pass1_coherent_speedup = grab(r"^ratio, coherent .*\(([0-9.]+)x every's time\)")
-    pass1_coherent_change = grab(r"^coherent vs every .*relative L2 change ([0-9.e+-]+) over all samples")
-    packet_rate = grab(r"^raw Embree packet\s+([0-9.e+]+) rays/s")
+    pass1_ratio_packet = p1["ratio_packet"]
+    pass1_ratio_single = p1["ratio_single"]
+    pass1_rate = p1["rate"]
+    pass1_coherent_ratio = p1["coherent_ratio"]
+    pass1_coherent_speedup = p1["coherent_speedup"]
+    pass1_coherent_change = p1["coherent_change"]
+    packet_rate = p1["packet_rate"]
     pass1_log = pass1_logs[0]
     m = re.search(r"^samples\s+(\d+), cubemap (\S+), (\S+) sub-directions", pass1_log, re.M)
     pass1_setup = f"{int(m.group(1)):,} samples, {m.group(2)}, {m.group(3)}" if m else ""
@@ -175,7 +174,7 @@ def main():
             f"{fmt(l['ms'])} ms ({fmt(l['MBps'])} MB/s{note})", "", "relight")
 
     row(f"pass 1: achieved occlusion rays/s / raw Embree packet rays/s on the same rays ({pass1_mesh}, {pass1_setup})",
-        f"{pass1_ratio_packet:.3f}{sp(grab_spread(ratio_packet_pattern))}" if pass1_ratio_packet is not None
+        f"{pass1_ratio_packet:.3f}{sp(spread_of(pass1s, 'ratio_packet'))}" if pass1_ratio_packet is not None
         else "n/a", ">= 0.8", "pass1")
     row("pass 1 / raw single-ray Embree (rtcOccluded1) on the same rays",
         f"{pass1_ratio_single:.3f}" if pass1_ratio_single is not None else "n/a", "", "pass1")
@@ -265,9 +264,7 @@ def main():
 
     cache_paths = runs_of("cache", ".log")
     if all(os.path.exists(p) for p in cache_paths):
-        cs = []
-        for path in cache_paths:
-            cs.append(parse_cache_log(read_text(path)))
+        cs = [parse_cache_log(read_text(p)) for p in cache_paths]
         if all(cs):
             c = median_tree(cs)
             row("point light by the translucent irradiance cache (Keng et al. 2006; bunny, Marble, 40 mm, "

@@ -27,9 +27,9 @@ usage() {
   cat <<'EOF'
 Usage: tools/scaling.sh [--quick] [--no-build] [--keep] [--repeat N] [--out DIR] [--plots DIR]
 
-Full run: about 8 minutes on 2 quiet cores of a fast host, 20-25 on a slow one (the
-single-scattering jobs take most of it). --quick: dragon res4 only with tiny variants
-(about 2 minutes), to test the chain; its plots go to DIR/images, not docs/images.
+Full run: every series below (docs/tools.md gives how long it takes; the
+single-scattering jobs take most of it). --quick: dragon res4 only with tiny variants,
+to test the chain; its plots go to DIR/images, not docs/images.
 
   --quick       res4 + tiny variants only
   --no-build    use the binaries already in $BUILD_DIR (default build/)
