@@ -136,16 +136,19 @@ size_t BlockedRgbVectors::byteSize() const {
 
 namespace {
 
-// One block of the joint truncation: its chosen indices and, per component, the lanes'
+// One block of the joint truncation: per component, its chosen indices and the lanes'
 // values there.
 struct Block {
-    std::vector<uint32_t> idx;
-    std::vector<std::vector<float>> rgb;  // per component: (n * lanes + lane) * 3 + c
-    std::vector<uint32_t> lanes;  // the block's vertices
+    std::vector<std::vector<uint32_t>> idx;  // per component
+    std::vector<std::vector<float>> rgb;     // per component: (n * lanes + lane) * 3 + c
+    std::vector<uint32_t> lanes;             // the block's vertices
 };
 
+// How the components of a block share its indices (jointTruncateShared, jointTruncateNested).
+enum class Sharing { OneList, NestedLists };
+
 Block chooseBlock(const std::vector<const SparseRgbVectors*>& src, const uint32_t* laneVertices, uint32_t lanes,
-                  size_t keep, uint32_t forcedFrom) {
+                  size_t keep, uint32_t forcedFrom, Sharing sharing) {
     const size_t C = src.size();
     Block out;
     out.lanes.assign(laneVertices, laneVertices + lanes);
@@ -161,7 +164,8 @@ Block chooseBlock(const std::vector<const SparseRgbVectors*>& src, const uint32_
         }
     std::sort(all.begin(), all.end());
     all.erase(std::unique(all.begin(), all.end()), all.end());
-    std::vector<double> score(all.size(), 0.0);
+    // componentScore[k * all.size() + at]: component k's part of the score of all[at].
+    std::vector<double> componentScore(C * all.size(), 0.0);
     for (uint32_t lane = 0; lane < lanes; ++lane) {
         double energy = 0.0;
         for (size_t k = 0; k < C; ++k)
@@ -174,13 +178,24 @@ Block chooseBlock(const std::vector<const SparseRgbVectors*>& src, const uint32_
                 const size_t at = size_t(std::lower_bound(all.begin(), all.end(), li[n]) - all.begin());
                 double e = 0.0;
                 for (int c = 0; c < 3; ++c) e += double(lv[3 * n + c]) * lv[3 * n + c];
-                score[at] += e / energy;
+                componentScore[k * all.size() + at] += e / energy;
             }
         }
     }
     // Indices >= forcedFrom (SH terms) come first whatever their score.
-    for (size_t at = 0; at < all.size(); ++at)
-        if (all[at] >= forcedFrom && score[at] > 0.0) score[at] = std::numeric_limits<double>::infinity();
+    const double inf = std::numeric_limits<double>::infinity();
+    for (size_t k = 0; k < C; ++k)
+        for (size_t at = 0; at < all.size(); ++at)
+            if (all[at] >= forcedFrom && componentScore[k * all.size() + at] > 0.0) componentScore[k * all.size() + at] = inf;
+    // The union's ranking: the sum over the components (one list), or the largest
+    // component's part (nested lists: the union is then exactly the indices some
+    // component keeps at the block's threshold).
+    std::vector<double> score(all.size(), 0.0);
+    for (size_t k = 0; k < C; ++k)
+        for (size_t at = 0; at < all.size(); ++at) {
+            const double x = componentScore[k * all.size() + at];
+            score[at] = sharing == Sharing::OneList ? score[at] + x : std::max(score[at], x);
+        }
     std::vector<uint32_t> order(all.size());
     std::iota(order.begin(), order.end(), 0u);
     const size_t kept = std::min(keep, order.size());
@@ -191,21 +206,28 @@ Block chooseBlock(const std::vector<const SparseRgbVectors*>& src, const uint32_
     order.erase(std::remove_if(order.begin(), order.end(), [&](uint32_t a) { return score[a] <= 0.0; }),
                 order.end());
     std::sort(order.begin(), order.end());
-    out.idx.resize(order.size());
-    for (size_t n = 0; n < order.size(); ++n) out.idx[n] = all[order[n]];
-    out.rgb.assign(C, std::vector<float>(order.size() * lanes * 3, 0.0f));
-    for (size_t k = 0; k < C; ++k)
+    // The threshold of nested lists: the lowest union score kept.
+    double threshold = inf;
+    for (uint32_t at : order) threshold = std::min(threshold, score[at]);
+    out.idx.assign(C, {});
+    out.rgb.resize(C);
+    for (size_t k = 0; k < C; ++k) {
+        std::vector<uint32_t>& kept = out.idx[k];
+        for (uint32_t at : order)
+            if (sharing == Sharing::OneList || componentScore[k * all.size() + at] >= threshold) kept.push_back(all[at]);
+        out.rgb[k].assign(kept.size() * lanes * 3, 0.0f);
         for (uint32_t lane = 0; lane < lanes; ++lane) {
             const std::vector<uint32_t>& li = idx[k * kVertexBlock + lane];
             const std::vector<float>& lv = rgb[k * kVertexBlock + lane];
             // Both lists are sorted: one merge.
             size_t n = 0;
-            for (size_t m = 0; m < li.size() && n < out.idx.size(); ++m) {
-                while (n < out.idx.size() && out.idx[n] < li[m]) ++n;
-                if (n < out.idx.size() && out.idx[n] == li[m])
+            for (size_t m = 0; m < li.size() && n < kept.size(); ++m) {
+                while (n < kept.size() && kept[n] < li[m]) ++n;
+                if (n < kept.size() && kept[n] == li[m])
                     for (int c = 0; c < 3; ++c) out.rgb[k][(n * lanes + lane) * 3 + c] = lv[3 * m + c];
             }
         }
+    }
     return out;
 }
 
@@ -216,9 +238,11 @@ BlockedRgbVectors jointTruncate(const SparseRgbVectors& perVertex, size_t keep,
     return std::move(jointTruncateShared({&perVertex}, keep, order, forcedFrom).front());
 }
 
-std::vector<BlockedRgbVectors> jointTruncateShared(const std::vector<const SparseRgbVectors*>& components,
-                                                   size_t keep, const std::vector<uint32_t>& order,
-                                                   uint32_t forcedFrom) {
+namespace {
+
+std::vector<BlockedRgbVectors> truncateComponents(const std::vector<const SparseRgbVectors*>& components,
+                                                  size_t keep, const std::vector<uint32_t>& order,
+                                                  uint32_t forcedFrom, Sharing sharing) {
     if (keep < 1) throw Error(kSubject, "a block must keep at least one coefficient");
     if (components.empty()) throw Error(kSubject, "no components to truncate jointly");
     const size_t vertices = components.front()->vertexCount();
@@ -265,12 +289,14 @@ std::vector<BlockedRgbVectors> jointTruncateShared(const std::vector<const Spars
             for (size_t b = r.begin(); b != r.end(); ++b) {
                 const size_t first = b * kVertexBlock;
                 const uint32_t lanes = uint32_t(std::min<size_t>(kVertexBlock, vertices - first));
-                chosen[b - begin] = chooseBlock(components, order.data() + first, lanes, keep, forcedFrom);
+                chosen[b - begin] = chooseBlock(components, order.data() + first, lanes, keep, forcedFrom, sharing);
             }
         });
         for (Block& b : chosen) {
-            if (!b.idx.empty() && b.idx.back() >= forcedFrom) keptSh = true;
-            for (size_t k = 0; k < out.size(); ++k) out[k].appendBlock(b.idx, b.rgb[k], b.lanes);
+            for (size_t k = 0; k < out.size(); ++k) {
+                if (!b.idx[k].empty() && b.idx[k].back() >= forcedFrom) keptSh = true;
+                out[k].appendBlock(b.idx[k], b.rgb[k], b.lanes);
+            }
             b = Block();
         }
     }
@@ -280,6 +306,20 @@ std::vector<BlockedRgbVectors> jointTruncateShared(const std::vector<const Spars
             o.shScales = {};
         }
     return out;
+}
+
+}  // namespace
+
+std::vector<BlockedRgbVectors> jointTruncateShared(const std::vector<const SparseRgbVectors*>& components,
+                                                   size_t keep, const std::vector<uint32_t>& order,
+                                                   uint32_t forcedFrom) {
+    return truncateComponents(components, keep, order, forcedFrom, Sharing::OneList);
+}
+
+std::vector<BlockedRgbVectors> jointTruncateNested(const std::vector<const SparseRgbVectors*>& components,
+                                                   size_t keep, const std::vector<uint32_t>& order,
+                                                   uint32_t forcedFrom) {
+    return truncateComponents(components, keep, order, forcedFrom, Sharing::NestedLists);
 }
 
 std::string checkBlockedVectors(const BlockedRgbVectors& b, uint32_t lightCount) {
@@ -419,22 +459,34 @@ std::vector<uint32_t> spatialBlockOrder(const std::vector<glm::vec3>& positions)
 }
 
 double retainedEnergyFraction(const SparseRgbVectors& perVertex, const BlockedRgbVectors& blocks) {
-    if (perVertex.vertexCount() != blocks.vertexCount())
-        throw Error(kSubject, "retained energy of " + std::to_string(blocks.vertexCount()) +
-                                  " blocked vertices against " + std::to_string(perVertex.vertexCount()));
+    return retainedEnergyFraction(std::vector<const SparseRgbVectors*>{&perVertex},
+                                  std::vector<const BlockedRgbVectors*>{&blocks});
+}
+
+double retainedEnergyFraction(const std::vector<const SparseRgbVectors*>& perVertex,
+                              const std::vector<const BlockedRgbVectors*>& blocks) {
+    if (perVertex.empty() || perVertex.size() != blocks.size())
+        throw Error(kSubject, "retained energy of " + std::to_string(blocks.size()) + " blocked components against " +
+                                  std::to_string(perVertex.size()));
+    const size_t vertices = perVertex.front()->vertexCount();
+    for (size_t k = 0; k < perVertex.size(); ++k)
+        if (perVertex[k]->vertexCount() != vertices || blocks[k]->vertexCount() != vertices)
+            throw Error(kSubject, "retained energy of " + std::to_string(blocks[k]->vertexCount()) +
+                                      " blocked vertices against " + std::to_string(perVertex[k]->vertexCount()));
     std::vector<uint32_t> idx;
     std::vector<float> rgb;
     double sum = 0.0;
-    for (size_t v = 0; v < perVertex.vertexCount(); ++v) {
-        perVertex.dequantizeVertex(v, idx, rgb);
-        double total = 0.0;
-        for (float x : rgb) total += double(x) * x;
-        blocks.dequantizeVertex(v, idx, rgb);
-        double kept = 0.0;
-        for (float x : rgb) kept += double(x) * x;
+    for (size_t v = 0; v < vertices; ++v) {
+        double total = 0.0, kept = 0.0;
+        for (size_t k = 0; k < perVertex.size(); ++k) {
+            perVertex[k]->dequantizeVertex(v, idx, rgb);
+            for (float x : rgb) total += double(x) * x;
+            blocks[k]->dequantizeVertex(v, idx, rgb);
+            for (float x : rgb) kept += double(x) * x;
+        }
         sum += total > 0.0 ? std::min(1.0, kept / total) : 1.0;
     }
-    return perVertex.vertexCount() ? sum / double(perVertex.vertexCount()) : 1.0;
+    return vertices ? sum / double(vertices) : 1.0;
 }
 
 }  // namespace prt

@@ -153,6 +153,23 @@ std::vector<BlockedRgbVectors> jointTruncateShared(const std::vector<const Spars
                                                    size_t keep, const std::vector<uint32_t>& order,
                                                    uint32_t forcedFrom = UINT32_MAX);
 
+// The same components with NESTED LISTS: per block, each component's part of the score
+// (score_k(i), the sum over the block's lanes of ||T_kv(i)||^2 over the lane's energy
+// summed over all components, as above) decides alone. The block's union is the `keep`
+// indices of highest max_k score_k(i) (ties: lower index); its threshold t is the
+// lowest such max kept; component k keeps the union's indices with score_k(i) >= t.
+// So every kept (component, index) pair scores at least t, the union is exactly the
+// indices some component keeps (at most `keep`), and a component that matters little
+// keeps few. WHY: for an editable file's balanced profiles (common/radial_basis.h,
+// balancedForDipoles) a pair's score is its share of the mean squared recombined value
+// over the covered materials, so one threshold for all pairs spends the bytes where the
+// materials need them; one shared list gives every profile every index, also the
+// profiles whose values there are far below the threshold. The results' order and
+// shFrom are equal; their offsets and indices are their own. Errors as jointTruncateShared.
+std::vector<BlockedRgbVectors> jointTruncateNested(const std::vector<const SparseRgbVectors*>& components,
+                                                   size_t keep, const std::vector<uint32_t>& order,
+                                                   uint32_t forcedFrom = UINT32_MAX);
+
 // The on-disk form of a blocked component's indices (format version 4,
 // docs/transport-format.md, "BLKC payload"): per block, the first index and then each
 // index minus its predecessor minus 1, as LEB128 varints (7 bits per byte, low bits
@@ -175,5 +192,9 @@ std::string decodeIndexLists(const uint8_t* bytes, size_t size, const std::vecto
 // Mean over vertices of kept / total energy (sum of squares over RGB, per vertex,
 // vertices with zero energy count as 1) of a jointTruncate result against its source.
 double retainedEnergyFraction(const SparseRgbVectors& perVertex, const BlockedRgbVectors& blocks);
+// The same for components truncated together (jointTruncateShared or -Nested results
+// against their sources, in the same order): a vertex's energy is summed over them.
+double retainedEnergyFraction(const std::vector<const SparseRgbVectors*>& perVertex,
+                              const std::vector<const BlockedRgbVectors*>& blocks);
 
 }  // namespace prt

@@ -44,7 +44,9 @@ std::string checkViewMaps(const ViewMaps& m) {
 }
 
 // The profile components (each already checked alone) hold one index list: equal
-// offsets and indices. Names the first vertex where one differs from the first.
+// offsets and indices (per vertex), or one block order and SH split with index lists
+// that may differ per block (blocked: nested lists, format version 7). Names the
+// first vertex where a per-vertex list differs from the first.
 std::string checkSharedIndices(const std::vector<const TransportComponent*>& profiles) {
     if (profiles.empty()) return {};
     const TransportComponent& first = *profiles.front();
@@ -56,11 +58,11 @@ std::string checkSharedIndices(const std::vector<const TransportComponent*>& pro
         if (profiles[i]->blocked() != first.blocked())
             return names + " are not both blocked" + why;
         if (first.blocked()) {
-            // Blocks: one lane order and one index list per block for all of them.
+            // Blocks: one lane order for all of them; the lists are each its own.
             const BlockedRgbVectors &x = first.blocks, &y = profiles[i]->blocks;
-            if (x.order != y.order) return names + " have different block orders" + why;
-            if (x.offsets != y.offsets || x.indices != y.indices) return names + " have different block index lists" + why;
-            if (x.shFrom != y.shFrom) return names + " differ in SH scales" + why;
+            const std::string blockWhy = " (the profile components share one block order)";
+            if (x.order != y.order) return names + " have different block orders" + blockWhy;
+            if (x.shFrom != y.shFrom) return names + " differ in SH scales" + blockWhy;
             continue;
         }
         const SparseRgbVectors& b = profiles[i]->vectors;
@@ -81,6 +83,19 @@ std::string checkSharedIndices(const std::vector<const TransportComponent*>& pro
 }
 
 }  // namespace
+
+bool blockedProfileListsDiffer(const TransportFile& f) {
+    const BlockedRgbVectors* first = nullptr;
+    for (const TransportComponent& c : f.components) {
+        if (c.kind != ComponentKind::MultipleScatteringProfiles || !c.blocked()) continue;
+        if (!first) {
+            first = &c.blocks;
+        } else if (c.blocks.offsets != first->offsets || c.blocks.indices != first->indices) {
+            return true;
+        }
+    }
+    return false;
+}
 
 std::string checkProfileTerms(const std::vector<uint32_t>& terms, int basisSize) {
     if (basisSize < 0) {

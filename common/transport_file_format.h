@@ -37,7 +37,10 @@ inline constexpr uint32_t kRadialFormatVersion = 5;
 // + COMP flags: 8-bit Haar values with SH scales, offsets and indices shared with the
 // component before (the profile components of an editable file).
 inline constexpr uint32_t kEightBitFormatVersion = 6;
-inline constexpr uint32_t kNewestFormatVersion = kEightBitFormatVersion;
+// + blocked profile components with index lists of their own per block (nested lists,
+// common/blocked_vectors.h jointTruncateNested); nothing else in the layout changes.
+inline constexpr uint32_t kNestedListsFormatVersion = 7;
+inline constexpr uint32_t kNewestFormatVersion = kNestedListsFormatVersion;
 inline constexpr int kEightBitLevels = 127;  // 8-bit values: [-127, 127]
 // COMP flags (format version 6; reserved zero before).
 inline constexpr uint32_t kCompEightBitHaar = 1;      // values: int8 Haar, int16 SH; SH scales
@@ -263,6 +266,9 @@ std::string checkBlocked(const BlockedRgbVectors& b, uint64_t vertices, uint32_t
 // against the basis: none without a basis (basisSize < 0), else terms exactly
 // 0..P-1 with basisSize == 3P. Shared by checkFile and readTransportFileInfo.
 std::string checkProfileTerms(const std::vector<uint32_t>& terms, int basisSize);
+// Whether f's blocked profile components hold index lists that are not all equal (what
+// format version 7 adds).
+bool blockedProfileListsDiffer(const TransportFile& f);
 // A stored basis: RadialBasis(range, tables) accepts it (a valid range, bounds, table
 // size, finite values, independent profiles) and the construction is a known one.
 std::string checkRadialBasis(const StoredRadialBasis& b);

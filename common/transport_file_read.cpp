@@ -267,7 +267,7 @@ struct HeadFields {
     bool hasViewMaps = false;
 };
 
-// Returns the format version (1 to 5).
+// Returns the format version (1 to kNewestFormatVersion).
 uint32_t readPreamble(FileReader& r) {
     const uint64_t size = r.size();
     if (size == 0) r.fail("truncated: the file is empty (not a transport file)");
@@ -811,6 +811,14 @@ TransportFile loadImpl(const std::string& path, const MeshFingerprint* expected)
     readEnd(r, version);
     const std::string reason = checkFile(f);
     if (!reason.empty()) r.fail("inconsistent: " + reason);
+    const bool ownLists = blockedProfileListsDiffer(f);
+    if (ownLists && version < kNestedListsFormatVersion)
+        r.fail("inconsistent: blocked profile components with index lists of their own in a format version " +
+               u64(version) + " file (they need version " + u64(kNestedListsFormatVersion) + ")");
+    if (!ownLists && version == kNestedListsFormatVersion)
+        r.fail("inconsistent: format version " + u64(version) +
+               " but no blocked profile components with index lists of their own (such a file is version " +
+               u64(kEightBitFormatVersion) + " or lower)");
     return f;
 }
 

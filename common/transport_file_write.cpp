@@ -138,6 +138,7 @@ private:
 
 // The lowest version that holds f (docs/transport-format.md, "Preamble").
 uint32_t formatVersionOf(const TransportFile& f) {
+    if (blockedProfileListsDiffer(f)) return kNestedListsFormatVersion;
     if (std::any_of(f.components.begin(), f.components.end(),
                     [](const TransportComponent& c) { return !c.blocked() && c.vectors.haarBits == 8; }))
         return kEightBitFormatVersion;

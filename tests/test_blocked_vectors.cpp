@@ -326,6 +326,72 @@ TEST(BlockedVectors, SharedChoiceSumsTheComponentsScores) {
     EXPECT_THROW(jointTruncateShared({}, keep, identityOrder(16)), Error);
 }
 
+// Nested lists (jointTruncateNested), against a brute force of the rule: per component
+// the energy-normalised score (lane energy over all components), the union the `keep`
+// indices of highest largest-component score, each component the union's indices whose
+// own score reaches the lowest of those. A component ten times weaker keeps fewer.
+TEST(BlockedVectors, NestedChoiceKeepsEveryPairAboveOneThreshold) {
+    SparseRgbVectors strong = randomVectors(16, 12, 64, 8), weak;
+    const SparseRgbVectors raw = randomVectors(16, 12, 64, 9);
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    for (size_t v = 0; v < 16; ++v) {
+        raw.dequantizeVertex(v, idx, rgb);
+        for (float& x : rgb) x *= 0.3f;
+        weak.appendVertex(idx, rgb);
+    }
+    const std::vector<const SparseRgbVectors*> sources = {&weak, &strong};
+    const size_t keep = 20;
+    const std::vector<BlockedRgbVectors> nested = jointTruncateNested(sources, keep, identityOrder(16));
+    ASSERT_EQ(nested.size(), 2u);
+    EXPECT_EQ(nested[0].order, nested[1].order);
+    // Brute force.
+    std::vector<double> energy(16, 0.0);
+    std::vector<std::map<uint32_t, double>> score(2);
+    for (size_t v = 0; v < 16; ++v)
+        for (const SparseRgbVectors* src : sources) {
+            src->dequantizeVertex(v, idx, rgb);
+            for (float x : rgb) energy[v] += double(x) * x;
+        }
+    for (size_t k = 0; k < 2; ++k)
+        for (size_t v = 0; v < 16; ++v) {
+            sources[k]->dequantizeVertex(v, idx, rgb);
+            for (size_t n = 0; n < idx.size(); ++n) {
+                double e = 0;
+                for (int c = 0; c < 3; ++c) e += double(rgb[3 * n + c]) * rgb[3 * n + c];
+                score[k][idx[n]] += e / energy[v];
+            }
+        }
+    std::map<uint32_t, double> largest;
+    for (const auto& s : score)
+        for (auto [i, x] : s) largest[i] = std::max(largest[i], x);
+    std::vector<std::pair<double, uint32_t>> ranked;
+    for (auto [i, x] : largest) ranked.push_back({-x, i});
+    std::sort(ranked.begin(), ranked.end());
+    const double threshold = -ranked[keep - 1].first;
+    std::vector<uint32_t> unionKept;
+    for (size_t n = 0; n < keep; ++n) unionKept.push_back(ranked[n].second);
+    std::sort(unionKept.begin(), unionKept.end());
+    std::vector<uint32_t> together;
+    for (size_t k = 0; k < 2; ++k) {
+        std::vector<uint32_t> expected;
+        for (uint32_t i : unionKept)
+            if (score[k].count(i) && score[k][i] >= threshold) expected.push_back(i);
+        const std::vector<uint32_t> got(nested[k].indices.begin(), nested[k].indices.end());
+        EXPECT_EQ(got, expected) << "component " << k;
+        together.insert(together.end(), got.begin(), got.end());
+    }
+    std::sort(together.begin(), together.end());
+    together.erase(std::unique(together.begin(), together.end()), together.end());
+    EXPECT_EQ(together, unionKept);
+    EXPECT_LT(nested[0].indices.size(), nested[1].indices.size());
+    EXPECT_GT(nested[0].indices.size(), 0u);
+    // One component alone: nested and shared lists are the same choice.
+    EXPECT_EQ(jointTruncateNested({&strong}, keep, identityOrder(16)).front(),
+              jointTruncate(strong, keep, identityOrder(16)));
+    EXPECT_THROW(jointTruncateNested({}, keep, identityOrder(16)), Error);
+}
+
 TEST(BlockedVectors, JointTruncationKeepsAtLeastTheEnergyOfTheBestShare) {
     // The joint choice maximises the summed retained fraction over the block, so it keeps
     // at least what every vertex keeping its own top keep/16 would (a feasible choice).

@@ -77,14 +77,19 @@ TransportFile syntheticFile(uint64_t seed, bool eightBit = false) {
 }
 
 // syntheticFile's profiles blocked together, keeping every index (lossless up to the
-// int8 values), in a shuffled block order.
-TransportFile blockedFile(uint64_t seed) {
+// int8 values), in a shuffled block order. nestedKeep > 0: nested lists of a union of
+// that many indices per block (jointTruncateNested), the first profile component made
+// ten times weaker so that it keeps fewer of them than the second.
+TransportFile blockedFile(uint64_t seed, size_t nestedKeep = 0) {
     TransportFile file = syntheticFile(seed);
     std::vector<uint32_t> order(kVertices);
     std::iota(order.begin(), order.end(), 0u);
     std::shuffle(order.begin(), order.end(), std::mt19937_64(seed + 100));
-    std::vector<BlockedRgbVectors> blocks =
-        jointTruncateShared({&file.components[0].vectors, &file.components[1].vectors}, kTexels, order);
+    if (nestedKeep > 0)
+        for (int16_t& q : file.components[0].vectors.values) q = int16_t(q / 10);
+    const std::vector<const SparseRgbVectors*> sources = {&file.components[0].vectors, &file.components[1].vectors};
+    std::vector<BlockedRgbVectors> blocks = nestedKeep > 0 ? jointTruncateNested(sources, nestedKeep, order)
+                                                           : jointTruncateShared(sources, kTexels, order);
     for (size_t p = 0; p < 2; ++p) {
         file.components[p].blocks = std::move(blocks[p]);
         file.components[p].vectors = SparseRgbVectors();
@@ -92,8 +97,9 @@ TransportFile blockedFile(uint64_t seed) {
     return file;
 }
 
-// sum_j w_cj U_j(v) from the profiles' dequantized values at vertex v, whose index list
-// must be `idx` (the recombination's): 3 per index, or empty (a failure) if it is not.
+// sum_j w_cj U_j(v) from the profiles' dequantized values at vertex v, whose index lists
+// must lie in `idx` (the recombination's; a profile's value is 0 where its own list
+// lacks an index): 3 per index, or empty (a failure) if one does not.
 std::vector<double> weightedProfileSum(const std::vector<TransportComponent>& profiles, const EditableTransport& e,
                                        size_t v, const std::vector<uint32_t>& idx) {
     std::vector<double> sum(3 * idx.size(), 0.0);
@@ -101,14 +107,18 @@ std::vector<double> weightedProfileSum(const std::vector<TransportComponent>& pr
     std::vector<float> u;
     for (size_t p = 0; p < profiles.size(); ++p) {
         profiles[p].dequantizeVertex(v, idxU, u);
-        if (idxU != idx) {
-            ADD_FAILURE() << "profile component " << p << " has another index list at vertex " << v;
-            return {};
-        }
-        for (size_t n = 0; n < idx.size(); ++n)
+        for (size_t m = 0; m < idxU.size(); ++m) {
+            const auto at = std::find(idx.begin(), idx.end(), idxU[m]);
+            if (at == idx.end()) {
+                ADD_FAILURE() << "profile component " << p << " has index " << idxU[m] << " outside the list at vertex "
+                              << v;
+                return {};
+            }
+            const size_t n = size_t(at - idx.begin());
             for (int ch = 0; ch < 3; ++ch)
                 for (int c = 0; c < 3; ++c)
-                    sum[3 * n + size_t(c)] += e.weights()[size_t(c)][3 * p + size_t(ch)] * u[3 * n + size_t(ch)];
+                    sum[3 * n + size_t(c)] += e.weights()[size_t(c)][3 * p + size_t(ch)] * u[3 * m + size_t(ch)];
+        }
     }
     return sum;
 }
@@ -339,4 +349,64 @@ TEST(EditableTransport, BlockedProjectedLightMatchesTheRecombinationAndThePerVer
         EXPECT_LT(relRmse(viaProjection, viaFile.diffuse), 0.01) << name;
         EXPECT_LT(relRmse(viaProjection, viaPerVertex), 0.01) << name;
     }
+}
+
+// Nested lists (a union of 20 of the 96 indices per block, the weak profile component
+// keeping fewer): the recombination's list is each block's union, its values the
+// weighted sums with 0 where a profile's list lacks an index (int8 bound), and the
+// projected path equals relighting it.
+TEST(EditableTransport, NestedBlockedProfilesRecombineOverTheUnionOfTheirLists) {
+    TransportFile file = blockedFile(8, 20);
+    const std::vector<TransportComponent> profiles = file.components;
+    ASSERT_NE(profiles[0].blocks.indices, profiles[1].blocks.indices);
+    EXPECT_LT(profiles[0].blocks.indices.size(), profiles[1].blocks.indices.size());
+    EditableTransport e(file, kObjectMm);
+    e.setMaterial(materialByName("Skin1"), 23.0);
+    const TransportComponent ms = e.recombine();
+    ASSERT_TRUE(ms.blocked());
+    EXPECT_EQ(checkBlockedVectors(ms.blocks, uint32_t(kTexels)), "");
+    EXPECT_EQ(ms.blocks.order, profiles[0].blocks.order);
+    for (size_t b = 0; b < ms.blocks.blockCount(); ++b) {
+        std::vector<uint32_t> together;
+        for (const TransportComponent& c : profiles)
+            together.insert(together.end(), c.blocks.indices.begin() + c.blocks.offsets[b],
+                            c.blocks.indices.begin() + c.blocks.offsets[b + 1]);
+        std::sort(together.begin(), together.end());
+        together.erase(std::unique(together.begin(), together.end()), together.end());
+        EXPECT_EQ(std::vector<uint32_t>(ms.blocks.indices.begin() + ms.blocks.offsets[b],
+                                        ms.blocks.indices.begin() + ms.blocks.offsets[b + 1]),
+                  together)
+            << "block " << b;
+        EXPECT_LE(together.size(), 20u);
+    }
+    std::vector<uint32_t> idx;
+    std::vector<float> rgb;
+    for (size_t v = 0; v < kVertices; ++v) {
+        ms.dequantizeVertex(v, idx, rgb);
+        const std::vector<double> expected = weightedProfileSum(profiles, e, v, idx);
+        ASSERT_EQ(expected.size(), rgb.size()) << v;
+        for (int c = 0; c < 3; ++c) {
+            double maxAbs = 0.0;
+            for (size_t n = 0; n < idx.size(); ++n) maxAbs = std::max(maxAbs, std::abs(expected[3 * n + size_t(c)]));
+            for (size_t n = 0; n < idx.size(); ++n)
+                ASSERT_LE(std::abs(rgb[3 * n + size_t(c)] - expected[3 * n + size_t(c)]),
+                          maxAbs * (kBlockQuantizationMaxRelativeError + 1e-5))
+                    << v << " " << n;
+        }
+    }
+    const LightVector light = randomLight(9);
+    e.projectLight(light);
+    std::vector<glm::vec3> viaProjection;
+    e.relightProjected(viaProjection);
+    TransportFile recombined = file;
+    recombined.components.push_back(ms);
+    VertexRadiance viaFile;
+    relightVertices(recombined, light, ScatteringComponents{}, viaFile);
+    double diff = 0.0, norm = 0.0;
+    for (size_t v = 0; v < kVertices; ++v)
+        for (int c = 0; c < 3; ++c) {
+            diff += std::pow(double(viaProjection[v][c] - viaFile.diffuse[v][c]), 2);
+            norm += std::pow(double(viaFile.diffuse[v][c]), 2);
+        }
+    EXPECT_LT(std::sqrt(diff / norm), 0.01);  // the recombination's int8 steps, as above
 }

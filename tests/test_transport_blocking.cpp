@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <set>
 
 #include "common/blocked_vectors.h"
 #include "common/transport_file.h"
@@ -58,17 +59,28 @@ TEST(TransportBlocking, EachComponentIsItsJointTruncationInTheSpatialOrder) {
     EXPECT_LT(retained, 1.0);  // 10 of up to 28 indices: something was dropped
 }
 
-TEST(TransportBlocking, RadialProfilesShareOneIndexListPerBlock) {
+// The profiles keep nested lists (jointTruncateNested) and count as one component in
+// the retained energy, beside the multiple scattering; the union of their lists is at
+// most the 12 indices asked.
+TEST(TransportBlocking, RadialProfilesKeepNestedListsPerBlock) {
     TransportFile f = smallFile(true);
     const TransportFile before = f;
     const std::vector<glm::vec3> p = positions(37);
-    blockTransportComponents(f, 12, p);
+    const double retained = blockTransportComponents(f, 12, p);
     std::vector<const SparseRgbVectors*> sources;
     for (const TransportComponent& c : before.components) sources.push_back(&c.vectors);
-    const std::vector<BlockedRgbVectors> shared = jointTruncateShared(sources, 12, spatialBlockOrder(p), 24);
+    const std::vector<BlockedRgbVectors> nested = jointTruncateNested(sources, 12, spatialBlockOrder(p), 24);
+    std::vector<const BlockedRgbVectors*> kept;
     for (size_t k = 0; k < f.components.size(); ++k) {
-        EXPECT_EQ(f.components[k].blocks, shared[k]);
-        EXPECT_EQ(f.components[k].blocks.indices, f.components[0].blocks.indices);
+        EXPECT_EQ(f.components[k].blocks, nested[k]);
+        kept.push_back(&f.components[k].blocks);
+    }
+    EXPECT_DOUBLE_EQ(retained, retainedEnergyFraction(sources, kept));
+    for (size_t b = 0; b < f.components[0].blocks.blockCount(); ++b) {
+        std::set<uint32_t> together;
+        for (const TransportComponent& c : f.components)
+            together.insert(c.blocks.indices.begin() + c.blocks.offsets[b], c.blocks.indices.begin() + c.blocks.offsets[b + 1]);
+        EXPECT_LE(together.size(), 12u);
     }
 }
 

@@ -29,14 +29,18 @@ double blockTransportComponents(TransportFile& file, size_t keep, const std::vec
     if (!profiles.empty()) {
         std::vector<const SparseRgbVectors*> sources;
         for (const TransportComponent* c : profiles) sources.push_back(&c->vectors);
-        std::vector<BlockedRgbVectors> blocks = jointTruncateShared(sources, keep, order, forcedFrom);
+        std::vector<BlockedRgbVectors> blocks = jointTruncateNested(sources, keep, order, forcedFrom);
+        std::vector<const BlockedRgbVectors*> kept;
         for (size_t k = 0; k < profiles.size(); ++k) {
             profiles[k]->blocks = std::move(blocks[k]);
-            retained += retainedEnergyFraction(profiles[k]->vectors, profiles[k]->blocks);
-            profiles[k]->vectors = SparseRgbVectors();
+            kept.push_back(&profiles[k]->blocks);
         }
+        // The profiles count as one component: a profile that matters little keeps little.
+        retained += retainedEnergyFraction(sources, kept);
+        for (TransportComponent* c : profiles) c->vectors = SparseRgbVectors();
     }
-    return file.components.empty() ? 1.0 : retained / double(file.components.size());
+    const size_t counted = file.components.size() - (profiles.empty() ? 0 : profiles.size() - 1);
+    return file.components.empty() ? 1.0 : retained / double(counted);
 }
 
 }  // namespace prt

@@ -8,8 +8,10 @@
 // Blocks: spatialBlockOrder of the mesh's positions in mm, as the precompute scaled them
 // (loadMesh, then scaleToPhysical with the file's mm per unit). Every component keeps
 // its own index lists (jointTruncate), except an editable file's radial profiles, which
-// share one list per block for all of them (jointTruncateShared: the relight walks it
-// once). Indices from 6 N^2 on (the SH part) are kept first with scales of their own.
+// keep nested lists per block (jointTruncateNested: a union of `keep` indices, which
+// their recombination relights, and of it each profile component the indices whose own
+// score reaches the block's threshold). Indices from 6 N^2 on (the SH part) are kept
+// first with scales of their own.
 
 #include <glm/vec3.hpp>
 
@@ -24,9 +26,9 @@ struct TransportFile;
 // vertex, over its components), written just before input_digest.
 inline constexpr const char* kBlockRetainedEnergyParameter = "block_retained_energy";
 
-// Replaces every per-vertex component of `file` by its blocks of `keep` shared terms
+// Replaces every per-vertex component of `file` by its blocks of `keep` terms
 // (the per-vertex arrays are freed) and returns the mean over components of
-// retainedEnergyFraction. Preconditions: keep >= 1; positions.size() is the file's
+// retainedEnergyFraction (the profile components counted as one). Preconditions: keep >= 1; positions.size() is the file's
 // vertex count; every component is per vertex (prt::Error otherwise). Deterministic.
 double blockTransportComponents(TransportFile& file, size_t keep, const std::vector<glm::vec3>& positions);
 

@@ -210,38 +210,54 @@ std::optional<TransportComponent> EditableTransport::recombineUnless(const std::
 
 TransportComponent EditableTransport::recombineBlocked() const {
     const size_t P = profiles_.size();
-    const BlockedRgbVectors& shared = profiles_.front().blocks;
-    const size_t blocks = shared.blockCount();
+    const BlockedRgbVectors& first = profiles_.front().blocks;
+    const size_t blocks = first.blockCount();
     TransportComponent out;
     out.kind = ComponentKind::MultipleScattering;
     BlockedRgbVectors& b = out.blocks;
-    b.vertices = shared.vertices;
-    b.order = shared.order;
-    b.offsets = shared.offsets;
-    b.indices = shared.indices;
-    b.shFrom = shared.shFrom;
-    b.slotOf = shared.slotOf;
-    b.values.assign(shared.values.size(), 0);
-    b.scales.assign(shared.scales.size(), 0.0f);
-    b.shScales.assign(shared.shScales.size(), 0.0f);
+    b.vertices = first.vertices;
+    b.order = first.order;
+    b.shFrom = first.shFrom;
+    b.slotOf = first.slotOf;
+    // Each block's list is the union of the profiles' lists (their own with nested
+    // lists, all equal otherwise), laid out first so the blocks fill in parallel.
+    b.offsets.assign(blocks + 1, 0);
+    std::vector<uint16_t> merged;
+    for (size_t k = 0; k < blocks; ++k) {
+        merged.clear();
+        for (const TransportComponent& c : profiles_)
+            merged.insert(merged.end(), c.blocks.indices.begin() + c.blocks.offsets[k],
+                          c.blocks.indices.begin() + c.blocks.offsets[k + 1]);
+        std::sort(merged.begin(), merged.end());
+        merged.erase(std::unique(merged.begin(), merged.end()), merged.end());
+        b.indices.insert(b.indices.end(), merged.begin(), merged.end());
+        b.offsets[k + 1] = uint32_t(b.indices.size());
+    }
+    b.values.assign(b.indices.size() * kBlockValuesPerIndex, 0);
+    b.scales.assign(first.scales.size(), 0.0f);
+    b.shScales.assign(first.shScales.size(), 0.0f);
     // Per block: the recombined values in quantizeBlock's layout, (n * lanes + lane) * 3
     // + c, then quantized into the block's own slots (deterministic on any thread count).
     tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 16), [&](const tbb::blocked_range<size_t>& r) {
         std::vector<float> rgb;
         float noShScales[kBlockValuesPerIndex];
         for (size_t k = r.begin(); k < r.end(); ++k) {
-            const uint32_t begin = shared.offsets[k], end = shared.offsets[k + 1], shBegin = shared.shBegin(k);
-            const uint32_t lanes = uint32_t(std::min<size_t>(kVertexBlock, shared.vertexCount() - k * kVertexBlock));
+            const uint32_t begin = b.offsets[k], end = b.offsets[k + 1], shBegin = b.shBegin(k);
+            const uint32_t lanes = uint32_t(std::min<size_t>(kVertexBlock, b.vertexCount() - k * kVertexBlock));
             rgb.assign(size_t(end - begin) * lanes * 3, 0.0f);
             for (size_t p = 0; p < P; ++p) {
                 const BlockedRgbVectors& u = profiles_[p].blocks;
+                const uint32_t uBegin = u.offsets[k], uEnd = u.offsets[k + 1], uShBegin = u.shBegin(k);
                 for (size_t ch = 0; ch < 3; ++ch) {
                     const float w[3] = {float(weights_[0][3 * p + ch]), float(weights_[1][3 * p + ch]),
                                         float(weights_[2][3 * p + ch])};
-                    for (uint32_t n = begin; n < end; ++n) {
-                        const float* scales = &(n < shBegin ? u.scales : u.shScales)[k * kBlockValuesPerIndex + 16 * ch];
+                    // The profile's list is a subset of the union: one merge.
+                    uint32_t at = begin;
+                    for (uint32_t n = uBegin; n < uEnd; ++n) {
+                        while (b.indices[at] < u.indices[n]) ++at;
+                        const float* scales = &(n < uShBegin ? u.scales : u.shScales)[k * kBlockValuesPerIndex + 16 * ch];
                         const int8_t* q = &u.values[n * kBlockValuesPerIndex + 16 * ch];
-                        float* dst = &rgb[size_t(n - begin) * lanes * 3];
+                        float* dst = &rgb[size_t(at - begin) * lanes * 3];
                         for (uint32_t lane = 0; lane < lanes; ++lane) {
                             const float x = float(q[lane]) * scales[lane];
                             for (size_t c = 0; c < 3; ++c) dst[3 * lane + c] += x * w[c];

@@ -30,8 +30,10 @@
 // vertex, kBlockQuantizationMaxRelativeError blocked).
 //
 // BLOCKED FILES (prt-precompute --editable --block-coefficients K): the profile
-// components share one block order and one index list per block (jointTruncateShared),
-// and recombine() keeps that layout: its component relights through the blocked kernel.
+// components share one block order; per block each keeps its own index list, nested in
+// a union of at most K (jointTruncateNested; files before format version 7: one list
+// for all, jointTruncateShared). recombine() gives a blocked component with the same
+// blocks and each block's union as its list: it relights through the blocked kernel.
 //
 // WHAT IS NOT EDITED. Single scattering stays the file's material's (its components
 // are not touched); the index of refraction stays the file's (pass 1 bakes the
@@ -89,8 +91,9 @@ public:
 
     // V_c = sum_j w_cj U_j per vertex, quantized like any component of the profiles'
     // encoding (kind MultipleScattering, the profiles' shared index lists): per vertex,
-    // or blocked (the profiles' block order and per-block index lists, 8-bit values with
-    // new per-lane scales, blocked_vectors.h) when the file's profiles are blocked.
+    // or blocked (the profiles' block order, per block the union of their index lists,
+    // 8-bit values with new per-lane scales, blocked_vectors.h) when the file's profiles
+    // are blocked.
     TransportComponent recombine() const;
     // The same, unless stop() returns true (asked every 64 vertices, from any of the
     // threads): then nothing (a per-vertex file's recombination gives way to newer
