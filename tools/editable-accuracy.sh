@@ -10,10 +10,12 @@
 #          bunny and the dragon res3, forest and city.
 # With REFERENCE=1 also each of Marble and Ketchup (30 mm, bunny, forest) against
 # prt-reference: the editable and the full file's error, and their difference.
+# With BLOCKS=M both files are blocked with M indices per block (--block-coefficients M;
+# the editable one with nested lists), the per-vertex terms they are chosen from pinned.
 #
 #   tools/editable-accuracy.sh [materials|sizes|all]      (default all)
 #
-# Outputs in ${OUT:-out/editable-accuracy}. Files already there are REUSED when newer than
+# Outputs in ${OUT:-out/editable-accuracy} (with BLOCKS=M: out/editable-accuracy-blocked-M). Files already there are REUSED when newer than
 # the build's prt-precompute (say REUSE=0 to redo them); each reuse is printed.
 # About 15 minutes on 2 cores from nothing.
 set -euo pipefail
@@ -21,7 +23,13 @@ root="$(cd "$(dirname "$0")/.." && pwd)"
 build="${PRT_BUILD_DIR:-$root/build}"
 what="${1:-all}"
 case "$what" in materials | sizes | all) ;; *) echo "usage: tools/editable-accuracy.sh [materials|sizes|all]" >&2; exit 2 ;; esac
-out="${OUT:-$root/out/editable-accuracy}"
+blocks="${BLOCKS:-0}"
+[[ "$blocks" =~ ^[0-9]+$ ]] || { echo "editable-accuracy: BLOCKS must be a count of indices per block, got '$blocks'" >&2; exit 2; }
+blockArgs=()
+[[ "$blocks" -gt 0 ]] && blockArgs=(--block-coefficients "$blocks")
+default_out="$root/out/editable-accuracy"
+[[ "$blocks" -gt 0 ]] && default_out="$root/out/editable-accuracy-blocked-$blocks"
+out="${OUT:-$default_out}"
 mkdir -p "$out"
 bin="$build/bin"
 for t in prt-precompute prt-relight prt-compare prt-reference; do
@@ -46,7 +54,7 @@ editable() {
     ed="$out/$1_editable.prt"
     if fresh "$ed"; then
         echo "editable precompute of $1 ..." >&2
-        "$bin/prt-precompute" "$2" -o "$ed" --size-mm 30 -m Marble --editable --summary-json "$out/$1_editable.json" \
+        "$bin/prt-precompute" "$2" -o "$ed" --size-mm 30 -m Marble --editable "${blockArgs[@]}" --summary-json "$out/$1_editable.json" \
             > "$out/$1_editable.log" 2>&1 || { echo "editable-accuracy: see $out/$1_editable.log" >&2; exit 1; }
     fi
     samples=$(python3 -c "import json, sys; print(json.load(open(sys.argv[1]))['summary']['samples'])" "$out/$1_editable.json")
@@ -58,7 +66,7 @@ cell() {
     local name="$1" mesh="$2" m="$3" size="$4" env="$5"
     local full="$out/${name}_${m}_${size}_full.prt"
     if fresh "$full"; then
-        "$bin/prt-precompute" "$mesh" -o "$full" --size-mm "$size" -m "$m" --samples "$samples" -k "$terms" \
+        "$bin/prt-precompute" "$mesh" -o "$full" --size-mm "$size" -m "$m" --samples "$samples" -k "$terms" "${blockArgs[@]}" \
             > "$full.log" 2>&1 || { echo "editable-accuracy: see $full.log" >&2; exit 1; }
     fi
     e_img="$out/${name}_${m}_${size}_${env}_editable"
@@ -72,7 +80,7 @@ cell() {
 bunny="$data/meshes/bunny.off"
 if [[ "$what" != sizes ]]; then
     editable bunny "$bunny"
-    echo "materials (bunny, 30 mm, forest; editable: $samples samples, $terms terms per vertex)"
+    echo "materials (bunny, 30 mm, forest; editable: $samples samples, $terms terms per vertex, blocks: $blocks)"
     echo
     echo "| material | editable vs full |"
     echo "|---|---|"
