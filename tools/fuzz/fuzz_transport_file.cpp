@@ -1,7 +1,7 @@
 // Fuzz target: the transport-file loader (common/transport_file.h), both the cheap
 // readTransportFileInfo and the full loadTransportFile, over whole files (preamble,
 // header, parameter, per-vertex (COMP) and blocked (BLKC) component, view-map and radial
-// basis (RBAS) sections, end marker; format versions 1 to 5). The fuzz build skips the checksum comparison
+// basis (RBAS) sections, end marker; format versions 1 to 7). The fuzz build skips the checksum comparison
 // (FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION) so mutations reach the sections behind it.
 //
 // Oracle: a file the loader accepts satisfies saveTransportFile's validation, and
