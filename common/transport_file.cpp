@@ -56,7 +56,7 @@ std::string checkSharedIndices(const std::vector<const TransportComponent*>& pro
                                   componentName(first.kind, first.term) + "'";
         const std::string why = " (the profile components share one index list)";
         if (profiles[i]->blocked() != first.blocked())
-            return names + " are not both blocked" + why;
+            return names + " are not both blocked (the profile components are all per vertex or all blocked)";
         if (first.blocked()) {
             // Blocks: one lane order for all of them; the lists are each its own.
             const BlockedRgbVectors &x = first.blocks, &y = profiles[i]->blocks;

@@ -50,8 +50,11 @@ enum class ComponentKind : uint32_t {
     // component: term p holds profiles 3p, 3p+1, 3p+2 in its channels R, G, B. The
     // relit multiple scattering of channel c is sum_j w_cj U_j with w_c =
     // RadialBasis::materialWeights (see common/radial_basis.h). The P components of a
-    // file are terms 0..P-1, per vertex (never blocked), and share one index list:
-    // equal `offsets` and `indices`, so a relight walks the indices once for all J.
+    // file are terms 0..P-1, all per vertex or all blocked. Per vertex they share one
+    // index list (equal `offsets` and `indices`), so a relight walks the indices once
+    // for all J; blocked they share one block order and keep nested lists of their own
+    // per block (format version 7; blocked_vectors.h, jointTruncateNested), or one list
+    // for all (version 5).
     MultipleScatteringProfiles = 4,
 };
 
@@ -212,12 +215,13 @@ inline constexpr const char* kShardVerticesParameter = "shard_vertices";
 // equal to mesh.vertexCount; indices < 6 N^2 + shTerms and increasing; view maps present iff
 // term components exist, one term component per view-map term; finite values; a
 // blocked component passes checkBlockedVectors and has empty `vectors`; the radial
-// basis present iff profile components exist, which are per vertex, terms 0..P-1 with
-// J = 3P, share their offsets and indices, and the basis passes RadialBasis's
-// construction), then writes through writeAtomically (common/atomic_file.h): on any
-// failure an existing file at `path` is untouched, no temporary file is left and
-// prt::Error(path, reason) is thrown. The format version is the lowest that holds the
-// file: 6 with 8-bit profile components (SparseRgbVectors::haarBits; the writer stores
+// basis present iff profile components exist, which are terms 0..P-1 with J = 3P, all
+// per vertex sharing their offsets and indices or all blocked sharing their block
+// order and SH scales, and the basis passes RadialBasis's construction), then writes
+// through writeAtomically (common/atomic_file.h): on any failure an existing file at
+// `path` is untouched, no temporary file is left and prt::Error(path, reason) is
+// thrown. The format version is the lowest that holds the file: 7 with blocked profile
+// components whose index lists differ, 6 with 8-bit profile components (SparseRgbVectors::haarBits; the writer stores
 // the offsets and indices of a profile component equal to the one before it once), 5
 // with a radial basis (whatever else it holds), else 4 with SH terms and a
 // blocked component (varint indices, SH scales where BlockedRgbVectors::shFrom is
@@ -238,7 +242,7 @@ TransportFile loadTransportFile(const std::string& path, const MeshFingerprint& 
 
 // What readTransportFileInfo returns: everything except the vectors and view maps.
 struct TransportFileInfo {
-    uint32_t version = 0;  // the file's format version, 1..6 (see saveTransportFile)
+    uint32_t version = 0;  // the file's format version, 1..7 (see saveTransportFile)
     uint32_t cubemapSize = 0;
     uint32_t shTerms = 0;
     MeshFingerprint mesh;

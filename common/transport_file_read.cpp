@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <set>
 #include <stdexcept>
 
@@ -867,8 +868,23 @@ TransportFileInfo readTransportFileInfo(const std::string& path) {
     }
     readEnd(r, version);
     std::vector<uint32_t> profileTerms;
+    std::vector<uint64_t> blockedProfileCounts;
     for (const TransportFileInfo::Component& c : info.components)
-        if (c.kind == ComponentKind::MultipleScatteringProfiles) profileTerms.push_back(c.term);
+        if (c.kind == ComponentKind::MultipleScatteringProfiles) {
+            profileTerms.push_back(c.term);
+            if (c.blocked) blockedProfileCounts.push_back(c.coefficientCount);
+        }
+    // Version 7's rule as far as the counts tell (loadTransportFile compares the lists).
+    const bool countsDiffer =
+        std::adjacent_find(blockedProfileCounts.begin(), blockedProfileCounts.end(), std::not_equal_to<>()) !=
+        blockedProfileCounts.end();
+    if (countsDiffer && version < kNestedListsFormatVersion)
+        r.fail("inconsistent: blocked profile components with index lists of their own in a format version " +
+               u64(version) + " file (they need version " + u64(kNestedListsFormatVersion) + ")");
+    if (blockedProfileCounts.size() < 2 && version == kNestedListsFormatVersion)
+        r.fail("inconsistent: format version " + u64(version) +
+               " but no blocked profile components with index lists of their own (such a file is version " +
+               u64(kEightBitFormatVersion) + " or lower)");
     const std::string reason = checkProfileTerms(profileTerms, basisSize);
     if (!reason.empty()) r.fail("inconsistent: " + reason);
     return info;

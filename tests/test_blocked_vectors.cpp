@@ -389,6 +389,26 @@ TEST(BlockedVectors, NestedChoiceKeepsEveryPairAboveOneThreshold) {
     // One component alone: nested and shared lists are the same choice.
     EXPECT_EQ(jointTruncateNested({&strong}, keep, identityOrder(16)).front(),
               jointTruncate(strong, keep, identityOrder(16)));
+    // Keeping every index that scores: each component keeps its whole support, as it
+    // would alone (lossless up to the int8 values).
+    const std::vector<BlockedRgbVectors> whole = jointTruncateNested(sources, 64, identityOrder(16));
+    for (size_t k = 0; k < 2; ++k) EXPECT_EQ(whole[k], jointTruncate(*sources[k], 64, identityOrder(16))) << k;
+    // Forced indices (an SH part from 60 on): every component keeps each one it has,
+    // whatever the threshold, with scales of their own.
+    const std::vector<BlockedRgbVectors> forced = jointTruncateNested(sources, keep, identityOrder(16), 60);
+    for (size_t k = 0; k < 2; ++k) {
+        std::set<uint32_t> support, kept;
+        for (size_t v = 0; v < 16; ++v) {
+            sources[k]->dequantizeVertex(v, idx, rgb);
+            for (uint32_t i : idx)
+                if (i >= 60) support.insert(i);
+        }
+        for (uint16_t i : forced[k].indices)
+            if (i >= 60) kept.insert(i);
+        ASSERT_FALSE(support.empty());
+        EXPECT_EQ(kept, support) << k;
+        EXPECT_EQ(forced[k].shFrom, 60u);
+    }
     EXPECT_THROW(jointTruncateNested({}, keep, identityOrder(16)), Error);
 }
 

@@ -80,17 +80,19 @@ TransportFile syntheticFile(uint64_t seed, bool eightBit = false) {
 // syntheticFile's profiles blocked together, keeping every index (lossless up to the
 // int8 values), in a shuffled block order. nestedKeep > 0: nested lists of a union of
 // that many indices per block (jointTruncateNested), the first profile component made
-// ten times weaker so that it keeps fewer of them than the second.
-TransportFile blockedFile(uint64_t seed, size_t nestedKeep = 0) {
-    TransportFile file = syntheticFile(seed);
+// ten times weaker so that it keeps fewer of them than the second. withSh: the 8-bit
+// variant's SH part (kShTerms terms), kept first with scales of their own.
+TransportFile blockedFile(uint64_t seed, size_t nestedKeep = 0, bool withSh = false) {
+    TransportFile file = syntheticFile(seed, withSh);
     std::vector<uint32_t> order(kVertices);
     std::iota(order.begin(), order.end(), 0u);
     std::shuffle(order.begin(), order.end(), std::mt19937_64(seed + 100));
     if (nestedKeep > 0)
         for (int16_t& q : file.components[0].vectors.values) q = int16_t(q / 10);
     const std::vector<const SparseRgbVectors*> sources = {&file.components[0].vectors, &file.components[1].vectors};
-    std::vector<BlockedRgbVectors> blocks = nestedKeep > 0 ? jointTruncateNested(sources, nestedKeep, order)
-                                                           : jointTruncateShared(sources, kTexels, order);
+    const uint32_t shFrom = withSh ? uint32_t(kTexels) : UINT32_MAX;
+    std::vector<BlockedRgbVectors> blocks = nestedKeep > 0 ? jointTruncateNested(sources, nestedKeep, order, shFrom)
+                                                           : jointTruncateShared(sources, kTexels, order, shFrom);
     for (size_t p = 0; p < 2; ++p) {
         file.components[p].blocks = std::move(blocks[p]);
         file.components[p].vectors = SparseRgbVectors();
@@ -370,7 +372,9 @@ TEST(EditableTransport, BlockedProjectedLightMatchesTheRecombinationAndThePerVer
 // weighted sums with 0 where a profile's list lacks an index (int8 bound), and the
 // projected path equals relighting it.
 TEST(EditableTransport, NestedBlockedProfilesRecombineOverTheUnionOfTheirLists) {
-    TransportFile file = blockedFile(8, 20);
+  for (const bool withSh : {false, true}) {
+    SCOPED_TRACE(withSh ? "with an SH part" : "Haar only");
+    TransportFile file = blockedFile(8, withSh ? 20 + kShTerms : 20, withSh);
     const std::vector<TransportComponent> profiles = file.components;
     ASSERT_NE(profiles[0].blocks.indices, profiles[1].blocks.indices);
     EXPECT_LT(profiles[0].blocks.indices.size(), profiles[1].blocks.indices.size());
@@ -378,7 +382,7 @@ TEST(EditableTransport, NestedBlockedProfilesRecombineOverTheUnionOfTheirLists) 
     e.setMaterial(materialByName("Skin1"), 23.0);
     const TransportComponent ms = e.recombine();
     ASSERT_TRUE(ms.blocked());
-    EXPECT_EQ(checkBlockedVectors(ms.blocks, uint32_t(kTexels)), "");
+    EXPECT_EQ(checkBlockedVectors(ms.blocks, uint32_t(kTexels + file.shTerms)), "");
     EXPECT_EQ(ms.blocks.order, profiles[0].blocks.order);
     for (size_t b = 0; b < ms.blocks.blockCount(); ++b) {
         std::vector<uint32_t> together;
@@ -391,7 +395,7 @@ TEST(EditableTransport, NestedBlockedProfilesRecombineOverTheUnionOfTheirLists) 
                                         ms.blocks.indices.begin() + ms.blocks.offsets[b + 1]),
                   together)
             << "block " << b;
-        EXPECT_LE(together.size(), 20u);
+        EXPECT_LE(together.size(), withSh ? 20u + kShTerms : 20u);
     }
     EXPECT_GE(checkRecombination(ms, profiles, e,
                                  [](double maxAbs, int) { return maxAbs * (kBlockQuantizationMaxRelativeError + 1e-5); }),
@@ -411,4 +415,5 @@ TEST(EditableTransport, NestedBlockedProfilesRecombineOverTheUnionOfTheirLists) 
             norm += std::pow(double(viaFile.diffuse[v][c]), 2);
         }
     EXPECT_LT(std::sqrt(diff / norm), 0.01);  // the recombination's int8 steps, as above
+  }
 }

@@ -445,9 +445,9 @@ std::vector<glm::dvec3> constantLightRadiance(const TransportFile& file, const s
 
 // Blocked editable files (--editable --block-coefficients M): the profiles keep nested
 // index lists per block (jointTruncateNested; kind-4 BLKC sections). With the union the
-// whole space (M = 100 = 6 x 4^2 + 4 here), a blocked file differs from its per-vertex
-// file by the int8 values and the pairs below the least kept score (a weak profile's
-// smallest values), for the editable and the full precompute alike; and
+// whole space (M = 100 = 6 x 4^2 + 4 here) every profile keeps its whole support, so a
+// blocked file differs from its per-vertex file by the int8 values alone, for the
+// editable and the full precompute alike; and
 // the blocked editable file relit as Skin1 is as close to the blocked full Skin1
 // precompute as the per-vertex files are to each other (EditableMatchesFullPrecomputes),
 // up to those int8 steps. Under a random positive light, so every coefficient counts.

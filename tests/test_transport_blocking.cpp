@@ -7,6 +7,7 @@
 
 #include "common/blocked_vectors.h"
 #include "common/transport_file.h"
+#include "common/transport_file_format.h"
 #include "precompute/job/transport_blocking.h"
 #include "tests/test_support.h"
 
@@ -64,22 +65,36 @@ TEST(TransportBlocking, EachComponentIsItsJointTruncationInTheSpatialOrder) {
 // most the 12 indices asked.
 TEST(TransportBlocking, RadialProfilesKeepNestedListsPerBlock) {
     TransportFile f = smallFile(true);
+    // The first profile component ten times weaker, so it keeps fewer indices; and a
+    // multiple-scattering component beside the profiles, blocked on its own.
+    for (int16_t& q : f.components[0].vectors.values) q = int16_t(q / 10);
+    TransportComponent ms = smallFile(false).components[0];
+    f.components.push_back(ms);
     const TransportFile before = f;
     const std::vector<glm::vec3> p = positions(37);
     const double retained = blockTransportComponents(f, 12, p);
     std::vector<const SparseRgbVectors*> sources;
-    for (const TransportComponent& c : before.components) sources.push_back(&c.vectors);
-    const std::vector<BlockedRgbVectors> nested = jointTruncateNested(sources, 12, spatialBlockOrder(p), 24);
+    for (size_t k = 0; k < 3; ++k) sources.push_back(&before.components[k].vectors);
+    const std::vector<uint32_t> order = spatialBlockOrder(p);
+    const std::vector<BlockedRgbVectors> nested = jointTruncateNested(sources, 12, order, 24);
     std::vector<const BlockedRgbVectors*> kept;
-    for (size_t k = 0; k < f.components.size(); ++k) {
+    for (size_t k = 0; k < 3; ++k) {
         EXPECT_EQ(f.components[k].blocks, nested[k]);
         kept.push_back(&f.components[k].blocks);
     }
-    EXPECT_DOUBLE_EQ(retained, retainedEnergyFraction(sources, kept));
+    EXPECT_TRUE(transport_format::blockedProfileListsDiffer(f));
+    EXPECT_LT(f.components[0].blocks.indices.size(), f.components[1].blocks.indices.size());
+    const BlockedRgbVectors msBlocks = jointTruncate(before.components[3].vectors, 12, order, 24);
+    EXPECT_EQ(f.components[3].blocks, msBlocks);
+    // The profiles count as one component beside the multiple scattering.
+    EXPECT_DOUBLE_EQ(retained, (retainedEnergyFraction(sources, kept) +
+                                retainedEnergyFraction(before.components[3].vectors, msBlocks)) / 2.0);
     for (size_t b = 0; b < f.components[0].blocks.blockCount(); ++b) {
         std::set<uint32_t> together;
-        for (const TransportComponent& c : f.components)
-            together.insert(c.blocks.indices.begin() + c.blocks.offsets[b], c.blocks.indices.begin() + c.blocks.offsets[b + 1]);
+        for (size_t k = 0; k < 3; ++k) {
+            const BlockedRgbVectors& x = f.components[k].blocks;
+            together.insert(x.indices.begin() + x.offsets[b], x.indices.begin() + x.offsets[b + 1]);
+        }
         EXPECT_LE(together.size(), 12u);
     }
 }

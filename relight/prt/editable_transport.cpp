@@ -72,6 +72,7 @@ EditableTransport::EditableTransport(TransportFile& file, double objectSizeMm, c
     if (profiles_.empty() || 3 * profiles_.size() != size_t(basis_.size()))
         throw Error(path, "has " + std::to_string(profiles_.size()) + " profile components for a basis of " +
                               std::to_string(basis_.size()) + " profiles");
+    if (profiles_.front().blocked()) blockUnion();
     const TransportParameters parameters = readTransportParameters(file.parameters, path);
     if (!parameters.material) throw Error(path, "names no material: the starting point of an edit is unknown");
     fileMaterial_ = *parameters.material;
@@ -85,6 +86,25 @@ EditableTransport::EditableTransport(TransportFile& file, double objectSizeMm, c
 }
 
 size_t EditableTransport::vertexCount() const { return profiles_.front().vertexCount(); }
+
+void EditableTransport::blockUnion() {
+    const size_t blocks = profiles_.front().blocks.blockCount();
+    std::vector<std::vector<uint16_t>> lists(blocks);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 256), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t k = r.begin(); k < r.end(); ++k) {
+            std::vector<uint16_t>& merged = lists[k];
+            for (const TransportComponent& c : profiles_)
+                merged.insert(merged.end(), c.blocks.indices.begin() + c.blocks.offsets[k],
+                              c.blocks.indices.begin() + c.blocks.offsets[k + 1]);
+            std::sort(merged.begin(), merged.end());
+            merged.erase(std::unique(merged.begin(), merged.end()), merged.end());
+        }
+    });
+    unionOffsets_.assign(blocks + 1, 0);
+    for (size_t k = 0; k < blocks; ++k) unionOffsets_[k + 1] = unionOffsets_[k] + uint32_t(lists[k].size());
+    unionIndices_.resize(unionOffsets_.back());
+    for (size_t k = 0; k < blocks; ++k) std::copy(lists[k].begin(), lists[k].end(), unionIndices_.begin() + unionOffsets_[k]);
+}
 
 bool EditableTransport::setMaterial(const Material& material, double sizeMm) {
     if (!(sizeMm > 0.0) || !std::isfinite(sizeMm))
@@ -219,20 +239,8 @@ TransportComponent EditableTransport::recombineBlocked() const {
     b.order = first.order;
     b.shFrom = first.shFrom;
     b.slotOf = first.slotOf;
-    // Each block's list is the union of the profiles' lists (their own with nested
-    // lists, all equal otherwise), laid out first so the blocks fill in parallel.
-    b.offsets.assign(blocks + 1, 0);
-    std::vector<uint16_t> merged;
-    for (size_t k = 0; k < blocks; ++k) {
-        merged.clear();
-        for (const TransportComponent& c : profiles_)
-            merged.insert(merged.end(), c.blocks.indices.begin() + c.blocks.offsets[k],
-                          c.blocks.indices.begin() + c.blocks.offsets[k + 1]);
-        std::sort(merged.begin(), merged.end());
-        merged.erase(std::unique(merged.begin(), merged.end()), merged.end());
-        b.indices.insert(b.indices.end(), merged.begin(), merged.end());
-        b.offsets[k + 1] = uint32_t(b.indices.size());
-    }
+    b.offsets = unionOffsets_;
+    b.indices = unionIndices_;
     b.values.assign(b.indices.size() * kBlockValuesPerIndex, 0);
     b.scales.assign(first.scales.size(), 0.0f);
     b.shScales.assign(first.shScales.size(), 0.0f);

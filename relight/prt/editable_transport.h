@@ -110,6 +110,8 @@ public:
 
 private:
     TransportComponent recombineBlocked() const;
+    // Blocked profiles: each block's union of their lists, the recombination's (once).
+    void blockUnion();
 
     std::vector<TransportComponent> profiles_;  // P = J / 3, profiles 3p .. 3p + 2
     uint32_t cubemapSize_ = 0, shTerms_ = 0;
@@ -119,6 +121,8 @@ private:
     double sizeMm_ = 0.0;
     std::array<std::vector<double>, 3> weights_;
     std::vector<float> projected_;  // V x J x 3
+    std::vector<uint32_t> unionOffsets_;  // blocked profiles: blocks + 1
+    std::vector<uint16_t> unionIndices_;
 };
 
 }  // namespace prt
