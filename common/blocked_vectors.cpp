@@ -198,7 +198,6 @@ Block chooseBlock(const std::vector<const SparseRgbVectors*>& src, const uint32_
         }
     std::vector<uint32_t> order(all.size());
     std::iota(order.begin(), order.end(), 0u);
-    const size_t positive = size_t(std::count_if(score.begin(), score.end(), [](double x) { return x > 0.0; }));
     const size_t kept = std::min(keep, order.size());
     // Highest score first, ties by lower index; indices with zero score are never kept.
     std::partial_sort(order.begin(), order.begin() + ptrdiff_t(kept), order.end(),
@@ -207,19 +206,16 @@ Block chooseBlock(const std::vector<const SparseRgbVectors*>& src, const uint32_
     order.erase(std::remove_if(order.begin(), order.end(), [&](uint32_t a) { return score[a] <= 0.0; }),
                 order.end());
     std::sort(order.begin(), order.end());
-    // The threshold of nested lists: the lowest union score kept, or, when the union
-    // kept every index that scores (nothing was cut), any positive score: lossless.
+    // The threshold of nested lists: the lowest union score kept (also when the union
+    // is every index that scores: a pair below it is worth less than any index kept).
     double threshold = inf;
     for (uint32_t at : order) threshold = std::min(threshold, score[at]);
-    const bool cut = order.size() < positive;
     out.idx.assign(C, {});
     out.rgb.resize(C);
     for (size_t k = 0; k < C; ++k) {
         std::vector<uint32_t>& list = out.idx[k];
         for (uint32_t at : order)
-            if (sharing == Sharing::OneList ||
-                (cut ? componentScore[k * all.size() + at] >= threshold : componentScore[k * all.size() + at] > 0.0))
-                list.push_back(all[at]);
+            if (sharing == Sharing::OneList || componentScore[k * all.size() + at] >= threshold) list.push_back(all[at]);
         out.rgb[k].assign(list.size() * lanes * 3, 0.0f);
         for (uint32_t lane = 0; lane < lanes; ++lane) {
             const std::vector<uint32_t>& li = idx[k * kVertexBlock + lane];

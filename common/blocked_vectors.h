@@ -160,9 +160,10 @@ std::vector<BlockedRgbVectors> jointTruncateShared(const std::vector<const Spars
 // lowest such max kept; component k keeps the union's indices with score_k(i) >= t.
 // So every kept (component, index) pair scores at least t, the union is exactly the
 // indices some component keeps (at most `keep`), and a component that matters little
-// keeps few. When the union is every index that scores (`keep` >= their count), t is
-// the least positive score instead: each component keeps its whole support there, and
-// the result is lossless up to quantization, as jointTruncateShared's. WHY: for an editable file's balanced profiles (common/radial_basis.h,
+// keeps few. Even when the union is every index that scores (`keep` >= their count), a
+// component drops its pairs below t, each worth less than the least index kept: so,
+// unlike jointTruncateShared's, the result is not lossless there (the bytes a weak
+// profile's tiny values would take are saved; docs/editable-transport.md). WHY: for an editable file's balanced profiles (common/radial_basis.h,
 // balancedForDipoles) a pair's score is its share of the mean squared recombined value
 // over the covered materials, so one threshold for all pairs spends the bytes where the
 // materials need them; one shared list gives every profile every index, also the

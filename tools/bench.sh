@@ -16,12 +16,16 @@
 #   6. prt-pointlight --method cache --compare-jb: a point light by the translucent
 #      irradiance cache (Keng et al. 2006) at its defaults on the bunny (1024 x 1024),
 #      its time T_cache and Jensen-Buhler's T_JB on the same samples and octree in the
-#      same run, their ratio, and the cache's distance from Jensen-Buhler.
+#      same run, their ratio, and the cache's distance from Jensen-Buhler;
+#   7. prt-bench-edit: a material edit with the light still on the bunny's editable
+#      file, and a light change on it against a plain per-vertex file; the same light
+#      change on a blocked editable file (nested lists, 216 per block) against the
+#      default blocked file, with the two files' sizes.
 # Prints one Markdown table (with the command of each row) and writes it to
 # out/bench/summary.md; raw outputs are kept in out/bench/*.log and *.json. With
 # --repeat N the benchmarks that run once per process (2, 3, 4 and 6) run N times
 # (NAME.rK.log / .json for K > 1) and the table shows their medians with (min..max);
-# 1 and 5 repeat inside their own process and report their own medians.
+# 1, 5 and 7 repeat inside their own process and report their own medians.
 set -euo pipefail
 
 usage() {
@@ -36,7 +40,8 @@ takes. Needs the fetched data (tools/fetch-data.sh) and python3.
   --no-build   use the binaries already in $BUILD_DIR
   --repeat N   run pass 1, the precomputes, the file relights and the cache N times
                (default 1); the table shows each figure's median and (min..max).
-               bench_relight and prt-bench-tsis repeat inside one run already.
+               bench_relight, prt-bench-tsis and prt-bench-edit repeat inside one
+               run already.
   --out DIR    where logs, JSON and summary.md go (default out/bench)
 EOF
 }
@@ -75,7 +80,7 @@ fi
 command -v python3 >/dev/null 2>&1 || { echo "bench: python3 is needed for the report (apt-get install python3)" >&2; exit 1; }
 
 # --- build ------------------------------------------------------------------
-targets=(bench_relight prt-bench-pass1 prt-precompute prt-bench-relight-file prt-bench-tsis prt-pointlight)
+targets=(bench_relight prt-bench-pass1 prt-precompute prt-bench-relight-file prt-bench-tsis prt-pointlight prt-bench-edit)
 if [ "$do_build" = 1 ]; then
   echo "bench: building ${targets[*]} (Release) in $build"
   BUILD_DIR=$build BUILD_TYPE=Release "$root/tools/build.sh" "${targets[@]}"
@@ -88,7 +93,8 @@ precompute=$b/bin/prt-precompute
 bench_file=$b/bin/prt-bench-relight-file
 bench_tsis=$b/bin/prt-bench-tsis
 pointlight=$b/bin/prt-pointlight
-for exe in "$bench_relight" "$bench_pass1" "$precompute" "$bench_file" "$bench_tsis" "$pointlight"; do
+bench_edit=$b/bin/prt-bench-edit
+for exe in "$bench_relight" "$bench_pass1" "$precompute" "$bench_file" "$bench_tsis" "$pointlight" "$bench_edit"; do
   [ -x "$exe" ] || { echo "bench: $exe not built (run without --no-build, or tools/build.sh)" >&2; exit 1; }
 done
 
@@ -140,7 +146,20 @@ for k in $(seq 1 "$repeat"); do
 done
 run tsis "$bench_tsis" data/meshes/dragon_vrip_res4.ply.gz --size-mm 30 -m Skin2 --light point:-20,40,-60:0.04 \
   -W 512 -H 512 --split hybrid --samples 3600 --repeat 7 --material-change Skin1 --json "$o/tsis.json"
+# Live materials on the bunny: the editable file at the defaults against a per-vertex
+# plain file, and a blocked editable one (nested lists, 216 per block) against the
+# default blocked file.
+bunny=(data/meshes/bunny.off --size-mm 30 -m Marble -f -q)
+run edit_files_blocked "$precompute" "${bunny[@]}" -o "$o/bunny_blocked.prt"
+run edit_files_per_vertex "$precompute" "${bunny[@]}" --block-coefficients 0 -o "$o/bunny_per_vertex.prt"
+run edit_files_editable "$precompute" "${bunny[@]}" --editable -o "$o/bunny_editable.prt"
+run edit_files_editable_blocked "$precompute" "${bunny[@]}" --editable --block-coefficients 216 \
+  -o "$o/bunny_editable_blocked.prt"
+run edit "$bench_edit" data/meshes/bunny.off "$o/bunny_editable.prt" data/envmaps/forest.exr \
+  --plain "$o/bunny_per_vertex.prt" --repeat 11 --json "$o/edit.json"
+run edit_blocked "$bench_edit" data/meshes/bunny.off "$o/bunny_editable_blocked.prt" data/envmaps/forest.exr \
+  --plain "$o/bunny_blocked.prt" --repeat 11 --json "$o/edit_blocked.json"
 echo "load_end=$(cut -d' ' -f1-3 /proc/loadavg)" >>"$out/meta.txt"
-rm -f "$out/dragon4_ms_ss.prt" "$out/dragon4_folded.prt"
+rm -f "$out/dragon4_ms_ss.prt" "$out/dragon4_folded.prt" "$out"/bunny_{blocked,per_vertex,editable,editable_blocked}.prt
 
 python3 "$root/tools/bench_report.py" "$out"

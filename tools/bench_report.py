@@ -4,7 +4,8 @@
 Usage: tools/bench_report.py OUT_DIR
 
 Reads OUT_DIR/{meta.txt, commands.tsv, relight.json, pass1.log, precompute.json,
-relight_file.json, relight_file_folded.json, tsis.json, cache.log}, prints one Markdown
+relight_file.json, relight_file_folded.json, tsis.json, cache.log, edit.json,
+edit_blocked.json}, prints one Markdown
 table with the command of each row and writes it to OUT_DIR/summary.md. When meta.txt
 says repeat=N (tools/bench.sh --repeat N), the once-per-process benchmarks' files of
 runs 2..N (NAME.rK.log / NAME.rK.json) are read too: the table shows each figure's
@@ -274,6 +275,32 @@ def main():
                 f"{sp(spread_of(cs, 'speedup'))}; "
                 f"{c['cache_share']}% ({c['caches']:,} of {c['hit_pixels']:,}); {100 * c['vs_jb']:.2f}%",
                 ">= 10x faster than Jensen-Buhler", "cache")
+
+    # Live materials (prt-bench-edit; each repeats inside its own run).
+    edit_path, edit_blocked_path = os.path.join(out, "edit.json"), os.path.join(out, "edit_blocked.json")
+    edit = load_json(edit_path) if os.path.exists(edit_path) else None
+    if edit:
+        e = edit["edit"]
+        row(f"live material: an edit with the light still (bunny, {edit['vertices']:,} vertices, editable file at "
+            f"the defaults, J = {edit['profiles']}: weights + J multiply-adds per vertex and channel), median "
+            f"(min..max) of {e['runs']}",
+            f"**{fmt(e['median_ms'])} ms** ({fmt(e['min_ms'])}..{fmt(e['max_ms'])})", "<= 5 ms", "edit")
+        if "light_change_ratio" in edit:
+            row("live material: a light change on the recombined editable file / on a plain per-vertex file "
+                "(relight kernels, medians in the same run); the editable file's bytes / the plain file's",
+                f"{fmt(edit['light_change']['median_ms'])} / {fmt(edit['plain_light_change']['median_ms'])} ms, "
+                f"**{edit['light_change_ratio']:.2f}x**; {edit['transport_bytes'] / edit['plain_bytes']:.2f}x",
+                "<= 3x; <= 4x", "edit")
+    if os.path.exists(edit_blocked_path):
+        eb = load_json(edit_blocked_path)
+        if "light_change_ratio" in eb:
+            per_vertex = (f"; {eb['transport_bytes'] / edit['plain_bytes']:.2f}x the plain per-vertex file's bytes"
+                          if edit and "plain_bytes" in edit else "")
+            row("live material, blocked editable file (nested lists, 216 per block): a light change / on the "
+                "default blocked file (medians in the same run); its bytes",
+                f"{fmt(eb['light_change']['median_ms'])} / {fmt(eb['plain_light_change']['median_ms'])} ms, "
+                f"**{eb['light_change_ratio']:.2f}x**{per_vertex}",
+                "<= 3x; <= 1x the per-vertex file's bytes", "edit_blocked")
 
     lines = [
         f"Measured {meta.get('date', '?')} on {meta.get('cpu', '?')} ({meta.get('threads', '?')} threads, "

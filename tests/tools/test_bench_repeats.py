@@ -116,6 +116,30 @@ class ReportOverRepeats(unittest.TestCase):
             with open(os.path.join(d, "summary.md")) as f:
                 self.assertEqual(f.read().strip(), out.split("\n\nwrote")[0].strip())
 
+    def test_live_material_rows(self):
+        def edit_json(light, plain, transport_bytes, plain_bytes):
+            fig = lambda m: {"median_ms": m, "min_ms": m * 0.9, "max_ms": m * 1.2, "runs": 11}
+            return {"vertices": 37706, "profiles": 12, "edit": fig(0.2), "light_change": fig(light),
+                    "plain_light_change": fig(plain), "light_change_ratio": light / plain,
+                    "transport_bytes": transport_bytes, "plain_bytes": plain_bytes}
+        with tempfile.TemporaryDirectory() as d:
+            self.write(d, "meta.txt", "repeat=1\n")
+            names = ["pass1", "precompute", "relight_file", "edit", "edit_blocked"]
+            self.write(d, "commands.tsv", "".join(f"{n}\tcmd\x1f{n}\x1f\n" for n in names))
+            self.write(d, "relight.json", json.dumps({"workload": {"vertices": 1, "coefficients": 1,
+                                                                   "cubemap_size": 32}}))
+            self.write(d, "precompute.json", json.dumps(precompute_json(8.0, 1.7e-4)))
+            self.write(d, "relight_file.json", json.dumps(relight_file_json(0.095, 2800)))
+            self.write(d, "pass1.log", PASS1_LOG.format(ratio=0.71))
+            self.write(d, "edit.json", json.dumps(edit_json(1.5, 0.6, 153e6, 39e6)))
+            self.write(d, "edit_blocked.json", json.dumps(edit_json(0.4, 0.25, 37.44e6, 19.6e6)))
+            out = subprocess.run([sys.executable, os.path.join(TOOLS, "bench_report.py"), d],
+                                 capture_output=True, text=True, check=True).stdout
+            self.assertIn("**0.2 ms** (0.18..0.24)", out)
+            self.assertIn("1.5 / 0.6 ms, **2.50x**; 3.92x", out)
+            # The blocked file's bytes against the per-vertex plain file of edit.json.
+            self.assertIn("0.4 / 0.25 ms, **1.60x**; 0.96x the plain per-vertex file's bytes", out)
+
     def test_a_missing_repeat_is_an_error(self):
         with tempfile.TemporaryDirectory() as d:
             self.write(d, "meta.txt", "repeat=2\n")
