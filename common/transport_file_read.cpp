@@ -666,6 +666,18 @@ void checkVersionMatchesComponents(FileReader& r, const HeadFields& h, bool anyB
                u64(h.version == kBlockedFormatVersion ? kFormatVersion : kShFormatVersion) + ")");
 }
 
+// Version 7's rule (blocked profile components with index lists of their own): refused
+// below it when the lists surely differ, and a version-7 file where they cannot.
+void checkNestedListsVersion(FileReader& r, uint32_t version, bool listsDiffer, bool listsMayDiffer) {
+    if (listsDiffer && version < kNestedListsFormatVersion)
+        r.fail("inconsistent: blocked profile components with index lists of their own in a format version " +
+               u64(version) + " file (they need version " + u64(kNestedListsFormatVersion) + ")");
+    if (!listsMayDiffer && version == kNestedListsFormatVersion)
+        r.fail("inconsistent: format version " + u64(version) +
+               " but no blocked profile components with index lists of their own (such a file is version " +
+               u64(kEightBitFormatVersion) + " or lower)");
+}
+
 ViewMaps readViewMaps(FileReader& r, bool infoOnly) {
     OpenSection s = openSection(r, Section::ViewMaps, sectionLabel(Section::ViewMaps));
     if (s.length < kViewFixedBytes)
@@ -813,13 +825,7 @@ TransportFile loadImpl(const std::string& path, const MeshFingerprint* expected)
     const std::string reason = checkFile(f);
     if (!reason.empty()) r.fail("inconsistent: " + reason);
     const bool ownLists = blockedProfileListsDiffer(f);
-    if (ownLists && version < kNestedListsFormatVersion)
-        r.fail("inconsistent: blocked profile components with index lists of their own in a format version " +
-               u64(version) + " file (they need version " + u64(kNestedListsFormatVersion) + ")");
-    if (!ownLists && version == kNestedListsFormatVersion)
-        r.fail("inconsistent: format version " + u64(version) +
-               " but no blocked profile components with index lists of their own (such a file is version " +
-               u64(kEightBitFormatVersion) + " or lower)");
+    checkNestedListsVersion(r, version, ownLists, ownLists);
     return f;
 }
 
@@ -878,13 +884,7 @@ TransportFileInfo readTransportFileInfo(const std::string& path) {
     const bool countsDiffer =
         std::adjacent_find(blockedProfileCounts.begin(), blockedProfileCounts.end(), std::not_equal_to<>()) !=
         blockedProfileCounts.end();
-    if (countsDiffer && version < kNestedListsFormatVersion)
-        r.fail("inconsistent: blocked profile components with index lists of their own in a format version " +
-               u64(version) + " file (they need version " + u64(kNestedListsFormatVersion) + ")");
-    if (blockedProfileCounts.size() < 2 && version == kNestedListsFormatVersion)
-        r.fail("inconsistent: format version " + u64(version) +
-               " but no blocked profile components with index lists of their own (such a file is version " +
-               u64(kEightBitFormatVersion) + " or lower)");
+    checkNestedListsVersion(r, version, countsDiffer, blockedProfileCounts.size() >= 2);
     const std::string reason = checkProfileTerms(profileTerms, basisSize);
     if (!reason.empty()) r.fail("inconsistent: " + reason);
     return info;
